@@ -1,0 +1,38 @@
+"""Polynomial feature map Phi^P(x) of the inverse estimate (paper eq. 7).
+
+Phi holds every monomial of the n inputs up to total degree P, constant first:
+binomial(n + P, P) terms, i.e. 4, 10 and 20 for n = 1, 2, 3 at P = 3.
+"""
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+
+def exponents(n: int, degree: int = 3) -> np.ndarray:
+    """Exponent table (p, n) of all monomials of total degree <= degree.
+
+    Row 0 is the constant; rows are ordered by total degree, then lexicographically.
+    """
+    if n < 1 or degree < 0:
+        raise ValueError(f"need n >= 1 and degree >= 0, got n={n}, degree={degree}")
+    rows = [
+        e
+        for total in range(degree + 1)
+        for e in sorted(itertools.product(range(total + 1), repeat=n), reverse=True)
+        if sum(e) == total
+    ]
+    return np.array(rows, dtype=np.int64)
+
+
+def features(x: np.ndarray, exps: np.ndarray) -> np.ndarray:
+    """Phi(x) for x of shape (..., n): returns (..., p)."""
+    x = np.asarray(x, dtype=np.float64)
+    return np.prod(x[..., None, :] ** exps, axis=-1)
+
+
+def feature_bounds(lo: np.ndarray, hi: np.ndarray, exps: np.ndarray) -> np.ndarray:
+    """max |Phi_k(x)| over the box lo <= x <= hi, for each monomial k (exact)."""
+    amax = np.maximum(np.abs(lo), np.abs(hi))
+    return np.prod(amax ** exps, axis=-1)

@@ -1,0 +1,237 @@
+"""Unit tests of the numerical core: features, bodies, growth, the learner's pieces, a trial."""
+import numpy as np
+import pytest
+from scipy.optimize import least_squares
+
+import gbmodel
+from gbmodel import learner
+from gbmodel.features import exponents, feature_bounds, features
+from gbmodel.trial import TrialSpec, eval_epochs, run_trial, size_schedule
+
+BODY_NAMES = ["arm2", "arm5", "icub"]
+
+
+# ---- features ---------------------------------------------------------------------------------
+@pytest.mark.parametrize("n, p", [(1, 4), (2, 10), (3, 20)])
+def test_feature_count(n, p):
+    exps = exponents(n, 3)
+    assert exps.shape == (p, n)
+    assert (exps[0] == 0).all(), "the constant comes first"
+    assert len({tuple(e) for e in exps}) == p and exps.sum(axis=1).max() == 3
+
+
+def test_features_values_and_bounds():
+    exps = exponents(2, 3)
+    x = np.array([0.5, -2.0])
+    phi = features(x, exps)
+    assert phi[0] == 1.0
+    assert phi[list(map(tuple, exps)).index((2, 1))] == pytest.approx(0.5**2 * -2.0)
+    lo, hi = np.array([-1.0, 0.2]), np.array([0.5, 0.7])
+    grid = np.stack(np.meshgrid(np.linspace(-1, 0.5, 31), np.linspace(0.2, 0.7, 31)), -1)
+    observed = np.abs(features(grid.reshape(-1, 2), exps)).max(axis=0)
+    np.testing.assert_allclose(observed, feature_bounds(lo, hi, exps))
+
+
+# ---- kinematics -------------------------------------------------------------------------------
+def test_planar_closed_forms():
+    arm5, arm2 = gbmodel.make_body("arm5"), gbmodel.make_body("arm2")
+    np.testing.assert_allclose(arm5.forward(np.zeros(5)), [1.0, 0.0], atol=1e-15)
+    np.testing.assert_allclose(arm5.forward([np.pi / 2, 0, 0, 0, 0]), [0.0, 1.0], atol=1e-15)
+    np.testing.assert_allclose(arm5.forward([0, np.pi, 0, 0, 0]), [-0.6, 0.0], atol=1e-15)
+    assert arm2.forward(arm2.home) == pytest.approx([0.0], abs=1e-15)
+    assert arm2.forward([np.pi / 2, 0.0]) == pytest.approx([1.0])
+    assert arm2.forward([-np.pi / 2, 0.0]) == pytest.approx([-1.0])
+    # against the textbook formula of a planar chain
+    q = np.random.default_rng(0).uniform(-3, 3, size=(50, 5))
+    cum = np.cumsum(q, axis=1)
+    expected = 0.2 * np.stack([np.cos(cum).sum(1), np.sin(cum).sum(1)], -1)
+    np.testing.assert_allclose(arm5.forward(q), expected, atol=1e-14)
+
+
+@pytest.mark.parametrize("name", BODY_NAMES)
+def test_batch_and_single_shapes_agree(name):
+    body = gbmodel.make_body(name)
+    q = np.random.default_rng(1).uniform(-1, 1, size=(7, body.m))
+    batch = body.forward(q)
+    assert batch.shape == (7, body.n)
+    for row, qi in zip(batch, q):
+        single = body.forward(qi)
+        assert single.shape == (body.n,)
+        np.testing.assert_array_equal(single, row)
+    assert body.forward(q.reshape(7, 1, body.m)).shape == (7, 1, body.n)
+    with pytest.raises(ValueError, match="joint commands"):
+        body.forward(np.zeros(body.m + 1))
+
+
+def test_icub_saturates_at_joint_limits():
+    icub = gbmodel.make_body("icub")
+    q = np.random.default_rng(2).uniform(-3, 3, size=(20, 10))
+    np.testing.assert_array_equal(icub.forward(q), icub.forward(np.clip(q, -1, 1)))
+    np.testing.assert_allclose(icub.joint_angles(-np.ones(10)), icub.q_min + icub.theta_offset)
+    np.testing.assert_allclose(icub.joint_angles(np.ones(10)), icub.q_max + icub.theta_offset)
+
+
+# ---- growth -----------------------------------------------------------------------------------
+@pytest.mark.parametrize("name", BODY_NAMES)
+def test_proportional_growth_scales_the_hand(name):
+    body = gbmodel.make_body(name)
+    q = np.random.default_rng(3).uniform(-1, 1, size=(10, body.m))
+    np.testing.assert_allclose(body.forward(q, 0.5), 0.5 * body.forward(q), atol=1e-15)
+
+
+def test_nonproportional_growth_of_arm5():
+    arm5 = gbmodel.make_body("arm5")
+    for size in (0.5, 0.75, 1.0):
+        lengths = arm5.a * arm5.segment_scale(size, "nonproportional")
+        assert lengths.sum() == pytest.approx(size)
+        assert lengths[1] == lengths[3] == pytest.approx(0.2), "segments 2 and 4 do not grow"
+    start = arm5.a * arm5.segment_scale(0.5, "nonproportional")
+    np.testing.assert_allclose(start[[0, 2, 4]], 0.1 / 3)
+    # the straight arm reaches exactly its total length
+    assert arm5.forward(np.zeros(5), 0.5, "nonproportional") == pytest.approx([0.5, 0.0])
+    with pytest.raises(ValueError, match="too small"):
+        arm5.segment_scale(0.3, "nonproportional")
+
+
+def test_size_schedule():
+    spec = TrialSpec(epochs=50, period=10, start_size=0.5, end_size=1.0)
+    s = size_schedule(spec)
+    assert s[0] == 0.5 and s[10] == 1.0 and (s[10:] == 1.0).all()
+    assert np.all(np.diff(s[:11]) == pytest.approx(0.05))
+    assert (size_schedule(TrialSpec(epochs=5, period=0, end_size=0.5)) == 0.5).all()
+
+
+@pytest.mark.parametrize("name", BODY_NAMES)
+def test_target_set_reachable_at_every_size(name):
+    """Every target is reached (to 0.1 mm) by some posture within the joint limits; growth
+    scales hand and targets alike, so this holds at every size for proportional growth."""
+    body = gbmodel.make_body(name)
+    lo, hi = (-np.ones(body.m), np.ones(body.m)) if body.normalized else (-np.pi, np.pi)
+    for pattern, sizes in [("proportional", [1.0])] + (
+            [("nonproportional", [0.5, 0.75, 1.0])] if name == "arm5" else []):
+        for size in sizes:
+            q = body.home.copy()
+            for x in body.target_set(size):  # walk the grid from posture to posture
+                sol = least_squares(lambda q: body.forward(q, size, pattern) - x, q,
+                                    bounds=(lo, hi) if body.normalized else (-np.inf, np.inf))
+                assert np.abs(sol.fun).max() < 1e-4, f"{name} cannot reach {x} at size {size}"
+                q = sol.x
+
+
+# ---- learner pieces ---------------------------------------------------------------------------
+def _weights_for(step_intended, step_actual, joint_step):
+    """Weight of a sample that follows the home example at the origin."""
+    n, m = len(step_intended), len(joint_step)
+    xstar = np.stack([np.zeros(n), step_intended])
+    x = np.stack([np.zeros(n), step_actual])
+    q = np.stack([np.zeros(m), joint_step])
+    return learner.sample_weights(xstar, x, q)
+
+
+def test_direction_weight():
+    dq = np.array([0.1, 0.0])  # w_eff = |dx| / |dq| = 1 for a hand step of 0.1
+    assert _weights_for([0.1, 0.0], [0.1, 0.0], dq)[1] == pytest.approx(1.0)  # parallel
+    assert _weights_for([0.1, 0.0], [0.0, 0.1], dq)[1] == pytest.approx(0.5)  # perpendicular
+    assert _weights_for([0.1, 0.0], [-0.1, 0.0], dq)[1] == pytest.approx(0.0)  # opposite
+    assert _weights_for([0.1, 0.0], [0.1, 0.0], dq)[0] == 1.0  # the home example
+
+
+def test_efficiency_weight_and_degenerate_cases():
+    w = _weights_for([0.1, 0.0], [0.05, 0.0], [0.2, 0.0])
+    assert w[1] == pytest.approx(0.25)  # 0.05 m of hand per 0.2 rad of joints, parallel
+    for intended, actual, joints in [([0.1, 0], [0, 0], [0.2, 0]),  # hand does not move
+                                     ([0.1, 0], [0, 0], [0, 0]),  # nothing moves
+                                     ([0, 0], [0.1, 0], [0.2, 0]),  # no intended movement
+                                     ([0, 0], [0, 0], [0, 0])]:
+        w = _weights_for(intended, actual, joints)
+        assert np.isfinite(w).all() and w[1] == 0.0
+
+
+def test_disturbance_bound_is_exact():
+    rng = np.random.default_rng(4)
+    for name, radius in [("arm5", 0.2), ("icub", 0.1)]:
+        body = gbmodel.make_body(name)
+        for size in (0.5, 1.0):
+            lo, hi = body.target_box(size)
+            A, b = learner.scale_perturbations(
+                rng.uniform(-1, 1, size=(50, body.m, body.n + 1)), lo, hi, radius)
+            inside = lo + (hi - lo) * rng.uniform(size=(2000, body.n))
+            pts = np.concatenate([body.target_set(size), inside])
+            e = np.abs(pts @ A.transpose(0, 2, 1) + b[:, None, :])  # (V, points, m)
+            assert e.max() <= radius * (1 + 1e-12)
+            # the bound is attained on the target grid (its corners are targets)
+            np.testing.assert_allclose(e[:, :len(body.targets)].max(axis=1), radius)
+
+
+def test_initial_estimate_stays_near_home():
+    rng = np.random.default_rng(5)
+    for name in BODY_NAMES:
+        body = gbmodel.make_body(name)
+        exps = exponents(body.n)
+        lo, hi = body.target_box(0.5)
+        M = learner.init_inverse(body.home, lo, hi, exps, 0.1, rng)
+        inside = lo + (hi - lo) * rng.uniform(size=(5000, body.n))
+        dev = np.abs(gbmodel.predict(M, inside, exps) - body.home)
+        assert dev.max() <= 0.1 and dev.max() > 0.01
+
+
+def test_target_path_follows_eq9():
+    targets = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 2.0]])
+    path = learner.target_path(targets, np.array([0, 1, 2]), 4)
+    assert path.shape == (8, 2)
+    np.testing.assert_allclose(path[:5], [[0, 0], [0.25, 0], [0.5, 0], [0.75, 0], [1, 0]])
+    np.testing.assert_allclose(path[-1], [1.0, 1.5])
+
+
+def test_eval_epochs():
+    e = eval_epochs(100_000)
+    assert e[0] == 1 and e[-1] == 100_000 and (np.diff(e) > 0).all()
+    assert 85 <= len(e) <= 110  # about 20 per decade: a few hundred rows at most
+    assert eval_epochs(37)[-1] == 37 and eval_epochs(1).tolist() == [1]
+
+
+def test_validate_names_the_bad_value():
+    for kwargs, name in [(dict(body="arm7"), "body"), (dict(pattern="sideways"), "pattern"),
+                         (dict(period=-1), "period"), (dict(period=2.5), "period"),
+                         (dict(epochs=0), "epochs"), (dict(radius=-0.1), "radius"),
+                         (dict(learning_rate=0.0), "learning_rate"),
+                         (dict(snapshot_epochs=(0,)), "snapshot_epochs")]:
+        with pytest.raises(ValueError, match=f"^{name}="):
+            TrialSpec(**kwargs).validate()
+
+
+# ---- whole trials -----------------------------------------------------------------------------
+def test_determinism():
+    spec = TrialSpec(body="arm5", epochs=120, period=50, snapshot_epochs=(7,))
+    a = run_trial(spec, np.random.default_rng(11))
+    b = run_trial(spec, np.random.default_rng(11))
+    c = run_trial(spec, np.random.default_rng(12))
+    np.testing.assert_array_equal(a.abs_error, b.abs_error)
+    np.testing.assert_array_equal(a.M, b.M)
+    np.testing.assert_array_equal(a.snapshots[7], b.snapshots[7])
+    assert not np.array_equal(a.abs_error, c.abs_error)
+    # snapshots cut the compiled blocks but change no number
+    d = run_trial(TrialSpec(body="arm5", epochs=120, period=50), np.random.default_rng(11))
+    np.testing.assert_array_equal(a.abs_error, d.abs_error)
+
+
+def test_curve_columns():
+    spec = TrialSpec(body="arm5", epochs=300, period=100)
+    r = run_trial(spec, np.random.default_rng(0))
+    np.testing.assert_array_equal(r.epoch, eval_epochs(300))
+    np.testing.assert_allclose(r.size, size_schedule(spec, r.epoch))
+    np.testing.assert_allclose(r.rel_error, r.abs_error / r.size)
+    assert r.size[0] == 0.5 and r.size[-1] == 1.0
+
+
+@pytest.mark.parametrize("name, epochs, start_max, end_max", [
+    # measured (seed 0, learning rate 1.0): arm2 0.52 m -> 0.010 m, arm5 0.44 m -> 0.082 m
+    ("arm2", 300, 0.6, 0.02),
+    ("arm5", 300, 0.6, 0.12),
+])
+def test_learning_reduces_the_error(name, epochs, start_max, end_max):
+    spec = TrialSpec(body=name, epochs=epochs, start_size=1.0, end_size=1.0)
+    r = run_trial(spec, np.random.default_rng(0))
+    assert r.abs_error[0] > 0.3 and r.abs_error[0] < start_max
+    assert r.abs_error[-1] < end_max, r.abs_error[-1]
+    assert r.abs_error[-1] < 0.3 * r.abs_error[0]
