@@ -34,6 +34,7 @@ class Body:
     growing: np.ndarray  # (m,) bool: segments that grow under non-proportional growth
     q_min: np.ndarray | None = None  # (m,) joint limits [rad] of normalised commands
     q_max: np.ndarray | None = None
+    saturates: bool = True  # normalised commands are clipped to [-1, 1] (False: limits ignored)
     description: str = ""
     _cos_alpha: np.ndarray = field(init=False, repr=False)
     _sin_alpha: np.ndarray = field(init=False, repr=False)
@@ -57,7 +58,9 @@ class Body:
     # ---- commands -> joint angles ------------------------------------------------------------
     def saturate(self, q: np.ndarray) -> np.ndarray:
         """The posture actually taken for command q (clipped to [-1, 1] when normalised)."""
-        return np.clip(q, -1.0, 1.0) if self.normalized else np.asarray(q, dtype=np.float64)
+        if self.normalized and self.saturates:
+            return np.clip(q, -1.0, 1.0)
+        return np.asarray(q, dtype=np.float64)
 
     def joint_angles(self, q: np.ndarray) -> np.ndarray:
         """DH joint angles [rad] for (saturated) commands q."""

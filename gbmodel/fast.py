@@ -75,16 +75,19 @@ def sincos(x):
 
 
 @njit(fastmath=_FLAGS, cache=True)
-def _angles(Q, normalized, q_lo, q_span, offset, theta):
-    """Saturate commands Q (m, N) in place and turn them into DH joint angles theta (m, N)."""
+def _angles(Q, joints, theta):
+    """Saturate commands Q (m, N) in place (if the body does) and turn them into DH joint
+    angles theta (m, N): theta = offset + lo + (q + 1) / 2 * span, or offset + q."""
+    normalized, saturates, q_lo, q_span, offset = joints
     for i in range(Q.shape[0]):
         qi, ti = Q[i], theta[i]
         if normalized:
             lo, span, off = q_lo[i], q_span[i], offset[i]
+            if saturates:
+                for r in range(len(qi)):
+                    qi[r] = min(max(qi[r], -_1), _1)
             for r in range(len(qi)):
-                q = min(max(qi[r], -_1), _1)
-                qi[r] = q
-                ti[r] = off + lo + _HALF * (q + _1) * span
+                ti[r] = off + lo + _HALF * (qi[r] + _1) * span
         else:
             off = offset[i]
             for r in range(len(qi)):
@@ -270,7 +273,6 @@ def _epoch(M, idx, raw, s, body, targets, home, parent, var, joints, radius, ste
 
     Leaves the samples in work: Q (m, N) postures, X (n, N) reached positions, w (N) weights.
     """
-    normalized, q_lo, q_span, offset = joints
     Q, theta, X, Phi, P0, P1, w, path, Phip, gpath, M32, G = work
     m, p = M.shape
     n = targets.shape[1]
@@ -309,7 +311,7 @@ def _epoch(M, idx, raw, s, body, targets, home, parent, var, joints, radius, ste
                 aij, pj = F4(A[i, j]), path[j]
                 for t in range(T):
                     qi[t] += aij * pj[t]
-    _angles(Q, normalized, q_lo, q_span, offset, theta)
+    _angles(Q, joints, theta)
     _forward(theta, body, X, P0, P1)
     wsum = _weights(path, X, Q, V, w)
     # one normalised gradient step on the weighted command error (eq. 6)
@@ -324,7 +326,6 @@ def _epoch(M, idx, raw, s, body, targets, home, parent, var, joints, radius, ste
 @njit(fastmath=_FLAGS, cache=True)
 def _evaluate(M, s, body, targets, parent, var, joints, work):
     """Mean distance between every target (at size s) and the hand under g (float64 sum)."""
-    normalized, q_lo, q_span, offset = joints
     X, Phi, Q, theta, P0, P1, M32 = work
     NT, n = targets.shape
     s4 = F4(s)
@@ -336,7 +337,7 @@ def _evaluate(M, s, body, targets, parent, var, joints, work):
             X[j, t] = s4 * targets[t, j]
     _features(X, parent, var, Phi)
     _matmul(M32, Phi, Q)
-    _angles(Q, normalized, q_lo, q_span, offset, theta)
+    _angles(Q, joints, theta)
     _forward(theta, body, X, P0, P1)
     total = 0.0
     for t in range(NT):
@@ -403,7 +404,7 @@ def _arrays(body, exps):
     f4 = lambda x: np.ascontiguousarray(x, np.float32)  # noqa: E731
     chain = body.chain(1.0)
     normalized = body.normalized
-    joints = (normalized,
+    joints = (normalized, body.saturates,
               f4(body.q_min if normalized else np.zeros(body.m)),
               f4(body.q_max - body.q_min if normalized else np.ones(body.m)),
               f4(body.theta_offset))

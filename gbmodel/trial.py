@@ -12,7 +12,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from . import learner
-from .bodies import BODIES, GROWTH_PATTERNS, make_body
+from .bodies import BODIES, GROWTH_PATTERNS, Body, make_body
 from .features import exponents
 
 DRAW_BLOCK = 1000
@@ -113,14 +113,16 @@ def eval_epochs(epochs: int, per_decade: int = 20) -> np.ndarray:
     return np.union1d(e[e <= epochs], [1, epochs])
 
 
-def run_trial(spec: TrialSpec, rng: np.random.Generator, fast: bool = True) -> TrialResult:
+def run_trial(spec: TrialSpec, rng: np.random.Generator, fast: bool = True,
+              body: Body | None = None) -> TrialResult:
     """Run one trial of Goal Babbling and return its learning curve.
 
     fast=True runs the compiled kernel (gbmodel.fast), fast=False the numpy reference path; both
-    consume the same random numbers and agree to rounding.
+    consume the same random numbers and agree to rounding. `body` replaces make_body(spec.body),
+    for variants of a body (another target set, home posture or limit handling).
     """
     spec.validate()
-    body = make_body(spec.body)
+    body = make_body(spec.body) if body is None else body
     exps = exponents(body.n, spec.degree)
     sizes = size_schedule(spec)
     M = learner.init_inverse(body.home, *body.target_box(sizes[0]), exps, spec.init_range, rng)

@@ -64,3 +64,20 @@ def test_learning_curve_matches_reference(name, pattern):
     np.testing.assert_allclose(fst.abs_error, ref.abs_error, atol=1e-5)
     np.testing.assert_allclose(fst.M, ref.M, atol=1e-4)
     assert ref.rel_error[-1] < ref.rel_error[0]
+
+
+def test_body_variant_without_saturation():
+    """A body passed to run_trial replaces the named one on both paths (here: iCub with its
+    joint limits ignored), and ignoring the limits does change the outcome."""
+    import dataclasses
+
+    free = dataclasses.replace(gbmodel.make_body("icub"), saturates=False)
+    q = np.full(10, 1.5)
+    assert not np.allclose(free.forward(q), gbmodel.make_body("icub").forward(q))
+    spec = gbmodel.TrialSpec(body="icub", epochs=30, start_size=1.0, radius=0.6,
+                             **{k: v for k, v in SETTINGS["icub"].items() if k != "radius"})
+    ref = gbmodel.run_trial(spec, np.random.default_rng(2), fast=False, body=free)
+    fst = gbmodel.run_trial(spec, np.random.default_rng(2), fast=True, body=free)
+    clipped = gbmodel.run_trial(spec, np.random.default_rng(2), fast=True)
+    np.testing.assert_allclose(fst.abs_error, ref.abs_error, atol=1e-5)
+    assert not np.allclose(fst.abs_error, clipped.abs_error, atol=1e-5)
