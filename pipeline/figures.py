@@ -1,0 +1,204 @@
+"""The report's drawings, each a function from aggregated data to a matplotlib Figure.
+
+Saved with `save`, which fixes everything that could change the bytes between runs: rcParams,
+no timestamps or software versions in the metadata, a fixed SVG hash salt.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+import gbmodel  # noqa: E402
+from gbmodel.kinematics import hand_position  # noqa: E402
+
+RC = {
+    "font.family": "DejaVu Sans",
+    "font.size": 9,
+    "axes.titlesize": 9,
+    "legend.fontsize": 8,
+    "axes.grid": True,
+    "grid.alpha": 0.3,
+    "savefig.bbox": "standard",
+    "svg.hashsalt": "gbgrowth",
+    "pdf.compression": 6,
+    "path.simplify": False,
+}
+METADATA = {
+    "png": {"Software": None},
+    "pdf": {"Creator": None, "Producer": None, "CreationDate": None, "ModDate": None},
+}
+
+
+def save(fig, stem: Path, dpi: int) -> list[Path]:
+    """Write stem.png and stem.pdf with reproducible bytes; return the paths."""
+    from .cache import atomic_path
+
+    paths = []
+    for ext in ("png", "pdf"):
+        path = stem.with_suffix(f".{ext}")
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, format=ext, dpi=dpi, metadata=METADATA[ext])
+        paths.append(path)
+    plt.close(fig)
+    return paths
+
+
+def condition_label(row) -> str:
+    if row["growth"] == "none":
+        return f"constant size {row['end_size']:g}"
+    return f"T_G = {row['growth_period']}"
+
+
+def condition_styles(summary) -> dict:
+    """Colour per growing condition (by period), grey/black dashes for the references."""
+    growing = summary[summary["growth"] != "none"]
+    colors = plt.get_cmap("viridis")(np.linspace(0.0, 0.85, max(len(growing), 1)))
+    styles = {c: dict(color=col, ls="-") for c, col in zip(growing["condition"], colors)}
+    refs = summary[summary["growth"] == "none"].sort_values("end_size")
+    for i, c in enumerate(refs["condition"]):
+        styles[c] = dict(color="0.55" if i < len(refs) - 1 else "black",
+                         ls="--" if i < len(refs) - 1 else ":")
+    return styles
+
+
+def learning_curves(curves, summary, title: str, log_y: bool = True, paper_abs=None):
+    """Fig. 4/5/7: (a) absolute and (b) relative error against epochs, mean over trials with the
+    inter-quartile band, one line per growth period and per reference; the paper's stated final
+    accuracy, if given, as a horizontal line in (a)."""
+    styles = condition_styles(summary)
+    fig, axes = plt.subplots(1, 2, figsize=(9.0, 3.6))
+    for ax, col, ylabel in ((axes[0], "abs_error", "absolute error [m]"),
+                            (axes[1], "rel_error", "relative error [m / size factor]")):
+        for _, row in summary.iterrows():
+            cu = curves[curves["condition"] == row["condition"]].sort_values("epoch")
+            if not len(cu):
+                continue
+            st = styles[row["condition"]]
+            ax.fill_between(cu["epoch"], cu[f"{col}_q25"], cu[f"{col}_q75"], color=st["color"],
+                            alpha=0.15, lw=0)
+            ax.plot(cu["epoch"], cu[f"{col}_mean"], label=condition_label(row), lw=1.3, **st)
+        ax.set_xscale("log")
+        if log_y:
+            ax.set_yscale("log")
+        ax.set_xlabel("epoch")
+        ax.set_ylabel(ylabel)
+    if paper_abs is not None:
+        line = axes[0].axhline(paper_abs, color="tab:red", lw=0.9, ls="-.",
+                               label=f"paper: final error ≈ {1000 * paper_abs:g} mm")
+        axes[0].legend(handles=[line], loc="lower left", frameon=False)
+    axes[0].set_title("(a) absolute error")
+    axes[1].set_title("(b) relative error")
+    axes[1].legend(loc="best", frameon=False)
+    n = int(summary["n_trials"].max()) if len(summary) else 0
+    fig.suptitle(f"{title} (mean and quartiles over {n} trials)")
+    fig.tight_layout()
+    return fig
+
+
+def _inverse(spec: dict, M) -> tuple:
+    body = gbmodel.make_body(spec["body"])
+    return body, np.asarray(M, dtype=float), gbmodel.exponents(body.n, spec["degree"])
+
+
+def joint_space_stages(spec: dict, stages: list[tuple[str, list]], title: str):
+    """Fig. 2: the inverse estimate of the 2-DOF arm in its joint space over the contours of
+    equal hand height, one panel per stage. stages: (label, M) pairs."""
+    body = gbmodel.make_body(spec["body"])
+    exps = gbmodel.exponents(body.n, spec["degree"])
+    size, pattern = spec["end_size"], spec["pattern"]
+    targets = body.target_set(size)[:, 0]
+    xs = np.linspace(targets.min(), targets.max(), 401)[:, None]
+    curves = [gbmodel.predict(np.asarray(M), xs, exps) for _, M in stages]
+    lim = max(np.pi, *(np.abs(c).max() for c in curves))
+    grid = np.linspace(-lim, lim, 301)
+    Q = np.stack(np.meshgrid(grid, grid, indexing="xy"), axis=-1)
+    height = body.forward(Q, size, pattern)[..., 0]
+    cmap = plt.get_cmap("coolwarm")
+    norm = matplotlib.colors.Normalize(targets.min(), targets.max())
+
+    fig, axes = plt.subplots(1, len(stages), figsize=(2.6 * len(stages), 3.2), squeeze=False)
+    for ax, (label, M), g in zip(axes[0], stages, curves):
+        ax.contour(grid, grid, height, levels=np.sort(targets), cmap=cmap, norm=norm,
+                   linewidths=0.7)
+        ax.plot(g[:, 0], g[:, 1], color="black", lw=1.2)
+        q_t = gbmodel.predict(np.asarray(M), targets[:, None], exps)
+        ax.scatter(q_t[:, 0], q_t[:, 1], c=targets, cmap=cmap, norm=norm, s=14,
+                   edgecolors="black", linewidths=0.4, zorder=3)
+        ax.plot(*body.home, marker="+", color="black", ms=8)
+        ax.set(xlim=(-lim, lim), ylim=(-lim, lim), aspect="equal", title=label,
+               xlabel="q1 [rad]")
+        ax.grid(False)
+    axes[0, 0].set_ylabel("q2 [rad]")
+    fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
+def link_points(body, q, size, pattern) -> np.ndarray:
+    """Root-frame points (m + 1, 3) of the chain's frames, base to hand, for command q (m,)."""
+    theta = body.joint_angles(np.asarray(q, float))
+    ch = body.chain(size, pattern)
+    return np.stack([hand_position(theta[:k], ch["a"][:k], ch["d"][:k], ch["cos_alpha"][:k],
+                                   ch["sin_alpha"][:k], ch["base"]) for k in range(body.m + 1)])
+
+
+def _grid_shape(targets) -> tuple | None:
+    shape = tuple(len(np.unique(np.round(targets[:, j], 9))) for j in range(targets.shape[1]))
+    return shape if int(np.prod(shape)) == len(targets) else None
+
+
+def _draw_grid(ax, points, shape, **style):
+    """Lines through a regular grid of points (built by gbmodel.bodies._grid: C order)."""
+    if shape is None:
+        ax.scatter(*points.T, s=4, color=style.get("color"))
+        return
+    dim = points.shape[1]
+    P = points.reshape(*shape, dim)
+    gap = np.full((1, dim), np.nan)  # one polyline, broken by NaN rows: one artist, fast
+    parts = []
+    for axis in range(len(shape)):
+        for line in np.moveaxis(P, axis, -2).reshape(-1, shape[axis], dim):
+            parts += [line, gap]
+    ax.plot(*np.concatenate(parts).T, **style)
+
+
+def postures(panels: list[tuple[str, dict, list]], title: str, n_postures: int = 5):
+    """Fig. 3/6: target grid (grey) against reached grid (black) and a few postures.
+
+    panels: (label, spec, M); each panel shows the body at its final size.
+    """
+    three_d = any(gbmodel.make_body(spec["body"]).n == 3 for _, spec, _ in panels)
+    fig = plt.figure(figsize=(3.6 * len(panels), 3.6))
+    for k, (label, spec, M) in enumerate(panels):
+        body, M, exps = _inverse(spec, M)
+        size, pattern = spec["end_size"], spec["pattern"]
+        targets = body.target_set(size)
+        q = gbmodel.predict(M, targets, exps)
+        reached = body.forward(q, size, pattern)
+        shape = _grid_shape(targets)
+        ax = fig.add_subplot(1, len(panels), k + 1, projection="3d" if three_d else None)
+        _draw_grid(ax, targets, shape, color="0.7", lw=0.8)
+        _draw_grid(ax, reached, shape, color="black", lw=0.8)
+        picks = np.linspace(0, len(targets) - 1, n_postures).round().astype(int)
+        cols = plt.get_cmap("tab10")(np.arange(n_postures))
+        for c, i in zip(cols, picks):
+            pts = link_points(body, q[i], size, pattern)[:, list(body.outputs)]
+            ax.plot(*pts.T, color=c, lw=1.6, marker="o", ms=2.5)
+        err = np.linalg.norm(reached - targets, axis=-1).mean()
+        ax.set_title(f"{label}\nsize {size:g}, mean error {1000 * err:.1f} mm")
+        if three_d:
+            spans = [np.ptp(lim) for lim in (ax.get_xlim3d(), ax.get_ylim3d(), ax.get_zlim3d())]
+            ax.set_box_aspect(spans, zoom=0.85)  # the same scale on all three axes
+            ax.grid(False)  # the target grid is the only grey grid
+            ax.set(xlabel="x [m]", ylabel="y [m]", zlabel="z [m]")
+            ax.view_init(elev=20, azim=-60)
+        else:
+            ax.set(aspect="equal", xlabel="x [m]", ylabel="y [m]")
+    fig.suptitle(title)
+    fig.tight_layout()
+    return fig

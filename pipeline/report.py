@@ -1,0 +1,192 @@
+"""Stage 3, report: figures and tables from the aggregated data, tied together by report.md.
+
+    python -m pipeline.report              # everything under paths.aggregate -> paths.report
+
+Writes under paths.report (all bytes reproducible, no timestamps, only relative paths):
+    <figure>_curves.png/.pdf   (a) absolute and (b) relative error against epochs (Fig. 4, 5, 7)
+    fig2_stages.png/.pdf       the inverse estimate of arm2 in joint space at successive stages
+    fig3_postures.png/.pdf     target grid vs reached grid with postures, 5-DOF arm (Fig. 3)
+    fig6_postures.png/.pdf     the same for the iCub (Fig. 6)
+    summary.csv, summary.md    per condition: final errors, peak during growth, failures, paper
+    report.md                  the above, and the list of every file this stage writes
+It reads only the aggregate stage's output, never the cache.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import sys
+from pathlib import Path
+
+import gbmodel
+import hydra
+import numpy as np
+import pandas as pd
+from omegaconf import DictConfig, OmegaConf
+
+from . import cache, figures
+
+log = logging.getLogger("pipeline.report")
+
+
+def load_aggregates(folder: Path) -> dict:
+    """figure -> dict(curves, summary, models) for every aggregated figure, sorted by name."""
+    out = {}
+    for fig_dir in sorted(p for p in Path(folder).iterdir() if (p / "summary.parquet").exists()):
+        out[fig_dir.name] = dict(
+            curves=pd.read_parquet(fig_dir / "curves.parquet"),
+            summary=pd.read_parquet(fig_dir / "summary.parquet"),
+            models=json.loads((fig_dir / "models.json").read_text()),
+        )
+    return out
+
+
+def _mm(v) -> str:
+    return "" if v is None or not np.isfinite(v) else f"{1000 * v:.1f}"
+
+
+def _pm(mean, std) -> str:
+    if not np.isfinite(mean):
+        return ""
+    return _mm(mean) + (f" ± {_mm(std)}" if np.isfinite(std) else "")
+
+
+def summary_markdown(summary: pd.DataFrame) -> str:
+    """The summary as a Markdown table, errors in mm (relative errors: mm per unit body size)."""
+    head = ("| figure | condition | body | growth | T_G | trials | final abs. error [mm] "
+            "| final rel. error [mm/size] | peak abs. error during growth [mm] (rise, epoch) "
+            "| run failures | failed to bootstrap | paper: final abs. error [mm] |")
+    lines = [head, "|" + "---|" * head.count(" | ") + "---|"]
+    for _, r in summary.iterrows():
+        peak = (f"{_mm(r['peak_abs_error_growth'])} (+{_mm(r['rise_abs_error_growth'])}, "
+                f"epoch {r['peak_epoch_growth']})" if np.isfinite(r["peak_abs_error_growth"]) else "")
+        lines.append(
+            f"| {r['figure']} | {r['condition']} | {r['body']} | {r['growth']} "
+            f"| {r['growth_period'] if r['growth'] != 'none' else ''} | {r['n_trials']} "
+            f"| {_pm(r['final_abs_error_mean'], r['final_abs_error_std'])} "
+            f"| {_pm(r['final_rel_error_mean'], r['final_rel_error_std'])} | {peak} "
+            f"| {r['n_run_failures']} | {r['n_bootstrap_failures']} "
+            f"| {_mm(r['paper_final_abs_error'])} |")
+    return "\n".join(lines) + "\n"
+
+
+def _title(figure: str, agg: dict) -> str:
+    return agg["models"].get("paper", {}).get("title") or f"{figure}"
+
+
+def _stages_figure(agg: dict) -> tuple | None:
+    """(spec, [(label, M)]) of trial 0 of the first condition: its snapshots, then the final M."""
+    for cond in agg["models"]["conditions"].values():
+        trial = cond["trials"].get("0")
+        if trial is None:
+            continue
+        stages = [(f"after epoch {e}", M) for e, M in
+                  sorted(trial["snapshots"].items(), key=lambda kv: int(kv[0]))]
+        if str(cond["spec"]["epochs"]) not in trial["snapshots"]:
+            stages.append((f"final, epoch {cond['spec']['epochs']}", trial["M"]))
+        stages = [(f"({chr(97 + i)}) {label}", M) for i, (label, M) in enumerate(stages)]
+        return cond["spec"], stages
+    return None
+
+
+def _posture_panels(aggs: dict, wanted) -> list:
+    panels = []
+    for figure, condition in wanted:
+        cond = aggs.get(figure, {}).get("models", {}).get("conditions", {}).get(condition)
+        if cond and "0" in cond["trials"]:
+            label = f"{figure} {condition}, trial 0"
+            panels.append((label, cond["spec"], cond["trials"]["0"]["M"]))
+    return panels
+
+
+def report(cfg: DictConfig) -> list[Path]:
+    """Write every report file; return their paths."""
+    out = Path(cfg.paths.report)
+    aggs = load_aggregates(Path(cfg.paths.aggregate)) if Path(cfg.paths.aggregate).exists() else {}
+    if not aggs:
+        raise FileNotFoundError(f"nothing aggregated under {cfg.paths.aggregate}: "
+                                "run pipeline.simulate and pipeline.aggregate first")
+    rc, dpi = figures.RC, cfg.report.dpi
+    written, sections = [], []
+    with figures.plt.rc_context(rc):
+        for name, agg in aggs.items():
+            fig = figures.learning_curves(
+                agg["curves"], agg["summary"], _title(name, agg), log_y=cfg.report.log_error_axis,
+                paper_abs=agg["models"].get("paper", {}).get("final_abs_error"))
+            paths = figures.save(fig, out / f"{name}_curves", dpi)
+            written += paths
+            sections.append((name, _title(name, agg), [paths[0].name], agg["summary"]))
+
+        extra = []
+        js = cfg.report.joint_space_figure
+        if js in aggs and (st := _stages_figure(aggs[js])) is not None:
+            spec, stages = st
+            if gbmodel.make_body(spec["body"]).n == 1:  # a joint space over one target axis
+                fig = figures.joint_space_stages(
+                    spec, stages, "Fig. 2: inverse estimate of the 2-DOF arm in joint space "
+                    "(contours: equal hand height)")
+                extra.append(("Fig. 2: stages of learning (joint space)",
+                              figures.save(fig, out / f"{js}_stages", dpi)))
+        for name, wanted in OmegaConf.to_container(cfg.report.postures).items():
+            panels = _posture_panels(aggs, wanted)
+            if panels:
+                fig = figures.postures(panels, f"{name}: target grid (grey), reached grid "
+                                       "(black), postures")
+                extra.append((f"{name}: targets, reached positions and postures",
+                              figures.save(fig, out / f"{name}_postures", dpi)))
+    for _, paths in extra:
+        written += paths
+
+    summary = pd.concat([a["summary"] for a in aggs.values()], ignore_index=True)
+    table_md = summary_markdown(summary)
+    cache.write_text(out / "summary.csv", summary.to_csv(index=False))
+    cache.write_text(out / "summary.md", table_md)
+    written += [out / "summary.csv", out / "summary.md"]
+
+    md = ["# Reproduction of Rolf, Steil & Gienger (2010): Goal Babbling on growing bodies", "",
+          "Generated by `python -m pipeline.report` from `pipeline.aggregate`'s tables; "
+          "`make reproduce` regenerates everything. Errors: mean over trials (± standard "
+          "deviation); curves: mean with the inter-quartile band. A trial *failed to bootstrap* "
+          f"when its final relative error exceeds {cfg.aggregate.fail_factor:g} times the median "
+          "of its condition.", ""]
+    for name, title, images, summ in sections:
+        r0 = summ.iloc[0] if len(summ) else None
+        md += [f"## {title}", ""]
+        if r0 is not None:
+            md += [f"Body `{r0['body']}`, {int(r0['epochs'])} epochs, "
+                   f"{int(summ['n_trials'].max())} trials per condition.", ""]
+        md += [f"![{name}]({img})" for img in images] + ["", summary_markdown(summ)]
+    for title, paths in extra:
+        md += [f"## {title}", "", f"![{paths[0].stem}]({paths[0].name})", ""]
+    files = sorted(p.relative_to(out).as_posix() for p in written) + ["report.md"]
+    md += ["## Files", "", "Every file of this report (all regenerated by `python -m pipeline.report`):",
+           ""] + [f"- `{f}`" for f in files]
+    cache.write_text(out / "report.md", "\n".join(md) + "\n")
+    written.append(out / "report.md")
+    log.info("report: %d files -> %s", len(written), out)
+    return written
+
+
+def listed_files(report_md: Path) -> list[str]:
+    """The files report.md lists in its 'Files' section (used by the tests and by CI checks)."""
+    text = Path(report_md).read_text().split("## Files", 1)[-1]
+    return [line.strip()[3:-1] for line in text.splitlines() if line.startswith("- `")]
+
+
+def run(cfg: DictConfig) -> int:
+    try:
+        report(cfg)
+    except FileNotFoundError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    return 0
+
+
+@hydra.main(config_path="../conf", config_name="config", version_base="1.3")
+def main(cfg: DictConfig) -> None:
+    if (rc := run(cfg)) != 0:
+        sys.exit(rc)
+
+
+if __name__ == "__main__":
+    main()
