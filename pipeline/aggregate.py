@@ -22,7 +22,7 @@ import pandas as pd
 import pyarrow.parquet as pq
 from omegaconf import DictConfig
 
-from . import cache
+from . import cli, cache
 from .cache import LABEL_COLUMNS
 
 log = logging.getLogger("pipeline.aggregate")
@@ -154,4 +154,4 @@ def main(cfg: DictConfig) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    cli.main(main)

@@ -24,7 +24,7 @@ import numpy as np
 import pandas as pd
 from omegaconf import DictConfig, OmegaConf
 
-from . import cache, figures
+from . import cli, cache, figures
 
 log = logging.getLogger("pipeline.report")
 
@@ -189,4 +189,4 @@ def main(cfg: DictConfig) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    cli.main(main)

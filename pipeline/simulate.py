@@ -27,7 +27,7 @@ from omegaconf import DictConfig, OmegaConf
 
 import gbmodel
 
-from . import cache
+from . import cli, cache
 from .config import ConfigError
 from .plan import cost, plan
 
@@ -177,4 +177,4 @@ def main(cfg: DictConfig) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    cli.main(main)

@@ -155,15 +155,23 @@ def test_a_failing_trial_is_recorded_and_the_others_finish(tmp_path, compose_tin
 
 
 @pytest.mark.parametrize("override, shown", [
-    ("body=leg", "leg"), ("growth=sideways", "sideways"), ("growth.period=-1", "growth.period=-1"),
-    ("growth.period=1.5", "1.5"), ("learner.epochs=0", "learner.epochs=0"),
-    ("trials.count=0", "trials.count=0"), ("learner.radius=-0.1", "learner.radius=-0.1"),
-    ("experiment=fig9", "fig9"),
+    ("body=leg", "body=leg: unknown option"), ("growth=sideways", "growth=sideways"),
+    ("growth.period=-1", "growth.period=-1"), ("growth.period=1.5", "growth.period"),
+    ("learner.epochs=0", "learner.epochs=0"), ("trials.count=0", "trials.count=0"),
+    ("learner.radius=-0.1", "learner.radius=-0.1"), ("experiment=fig9", "experiment=fig9"),
+    ("learner.rate=1", "learner.rate"), ("growth.period=10,100", "needs -m"),
 ])
 def test_bad_input_is_one_clear_error_and_writes_nothing(tmp_path, override, shown):
     r = run_cli("pipeline.simulate", *tiny_overrides(tmp_path, override))
-    assert r.returncode != 0
-    assert "Traceback" not in r.stderr and shown in r.stderr.splitlines()[0] + r.stderr
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and shown in lines[0], r.stderr
+    assert not list(tmp_path.rglob("*")), "nothing may be written, not even a log"
+
+
+def test_bad_value_in_a_sweep_is_caught_before_any_job_runs(tmp_path):
+    r = run_cli("pipeline.simulate", "-m", *tiny_overrides(tmp_path, "growth.period=10,-5"))
+    assert r.returncode == 2 and "growth.period=-5" in r.stderr, r.stderr
     assert not (tmp_path / "outputs/smoke/cache").exists()
 
 
