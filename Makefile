@@ -8,7 +8,7 @@ PROFILE ?= full
 ARGS    ?=
 
 .DEFAULT_GOAL := help
-.PHONY: help setup reproduce smoke simulate aggregate report pipeline test test-slow clean
+.PHONY: help setup reproduce smoke simulate aggregate choices report pipeline bench test test-slow clean
 
 help: ## list the targets
 	@awk 'BEGIN {FS = ":.*## "} /^[a-z-]+:.*## / {printf "  make %-10s %s\n", $$1, $$2}' $(MAKEFILE_LIST)
@@ -29,7 +29,7 @@ reproduce: ## the paper's figures and tables at full scale: simulate -> aggregat
 smoke: ## the same at smoke scale (1000 epochs, 2 trials) into outputs/smoke/
 	@$(MAKE) --no-print-directory pipeline PROFILE=smoke
 
-pipeline: simulate aggregate report
+pipeline: simulate aggregate choices report
 
 simulate: $(STAMP) ## stage 1: run the trials of FIGURES that are not cached (PROFILE, ARGS)
 	@rc=0; for f in $(FIGURES); do \
@@ -42,7 +42,14 @@ aggregate: $(STAMP) ## stage 2: the cache into curves.parquet and summaries per 
 report: $(STAMP) ## stage 3: figures, tables and report.md
 	$(PY) -m pipeline.report profile=$(PROFILE) $(ARGS)
 
-# bench: added by the numerical core (python -m pipeline.bench)
+# the open-choices sweep: 3 seeds x 20,000 epochs per variant at full scale, 1 x 500 for smoke
+CHOICES_full  := --out outputs/report --cache outputs/cache/choices
+CHOICES_smoke := --epochs 500 --seeds 1 --out outputs/smoke/report --cache outputs/smoke/cache/choices
+choices: $(STAMP) ## stage 2b: short sweeps over the choices the paper leaves open (cached)
+	$(PY) -m pipeline.choices $(CHOICES_$(PROFILE))
+
+bench: $(STAMP) ## time the fast path against the numpy reference (outputs/bench/bench.json)
+	$(PY) -m pipeline.bench
 
 test: $(STAMP) ## run the test suite (slow tests excluded)
 	$(PY) -m pytest
