@@ -43,6 +43,11 @@ def _arm5_home(bend):
     return np.array([np.pi / 2 - 2 * bend] + [bend] * 4)
 
 
+def _shrunk(targets, factor):
+    centre = 0.5 * (targets.min(axis=0) + targets.max(axis=0))
+    return centre + factor * (targets - centre)
+
+
 def variants():
     """(body, choice, label, chosen, spec overrides, body overrides) of every run."""
     rows = []
@@ -62,6 +67,8 @@ def variants():
          dict(targets=_grid(np.linspace(-0.6, 0.6, 13), np.linspace(0.1, 0.7, 7)))),
         ("arm5", "target grid", "coarser: 6 x 3 over the same box", False, {},
          dict(targets=_grid(np.linspace(-0.5, 0.5, 6), np.linspace(0.2, 0.7, 3)))),
+        ("icub", "target grid", "smaller: the 4 x 4 x 4 grid shrunk to 2/3 about its centre",
+         False, {}, dict(targets=_shrunk(gbmodel.make_body("icub").targets, 2 / 3))),
         ("icub", "joint limits", "ignored (no saturation)", False, {}, dict(saturates=False)),
         ("arm5", "non-proportional short reference", "non-proportional start body (0.5 m)", True,
          dict(pattern="nonproportional", start_size=0.5, end_size=0.5), {}),
