@@ -2,7 +2,8 @@
 
     python -m pipeline.bench [--repeats 5] [--out outputs/bench/bench.json] [--no-parallel]
 
-For arm5 and iCub at the paper's settings (V=20, K=15, L=7, R=0.2 and V=20, K=30, L=10, R=0.1)
+For arm5 and iCub at the paper's settings (conf/learner: V=20, K=15, L=7, R=0.2 and V=20, K=30,
+L=10, R=0.1)
 it times whole trials (draws, epochs and the evaluation schedule) on one core, divides by the
 number of epochs, and reports the median over repeats for both paths, measured in the same run,
 and their ratio. With parallel scaling on, it also times the same batch of arm5 trials on one and
@@ -25,17 +26,17 @@ import numpy as np  # noqa: E402
 
 import gbmodel  # noqa: E402
 
-PAPER = {
-    "arm5": dict(body="arm5", radius=0.2, variations=20, targets_per_epoch=15, steps=7),
-    "icub": dict(body="icub", radius=0.1, variations=20, targets_per_epoch=30, steps=10),
-}
+from .config import learner_settings  # noqa: E402
+
+PAPER = {body: learner_settings(body) for body in ("arm5", "icub")}
 # epochs per timed trial: long enough to swamp timer noise, short enough for the reference path
 EPOCHS = {"fast": {"arm5": 5000, "icub": 1000}, "reference": {"arm5": 100, "icub": 20}}
 
 
 def time_trial(body: str, fast: bool, epochs: int, seed: int = 0) -> float:
     """Seconds per epoch of one trial (start and end size 1, i.e. no growth)."""
-    spec = gbmodel.TrialSpec(epochs=epochs, start_size=1.0, end_size=1.0, **PAPER[body])
+    spec = gbmodel.TrialSpec(**{**PAPER[body], "epochs": epochs, "start_size": 1.0,
+                                "end_size": 1.0})
     rng = np.random.default_rng(seed)
     t0 = time.perf_counter()
     gbmodel.run_trial(spec, rng, fast=fast)

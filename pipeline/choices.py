@@ -29,13 +29,10 @@ import pandas as pd  # noqa: E402
 import gbmodel  # noqa: E402
 from gbmodel.bodies import _grid  # noqa: E402
 
+from .config import learner_settings  # noqa: E402
 from .plan import code_fingerprint, stable_hash32  # noqa: E402
 
-PAPER = {
-    "arm2": dict(body="arm2", radius=0.2, variations=20, targets_per_epoch=15, steps=7),
-    "arm5": dict(body="arm5", radius=0.2, variations=20, targets_per_epoch=15, steps=7),
-    "icub": dict(body="icub", radius=0.1, variations=20, targets_per_epoch=30, steps=10),
-}
+PAPER = {body: learner_settings(body) for body in gbmodel.BODIES}  # conf/learner/*.yaml
 LONG = dict(start_size=1.0, end_size=1.0)
 
 
@@ -90,7 +87,7 @@ def _run(job):
     """One trial of one variant; returns its final errors under several scorings."""
     body_name, spec_kw, body_kw, epochs, seed_seq = job
     body = dataclasses.replace(gbmodel.make_body(body_name), **body_kw)
-    spec = gbmodel.TrialSpec(**{"epochs": epochs, **PAPER[body_name], **LONG, **spec_kw})
+    spec = gbmodel.TrialSpec(**{**PAPER[body_name], "epochs": epochs, **LONG, **spec_kw})
     res = gbmodel.run_trial(spec, np.random.default_rng(seed_seq), body=body)
     size = spec.end_size
     exps = gbmodel.exponents(body.n, spec.degree)
@@ -143,7 +140,8 @@ def main(argv=None) -> pd.DataFrame:
         ap.error("--epochs, --seeds and --workers must be positive")
 
     rows = variants()
-    key = stable_hash32([repr(rows), args.epochs, args.seeds, args.root_seed, code_fingerprint()])
+    key = stable_hash32([repr(rows), PAPER, args.epochs, args.seeds, args.root_seed,
+                         code_fingerprint()])
     cached = Path(args.cache) / f"choices-{key:08x}.parquet"
     if cached.exists():
         raw = pd.read_parquet(cached)

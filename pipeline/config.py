@@ -131,3 +131,9 @@ def compose(overrides: list[str] | tuple = ()) -> DictConfig:
     GlobalHydra.instance().clear()
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
         return hydra_compose(config_name="config", overrides=list(overrides))
+
+
+def learner_settings(body: str) -> dict:
+    """The TrialSpec fields `body=<body>` selects: the body and its learner group (the paper's
+    V, R, K, L and our learning rate, conf/learner/*.yaml). bench and choices start from these."""
+    return dict(body=body, **OmegaConf.to_container(compose([f"body={body}"]).learner))
