@@ -111,6 +111,10 @@ def report(cfg: DictConfig) -> list[Path]:
                                 "run pipeline.simulate and pipeline.aggregate first")
     rc, dpi = figures.RC, cfg.report.dpi
     written, sections = [], []
+    js = cfg.report.joint_space_figure  # Fig. 2: stages in a joint space over one target axis
+    stages = _stages_figure(aggs[js]) if js in aggs else None
+    if stages is not None and gbmodel.make_body(stages[0]["body"]).n != 1:
+        stages = None
     with figures.plt.rc_context(rc):
         for name, agg in aggs.items():
             fig = figures.learning_curves(
@@ -121,15 +125,12 @@ def report(cfg: DictConfig) -> list[Path]:
             sections.append((name, _title(name, agg), [paths[0].name], agg["summary"]))
 
         extra = []
-        js = cfg.report.joint_space_figure
-        if js in aggs and (st := _stages_figure(aggs[js])) is not None:
-            spec, stages = st
-            if gbmodel.make_body(spec["body"]).n == 1:  # a joint space over one target axis
-                fig = figures.joint_space_stages(
-                    spec, stages, "Fig. 2: inverse estimate of the 2-DOF arm in joint space "
-                    "(contours: equal hand height)")
-                extra.append(("Fig. 2: stages of learning (joint space)",
-                              figures.save(fig, out / f"{js}_stages", dpi)))
+        if stages is not None:
+            fig = figures.joint_space_stages(
+                *stages, "Fig. 2: inverse estimate of the 2-DOF arm in joint space "
+                "(contours: equal hand height)")
+            extra.append(("Fig. 2: stages of learning (joint space)",
+                          figures.save(fig, out / f"{js}_stages", dpi)))
         for name, wanted in OmegaConf.to_container(cfg.report.postures).items():
             panels = _posture_panels(aggs, wanted)
             if panels:
@@ -150,9 +151,8 @@ def report(cfg: DictConfig) -> list[Path]:
     for name, agg in aggs.items():
         if (agg["summary"]["growth"] != "none").any():
             claim_rows += claims.growth_claims(name, agg["curves"], agg["summary"])
-    js = cfg.report.joint_space_figure
-    if js in aggs and (st := _stages_figure(aggs[js])) is not None:
-        claim_rows += claims.stage_claims(js, *st)
+    if stages is not None:
+        claim_rows += claims.stage_claims(js, *stages)
     cache.write_text(out / "claims.csv", pd.DataFrame(claim_rows).to_csv(index=False))
     curves = pd.concat([a["curves"] for a in aggs.values()], ignore_index=True)
     cache.write_table(out / "curves.parquet", cache.frame_to_table(curves))
