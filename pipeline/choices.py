@@ -49,7 +49,7 @@ def variants():
     """(body, choice, label, chosen, spec overrides, body overrides) of every run."""
     rows = []
     for body in ("arm5", "icub"):
-        for lr in (0.5, 1.0, 1.5):
+        for lr in (0.5, 1.0, 1.5, 2.0):
             rows.append((body, "learning rate", f"eta = {lr}", lr == 1.0,
                          dict(learning_rate=lr), {}))
         for r0 in (0.0, 0.1, 0.3):

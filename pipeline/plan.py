@@ -9,6 +9,7 @@ A condition is (growth pattern, start size, end size, growth period T_G) on one 
 """
 from __future__ import annotations
 
+import ast
 import hashlib
 import json
 from functools import lru_cache
@@ -51,16 +52,33 @@ def stable_hash32(obj) -> int:
     return int.from_bytes(hashlib.sha256(_canonical(obj).encode()).digest()[:4], "big")
 
 
+def _code_of(source: str) -> str:
+    """The syntax tree of a module without its docstrings (comments are not in it anyway)."""
+    tree = ast.parse(source)
+    for node in ast.walk(tree):
+        body = getattr(node, "body", None)
+        if (isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef))
+                and body and isinstance(body[0], ast.Expr)
+                and isinstance(body[0].value, ast.Constant) and isinstance(body[0].value.value, str)):
+            node.body = body[1:] or [ast.Pass()]
+    return ast.dump(tree, annotate_fields=False, include_attributes=False)
+
+
+def source_fingerprint(root: Path) -> str:
+    """Hash of the code of every .py file under root (sorted names + syntax trees): a change of
+    what the code computes changes it; comments, docstrings and layout do not."""
+    h = hashlib.sha256()
+    for path in sorted(Path(root).rglob("*.py")):
+        h.update(path.relative_to(root).as_posix().encode() + b"\0")
+        h.update(_code_of(path.read_text()).encode() + b"\0")
+    return h.hexdigest()[:16]
+
+
 @lru_cache(maxsize=1)
 def code_fingerprint() -> str:
-    """Hash of gbmodel's source (sorted file names + contents): a change of the numerical core
-    changes every cache key, a touched-but-unchanged file does not."""
-    root = Path(gbmodel.__file__).resolve().parent
-    h = hashlib.sha256()
-    for path in sorted(root.rglob("*.py")):
-        h.update(path.relative_to(root).as_posix().encode() + b"\0")
-        h.update(path.read_bytes() + b"\0")
-    return h.hexdigest()[:16]
+    """The fingerprint of gbmodel's code: part of every cache key, so that a change of the
+    numerical core recomputes every trial, and an edited comment recomputes none."""
+    return source_fingerprint(Path(gbmodel.__file__).resolve().parent)
 
 
 def conditions(cfg: DictConfig) -> list[dict]:

@@ -112,9 +112,19 @@ def test_seeds_and_keys_are_distinct_and_stable():
     assert not {t["key"] for t in d} & {t["key"] for t in a}
 
 
-def test_code_fingerprint_is_content_based():
-    assert code_fingerprint() == code_fingerprint()
-    assert len(code_fingerprint()) == 16
+def test_code_fingerprint_follows_the_code_not_its_comments(tmp_path):
+    from pipeline.plan import source_fingerprint
+
+    module = tmp_path / "m.py"
+    module.write_text('"""Doc."""\ndef f(x):\n    """Twice x."""\n    return 2 * x  # double\n')
+    base = source_fingerprint(tmp_path)
+    assert len(base) == 16 and len(code_fingerprint()) == 16
+    module.write_text('"""Other doc."""\n\ndef f(x):\n    # comment\n    return 2 * x\n')
+    assert source_fingerprint(tmp_path) == base
+    module.write_text('"""Doc."""\ndef f(x):\n    """Twice x."""\n    return 3 * x\n')
+    assert source_fingerprint(tmp_path) != base
+    (tmp_path / "n.py").write_text("y = 1\n")
+    assert source_fingerprint(tmp_path) != base
 
 
 def test_config_round_trips_to_yaml():
