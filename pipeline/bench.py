@@ -26,7 +26,7 @@ import numpy as np  # noqa: E402
 
 import gbmodel  # noqa: E402
 
-from .config import learner_settings  # noqa: E402
+from .config import REPO_ROOT, learner_settings  # noqa: E402
 
 PAPER = {body: learner_settings(body) for body in ("arm5", "icub")}
 # epochs per timed trial: long enough to swamp timer noise, short enough for the reference path
@@ -63,7 +63,7 @@ def parallel_speedup(trials: int = 8) -> dict:
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--repeats", type=int, default=5)
-    ap.add_argument("--out", default="outputs/bench/bench.json")
+    ap.add_argument("--out", default=str(REPO_ROOT / "outputs" / "bench" / "bench.json"))
     ap.add_argument("--no-parallel", action="store_true", help="skip the 1-vs-2-worker timing")
     args = ap.parse_args(argv)
 

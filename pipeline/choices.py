@@ -29,7 +29,7 @@ import pandas as pd  # noqa: E402
 import gbmodel  # noqa: E402
 from gbmodel.bodies import _grid  # noqa: E402
 
-from .config import learner_settings  # noqa: E402
+from .config import REPO_ROOT, learner_settings  # noqa: E402
 from .plan import code_fingerprint, stable_hash32  # noqa: E402
 
 PAPER = {body: learner_settings(body) for body in gbmodel.BODIES}  # conf/learner/*.yaml
@@ -133,8 +133,8 @@ def main(argv=None) -> pd.DataFrame:
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--root-seed", type=int, default=2010)
-    ap.add_argument("--out", default="outputs/report")
-    ap.add_argument("--cache", default="outputs/cache/choices")
+    ap.add_argument("--out", default=str(REPO_ROOT / "outputs" / "report"))
+    ap.add_argument("--cache", default=str(REPO_ROOT / "outputs" / "cache" / "choices"))
     args = ap.parse_args(argv)
     if args.epochs < 1 or args.seeds < 1 or args.workers < 1:
         ap.error("--epochs, --seeds and --workers must be positive")

@@ -19,13 +19,18 @@ CRITERIA = f"""Verdicts, with criteria fixed before the full-scale run:
   within a factor {FACTOR:g} of it;
 - *temporary rise during growth*: the mean absolute error rises during epochs 1 ... T_G + 1 by
   more than {RISE:.0%} of the lowest error reached before the rise (required for T_G <= 1000);
+- *above the references during growth* (added after the full run, when a review showed that the
+  pre-set measure above misses a rise slower than the learner's own progress): the mean absolute
+  error of a growing body exceeds the larger of the two constant-size references at the same
+  epoch, during epochs 1 ... T_G + 1, by more than {RISE:.0%} (required for T_G <= 1000);
 - *blending*: the mean relative error of a growing body never exceeds the larger of the two
   references by more than {EXCESS:.0%}, and ends within {EXCESS:.0%} of the long reference;
 - *no degeneration*: after growth the mean relative error never rebounds more than {EXCESS:.0%}
   above its running minimum, and ends below its value at the end of growth;
 - *bootstrapping succeeds in every trial*: no trial failed to run or to bootstrap (final
   relative error above `aggregate.fail_factor` times its condition's median);
-- *Fig. 2 stages*: the estimate starts within 0.5 rad of home, its spread over the targets grows
+- *Fig. 2 stages*: after epoch 1 the estimate is within 0.2 rad of home (0.1 at initialisation
+  plus one step), its spread over the targets grows
   from stage to stage, and at the end both extreme heights are reached within 5 cm."""
 
 
@@ -72,6 +77,20 @@ def growth_claims(figure: str, curves: pd.DataFrame, summary: pd.DataFrame) -> l
                                "T_G in {10, 100, 1000}",
                          measured="; ".join(parts), verdict=_verdict(failing)))
     if len(growing) and len(refs) == 2:
+        upper = np.maximum(*(_curve(curves, c, "abs_error") for c in refs["condition"]))
+        parts, failing = [], []
+        for r in growing.itertuples():
+            g = _curve(curves, r.condition, "abs_error")
+            during = g[g.index <= r.growth_period + 1]
+            excess = during / upper[during.index] - 1
+            parts.append(f"T_G={r.growth_period}: +{100 * max(excess.max(), 0):.0f} % at epoch "
+                         f"{excess.idxmax()}")
+            if r.growth_period <= 1000 and excess.max() <= RISE:
+                failing.append(f"T_G={r.growth_period}")
+        rows.append(dict(figure=figure,
+                         claim="the absolute error rises above both constant-size references "
+                               "during growth, T_G in {10, 100, 1000} (measure added after the "
+                               "full run)", measured="; ".join(parts), verdict=_verdict(failing)))
         short, long_ = (_curve(curves, c, "rel_error") for c in refs["condition"])
         upper = np.maximum(short, long_)
         parts, failing = [], []
@@ -129,7 +148,7 @@ def stage_claims(figure: str, spec: dict, stages: list) -> list[dict]:
         extremes.append(float(max(err[0], err[-1])))
         parts.append(f"{label}: largest joint deviation from home {spreads[-1]:.2f} rad, mean error "
                      f"{_mm(err.mean())}, at the extremes {_mm(extremes[-1])}")
-    failing = ([f"starts {spreads[0]:.2f} rad from home"] if spreads[0] > 0.5 else []) \
+    failing = ([f"starts {spreads[0]:.2f} rad from home"] if spreads[0] > 0.2 else []) \
         + (["the spread does not grow at every stage"] if any(np.diff(spreads) <= 0) else []) \
         + ([f"extremes missed by {_mm(extremes[-1])}"] if extremes[-1] >= 0.05 else [])
     return [dict(figure=figure, claim="stages: around home, aligned and expanding, reaching "

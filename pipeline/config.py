@@ -95,7 +95,6 @@ class ReportConf:
         "fig6": [["fig7", "const0.5"], ["fig7", "TG1000"]],
     })
     joint_space_figure: str = "fig2"  # drawn in the joint space of arm2 (paper Fig. 2)
-    findings: bool = True  # include pipeline/findings.md, the discussion of the full-scale run
 
 
 @dataclass

@@ -16,6 +16,7 @@ It reads only the aggregate stage's output, never the cache.
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import logging
 import sys
@@ -166,8 +167,7 @@ def report(cfg: DictConfig) -> list[Path]:
           "of its condition.", ""]
     md += ["## The paper's claims, measured", "",
            claims.CRITERIA, "", claims.markdown(claim_rows)]
-    if cfg.report.findings:  # the discussion of the committed run (pipeline/findings.md)
-        md += [(Path(__file__).parent / "findings.md").read_text()]
+    md += [findings(out)]  # the discussion of the committed run, if these are its tables
     for name, title, images, summ in sections:
         r0 = summ.iloc[0] if len(summ) else None
         md += [f"## {title}", ""]
@@ -189,6 +189,28 @@ def report(cfg: DictConfig) -> list[Path]:
     written.append(out / "report.md")
     log.info("report: %d files -> %s", len(written), out)
     return written
+
+
+FINDINGS = Path(__file__).parent / "findings.md"
+
+
+def tables_stamp(out: Path) -> str:
+    """What the discussion was written against: a hash of the summary and choices tables."""
+    h = hashlib.sha256()
+    for name in ("summary.csv", "choices.csv"):
+        path = Path(out) / name
+        h.update(path.read_bytes() if path.exists() else b"")
+    return h.hexdigest()[:16]
+
+
+def findings(out: Path) -> str:
+    """pipeline/findings.md, hand-written about one run, if these tables are that run's; else a
+    note that it is left out (its numbers would contradict the tables above)."""
+    stamp, _, text = FINDINGS.read_text().partition("\n")
+    if stamp.strip() == f"<!-- tables: {tables_stamp(out)} -->":
+        return text
+    return ("## Discussion\n\n`pipeline/findings.md` discusses the committed full-scale run; "
+            "these tables come from another run, so it is left out.\n")
 
 
 def listed_files(report_md: Path) -> list[str]:
