@@ -57,10 +57,10 @@ test: $(STAMP) ## run the test suite (slow tests excluded)
 test-slow: $(STAMP) ## run the slow tests only
 	$(PY) -m pytest -m slow
 
-clean: ## remove generated outputs (asks first; YES=1 to skip the question); keeps outputs/report/
+clean: ## remove generated outputs (asks first; YES=1 to skip the question); keeps the committed report and bench
 	@if [ "$(YES)" != 1 ]; then \
-	  printf 'Remove outputs/ (cache, aggregate, smoke, logs; not outputs/report/)? [y/N] '; \
+	  printf 'Remove outputs/ (cache, aggregate, smoke, logs; not report/ and bench/)? [y/N] '; \
 	  read ans; [ "$$ans" = y ] || { echo "nothing removed"; exit 0; }; \
 	fi; \
-	find outputs -mindepth 1 -maxdepth 1 ! -name report -exec rm -rf {} + 2>/dev/null; \
-	echo "removed outputs/ except outputs/report/"
+	find outputs -mindepth 1 -maxdepth 1 ! -name report ! -name bench -exec rm -rf {} + 2>/dev/null; \
+	echo "removed outputs/ except outputs/report/ and outputs/bench/"
