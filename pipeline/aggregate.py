@@ -137,11 +137,8 @@ def aggregate(cfg: DictConfig) -> list[str]:
 
 
 def run(cfg: DictConfig) -> int:
-    try:
-        problems = aggregate(cfg)
-    except FileNotFoundError as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
+    """aggregate() for the command line: warnings for missing cache files, exit status."""
+    problems = aggregate(cfg)
     for p in problems:
         print(f"warning: {p}", file=sys.stderr)
     return 0
@@ -149,8 +146,7 @@ def run(cfg: DictConfig) -> int:
 
 @hydra.main(config_path="../conf", config_name="config", version_base="1.3")
 def main(cfg: DictConfig) -> None:
-    if (rc := run(cfg)) != 0:
-        sys.exit(rc)
+    cli.finish(run, cfg)
 
 
 if __name__ == "__main__":

@@ -83,6 +83,23 @@ def check(argv: list[str]) -> str | None:
     return None
 
 
+def finish(run, cfg) -> None:
+    """Run a stage on its composed config and exit with its status. What every stage can meet
+    is one line: a bad value (ConfigError) or missing input (FileNotFoundError) exits 2, Ctrl-C
+    exits 130 (finished trials are cached, so the same command resumes)."""
+    try:
+        rc = run(cfg)
+    except (ConfigError, FileNotFoundError) as err:
+        print(f"error: {err}", file=sys.stderr)
+        rc = 2
+    except KeyboardInterrupt:
+        print("interrupted: finished work is cached; run the same command again to resume",
+              file=sys.stderr)
+        rc = 130
+    if rc:
+        sys.exit(rc)
+
+
 def main(hydra_main) -> None:
     """Run a stage's @hydra.main function after checking its command line."""
     problem = check(sys.argv[1:])

@@ -19,7 +19,6 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
-import sys
 from pathlib import Path
 
 import gbmodel
@@ -220,18 +219,13 @@ def listed_files(report_md: Path) -> list[str]:
 
 
 def run(cfg: DictConfig) -> int:
-    try:
-        report(cfg)
-    except FileNotFoundError as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
+    report(cfg)
     return 0
 
 
 @hydra.main(config_path="../conf", config_name="config", version_base="1.3")
 def main(cfg: DictConfig) -> None:
-    if (rc := run(cfg)) != 0:
-        sys.exit(rc)
+    cli.finish(run, cfg)
 
 
 if __name__ == "__main__":

@@ -28,7 +28,6 @@ from omegaconf import DictConfig, OmegaConf
 import gbmodel
 
 from . import cli, cache
-from .config import ConfigError
 from .plan import cost, plan
 
 log = logging.getLogger("pipeline.simulate")
@@ -156,24 +155,15 @@ def simulate(cfg: DictConfig) -> Summary:
 
 
 def run(cfg: DictConfig) -> int:
-    """simulate() for the command line: one clear line for a bad config, exit status."""
-    try:
-        summary = simulate(cfg)
-    except ConfigError as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("interrupted: finished trials are cached; run the same command again to resume",
-              file=sys.stderr)
-        return 130
+    """simulate() for the command line: the summary, and exit status 1 if a trial failed."""
+    summary = simulate(cfg)
     print("\n".join(summary.lines()), file=sys.stderr)
     return 1 if summary.failed else 0
 
 
 @hydra.main(config_path="../conf", config_name="config", version_base="1.3")
 def main(cfg: DictConfig) -> None:
-    if (rc := run(cfg)) != 0:
-        sys.exit(rc)
+    cli.finish(run, cfg)
 
 
 if __name__ == "__main__":
