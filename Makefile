@@ -1,9 +1,12 @@
 # Goal Babbling on growing bodies (Rolf, Steil & Gienger 2010). `make help` lists the targets.
-PYTHON  ?= python3.11
+# The Python that creates .venv: python3.11 if there is one, else python3 (>= 3.11 is checked).
+PYTHON  ?= $(shell command -v python3.11 2>/dev/null || command -v python3)
 VENV    := .venv
 PY      := $(VENV)/bin/python
 STAMP   := $(VENV)/.installed
-FIGURES ?= fig2 fig4 fig5 fig7
+PAPER   := fig2 fig4 fig5 fig7
+CHOICES := choices_arm2 choices_arm5 choices_icub
+FIGURES ?= $(PAPER) $(CHOICES)
 PROFILE ?= full
 ARGS    ?=
 
@@ -12,24 +15,31 @@ ARGS    ?=
 
 help: ## list the targets
 	@awk 'BEGIN {FS = ":.*## "} /^[a-z-]+:.*## / {printf "  make %-10s %s\n", $$1, $$2}' $(MAKEFILE_LIST)
-	@echo "  variables: PROFILE=full|smoke, FIGURES=\"fig2 fig4 fig5 fig7\", ARGS=\"<hydra overrides>\""
+	@echo "  variables: PROFILE=full|smoke, FIGURES=\"$(PAPER) $(CHOICES)\", ARGS=\"<hydra overrides>\""
 
-# The virtual environment: created when missing, reinstalled when pyproject.toml changes.
-$(STAMP): pyproject.toml
+# The virtual environment: created when missing, reinstalled when pyproject.toml or the lock
+# changes; the packages are the locked versions the committed report was made with. Then numba
+# compiles the kernels once (cached beside the sources), so no later stage is cut off mid-compile.
+$(STAMP): pyproject.toml requirements.lock
+	@test -n "$(PYTHON)" || { echo "error: no python3 found; install Python >= 3.11"; exit 2; }
+	@$(PYTHON) -c 'import sys; sys.exit(sys.version_info < (3, 11))' || \
+	  { echo "error: $(PYTHON) is Python $$($(PYTHON) -c 'import platform; print(platform.python_version())'); need >= 3.11 (make PYTHON=python3.x)"; exit 2; }
+	@echo "creating $(VENV) with $(PYTHON) ($$($(PYTHON) --version))"
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test]'
+	$(PY) -m pip install --quiet -c requirements.lock -e '.[test]'
+	$(PY) -m pipeline.warm
 	@touch $@
 
-setup: $(STAMP) ## create .venv and install the project with its test extras
+setup: $(STAMP) ## create .venv, install the locked packages, compile the kernels
 
-reproduce: ## the paper's figures and tables at full scale: simulate -> aggregate -> report (outputs/)
-	@$(MAKE) --no-print-directory pipeline PROFILE=full
+reproduce: ## the paper's figures, the open choices and the committed report (outputs/report/)
+	@$(MAKE) --no-print-directory pipeline PROFILE=full PUBLISH=report.publish=true
 
-smoke: ## the same at smoke scale (1000 epochs, 2 trials) into outputs/smoke/
+smoke: ## the same at smoke scale (1000 epochs, 2 trials) into outputs/smoke/latest/
 	@$(MAKE) --no-print-directory pipeline PROFILE=smoke
 
-pipeline: simulate aggregate choices report
+pipeline: simulate aggregate report
 
 simulate: $(STAMP) ## stage 1: run the trials of FIGURES that are not cached (PROFILE, ARGS)
 	@rc=0; for f in $(FIGURES); do \
@@ -39,17 +49,14 @@ simulate: $(STAMP) ## stage 1: run the trials of FIGURES that are not cached (PR
 aggregate: $(STAMP) ## stage 2: the cache into curves.parquet and summaries per figure
 	$(PY) -m pipeline.aggregate profile=$(PROFILE) $(ARGS)
 
-report: $(STAMP) ## stage 3: figures, tables and report.md
-	$(PY) -m pipeline.report profile=$(PROFILE) $(ARGS)
+report: $(STAMP) ## stage 3: figures, tables and report.md (outputs/latest/; make reproduce: outputs/report/)
+	$(PY) -m pipeline.report profile=$(PROFILE) $(PUBLISH) $(ARGS)
 
-# the open-choices sweep: 3 seeds x 20,000 epochs per variant at full scale, 1 x 500 for smoke
-CHOICES_full  := --out outputs/report --cache outputs/cache/choices
-CHOICES_smoke := --epochs 500 --seeds 1 --out outputs/smoke/report --cache outputs/smoke/cache/choices
-choices: $(STAMP) ## stage 2b: short sweeps over the choices the paper leaves open (cached)
-	$(PY) -m pipeline.choices $(CHOICES_$(PROFILE))
+choices: ## the open-choices experiments only (choices_*), then aggregate and report
+	@$(MAKE) --no-print-directory pipeline FIGURES="$(CHOICES)"
 
 bench: $(STAMP) ## time the fast path against the numpy reference (outputs/bench/bench.json)
-	$(PY) -m pipeline.bench
+	$(PY) -m pipeline.bench $(ARGS)
 
 test: $(STAMP) ## run the test suite (slow tests excluded)
 	$(PY) -m pytest

@@ -4,18 +4,21 @@ Pure functions and small classes over numpy arrays: no file I/O, no configuratio
 printing. Every random draw comes from a numpy.random.Generator passed in.
 
     >>> import numpy as np, gbmodel
-    >>> body = gbmodel.make_body("arm5")
-    >>> spec = gbmodel.TrialSpec(body="arm5", epochs=200)
+    >>> spec = gbmodel.TrialSpec(body={"name": "arm5"}, epochs=200)
     >>> result = gbmodel.run_trial(spec, np.random.default_rng(0))
-    >>> result.abs_error[-1] < result.abs_error[0]
+    >>> bool(result.abs_error[-1] < result.abs_error[0])
     True
 """
-from .bodies import BODIES, GROWTH_PATTERNS, Body, make_body
+from . import learners
+from .bodies import BODIES, Body, make_body
+from .evaluation import eval_epochs
 from .features import exponents, feature_bounds, features
-from .learner import predict
-from .trial import TrialResult, TrialSpec, eval_epochs, run_trial, size_schedule
+from .growth import PATTERNS as GROWTH_PATTERNS, Growth, SpecError
+from .learners.goal_babbling.reference import predict
+from .trial import Diverged, TrialResult, TrialSpec, run_trial
 
 __all__ = [
-    "BODIES", "GROWTH_PATTERNS", "Body", "make_body", "exponents", "feature_bounds", "features",
-    "predict", "TrialResult", "TrialSpec", "eval_epochs", "run_trial", "size_schedule",
+    "BODIES", "GROWTH_PATTERNS", "Body", "Diverged", "Growth", "SpecError", "TrialResult",
+    "TrialSpec", "eval_epochs", "exponents", "feature_bounds", "features", "learners",
+    "make_body", "predict", "run_trial",
 ]

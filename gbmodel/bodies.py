@@ -11,7 +11,7 @@ taken (the saturated one): that is the only posture whose outcome was observed.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -94,20 +94,23 @@ class Body:
             )
         return np.where(self.growing, gamma, 1.0)
 
-    def chain(self, size: float = 1.0, pattern: str = "proportional") -> dict:
-        """Arrays describing the chain at a given size: a, d, cos/sin alpha, base."""
-        k = self.segment_scale(size, pattern)
+    def chain(self, size: float = 1.0, pattern: str = "proportional", scale=None) -> dict:
+        """Arrays describing the chain at a given size (or per-joint length factors `scale`):
+        a, d, cos/sin alpha, base."""
+        k = self.segment_scale(size, pattern) if scale is None else np.asarray(scale, np.float64)
         return dict(
             a=self.a * k, d=self.d * k, cos_alpha=self._cos_alpha, sin_alpha=self._sin_alpha,
             base=self.base,
         )
 
-    def forward(self, q: np.ndarray, size: float = 1.0, pattern: str = "proportional") -> np.ndarray:
-        """Hand position (n,) or (N, n) [m] for commands q of shape (m,) or (N, m)."""
+    def forward(self, q: np.ndarray, size: float = 1.0, pattern: str = "proportional",
+                scale=None) -> np.ndarray:
+        """Hand position (n,) or (N, n) [m] for commands q of shape (m,) or (N, m), with the
+        body at `size` grown by `pattern`, or with per-joint length factors `scale` (m,)."""
         q = np.asarray(q, dtype=np.float64)
         if q.shape[-1] != self.m:
             raise ValueError(f"{self.name} takes {self.m} joint commands, got shape {q.shape}")
-        p = hand_position(self.joint_angles(q), **self.chain(size, pattern))
+        p = hand_position(self.joint_angles(q), **self.chain(size, pattern, scale))
         return p[..., list(self.outputs)]
 
     def target_set(self, size: float = 1.0) -> np.ndarray:
@@ -124,6 +127,21 @@ def _grid(*axes) -> np.ndarray:
     return np.stack([g.ravel() for g in mesh], axis=-1)
 
 
+def grid_points(lo, hi, num) -> np.ndarray:
+    """The regular target grid with num[j] points from lo[j] to hi[j] along axis j: (prod num, n)."""
+    if not len(lo) == len(hi) == len(num):
+        raise ValueError(f"grid: lo, hi and num need one entry per axis, got {lo}, {hi}, {num}")
+    if any(int(k) < 1 for k in num) or any(h < l for l, h in zip(lo, hi)):
+        raise ValueError(f"grid: need num >= 1 and lo <= hi per axis, got {lo}, {hi}, {num}")
+    return _grid(*(np.linspace(l, h, int(k)) for l, h, k in zip(lo, hi, num)))
+
+
+def cell_centres(targets: np.ndarray) -> np.ndarray:
+    """The centres of the cells of a regular grid (off-grid points between the targets)."""
+    axes = [np.unique(targets[:, j]) for j in range(targets.shape[1])]
+    return _grid(*[0.5 * (a[1:] + a[:-1]) if len(a) > 1 else a for a in axes])
+
+
 def _planar(name, lengths, home, targets, outputs, growing, description) -> Body:
     m = len(lengths)
     z = np.zeros(m)
@@ -135,6 +153,11 @@ def _planar(name, lengths, home, targets, outputs, growing, description) -> Body
     )
 
 
+ARM2_GRID = dict(lo=[-1.0], hi=[1.0], num=[21])
+ARM5_GRID = dict(lo=[-0.5, 0.2], hi=[0.5, 0.7], num=[11, 6])
+ICUB_GRID = dict(lo=[-0.36, 0.06, -0.06], hi=[-0.18, 0.30, 0.18], num=[4, 4, 4])
+
+
 def arm2() -> Body:
     """Fig. 1-2: two joints, 2 x 0.5 m, only the hand's height is controlled (n = 1).
 
@@ -143,7 +166,7 @@ def arm2() -> Body:
     """
     return _planar(
         "arm2", [0.5, 0.5], home=[0.0, 0.0],
-        targets=np.linspace(-1.0, 1.0, 21)[:, None], outputs=(1,), growing=[True, True],
+        targets=grid_points(**ARM2_GRID), outputs=(1,), growing=[True, True],
         description="2-DOF arm, 1 m, hand height",
     )
 
@@ -164,7 +187,7 @@ def arm5() -> Body:
     home = [np.pi / 2 - 2 * ARM5_BEND] + [ARM5_BEND] * 4
     return _planar(
         "arm5", [0.2] * 5, home=home,
-        targets=_grid(np.linspace(-0.5, 0.5, 11), np.linspace(0.2, 0.7, 6)), outputs=(0, 1),
+        targets=grid_points(**ARM5_GRID), outputs=(0, 1),
         growing=[True, False, True, False, True],
         description="5-DOF planar arm, 1 m, hand position",
     )
@@ -202,8 +225,7 @@ def icub() -> Body:
         theta_offset=np.deg2rad(_ICUB[:, 3]),
         base=np.array([[0, -1, 0, 0], [0, 0, -1, 0], [1, 0, 0, 0]], float), outputs=(0, 1, 2),
         home=2 * (home_rad - q_min) / (q_max - q_min) - 1,
-        targets=_grid(np.linspace(-0.36, -0.18, 4), np.linspace(0.06, 0.30, 4),
-                      np.linspace(-0.06, 0.18, 4)),
+        targets=grid_points(**ICUB_GRID),
         growing=np.ones(10, bool), q_min=q_min, q_max=q_max,
         description="iCub torso + right arm (DH v1), 10 DOF, palm position",
     )
@@ -212,9 +234,31 @@ def icub() -> Body:
 BODIES = {"arm2": arm2, "arm5": arm5, "icub": icub}
 
 
-def make_body(name: str) -> Body:
-    """The full-size body `name` (one of arm2, arm5, icub)."""
+def make_body(name: str, grid: dict | None = None, home=None, saturate: bool | None = None) -> Body:
+    """The full-size body `name` (one of arm2, arm5, icub), or a variant of it.
+
+    grid: dict(lo, hi, num) replaces the target grid; home: a posture (command units) replaces
+    the home posture; saturate: False lets normalised commands run past the joint limits.
+    None keeps the body's own. Raises ValueError naming the bad field as `body.<field>`.
+    """
     try:
-        return BODIES[name]()
+        body = BODIES[name]()
     except KeyError:
-        raise ValueError(f"unknown body {name!r}; choose one of {sorted(BODIES)}") from None
+        raise ValueError(f"body.name={name!r}: unknown body; choose one of {sorted(BODIES)}") from None
+    changes = {}
+    if grid is not None:
+        try:
+            targets = grid_points(**grid)
+        except (TypeError, ValueError) as err:
+            raise ValueError(f"body.grid={grid!r}: {err}") from None
+        if targets.shape[1] != body.n:
+            raise ValueError(f"body.grid={grid!r}: {name} controls {body.n} coordinate(s)")
+        changes["targets"] = targets
+    if home is not None:
+        home = np.asarray(home, dtype=np.float64)
+        if home.shape != (body.m,) or not np.all(np.isfinite(home)):
+            raise ValueError(f"body.home={home.tolist()!r}: {name} needs {body.m} finite values")
+        changes["home"] = home
+    if saturate is not None:
+        changes["saturates"] = bool(saturate)
+    return replace(body, **changes) if changes else body

@@ -29,10 +29,20 @@ def exponents(n: int, degree: int = 3) -> np.ndarray:
 def features(x: np.ndarray, exps: np.ndarray) -> np.ndarray:
     """Phi(x) for x of shape (..., n): returns (..., p)."""
     x = np.asarray(x, dtype=np.float64)
-    return np.prod(x[..., None, :] ** exps, axis=-1)
+    return _monomials(x[..., None, :], exps)
 
 
 def feature_bounds(lo: np.ndarray, hi: np.ndarray, exps: np.ndarray) -> np.ndarray:
     """max |Phi_k(x)| over the box lo <= x <= hi, for each monomial k (exact)."""
     amax = np.maximum(np.abs(lo), np.abs(hi))
-    return np.prod(amax ** exps, axis=-1)
+    return _monomials(amax[None, :], exps)
+
+
+def _monomials(x: np.ndarray, exps: np.ndarray) -> np.ndarray:
+    """prod_j x_j ** e_kj by repeated multiplication in a fixed order (no libm pow, whose last
+    bit may differ between machines): x (..., 1, n) -> (..., p)."""
+    out = np.ones(np.broadcast_shapes(x.shape[:-1], exps.shape[:-1]))
+    for j in range(exps.shape[1]):
+        for power in range(1, int(exps[:, j].max(initial=0)) + 1):
+            out = np.where(exps[:, j] >= power, out * x[..., j], out)
+    return out

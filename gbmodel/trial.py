@@ -1,91 +1,89 @@
-"""One trial: a growing body learns by Goal Babbling; returns its learning curve.
+"""One trial: a body grows while a learner learns; returns its learning curve.
 
-Random draws are made in blocks of DRAW_BLOCK epochs, in a fixed order (initialisation, then per
-block: target indices, then perturbations), so that the fast and the reference paths consume the
-same numbers and the result does not depend on where the curve is evaluated or snapshot.
+The loop is the same for every learner (gbmodel.learners): the body and its variant, the growth
+schedule, the random draws in blocks of DRAW_BLOCK epochs, the evaluation schedule and the
+snapshots live here; the learner only learns. Random numbers are drawn in a fixed order
+(initialisation, then per block the learner's draws), so that the result does not depend on where
+the curve is evaluated or snapshot, and the fast and reference paths of a learner consume the same
+numbers.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from . import learner
-from .bodies import BODIES, GROWTH_PATTERNS, Body, make_body
-from .features import exponents
+from . import evaluation, learners
+from .bodies import Body, make_body
+from .growth import Growth, SpecError, check_choice, check_int
 
 DRAW_BLOCK = 1000
 
-# Learning rate eta of the normalised gradient step (learner.gradient_step); the paper gives none.
-# 1.0 was chosen on convergence before the full run: on arm5 (20k epochs, 3 seeds) 0.5 -> 22 mm,
-# 1.0 -> 20 mm, 1.5 -> 28 mm with oscillation, and larger rates are worse still; on the iCub 0.5,
-# 1.0 and 1.5 end alike (16-17 mm). The measured table is `make choices` (outputs/report/choices.md).
-DEFAULT_LEARNING_RATE = 1.0
+
+class Diverged(ArithmeticError):
+    """The learner's error became non-finite (NaN or inf): the trial cannot go on."""
+
+    def __init__(self, epoch: int, value: float):
+        super().__init__(f"diverged: the error became {value} at epoch {epoch}")
+        self.epoch = epoch
 
 
 @dataclass(frozen=True)
 class TrialSpec:
-    """Plain parameters of one trial (defaults: the paper's 5-DOF arm settings, sec. 3.1)."""
+    """Everything one trial depends on, as plain data mirroring the config's sections.
 
-    body: str = "arm5"
-    pattern: str = "proportional"  # which segments grow (GROWTH_PATTERNS)
-    start_size: float = 0.5  # size factor in the first epoch
-    end_size: float = 1.0  # size factor after growth
-    period: int = 0  # T_G: epochs over which the size goes linearly from start to end
+    body: dict(name, grid, home, saturate) (gbmodel.make_body); growth: gbmodel.Growth's fields;
+    learner: dict(name, **the learner's Params); evaluation: dict(points, formula).
+    Defaults: the 5-DOF arm with Goal Babbling at the paper's settings, no growth.
+    """
+
+    body: dict = field(default_factory=lambda: {"name": "arm5"})
+    growth: dict = field(default_factory=dict)
+    learner: dict = field(default_factory=lambda: {"name": "goal_babbling"})
+    evaluation: dict = field(default_factory=dict)
     epochs: int = 1000
-    variations: int = 20  # V
-    radius: float = 0.2  # R, bound of the exploratory disturbance
-    targets_per_epoch: int = 15  # K
-    steps: int = 7  # L, linear steps between successive targets
-    learning_rate: float = DEFAULT_LEARNING_RATE  # eta
-    init_range: float = 0.1  # |g(x) - home| bound at initialisation
-    degree: int = 3  # P, polynomial degree of the features
     evals_per_decade: int = 20
-    snapshot_epochs: tuple = ()  # epochs after which a copy of M is kept
+    snapshots: tuple = ()  # epochs after which a copy of the learned model is kept
+
+    def make_body(self) -> Body:
+        return make_body(**self.body)
+
+    def make_growth(self) -> Growth:
+        return Growth(**self.growth)
+
+    def make_learner(self):
+        """(learner module, its validated Params)."""
+        kw = dict(self.learner)
+        module = learners.get(kw.pop("name", "goal_babbling"))
+        try:
+            params = module.Params(**kw)
+        except TypeError as err:  # an unknown field
+            raise SpecError("learner", sorted(kw), str(err)) from None
+        return module, params.validate()
 
     def validate(self) -> "TrialSpec":
-        """Raise ValueError naming the first bad value."""
-        def bad(name, why):
-            raise ValueError(f"{name}={getattr(self, name)!r}: {why}")
-
-        if self.body not in BODIES:
-            bad("body", f"unknown body; choose one of {sorted(BODIES)}")
-        if self.pattern not in GROWTH_PATTERNS:
-            bad("pattern", f"unknown growth pattern; choose one of {list(GROWTH_PATTERNS)}")
-        for name in ("epochs", "variations", "targets_per_epoch", "steps", "degree",
-                     "evals_per_decade"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
-                bad(name, "must be a positive integer")
-        if isinstance(self.period, bool) or not isinstance(self.period, (int, np.integer)) \
-                or self.period < 0:
-            bad("period", "must be a non-negative integer (epochs of growth)")
-        for name in ("start_size", "end_size", "learning_rate", "radius", "init_range"):
-            v = getattr(self, name)
-            if not isinstance(v, (int, float)) or not math.isfinite(v):
-                bad(name, "must be a finite number")
-        for name in ("start_size", "end_size", "learning_rate"):
-            if getattr(self, name) <= 0:
-                bad(name, "must be > 0")
-        for name in ("radius", "init_range"):
-            if getattr(self, name) < 0:
-                bad(name, "must be >= 0")
-        body = make_body(self.body)
-        for name in ("start_size", "end_size"):
-            try:
-                body.segment_scale(getattr(self, name), self.pattern)
-            except ValueError as err:
-                bad(name, str(err))
-        for e in self.snapshot_epochs:
+        """Raise SpecError (a ValueError) naming the first bad value as `<section>.<field>`."""
+        body = self.make_body()
+        self.make_growth().validate(body)
+        self.make_learner()
+        check_int("learner.epochs", self.epochs, 1)
+        check_int("learner.evals_per_decade", self.evals_per_decade, 1)
+        ev = {**evaluation.DEFAULTS, **self.evaluation}
+        check_choice("evaluation.points", ev["points"], evaluation.POINTS)
+        check_choice("evaluation.formula", ev["formula"], evaluation.FORMULAS)
+        for e in self.snapshots:
             if not 1 <= e <= self.epochs:
-                bad("snapshot_epochs", f"epoch {e} is outside 1 ... {self.epochs}")
+                raise SpecError("snapshots", e, f"outside the epochs 1 ... {self.epochs}")
         return self
 
     def to_dict(self) -> dict:
         d = asdict(self)
-        d["snapshot_epochs"] = list(self.snapshot_epochs)
+        d["snapshots"] = list(self.snapshots)
         return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "TrialSpec":
+        return cls(**{**d, "snapshots": tuple(d.get("snapshots", ()))})
 
 
 @dataclass
@@ -94,88 +92,42 @@ class TrialResult:
     size: np.ndarray  # (E,) size factor of the body in that epoch
     abs_error: np.ndarray  # (E,) mean distance target-hand [m]
     rel_error: np.ndarray  # (E,) abs_error / size
-    M: np.ndarray  # (m, p) final inverse estimate
-    snapshots: dict = field(default_factory=dict)  # epoch -> M after that epoch
+    M: np.ndarray | None  # the learner's final model (the inverse estimate's M), if it has one
+    snapshots: dict = field(default_factory=dict)  # epoch -> model after that epoch
+    samples_per_epoch: int = 0  # forward-kinematics evaluations per epoch
 
 
-def size_schedule(spec: TrialSpec, epochs: np.ndarray | None = None) -> np.ndarray:
-    """Size factor during epochs e = 1 ... : linear from start_size (e = 1) to end_size
-    (e = T_G + 1) and constant afterwards; T_G = 0 means end_size from the start."""
-    e = np.arange(1, spec.epochs + 1) if epochs is None else np.asarray(epochs)
-    if spec.period == 0:
-        return np.full(e.shape, float(spec.end_size))
-    frac = np.clip((e - 1) / spec.period, 0.0, 1.0)
-    return spec.start_size + (spec.end_size - spec.start_size) * frac
-
-
-def eval_epochs(epochs: int, per_decade: int = 20) -> np.ndarray:
-    """Log-spaced evaluation epochs 1 ... epochs, about per_decade per decade, both ends included."""
-    k = np.arange(0, int(np.floor(per_decade * np.log10(epochs))) + 1)
-    e = np.unique(np.round(10.0 ** (k / per_decade)).astype(np.int64))
-    return np.union1d(e[e <= epochs], [1, epochs])
-
-
-def run_trial(spec: TrialSpec, rng: np.random.Generator, fast: bool = True,
-              body: Body | None = None) -> TrialResult:
-    """Run one trial of Goal Babbling and return its learning curve.
-
-    fast=True runs the compiled kernel (gbmodel.fast), fast=False the numpy reference path; both
-    consume the same random numbers and agree to rounding. `body` replaces make_body(spec.body),
-    for variants of a body (another target set, home posture or limit handling).
-    """
+def run_trial(spec: TrialSpec, rng: np.random.Generator) -> TrialResult:
+    """Run one trial and return its learning curve; raises Diverged on a non-finite error."""
     spec.validate()
-    body = make_body(spec.body) if body is None else body
-    exps = exponents(body.n, spec.degree)
-    sizes = size_schedule(spec)
-    M = learner.init_inverse(body.home, *body.target_box(sizes[0]), exps, spec.init_range, rng)
+    body, growth = spec.make_body(), spec.make_growth()
+    learner, params = spec.make_learner()
+    ev = {**evaluation.DEFAULTS, **spec.evaluation}
+    sizes = growth.sizes(np.arange(1, spec.epochs + 1))
+    scales = growth.scales(body, sizes)
+    state = learner.init(params, body, sizes[0], rng)
 
-    evals = eval_epochs(spec.epochs, spec.evals_per_decade)
-    is_eval = np.zeros(spec.epochs + 1, bool)
-    is_eval[evals] = True
-    cuts = set(spec.snapshot_epochs)
-    abs_error = np.empty(spec.epochs + 1)
-    snapshots = {}
-    step = _fast_block if fast else _reference_block
-    shape = dict(V=spec.variations, m=body.m, n=body.n, K=spec.targets_per_epoch)
+    evals = evaluation.eval_epochs(spec.epochs, spec.evals_per_decade)
+    cuts = set(evals.tolist()) | set(spec.snapshots)
+    abs_error = np.empty(len(evals))
+    k, snapshots = 0, {}
     for start in range(0, spec.epochs, DRAW_BLOCK):  # epochs start+1 ... stop
         stop = min(start + DRAW_BLOCK, spec.epochs)
-        idx, raw = _draw(rng, stop - start, len(body.targets), **shape)
+        draws = learner.draw(params, body, stop - start, rng)
         bounds = sorted({start, stop} | {e for e in cuts if start < e < stop})
         for lo, hi in zip(bounds[:-1], bounds[1:]):
-            sl = slice(lo - start, hi - start)
-            M = step(M, body, spec, exps, sizes[lo:hi], idx[sl], raw[sl], is_eval[lo + 1:hi + 1],
-                     abs_error[lo + 1:hi + 1])
-            if hi in cuts:
-                snapshots[hi] = M.copy()
+            part = tuple(d[lo - start:hi - start] for d in draws)
+            state = learner.train(state, params, body, sizes[lo:hi], scales[lo:hi], part)
+            if hi in spec.snapshots:
+                snapshots[hi] = learner.model(state)
+            if k < len(evals) and hi == evals[k]:
+                err = evaluation.evaluate(learner, state, params, body, sizes[hi - 1],
+                                          scales[hi - 1], **ev)
+                if not np.isfinite(err):
+                    raise Diverged(hi, err)
+                abs_error[k] = err
+                k += 1
     size = sizes[evals - 1]
-    err = abs_error[evals]
-    return TrialResult(epoch=evals, size=size, abs_error=err, rel_error=err / size, M=M,
-                       snapshots=snapshots)
-
-
-def _draw(rng, B, n_targets, V, m, n, K):
-    """Random numbers of B epochs: target indices (B, K+1), raw disturbances (B, V, m, n+1).
-
-    Successive targets of a path differ (the next is uniform over the other n_targets - 1), so
-    that every path step is a movement with a direction.
-    """
-    first = rng.integers(0, n_targets, size=(B, 1))
-    hops = rng.integers(1, n_targets, size=(B, K))
-    idx = np.cumsum(np.concatenate([first, hops], axis=1), axis=1) % n_targets
-    raw = rng.uniform(-1.0, 1.0, size=(B, V, m, n + 1))
-    return idx, raw
-
-
-def _reference_block(M, body, spec, exps, sizes, idx, raw, is_eval, abs_out):
-    for e in range(len(sizes)):
-        M, _ = learner.epoch(M, body, sizes[e], spec.pattern, exps, idx[e], raw[e], spec.radius,
-                             spec.steps, spec.learning_rate)
-        if is_eval[e]:
-            abs_out[e] = learner.evaluate(M, body, sizes[e], spec.pattern, exps)
-    return M
-
-
-def _fast_block(M, body, spec, exps, sizes, idx, raw, is_eval, abs_out):
-    from . import fast
-
-    return fast.run_block(M, body, spec, exps, sizes, idx, raw, is_eval, abs_out)
+    return TrialResult(epoch=evals, size=size, abs_error=abs_error, rel_error=abs_error / size,
+                       M=learner.model(state), snapshots=snapshots,
+                       samples_per_epoch=learner.samples_per_epoch(params, body))

@@ -1,167 +1,146 @@
-"""The trial cache: one Parquet learning curve and one JSON sidecar per trial, plus a manifest.
+"""The trial cache: per trial one Parquet learning curve and one JSON sidecar, checked on read.
 
 Layout under paths.cache:
-    <figure>/<key>.parquet   the learning curve (columns CURVE_COLUMNS)
-    <figure>/<key>.json      the trial's config slice, seed, code fingerprint, final M, snapshots
-    <figure>/manifest.json   per condition, the trials of the latest simulate run that included it
+    <figure>/<key>.parquet        the learning curve (pipeline.io.CURVE)
+    <figure>/<key>.json           the trial's config slice, seed, code fingerprint, status, final
+                                  model and snapshots, and the SHA-256 of the Parquet file
+    <figure>/<key>.lock           held (flock) by the process computing the trial
+    <figure>/plans/<hash>.json    the trials of one simulate run (written once, by that run)
 
-The key hashes the trial's config slice and gbmodel's code fingerprint (pipeline.plan), so a
-trial is computed once and recomputed only when something it depends on changes. Files are
-written to a temporary name and renamed, so a file under its final name is always complete; the
-Parquet file is renamed last and marks the trial as done.
+The key hashes the trial's config slice and its learner's code fingerprint (pipeline.plan), so a
+trial is computed once and recomputed only when something it depends on changes. The curve is
+written first and the sidecar last: the sidecar marks a finished trial, and its checksum proves
+the curve complete. A trial that diverged is a result too (status `diverged`, no curve); a trial
+that failed with an error is not cached and runs again next time. No file is written by two
+runs: trial files are named by content, plan records by their own hash.
 """
 from __future__ import annotations
 
 import fcntl
-import json
+import hashlib
 import os
-from contextlib import contextmanager
+import time
 from pathlib import Path
 
 import numpy as np
-import pyarrow as pa
 import pyarrow.parquet as pq
 
-LABEL_COLUMNS = ["figure", "body", "growth", "growth_period", "condition", "trial"]
-CURVE_COLUMNS = LABEL_COLUMNS + ["epoch", "size", "abs_error", "rel_error"]
-_INT_COLUMNS = {"growth_period", "trial", "epoch"}
-_STR_COLUMNS = {"figure", "body", "growth", "condition"}
+from . import io
 
 
-# ---- atomic, deterministic writes ------------------------------------------------------------
-def _tmp_name(path: Path) -> Path:
-    return path.with_name(f".{path.name}.{os.getpid()}.tmp")
-
-
-@contextmanager
-def atomic_path(path: Path):
-    """Yield a temporary path beside `path`; rename it onto `path` if the block succeeds."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = _tmp_name(path)
-    try:
-        yield tmp
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-
-
-def write_text(path: Path, text: str) -> None:
-    with atomic_path(path) as tmp:
-        tmp.write_text(text)
-
-
-def dump_json(obj) -> str:
-    return json.dumps(obj, sort_keys=True, indent=1) + "\n"
-
-
-def write_table(path: Path, table: pa.Table) -> None:
-    """Parquet with fixed settings and no timestamps: the same table gives the same bytes."""
-    with atomic_path(path) as tmp:
-        pq.write_table(table, tmp, compression="zstd", compression_level=3)
-
-
-def frame_to_table(df) -> pa.Table:
-    return pa.Table.from_pandas(df, preserve_index=False)
-
-
-def remove_stale_tmp(folder: Path) -> None:
-    """Delete temporary files left by a killed process (their pid no longer runs)."""
-    for tmp in folder.glob(".*.tmp"):
-        pid = tmp.name.rsplit(".", 2)[-2]
-        if pid.isdigit() and not _alive(int(pid)):
-            tmp.unlink(missing_ok=True)
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
-
-
-# ---- trials ----------------------------------------------------------------------------------
 def trial_paths(cache_dir, trial: dict) -> tuple[Path, Path]:
     folder = Path(cache_dir) / trial["labels"]["figure"]
     return folder / f"{trial['key']}.parquet", folder / f"{trial['key']}.json"
 
 
-def is_done(cache_dir, trial: dict) -> bool:
-    curve, sidecar = trial_paths(cache_dir, trial)
-    return curve.exists() and sidecar.exists()
-
-
-def curve_table(labels: dict, epoch, size, abs_error, rel_error) -> pa.Table:
-    n = len(epoch)
-    cols = {}
-    for name in LABEL_COLUMNS:
-        typ = pa.int64() if name in _INT_COLUMNS else pa.string()
-        cols[name] = pa.array([labels[name]] * n, type=typ)
-    cols["epoch"] = pa.array(np.asarray(epoch, dtype=np.int64))
-    for name, values in (("size", size), ("abs_error", abs_error), ("rel_error", rel_error)):
-        cols[name] = pa.array(np.asarray(values, dtype=np.float64))
-    return pa.table(cols)
+def check(cache_dir, trial: dict) -> tuple[dict | None, str | None]:
+    """(sidecar, None) for a finished trial whose files are intact; (None, None) for one not
+    run yet; (None, why) for one whose files are damaged (they are then recomputed)."""
+    curve, side = trial_paths(cache_dir, trial)
+    if not side.exists():
+        return None, None
+    try:
+        s = io.read_json(side)
+        if s.get("key") != trial["key"]:
+            return None, f"{side.name} belongs to another trial"
+        if s.get("status") == "diverged":
+            return s, None
+        if not curve.exists():
+            return None, f"{curve.name} is missing"
+        if io.sha256_file(curve) != s.get("curve_sha256"):
+            return None, f"{curve.name} does not match its checksum (truncated or changed)"
+    except (OSError, ValueError) as err:
+        return None, str(err)
+    return s, None
 
 
 def write_trial(cache_dir, trial: dict, result: dict) -> None:
-    """Store a finished trial: the sidecar first, then the curve (the done marker)."""
-    curve, sidecar = trial_paths(cache_dir, trial)
-    side = dict(trial)
-    side["M"] = np.asarray(result["M"]).tolist()
-    side["snapshots"] = {str(e): np.asarray(M).tolist() for e, M in sorted(result["snapshots"].items())}
-    write_text(sidecar, dump_json(side))
-    write_table(curve, curve_table(trial["labels"], result["epoch"], result["size"],
-                                   result["abs_error"], result["rel_error"]))
+    """Store a finished trial: the curve first, then the sidecar with its checksum."""
+    curve, side = trial_paths(cache_dir, trial)
+    record = dict(trial, status=result["status"], seconds=round(result["seconds"], 3))
+    if result["status"] == "diverged":
+        record.update(error=result["error"], epoch=result["epoch"])
+        curve.unlink(missing_ok=True)
+    else:
+        l = trial["labels"]
+        io.write_table(curve, io.curve_table(l, result["epoch"], result["samples"],
+                                             result["size"], result["abs_error"],
+                                             result["rel_error"]))
+        record["curve_sha256"] = io.sha256_file(curve)
+        M = result["M"]
+        record["M"] = None if M is None else np.asarray(M).tolist()
+        record["snapshots"] = {str(e): np.asarray(m).tolist()
+                               for e, m in sorted(result["snapshots"].items())}
+    record.pop("seconds")  # timing varies from run to run; the sidecar's bytes must not
+    io.write_json(side, record)
 
 
-def read_sidecar(path) -> dict:
-    return json.loads(Path(path).read_text())
+def read_curve(cache_dir, trial: dict):
+    return pq.read_table(trial_paths(cache_dir, trial)[0]).to_pandas()
 
 
-# ---- manifest --------------------------------------------------------------------------------
-@contextmanager
-def _locked(folder: Path):
-    """An exclusive lock on the figure's folder (parallel Hydra jobs share the manifest)."""
-    folder.mkdir(parents=True, exist_ok=True)
-    with open(folder / ".lock", "w") as fh:
-        fcntl.flock(fh, fcntl.LOCK_EX)
+class Claim:
+    """An exclusive, non-blocking claim on a trial (flock on <key>.lock): two runs on one cache
+    do not compute the same trial. The operating system drops the lock when its process dies,
+    so a killed run leaves nothing stuck."""
+
+    def __init__(self, cache_dir, trial: dict):
+        self.path = trial_paths(cache_dir, trial)[1].with_suffix(".lock")
+        self.fh = None
+
+    def acquire(self) -> bool:
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        fh = open(self.path, "a")
         try:
-            yield
-        finally:
-            fcntl.flock(fh, fcntl.LOCK_UN)
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            fh.close()
+            return False
+        self.fh = fh
+        return True
+
+    def release(self) -> None:
+        if self.fh is not None:
+            self.path.unlink(missing_ok=True)
+            fcntl.flock(self.fh, fcntl.LOCK_UN)
+            self.fh.close()
+            self.fh = None
 
 
-def manifest_path(cache_dir, figure: str) -> Path:
-    return Path(cache_dir) / figure / "manifest.json"
+# ---- plan records: which trials make a figure --------------------------------------------------
+def write_plan(cache_dir, figure: str, trials: list[dict], whole: bool, paper: dict) -> Path:
+    """Record the trials of one simulate run. whole=True: they are the figure (an experiment);
+    whole=False: each condition replaces that condition of earlier runs (a sweep's jobs)."""
+    body = dict(figure=figure, whole=whole, paper=paper,
+                trials=[{k: t[k] for k in ("key", "labels", "spec") if k in t}
+                        | ({"variant": t["variant"]} if "variant" in t else {}) for t in trials])
+    digest = hashlib.sha256(io.dump_json(body).encode()).hexdigest()[:16]
+    path = Path(cache_dir) / figure / "plans" / f"{digest}.json"
+    io.write_json(path, dict(body, created_ns=time.time_ns(), pid=os.getpid()))
+    return path
 
 
-def update_manifest(cache_dir, figure: str, paper: dict, trials: list[dict],
-                    failed: dict[str, str], replace: bool) -> None:
-    """Record the conditions of this run. replace=True: they become the figure's conditions (a
-    whole experiment). replace=False: each replaces that condition's previous entry and the
-    others stay, so a multirun over growth periods builds one figure from many jobs."""
-    path = manifest_path(cache_dir, figure)
-    with _locked(path.parent):
-        man = {"figure": figure, "conditions": {}}
-        if path.exists() and not replace:
-            man = json.loads(path.read_text())
-        if replace or "paper" not in man:  # a single-condition run keeps the figure's paper info
-            man["paper"] = paper
+def figure_trials(cache_dir, figure: str) -> tuple[list[dict], dict, list[str]]:
+    """The trials of a figure from its plan records: the newest whole record, then newer partial
+    ones replacing its conditions. Returns (trials, paper, problems with unreadable records)."""
+    records, problems = [], []
+    for p in sorted((Path(cache_dir) / figure / "plans").glob("*.json")):
+        try:
+            records.append(io.read_json(p))
+        except ValueError as err:
+            problems.append(f"plan record ignored: {err}")
+    records.sort(key=lambda r: r.get("created_ns", 0))
+    start = max((i for i, r in enumerate(records) if r.get("whole")), default=0)
+    by_condition, paper = {}, {}
+    for r in records[start:]:
         fresh = {}
-        for t in trials:
-            c = fresh.setdefault(t["labels"]["condition"], {
-                "labels": {k: t["labels"][k] for k in LABEL_COLUMNS if k != "trial"},
-                "spec": t["spec"], "trials": {}})
-            entry = {"key": t["key"], "status": "failed" if t["key"] in failed else "ok"}
-            if t["key"] in failed:
-                entry["error"] = failed[t["key"]]
-            c["trials"][str(t["labels"]["trial"])] = entry
-        man["conditions"].update(fresh)
-        write_text(path, dump_json(man))
+        for t in r["trials"]:
+            fresh.setdefault(t["labels"]["condition"], []).append(t)
+        by_condition.update(fresh)
+        if r.get("whole") or not paper:
+            paper = r.get("paper", {})
+    return [t for ts in by_condition.values() for t in ts], paper, problems
 
 
-def read_manifests(cache_dir) -> list[dict]:
-    """Every figure's manifest under the cache, sorted by figure name."""
-    return [json.loads(p.read_text()) for p in sorted(Path(cache_dir).glob("*/manifest.json"))]
+def figures(cache_dir) -> list[str]:
+    return sorted(p.parent.name for p in Path(cache_dir).glob("*/plans"))

@@ -10,6 +10,8 @@ import pandas as pd
 
 import gbmodel
 
+from .figures import final_body
+
 FACTOR = 1.5  # "about" the paper's final error: within this factor of it
 RISE = 0.10  # a temporary rise during growth: above this fraction of the error before it
 EXCESS = 0.20  # blending and no degeneration: curves stay within this fraction
@@ -137,13 +139,12 @@ def stage_claims(figure: str, spec: dict, stages: list) -> list[dict]:
     For each stage: the largest joint deviation from home over the target set, the mean error,
     and the error at the two extreme targets (heights -1 and +1 m).
     """
-    body = gbmodel.make_body(spec["body"])
-    exps = gbmodel.exponents(body.n, spec["degree"])
-    xs = body.target_set(spec["end_size"])
+    body, size, pattern, exps = final_body(spec)
+    xs = body.target_set(size)
     parts, spreads, extremes = [], [], []
     for label, M in stages:
         q = gbmodel.predict(np.asarray(M), xs, exps)
-        err = np.linalg.norm(body.forward(q, spec["end_size"], spec["pattern"]) - xs, axis=-1)
+        err = np.linalg.norm(body.forward(q, size, pattern) - xs, axis=-1)
         spreads.append(float(np.abs(q - body.home).max()))
         extremes.append(float(max(err[0], err[-1])))
         parts.append(f"{label}: largest joint deviation from home {spreads[-1]:.2f} rad, mean error "

@@ -75,7 +75,13 @@ def check(argv: list[str]) -> str | None:
             choices.append([o.input_line])
     for combination in itertools.islice(itertools.product(*choices), _MAX_COMBINATIONS):
         try:
-            plan(compose(list(combination)))  # values too: every sweep job is checked up front
+            cfg, chosen = compose(list(combination), hydra_choices=True)
+            for o in combination:  # a group chosen on the command line that an experiment overrode
+                key, _, value = o.partition("=")
+                if key in chosen and "." not in key and chosen[key] != value:
+                    return (f"{o}: experiment={chosen.get('experiment')} sets {key}={chosen[key]}; "
+                            f"drop {o}, or change the experiment")
+            plan(cfg)  # values too: every sweep job is checked up front
         except ConfigError as err:
             return str(err)
         except Exception as err:
@@ -89,8 +95,11 @@ def finish(run, cfg) -> None:
     exits 130 (finished trials are cached, so the same command resumes)."""
     try:
         rc = run(cfg)
-    except (ConfigError, FileNotFoundError) as err:
+    except (ConfigError, FileNotFoundError, NotADirectoryError) as err:
         print(f"error: {err}", file=sys.stderr)
+        rc = 2
+    except MemoryError:
+        print("error: out of memory; run fewer workers or shorter trials", file=sys.stderr)
         rc = 2
     except KeyboardInterrupt:
         print("interrupted: finished work is cached; run the same command again to resume",

@@ -1,17 +1,24 @@
 """Config schema (dataclasses registered in Hydra's ConfigStore) and config helpers.
 
 The YAML files under conf/ extend these dataclasses, so a misspelt key or a value of the wrong type
-fails when the config is composed, before any stage starts. Checks of *values* (a negative period,
-zero epochs) live in `pipeline.plan`, which turns a config into trials.
+fails when the config is composed, before any stage starts. The sections that describe a trial
+(body, growth, learner, evaluation) are generated from gbmodel's own dataclasses, so every value
+of the numerical core has one source: its default in gbmodel, or the YAML file that changes it.
+Checks of *values* live in gbmodel (TrialSpec.validate) and pipeline.plan.
 """
 from __future__ import annotations
 
+import dataclasses
+import typing
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Optional
 
 from hydra.core.config_store import ConfigStore
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import MISSING, DictConfig, OmegaConf, open_dict
+
+import gbmodel
+from gbmodel import evaluation
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 CONF_DIR = REPO_ROOT / "conf"
@@ -21,45 +28,63 @@ class ConfigError(ValueError):
     """A bad value in the config; its message is one line naming the key and the value."""
 
 
+def schema_of(cls, name: str, extra: tuple = ()) -> type:
+    """A Hydra schema with the fields (types and defaults) of gbmodel dataclass `cls`, plus
+    `extra` (name, type, default) fields."""
+    hints = typing.get_type_hints(cls)
+    fields = [(f.name, hints[f.name], field(default=f.default)) for f in dataclasses.fields(cls)
+              if f.default is not dataclasses.MISSING]
+    return dataclasses.make_dataclass(name, list(extra) + fields)
+
+
+@dataclass
+class GridConf:
+    lo: list[float] = MISSING
+    hi: list[float] = MISSING
+    num: list[int] = MISSING
+
+
 @dataclass
 class BodyConf:
-    name: str = "arm5"  # arm2 | arm5 | icub (gbmodel.BODIES)
+    name: str = MISSING  # arm2 | arm5 | icub (gbmodel.BODIES)
+    grid: Optional[GridConf] = None  # the target grid; null: the body's own (gbmodel/bodies.py)
+    home: Optional[list[float]] = None  # the home posture; null: the body's own
+    saturate: Optional[bool] = None  # commands clipped at the joint limits; null: the body's own
 
 
-@dataclass
-class GrowthConf:
-    pattern: str = "proportional"  # none | proportional | nonproportional
-    period: int = 1000  # T_G [epochs]
-    start_size: float = 0.5  # size factor in the first epoch (1.0 = the full body)
-    end_size: float = 1.0  # size factor after growth
-
-
-@dataclass
-class LearnerConf:
-    variations: int = 20  # V
-    radius: float = 0.2  # R
-    targets_per_epoch: int = 15  # K
-    steps: int = 7  # L
-    learning_rate: float = 1.0  # = gbmodel.trial.DEFAULT_LEARNING_RATE
-    epochs: int = 100_000
-    init_range: float = 0.1
-    degree: int = 3
-    evals_per_decade: int = 20
+# growth: gbmodel.Growth's fields; pattern `none` is a body of constant size end_size
+GrowthConf = schema_of(gbmodel.Growth, "GrowthConf")
+EvaluationConf = dataclasses.make_dataclass(
+    "EvaluationConf", [(k, str, field(default=v)) for k, v in evaluation.DEFAULTS.items()])
+LEARNER_EXTRA = (("name", str, field(default=MISSING)), ("epochs", int, field(default=MISSING)),
+                 ("evals_per_decade", int, field(default=MISSING)))
 
 
 @dataclass
 class TrialsConf:
-    count: int = 20
-    root_seed: int = 2010
+    count: int = MISSING
+    root_seed: int = MISSING
 
 
 @dataclass
 class PathsConf:
-    root: str = "${repo_root:}"
-    out: str = "${.root}/outputs"
-    cache: str = "${.out}/cache"
-    aggregate: str = "${.out}/aggregate"
-    report: str = "${.out}/report"
+    root: str = MISSING
+    out: str = MISSING
+    cache: str = MISSING
+    aggregate: str = MISSING
+    report: str = MISSING
+    published: str = MISSING
+    bench: str = MISSING
+
+
+@dataclass
+class VariantConf:
+    """One variant of an experiment: a label and the dotted overrides that make it."""
+
+    label: str = MISSING
+    choice: str = ""  # what is varied (a row group of the choices table)
+    chosen: bool = False  # the value this project uses
+    set: list[str] = field(default_factory=list)  # e.g. ["learner.learning_rate=0.5"]
 
 
 @dataclass
@@ -69,6 +94,7 @@ class ConditionsConf:
     periods: list[int] = field(default_factory=list)  # growth periods T_G, one condition each
     references: list[float] = field(default_factory=list)  # constant sizes run as references
     snapshots: list[int] = field(default_factory=list)  # epochs after which M is stored
+    variants: list[VariantConf] = field(default_factory=list)  # each: all of the above again
 
 
 @dataclass
@@ -79,60 +105,81 @@ class PaperConf:
 
 @dataclass
 class AggregateConf:
-    # A trial failed to bootstrap when its final relative error exceeds fail_factor times the
-    # median final relative error of its condition's trials.
-    fail_factor: float = 3.0
+    fail_factor: float = MISSING
 
 
 @dataclass
 class ReportConf:
-    dpi: int = 120
-    log_error_axis: bool = True  # error axis of the learning curves on a log scale too
-    # Target grid vs reached grid with postures (paper Fig. 3 and 6): panels of
-    # [figure, condition], each drawn from the final M of trial 0.
-    postures: dict[str, Any] = field(default_factory=lambda: {
-        "fig3": [["fig4", "const0.5"], ["fig4", "TG1000"], ["fig5", "TG1000"]],
-        "fig6": [["fig7", "const0.5"], ["fig7", "TG1000"]],
-    })
-    joint_space_figure: str = "fig2"  # drawn in the joint space of arm2 (paper Fig. 2)
+    dpi: int = MISSING
+    log_error_axis: bool = MISSING
+    postures: dict[str, Any] = MISSING
+    joint_space_figure: str = MISSING
+    publish: bool = False  # write the committed report (paths.published): make reproduce only
+    paper_experiments: list[str] = MISSING  # what the committed report must hold, at full scale
+    stamp_findings: bool = False  # record these numbers as the ones findings.md discusses
+
+
+@dataclass
+class ExecutorConf:
+    backend: str = "local"  # local (worker processes)
+    address: Optional[str] = None  # a cluster's address, for backends that have one
+
+
+@dataclass
+class BenchConf:
+    repeats: int = 5  # timed trials per body and path (medians are reported)
+    parallel: bool = True  # also time 8 arm5 trials on 1 and on 2 workers
 
 
 @dataclass
 class Config:
     body: BodyConf = field(default_factory=BodyConf)
-    growth: GrowthConf = field(default_factory=GrowthConf)
-    learner: LearnerConf = field(default_factory=LearnerConf)
+    growth: Any = field(default_factory=GrowthConf)
+    learner: Any = MISSING
+    evaluation: Any = field(default_factory=EvaluationConf)
     trials: TrialsConf = field(default_factory=TrialsConf)
     paths: PathsConf = field(default_factory=PathsConf)
     conditions: ConditionsConf = field(default_factory=ConditionsConf)
     paper: PaperConf = field(default_factory=PaperConf)
     aggregate: AggregateConf = field(default_factory=AggregateConf)
     report: ReportConf = field(default_factory=ReportConf)
-    figure: str = "custom"
-    fast: bool = True
-    workers: int = 2
+    executor: ExecutorConf = field(default_factory=ExecutorConf)
+    bench: BenchConf = field(default_factory=BenchConf)
+    figure: str = MISSING
+    workers: int = MISSING
+
+
+def register_schemas() -> None:
+    """The primary schema, and one schema per learner (`learner/<name>_schema`) that its YAML
+    file extends: the learner's Params fields with their defaults, plus name and epochs."""
+    cs = ConfigStore.instance()
+    cs.store(name="base_config", node=Config)
+    for name in gbmodel.learners.available():
+        params = gbmodel.learners.get(name).Params
+        cs.store(group="learner", name=f"{name}_schema",
+                 node=schema_of(params, f"{name}_conf", LEARNER_EXTRA))
 
 
 if not OmegaConf.has_resolver("repo_root"):
     OmegaConf.register_new_resolver("repo_root", lambda: str(REPO_ROOT))
-ConfigStore.instance().store(name="base_config", node=Config)
+register_schemas()
 
 
-def compose(overrides: list[str] | tuple = ()) -> DictConfig:
+def compose(overrides: list[str] | tuple = (), hydra_choices: bool = False) -> DictConfig:
     """The config `python -m pipeline.<stage> OVERRIDES` would get (Hydra's compose API).
 
-    Used by the tests and by callers that want a config without the command line.
-    """
+    With hydra_choices=True, returns (config, the chosen option of every config group)."""
     from hydra import compose as hydra_compose
     from hydra import initialize_config_dir
     from hydra.core.global_hydra import GlobalHydra
 
     GlobalHydra.instance().clear()
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
-        return hydra_compose(config_name="config", overrides=list(overrides))
-
-
-def learner_settings(body: str) -> dict:
-    """The TrialSpec fields `body=<body>` selects: the body and its learner group (the paper's
-    V, R, K, L and our learning rate, conf/learner/*.yaml). bench and choices start from these."""
-    return dict(body=body, **OmegaConf.to_container(compose([f"body={body}"]).learner))
+        cfg = hydra_compose(config_name="config", overrides=list(overrides),
+                            return_hydra_config=hydra_choices)
+    if not hydra_choices:
+        return cfg
+    choices = OmegaConf.to_container(cfg.hydra.runtime.choices)
+    with open_dict(cfg):
+        del cfg["hydra"]
+    return cfg, choices

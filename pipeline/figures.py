@@ -36,7 +36,7 @@ METADATA = {
 
 def save(fig, stem: Path, dpi: int) -> list[Path]:
     """Write stem.png and stem.pdf with reproducible bytes; return the paths."""
-    from .cache import atomic_path
+    from .io import atomic_path
 
     paths = []
     for ext in ("png", "pdf"):
@@ -100,17 +100,18 @@ def learning_curves(curves, summary, title: str, log_y: bool = True, paper_abs=N
     return fig
 
 
-def _inverse(spec: dict, M) -> tuple:
-    body = gbmodel.make_body(spec["body"])
-    return body, np.asarray(M, dtype=float), gbmodel.exponents(body.n, spec["degree"])
+def final_body(spec: dict) -> tuple:
+    """(body, size, pattern, exps) of a trial's spec: the body (variant) at its final size and
+    the feature exponents of its polynomial inverse."""
+    body = gbmodel.make_body(**spec["body"])
+    g = spec["growth"]
+    return body, g["end_size"], g["pattern"], gbmodel.exponents(body.n, spec["learner"]["degree"])
 
 
 def joint_space_stages(spec: dict, stages: list[tuple[str, list]], title: str):
     """Fig. 2: the inverse estimate of the 2-DOF arm in its joint space over the contours of
     equal hand height, one panel per stage. stages: (label, M) pairs."""
-    body = gbmodel.make_body(spec["body"])
-    exps = gbmodel.exponents(body.n, spec["degree"])
-    size, pattern = spec["end_size"], spec["pattern"]
+    body, size, pattern, exps = final_body(spec)
     targets = body.target_set(size)[:, 0]
     xs = np.linspace(targets.min(), targets.max(), 401)[:, None]
     curves = [gbmodel.predict(np.asarray(M), xs, exps) for _, M in stages]
@@ -172,11 +173,11 @@ def postures(panels: list[tuple[str, dict, list]], title: str, n_postures: int =
 
     panels: (label, spec, M); each panel shows the body at its final size.
     """
-    three_d = any(gbmodel.make_body(spec["body"]).n == 3 for _, spec, _ in panels)
+    three_d = any(final_body(spec)[0].n == 3 for _, spec, _ in panels)
     fig = plt.figure(figsize=(3.6 * len(panels), 3.6))
     for k, (label, spec, M) in enumerate(panels):
-        body, M, exps = _inverse(spec, M)
-        size, pattern = spec["end_size"], spec["pattern"]
+        body, size, pattern, exps = final_body(spec)
+        M = np.asarray(M, dtype=float)
         targets = body.target_set(size)
         q = gbmodel.predict(M, targets, exps)
         reached = body.forward(q, size, pattern)

@@ -1,46 +1,34 @@
-"""From a composed config to the list of trials to run: conditions x trial index.
+"""From a composed config to the list of trials to run: variants x conditions x trial index.
 
-Everything a trial needs is plain data (a dict), so it can be sent to a worker process and hashed
-into the cache key. Every value is checked here, before any stage writes anything; a bad value
-raises ConfigError with one line naming the config key and the value.
+Everything a trial needs is plain data (a dict), so it can be sent to a worker process or a
+cluster and hashed into the cache key. Every value is checked here, before any stage writes
+anything: the trial's own values by gbmodel (TrialSpec.validate, whose SpecError names the config
+key), the plan's by this module; either way a ConfigError with one line naming the key.
 
-A condition is (growth pattern, start size, end size, growth period T_G) on one body. Its name:
-`TG<period>` for a growing body, `const<size>` for a body of constant size (a reference).
+A condition is a body growing by a pattern from a start to an end size over T_G epochs, or a body
+of constant size (a reference). Its name: `TG<period>` or `const<size>`, prefixed by the variant's
+label when the experiment has variants.
 """
 from __future__ import annotations
 
 import ast
 import hashlib
 import json
+import os
 from functools import lru_cache
 from pathlib import Path
 
 import gbmodel
+from gbmodel.growth import check_int
 from omegaconf import DictConfig, OmegaConf
 
 from .config import ConfigError
 
-GROWTH_OPTIONS = ("none",) + tuple(gbmodel.GROWTH_PATTERNS)
-
-# TrialSpec field -> the config key a user sets it with (for error messages).
-SPEC_KEYS = {
-    "body": "body.name", "pattern": "growth.pattern", "start_size": "growth.start_size",
-    "end_size": "growth.end_size", "period": "growth.period",
-    "snapshot_epochs": "conditions.snapshots",
-    **{k: f"learner.{k}" for k in (
-        "epochs", "variations", "radius", "targets_per_epoch", "steps", "learning_rate",
-        "init_range", "degree", "evals_per_decade")},
-}
+MAX_EPOCHS = 10**9  # a trial's memory does not grow with its epochs, but its time does
 
 
 def _bad(key, value, why):
     raise ConfigError(f"{key}={value!r}: {why}")
-
-
-def _check_int(key, value, minimum):
-    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-        what = "a positive integer" if minimum == 1 else "a non-negative integer"
-        _bad(key, value, f"must be {what}")
 
 
 def _canonical(obj) -> str:
@@ -64,110 +52,156 @@ def _code_of(source: str) -> str:
     return ast.dump(tree, annotate_fields=False, include_attributes=False)
 
 
-def source_fingerprint(root: Path) -> str:
-    """Hash of the code of every .py file under root (sorted names + syntax trees): a change of
-    what the code computes changes it; comments, docstrings and layout do not."""
+def source_fingerprint(files, root: Path) -> str:
+    """Hash of the code of `files` (names relative to root + syntax trees): a change of what the
+    code computes changes it; comments, docstrings and layout do not."""
     h = hashlib.sha256()
-    for path in sorted(Path(root).rglob("*.py")):
+    for path in sorted(Path(f) for f in files):
         h.update(path.relative_to(root).as_posix().encode() + b"\0")
         h.update(_code_of(path.read_text()).encode() + b"\0")
     return h.hexdigest()[:16]
 
 
-@lru_cache(maxsize=1)
-def code_fingerprint() -> str:
-    """The fingerprint of gbmodel's code: part of every cache key, so that a change of the
-    numerical core recomputes every trial, and an edited comment recomputes none."""
-    return source_fingerprint(Path(gbmodel.__file__).resolve().parent)
+@lru_cache(maxsize=None)
+def code_fingerprint(learner: str) -> str:
+    """The fingerprint of the code a trial of `learner` runs: gbmodel's shared core (every file
+    outside gbmodel/learners/, and the registry) plus that learner's own files. Changing one
+    learner recomputes its trials only; an edited comment recomputes none."""
+    root = Path(gbmodel.__file__).resolve().parent
+    shared = [p for p in root.rglob("*.py")
+              if "learners" not in p.relative_to(root).parts[:-1]]
+    shared.append(root / "learners" / "__init__.py")
+    return source_fingerprint(shared + gbmodel.learners.source_files(learner), root)
+
+
+def _sized(pattern, size):
+    return dict(pattern=pattern, start_size=float(size), end_size=float(size), period=0)
 
 
 def conditions(cfg: DictConfig) -> list[dict]:
-    """The conditions of the config: the growth group's (or the experiment's periods), then the
-    constant-size references. Each is a dict of labels and TrialSpec growth fields."""
-    g = cfg.growth
-    if g.pattern not in GROWTH_OPTIONS:
-        _bad("growth.pattern", g.pattern, f"unknown growth option; choose one of {list(GROWTH_OPTIONS)}")
-    _check_int("growth.period", g.period, 0)
+    """The conditions of one (variant of a) config: the growth group's (or the experiment's
+    periods), then the constant-size references, each a dict(condition, growth label, period,
+    growth spec)."""
+    g = OmegaConf.to_container(cfg.growth)
+    pattern = g.pop("pattern")
     periods = list(cfg.conditions.periods)
     for p in periods:
-        _check_int("conditions.periods", p, 0)
+        check_int("conditions.periods", p, 0)
     refs = list(cfg.conditions.references)
     for s in refs:
-        if not s > 0:
+        if isinstance(s, bool) or not isinstance(s, (int, float)) or not s > 0:
             _bad("conditions.references", s, "a body size must be > 0")
-    # A reference shrinks the body the way the figure's growth does (fig. 5: non-proportionally).
-    ref_pattern = "proportional" if g.pattern == "none" else g.pattern
-
+    # A reference shrinks the body the way the figure's growth does (Fig. 5: non-proportionally).
+    ref_pattern = "proportional" if pattern == "none" else pattern
     out = []
-    if g.pattern == "none":
-        if not g.end_size > 0:
-            _bad("growth.end_size", g.end_size, "a body size must be > 0")
-        refs = [g.end_size] + refs
+    if pattern == "none" or (g["period"] == 0 and not periods):
+        refs = [g["end_size"]] + refs
     else:
-        for p in periods or [g.period]:
-            out.append(dict(condition=f"TG{p}", growth=g.pattern, growth_period=p,
-                            pattern=g.pattern, start_size=g.start_size, end_size=g.end_size,
-                            period=p))
+        for p in periods or [g["period"]]:
+            out.append(dict(condition=f"TG{p}", growth=pattern, growth_period=p,
+                            spec={**g, "pattern": pattern, "period": p}))
     for s in refs:
         out.append(dict(condition=f"const{float(s)}", growth="none", growth_period=0,
-                        pattern=ref_pattern, start_size=float(s), end_size=float(s), period=0))
+                        spec={**g, **_sized(ref_pattern, s)}))
     unique = {}  # a reference may repeat the growth group's constant size
     for c in out:
         unique.setdefault(c["condition"], c)
     return list(unique.values())
 
 
-def _spec(cfg: DictConfig, cond: dict) -> gbmodel.TrialSpec:
+def variants(cfg: DictConfig) -> list[tuple[dict | None, DictConfig]]:
+    """(variant, its config) for each variant of the experiment, or [(None, cfg)] without any."""
+    out = []
+    for v in cfg.conditions.variants or [None]:
+        if v is None:
+            out.append((None, cfg))
+            continue
+        vcfg = cfg.copy()
+        try:
+            vcfg.merge_with(OmegaConf.from_dotlist(list(v.set)))
+        except Exception as err:  # an unknown key or a wrong type in the variant
+            _bad("conditions.variants", v.label, f"set {list(v.set)}: {err}".splitlines()[0])
+        out.append((dict(label=v.label, choice=v.choice, chosen=bool(v.chosen)), vcfg))
+    labels = [v["label"] for v, _ in out if v]
+    if len(set(labels)) != len(labels):
+        _bad("conditions.variants", labels, "labels must differ")
+    return out
+
+
+def trial_spec(cfg: DictConfig, growth: dict) -> gbmodel.TrialSpec:
+    """The TrialSpec of one condition, validated (ConfigError naming the config key)."""
     learner = OmegaConf.to_container(cfg.learner)
-    snaps = tuple(sorted({e for e in cfg.conditions.snapshots if e <= learner["epochs"]}))
+    epochs, per_decade = learner.pop("epochs"), learner.pop("evals_per_decade")
+    snaps = tuple(sorted({e for e in cfg.conditions.snapshots
+                          if isinstance(e, int) and e <= epochs}))
+    for e in cfg.conditions.snapshots:
+        check_int("conditions.snapshots", e, 1)
+    if isinstance(epochs, int) and epochs > MAX_EPOCHS:
+        _bad("learner.epochs", epochs, f"at most {MAX_EPOCHS:.0e} epochs per trial")
     spec = gbmodel.TrialSpec(
-        body=cfg.body.name, pattern=cond["pattern"], start_size=cond["start_size"],
-        end_size=cond["end_size"], period=cond["period"], snapshot_epochs=snaps, **learner)
+        body=OmegaConf.to_container(cfg.body), growth=growth, learner=learner,
+        evaluation=OmegaConf.to_container(cfg.evaluation), epochs=epochs,
+        evals_per_decade=per_decade, snapshots=snaps)
     try:
         return spec.validate()
     except ValueError as err:
-        name, _, rest = str(err).partition("=")
-        key = SPEC_KEYS.get(name, name)
-        if cond["growth"] == "none" and name in ("start_size", "end_size"):
-            key = "conditions.references"
-        raise ConfigError(f"{key}={rest}") from None
+        raise ConfigError(str(err)) from None
+
+
+def check_paths(cfg: DictConfig) -> None:
+    """Every output folder is a folder (or can become one)."""
+    for key in ("root", "out", "cache", "aggregate", "report"):
+        path = Path(cfg.paths[key])
+        for p in [path, *path.parents]:
+            if p.exists():
+                if not p.is_dir():
+                    _bad(f"paths.{key}", str(path), f"{p} is a file, not a folder")
+                if not os.access(p, os.W_OK | os.X_OK) and p == path:
+                    _bad(f"paths.{key}", str(path), "is not writable")
+                break
 
 
 def plan(cfg: DictConfig) -> list[dict]:
-    """Every trial of the config as plain data, in order (condition, trial index)."""
-    if cfg.body.name not in gbmodel.BODIES:
-        _bad("body.name", cfg.body.name, f"unknown body; choose one of {sorted(gbmodel.BODIES)}")
-    _check_int("learner.epochs", cfg.learner.epochs, 1)
-    _check_int("trials.count", cfg.trials.count, 1)
-    _check_int("trials.root_seed", cfg.trials.root_seed, 0)
-    _check_int("workers", cfg.workers, 1)
-    if cfg.learner.radius < 0:
-        _bad("learner.radius", cfg.learner.radius, "must be >= 0")
-    for e in cfg.conditions.snapshots:
-        _check_int("conditions.snapshots", e, 1)
+    """Every trial of the config as plain data, in order (variant, condition, trial index)."""
+    check_int("trials.count", cfg.trials.count, 1)
+    check_int("trials.root_seed", cfg.trials.root_seed, 0)
+    check_int("workers", cfg.workers, 1)
     if not cfg.figure or "/" in cfg.figure or cfg.figure.startswith("."):
         _bad("figure", cfg.figure, "must be a plain name (it names a folder)")
-
+    check_paths(cfg)
     trials = []
-    for cond in conditions(cfg):
-        spec = _spec(cfg, cond).to_dict()
-        # The random stream depends on the condition's content, not on its position or figure.
-        stream = stable_hash32({k: spec[k] for k in
-                                ("body", "pattern", "start_size", "end_size", "period")})
-        for i in range(cfg.trials.count):
-            labels = dict(figure=cfg.figure, body=cfg.body.name, growth=cond["growth"],
-                          growth_period=cond["growth_period"], condition=cond["condition"],
-                          trial=i)
-            seed = dict(entropy=cfg.trials.root_seed, spawn_key=[stream, i])
-            trial = dict(labels=labels, spec=spec, seed=seed, fast=bool(cfg.fast),
-                         code=code_fingerprint())
-            trial["key"] = hashlib.sha256(_canonical(trial).encode()).hexdigest()[:20]
-            trials.append(trial)
+    try:
+        for variant, vcfg in variants(cfg):
+            conds = conditions(vcfg)
+            for cond in conds:
+                spec = trial_spec(vcfg, cond["spec"]).to_dict()
+                # The random stream depends on the condition's body and growth only, so that the
+                # variants of an experiment differ by their choice, not by their draws.
+                g = spec["growth"]
+                stream = stable_hash32(dict(body=spec["body"]["name"], pattern=g["pattern"],
+                                            start_size=g["start_size"],
+                                            end_size=g["end_size"], period=g["period"]))
+                name = (cond["condition"] if variant is None else variant["label"]
+                        if len(conds) == 1 else f"{variant['label']} | {cond['condition']}")
+                for i in range(vcfg.trials.count):
+                    labels = dict(figure=cfg.figure, body=spec["body"]["name"],
+                                  learner=spec["learner"]["name"], growth=cond["growth"],
+                                  growth_period=cond["growth_period"], condition=name, trial=i)
+                    trial = dict(labels=labels, spec=spec,
+                                 seed=dict(entropy=vcfg.trials.root_seed, spawn_key=[stream, i]),
+                                 code=code_fingerprint(spec["learner"]["name"]))
+                    if variant is not None:
+                        trial["variant"] = variant
+                    trial["key"] = hashlib.sha256(_canonical(trial).encode()).hexdigest()[:20]
+                    trials.append(trial)
+    except gbmodel.SpecError as err:
+        raise ConfigError(str(err)) from None
     return trials
 
 
 def cost(trial: dict) -> float:
     """Rough relative run time of a trial: samples per epoch x joints x epochs."""
-    s = trial["spec"]
-    m = gbmodel.make_body(s["body"]).m
-    return float(s["epochs"]) * s["variations"] * s["targets_per_epoch"] * s["steps"] * m
+    spec = gbmodel.TrialSpec.from_dict(trial["spec"])
+    learner, params = spec.make_learner()
+    body = spec.make_body()
+    return float(spec.epochs) * learner.samples_per_epoch(params, body) * body.m

@@ -9,14 +9,15 @@ Writes under paths.report (all bytes reproducible, no timestamps, only relative 
     fig6_postures.png/.pdf     the same for the iCub (Fig. 6)
     summary.csv, summary.md    per condition: final errors, peak during growth, failures, paper
     claims.csv                 each claim of the paper, what was measured, and the verdict
+    choices.csv, choices.md    the open choices (experiments choices_*): each variant's effect
     curves.parquet             the aggregated learning curves of every figure, in one table
-    report.md                  the above, the open choices (choices.md, if pipeline.choices ran),
-                               and the list of every file this stage writes
-It reads only the aggregate stage's output, never the cache.
+    report.md                  the above, and the list of every file this stage writes
+It reads only the aggregate stage's output, never the cache. It writes into paths.report; only
+`report.publish=true` (make reproduce) writes the committed report, paths.published, and only
+when every paper experiment is aggregated at its full scale.
 """
 from __future__ import annotations
 
-import hashlib
 import json
 import logging
 from pathlib import Path
@@ -27,7 +28,8 @@ import numpy as np
 import pandas as pd
 from omegaconf import DictConfig, OmegaConf
 
-from . import claims, cli, cache, figures
+from . import choices, claims, cli, figures, io
+from .config import ConfigError
 
 log = logging.getLogger("pipeline.report")
 
@@ -42,6 +44,24 @@ def load_aggregates(folder: Path) -> dict:
             models=json.loads((fig_dir / "models.json").read_text()),
         )
     return out
+
+
+def check_published_scale(cfg: DictConfig, aggs: dict) -> None:
+    """report.publish=true: every experiment of report.paper_experiments must be aggregated with
+    exactly the trials its full-scale plan lists; otherwise ConfigError (nothing is written)."""
+    from .config import compose
+    from .plan import plan
+
+    for exp in cfg.report.paper_experiments:
+        want = {t["key"] for t in plan(compose([f"experiment={exp}", "profile=full"]))}
+        fig = compose([f"experiment={exp}"]).figure
+        have = {t["key"] for c in aggs.get(fig, {}).get("models", {}).get("conditions", {}).values()
+                for t in c["trials"].values()}
+        if want != have:
+            raise ConfigError(
+                f"report.publish=true: {fig} holds {len(want & have)} of the {len(want)} trials of "
+                f"experiment={exp} at full scale (and {len(have - want)} others); the committed "
+                "report is written only by make reproduce at the paper's scale")
 
 
 def _mm(v) -> str:
@@ -104,16 +124,20 @@ def _posture_panels(aggs: dict, wanted) -> list:
 
 def report(cfg: DictConfig) -> list[Path]:
     """Write every report file; return their paths."""
-    out = Path(cfg.paths.report)
     aggs = load_aggregates(Path(cfg.paths.aggregate)) if Path(cfg.paths.aggregate).exists() else {}
     if not aggs:
         raise FileNotFoundError(f"nothing aggregated under {cfg.paths.aggregate}: "
                                 "run pipeline.simulate and pipeline.aggregate first")
+    if cfg.report.publish:
+        check_published_scale(cfg, aggs)
+    out = Path(cfg.paths.published if cfg.report.publish else cfg.paths.report)
+    chosen = {k: a for k, a in aggs.items() if a["summary"]["choice"].astype(bool).any()}
+    aggs = {k: a for k, a in aggs.items() if k not in chosen}
     rc, dpi = figures.RC, cfg.report.dpi
     written, sections = [], []
     js = cfg.report.joint_space_figure  # Fig. 2: stages in a joint space over one target axis
     stages = _stages_figure(aggs[js]) if js in aggs else None
-    if stages is not None and gbmodel.make_body(stages[0]["body"]).n != 1:
+    if stages is not None and figures.final_body(stages[0])[0].n != 1:
         stages = None
     with figures.plt.rc_context(rc):
         for name, agg in aggs.items():
@@ -143,8 +167,8 @@ def report(cfg: DictConfig) -> list[Path]:
 
     summary = pd.concat([a["summary"] for a in aggs.values()], ignore_index=True)
     table_md = summary_markdown(summary)
-    cache.write_text(out / "summary.csv", summary.to_csv(index=False))
-    cache.write_text(out / "summary.md", table_md)
+    io.write_text(out / "summary.csv", summary.to_csv(index=False, float_format="%.6g"))
+    io.write_text(out / "summary.md", table_md)
     written += [out / "summary.csv", out / "summary.md"]
 
     claim_rows = []
@@ -153,10 +177,15 @@ def report(cfg: DictConfig) -> list[Path]:
             claim_rows += claims.growth_claims(name, agg["curves"], agg["summary"])
     if stages is not None:
         claim_rows += claims.stage_claims(js, *stages)
-    cache.write_text(out / "claims.csv", pd.DataFrame(claim_rows).to_csv(index=False))
+    io.write_text(out / "claims.csv", pd.DataFrame(claim_rows).to_csv(index=False))
     curves = pd.concat([a["curves"] for a in aggs.values()], ignore_index=True)
-    cache.write_table(out / "curves.parquet", cache.frame_to_table(curves))
+    io.write_table(out / "curves.parquet", io.frame_to_table(curves))
     written += [out / "claims.csv", out / "curves.parquet"]
+    choice_table = choices.table(chosen)
+    if len(choice_table):
+        io.write_text(out / "choices.csv", choice_table.to_csv(index=False, float_format="%.6g"))
+        io.write_text(out / "choices.md", choices.markdown(choice_table, chosen))
+        written += [out / "choices.csv", out / "choices.md"]
 
     md = ["# Reproduction of Rolf, Steil & Gienger (2010): Goal Babbling on growing bodies", "",
           "Generated by `python -m pipeline.report` from `pipeline.aggregate`'s tables; "
@@ -166,7 +195,9 @@ def report(cfg: DictConfig) -> list[Path]:
           "of its condition.", ""]
     md += ["## The paper's claims, measured", "",
            claims.CRITERIA, "", claims.markdown(claim_rows)]
-    md += [findings(out)]  # the discussion of the committed run, if these are its tables
+    if cfg.report.stamp_findings:
+        stamp_findings(summary, claim_rows)
+    md += [findings(summary, claim_rows)]  # the discussion of the committed run, if it is this
     for name, title, images, summ in sections:
         r0 = summ.iloc[0] if len(summ) else None
         md += [f"## {title}", ""]
@@ -176,40 +207,53 @@ def report(cfg: DictConfig) -> list[Path]:
         md += [f"![{name}]({img})" for img in images] + ["", summary_markdown(summ)]
     for title, paths in extra:
         md += [f"## {title}", "", f"![{paths[0].stem}]({paths[0].name})", ""]
-    choices_md = out / "choices.md"  # written by pipeline.choices, kept as it is
-    if choices_md.exists():
-        text = choices_md.read_text().split("\n", 1)[1]
+    if len(choice_table):
+        text = (out / "choices.md").read_text().split("\n", 1)[1]
         md += ["## Choices the paper leaves open: measured effect of the alternatives", text]
-        written += [choices_md, out / "choices.csv"]
     files = sorted(p.relative_to(out).as_posix() for p in written) + ["report.md"]
     md += ["## Files", "", "Every file of this report (all regenerated by `python -m pipeline.report`):",
            ""] + [f"- `{f}`" for f in files]
-    cache.write_text(out / "report.md", "\n".join(md) + "\n")
+    io.write_text(out / "report.md", "\n".join(md) + "\n")
     written.append(out / "report.md")
     log.info("report: %d files -> %s", len(written), out)
     return written
 
 
 FINDINGS = Path(__file__).parent / "findings.md"
+FINDINGS_NUMBERS = Path(__file__).parent / "findings_numbers.csv"
+TOLERANCE = 1e-6  # relative: the discussion holds for numbers this close to its run's
 
 
-def tables_stamp(out: Path) -> str:
-    """What the discussion was written against: a hash of the summary and choices tables."""
-    h = hashlib.sha256()
-    for name in ("summary.csv", "choices.csv"):
-        path = Path(out) / name
-        h.update(path.read_bytes() if path.exists() else b"")
-    return h.hexdigest()[:16]
+def findings_numbers(summary: pd.DataFrame, claim_rows: list[dict]) -> pd.DataFrame:
+    """What the discussion was written against: every final and peak error, and every verdict."""
+    cols = ["final_abs_error_mean", "final_rel_error_mean", "peak_abs_error_growth"]
+    rows = [dict(what=f"{r.figure} {r.condition} {c}", value=float(getattr(r, c)), verdict="")
+            for r in summary.itertuples() for c in cols]
+    rows += [dict(what=f"{r['figure']} {r['claim']}", value=float("nan"), verdict=r["verdict"])
+             for r in claim_rows]
+    return pd.DataFrame(rows)
 
 
-def findings(out: Path) -> str:
-    """pipeline/findings.md, hand-written about one run, if these tables are that run's; else a
-    note that it is left out (its numbers would contradict the tables above)."""
-    stamp, _, text = FINDINGS.read_text().partition("\n")
-    if stamp.strip() == f"<!-- tables: {tables_stamp(out)} -->":
-        return text
+def findings(summary: pd.DataFrame, claim_rows: list[dict]) -> str:
+    """pipeline/findings.md, hand-written about one run, if these are that run's numbers (every
+    verdict the same, every number within TOLERANCE); else a note that it is left out."""
+    now = findings_numbers(summary, claim_rows)
+    if FINDINGS_NUMBERS.exists():
+        ref = pd.read_csv(FINDINGS_NUMBERS, keep_default_na=False,
+                          dtype={"what": str, "verdict": str}, converters={"value": float})
+        if (len(ref) == len(now) and (ref["what"] == now["what"]).all()
+                and (ref["verdict"] == now["verdict"]).all()
+                and np.allclose(now["value"], ref["value"], rtol=TOLERANCE, atol=0,
+                                equal_nan=True)):
+            return FINDINGS.read_text()
     return ("## Discussion\n\n`pipeline/findings.md` discusses the committed full-scale run; "
-            "these tables come from another run, so it is left out.\n")
+            "these numbers come from another run, so it is left out.\n")
+
+
+def stamp_findings(summary: pd.DataFrame, claim_rows: list[dict]) -> None:
+    """Record the numbers findings.md was written against (after rereading it against them)."""
+    io.write_text(FINDINGS_NUMBERS, findings_numbers(summary, claim_rows)
+                  .to_csv(index=False, float_format="%.17g"))
 
 
 def listed_files(report_md: Path) -> list[str]:

@@ -3,97 +3,30 @@
     python -m pipeline.simulate experiment=fig4                 # one paper figure
     python -m pipeline.simulate -m growth.period=10,100 trials.count=2   # a Hydra sweep
 
-Trials run longest first on `workers` processes (spawned, BLAS/OpenMP/numba threads pinned to 1),
-so two workers stay busy to the end. Each finished trial is written to the cache at once, so an
-interrupted run loses only the trials in flight. A failing trial is recorded with its error, the
-others go on, and the stage exits non-zero with a summary.
+Trials run longest first on the executor (pipeline.execute), and each finished trial is written
+to the cache at once, so an interrupted run loses only the trials in flight. A trial another run
+is computing (its claim is held) is left to that run and waited for. A failing or diverging
+trial is recorded with its error, the others go on, and the stage exits non-zero with a summary.
 """
 from __future__ import annotations
 
 import logging
-import multiprocessing
-import os
-import signal
 import sys
 import time
-import traceback
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import hydra
-import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
-import gbmodel
-
-from . import cli, cache
+from . import cache, cli, execute, io
 from .plan import cost, plan
 
 log = logging.getLogger("pipeline.simulate")
-
-THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
-               "NUMBA_NUM_THREADS", "VECLIB_MAXIMUM_THREADS")
+WAIT_POLL_S = 2.0
 
 
-def run_one(trial: dict) -> dict:
-    """Run one trial (in a worker): plain data in, plain data out, errors returned as text."""
-    start = time.perf_counter()
-    try:
-        spec = dict(trial["spec"], snapshot_epochs=tuple(trial["spec"]["snapshot_epochs"]))
-        seed = np.random.SeedSequence(trial["seed"]["entropy"],
-                                      spawn_key=tuple(trial["seed"]["spawn_key"]))
-        res = gbmodel.run_trial(gbmodel.TrialSpec(**spec), np.random.default_rng(seed),
-                                fast=trial["fast"])
-        out = dict(ok=True, epoch=res.epoch, size=res.size, abs_error=res.abs_error,
-                   rel_error=res.rel_error, M=res.M, snapshots=res.snapshots)
-    except Exception as err:  # recorded and reported; the other trials go on
-        out = dict(ok=False, error=f"{type(err).__name__}: {err}", traceback=traceback.format_exc())
-    out["key"], out["seconds"] = trial["key"], time.perf_counter() - start
-    return out
-
-
-@contextmanager
-def _single_threaded_children():
-    """Children inherit the environment: one BLAS/OpenMP/numba thread each."""
-    old = {k: os.environ.get(k) for k in THREAD_VARS}
-    os.environ.update({k: "1" for k in THREAD_VARS})
-    try:
-        yield
-    finally:
-        for k, v in old.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
-
-
-def _ignore_sigint():
-    """Workers leave Ctrl-C to the parent, which stops them all at once."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
-def _results(todo: list[dict], workers: int):
-    """Yield (trial, result) as trials finish; in-process when one worker suffices."""
-    if workers == 1 or len(todo) <= 1:
-        for t in todo:
-            yield t, run_one(t)
-        return
-    by_key = {t["key"]: t for t in todo}
-    ctx = multiprocessing.get_context("spawn")
-    with _single_threaded_children():
-        pool = ctx.Pool(min(workers, len(todo)), initializer=_ignore_sigint)
-        try:
-            # chunksize 1: tasks are handed out in order (longest first) as workers become free
-            for result in pool.imap_unordered(run_one, todo, chunksize=1):
-                yield by_key[result["key"]], result
-            pool.close()
-        finally:
-            pool.terminate()  # idle workers after the last result; on Ctrl-C or error: stop now
-            pool.join()
-
-
-def _fmt(seconds: float) -> str:
+def fmt_duration(seconds: float) -> str:
     seconds = int(round(seconds))
     h, rest = divmod(seconds, 3600)
     return f"{h}h{rest // 60:02d}m{rest % 60:02d}s" if h else f"{rest // 60}m{rest % 60:02d}s"
@@ -105,13 +38,49 @@ class Summary:
     total: int
     cached: int
     ran: int = 0
-    failed: dict = field(default_factory=dict)  # key -> error
+    failed: dict = field(default_factory=dict)  # key -> error (failed or diverged)
     labels: dict = field(default_factory=dict)  # key -> "condition trial i", for messages
 
     def lines(self) -> list[str]:
         head = (f"[{self.figure}] {self.total} trials: {self.cached} cached, {self.ran} run, "
-                f"{len(self.failed)} failed")
+                f"{len(self.failed)} failed or diverged")
         return [head] + [f"  FAILED {self.labels[k]}: {e}" for k, e in self.failed.items()]
+
+
+class Progress:
+    """done/total, elapsed and ETA (by the trials' estimated cost), one line per finished trial."""
+
+    def __init__(self, summary: Summary, todo: list[dict]):
+        self.s, self.start = summary, time.perf_counter()
+        self.total_cost, self.done_cost = sum(map(cost, todo)), 0.0
+
+    def update(self, trial: dict, result: dict) -> None:
+        s = self.s
+        self.done_cost += cost(trial)
+        elapsed = time.perf_counter() - self.start
+        eta = elapsed * (self.total_cost - self.done_cost) / self.done_cost if self.done_cost else 0
+        print(f"[{s.figure}] {s.cached + s.ran}/{s.total} trials done"
+              f"{f', {len(s.failed)} failed' if s.failed else ''}"
+              f" | elapsed {fmt_duration(elapsed)} | ETA {fmt_duration(eta)}"
+              f" | {s.labels[trial['key']]} {result['status']} in {result['seconds']:.1f} s",
+              file=sys.stderr, flush=True)
+
+
+def record(cache_dir, trial: dict, result: dict, summary: Summary) -> None:
+    """Write a finished trial (ok or diverged) to the cache, or its failure beside it."""
+    key, failure = trial["key"], cache.trial_paths(cache_dir, trial)[1].parent / "failed"
+    if result["status"] in ("ok", "diverged"):
+        cache.write_trial(cache_dir, trial, result)
+        (failure / f"{key}.json").unlink(missing_ok=True)
+    if result["status"] != "ok":
+        summary.failed[key] = result["error"]
+        where = summary.labels[key]
+        log.error("[%s] %s %s: %s", summary.figure, where, result["status"],
+                  result.get("traceback", result["error"]))
+    if result["status"] == "failed":
+        io.write_json(failure / f"{key}.json", dict(key=key, labels=trial["labels"],
+                                                    error=result["error"]))
+    summary.ran += 1
 
 
 def simulate(cfg: DictConfig) -> Summary:
@@ -119,38 +88,53 @@ def simulate(cfg: DictConfig) -> Summary:
     trials = plan(cfg)  # raises ConfigError before anything is written
     cache_dir = Path(cfg.paths.cache)
     figure = cfg.figure
-    todo = [t for t in trials if not cache.is_done(cache_dir, t)]
+    (cache_dir / figure).mkdir(parents=True, exist_ok=True)
+    io.remove_stale_tmp(cache_dir / figure)
+    todo = []
+    for t in trials:
+        done, damaged = cache.check(cache_dir, t)
+        if damaged:
+            print(f"[{figure}] recomputing {t['labels']['condition']} trial "
+                  f"{t['labels']['trial']}: {damaged}", file=sys.stderr)
+        if done is None:
+            todo.append(t)
     todo.sort(key=cost, reverse=True)
     summary = Summary(figure=figure, total=len(trials), cached=len(trials) - len(todo))
     summary.labels = {t["key"]: f"{t['labels']['condition']} trial {t['labels']['trial']}"
                       for t in trials}
-    log.info("[%s] %d trials: %d cached, %d to run on %d worker(s)", figure, len(trials),
-             summary.cached, len(todo), min(cfg.workers, max(len(todo), 1)))
-    (cache_dir / figure).mkdir(parents=True, exist_ok=True)
-    cache.remove_stale_tmp(cache_dir / figure)
-
-    start, total_cost, done_cost = time.perf_counter(), sum(map(cost, todo)), 0.0
-    for trial, result in _results(todo, cfg.workers):
-        key = trial["key"]
-        if result["ok"]:
-            cache.write_trial(cache_dir, trial, result)
-        else:
-            summary.failed[key] = result["error"]
-            log.error("[%s] %s failed:\n%s", figure, summary.labels[key], result["traceback"])
-        summary.ran += 1
-        done_cost += cost(trial)
-        elapsed = time.perf_counter() - start
-        eta = elapsed * (total_cost - done_cost) / done_cost if done_cost else 0.0
-        print(f"[{figure}] {summary.cached + summary.ran}/{summary.total} trials done"
-              f"{f', {len(summary.failed)} failed' if summary.failed else ''}"
-              f" | elapsed {_fmt(elapsed)} | ETA {_fmt(eta)}"
-              f" | {summary.labels[key]} {'ok' if result['ok'] else 'FAILED'}"
-              f" in {result['seconds']:.1f} s", file=sys.stderr, flush=True)
-
-    paper = OmegaConf.to_container(cfg.paper)
-    # An experiment lists its conditions and defines the figure; a single-condition run adds to it.
-    whole = bool(cfg.conditions.periods or cfg.conditions.references)
-    cache.update_manifest(cache_dir, figure, paper, trials, summary.failed, replace=whole)
+    claims = {t["key"]: cache.Claim(cache_dir, t) for t in todo}
+    mine = [t for t in todo if claims[t["key"]].acquire()]
+    elsewhere = [t for t in todo if claims[t["key"]].fh is None]
+    log.info("[%s] %d trials: %d cached, %d to run on %d worker(s)%s", figure, len(trials),
+             summary.cached, len(mine), min(cfg.workers, max(len(mine), 1)),
+             f", {len(elsewhere)} being computed by another run" if elsewhere else "")
+    progress = Progress(summary, todo)
+    try:
+        if mine:
+            execute.warm_up(mine)
+        for trial, result in execute.results(mine, cfg.workers, cfg.executor.backend,
+                                             cfg.executor.address):
+            record(cache_dir, trial, result, summary)
+            claims[trial["key"]].release()
+            progress.update(trial, result)
+        while elsewhere:  # trials another run claimed: wait for them, or take over if it died
+            trial = elsewhere.pop(0)
+            claim = claims[trial["key"]]
+            if cache.check(cache_dir, trial)[0] is not None:
+                summary.cached += 1
+            elif claim.acquire():
+                result = execute.run_one(trial)
+                record(cache_dir, trial, result, summary)
+                claim.release()
+                progress.update(trial, result)
+            else:
+                elsewhere.append(trial)
+                time.sleep(WAIT_POLL_S)
+    finally:
+        for c in claims.values():
+            c.release()
+    whole = bool(cfg.conditions.periods or cfg.conditions.references or cfg.conditions.variants)
+    cache.write_plan(cache_dir, figure, trials, whole, OmegaConf.to_container(cfg.paper))
     return summary
 
 

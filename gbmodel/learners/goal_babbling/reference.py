@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .features import feature_bounds, features
+from ...features import feature_bounds, features
 
 NO_MOVEMENT = 1e-9  # [m] intended steps shorter than this have no direction (eq. 1)
 
@@ -86,17 +86,17 @@ def sample_weights(xstar, x, q):
     return w
 
 
-def rollout(M, body, chain_size, pattern, exps, path, A, b):
+def rollout(M, body, scale, exps, path, A, b):
     """All variations reach along the path, home example first.
 
     Returns intended xstar (V, T+1, n), reached x (V, T+1, n), postures q (V, T+1, m).
     """
     V = A.shape[0]
     q_home = body.saturate(body.home)
-    x_home = body.forward(q_home, chain_size, pattern)
+    x_home = body.forward(q_home, scale=scale)
     q = predict(M, path, exps)[None] + path @ A.transpose(0, 2, 1) + b[:, None, :]
     q = np.concatenate([np.broadcast_to(q_home, (V, 1, body.m)), body.saturate(q)], axis=1)
-    x = body.forward(q, chain_size, pattern)
+    x = body.forward(q, scale=scale)
     xstar = np.concatenate([np.broadcast_to(x_home, (V, 1, body.n)),
                             np.broadcast_to(path, (V,) + path.shape)], axis=1)
     return xstar, x, q
@@ -110,18 +110,13 @@ def gradient_step(M, x, q, w, exps, learning_rate):
     return M - learning_rate * grad / w.sum()
 
 
-def epoch(M, body, size, pattern, exps, idx, raw, radius, steps, learning_rate):
-    """One epoch of Goal Babbling; returns the updated M and the samples (xstar, x, q, w)."""
+def epoch(M, body, size, scale, exps, idx, raw, radius, steps, learning_rate):
+    """One epoch of Goal Babbling with the body at size `size` (per-joint length factors
+    `scale`); returns the updated M and the samples (xstar, x, q, w)."""
     lo, hi = body.target_box(size)
     path = target_path(body.target_set(size), idx, steps)
     A, b = scale_perturbations(raw, lo, hi, radius)
-    xstar, x, q = rollout(M, body, size, pattern, exps, path, A, b)
+    xstar, x, q = rollout(M, body, scale, exps, path, A, b)
     w = sample_weights(xstar, x, q)
     return gradient_step(M, x, q, w, exps, learning_rate), (xstar, x, q, w)
 
-
-def evaluate(M, body, size, pattern, exps) -> float:
-    """Absolute error: mean Euclidean distance [m] between each target and the hand under g."""
-    xs = body.target_set(size)
-    x = body.forward(predict(M, xs, exps), size, pattern)
-    return float(np.mean(np.linalg.norm(x - xs, axis=-1)))

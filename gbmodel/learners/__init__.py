@@ -1,0 +1,64 @@
+"""Learners as plug-ins: the registry, and what a learner module provides.
+
+A learner is one module (or package) in this folder, found by its name (`goal_babbling` is
+`gbmodel/learners/goal_babbling/`). It provides:
+
+    Params                 frozen dataclass of hyperparameters, with defaults; its validate()
+                           returns it or raises gbmodel.growth.SpecError naming `learner.<field>`
+    init(params, body, size, rng) -> state
+                           the initial state with the body at size `size` (the first epoch's)
+    draw(params, body, B, rng) -> tuple of arrays
+                           the random numbers of B epochs, each array with leading axis B (drawn
+                           in blocks of gbmodel.trial.DRAW_BLOCK epochs, so that where a trial is
+                           evaluated or snapshot never changes the draws)
+    train(state, params, body, sizes, scales, draws) -> state
+                           len(sizes) epochs with the body at size sizes[e] and per-joint length
+                           factors scales[e] (m,), consuming draws (sliced to those epochs)
+    predict(state, params, body, x) -> q
+                           the inverse estimate: commands (N, m) for positions (N, n)
+    model(state) -> np.ndarray | None
+                           a copy of the learned parameters to store (M for a polynomial inverse)
+    samples_per_epoch(params, body) -> int
+                           forward-kinematics evaluations (reaching movements) per epoch
+
+The trial loop (gbmodel.trial) owns the body, its growth, the draws, the evaluation and the
+snapshots; a learner only learns. `register` adds a module under a name at run time (tests).
+"""
+from __future__ import annotations
+
+import importlib
+import pkgutil
+from pathlib import Path
+from types import ModuleType
+
+_REGISTERED: dict[str, ModuleType] = {}
+REQUIRED = ("Params", "init", "draw", "train", "predict", "model", "samples_per_epoch")
+
+
+def available() -> list[str]:
+    """Names of every learner: the modules of this package and those registered at run time."""
+    found = {m.name for m in pkgutil.iter_modules([str(Path(__file__).parent)])}
+    return sorted(found | set(_REGISTERED))
+
+
+def register(name: str, module: ModuleType) -> None:
+    """Make `module` the learner `name` in this process (it must provide REQUIRED)."""
+    missing = [a for a in REQUIRED if not hasattr(module, a)]
+    if missing:
+        raise TypeError(f"learner {name!r} lacks {', '.join(missing)}")
+    _REGISTERED[name] = module
+
+
+def get(name: str) -> ModuleType:
+    """The learner module `name`; ValueError naming `learner.name` if there is none."""
+    if name in _REGISTERED:
+        return _REGISTERED[name]
+    if name not in available():
+        raise ValueError(f"learner.name={name!r}: unknown learner; choose one of {available()}")
+    return importlib.import_module(f"{__name__}.{name}")
+
+
+def source_files(name: str) -> list[Path]:
+    """The files of learner `name`'s code (for the cache key's code fingerprint)."""
+    path = Path(get(name).__file__)
+    return sorted(path.parent.rglob("*.py")) if path.name == "__init__.py" else [path]
