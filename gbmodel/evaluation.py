@@ -2,8 +2,15 @@
 
 The absolute error is the mean Euclidean distance between each evaluation point x* and the hand
 at f(g(x*)) (paper eq. 10, "the average positioning error in meters"), with the body at its
-current size; the relative error divides by the size factor (eq. 11). The points are the target
-grid at the current size. A learner may compute the distances itself (`distances`, e.g. in its
+current size; the relative error divides by the size factor (eq. 11).
+
+Where the paper leaves the reading open, each reading is an option (config `evaluation`):
+- points: `grid`, the target grid at the current size (our default); `path`, the path targets
+  x*_t that eq. 10 sums over, taken in expectation: every ordered pair of distinct grid targets
+  joined by `path_steps` linear steps (eq. 9), i.e. exactly the distribution of x*_t in an
+  epoch; `centres`, the centres of the grid cells (off-grid points);
+- formula: `mean` distance (the text's "average positioning error in meters", our default),
+  `mean_squared` (eq. 10 as printed, m^2), `rms` (its square root, in metres). A learner may compute the distances itself (`distances`, e.g. in its
 compiled kernel); the error formula is applied here, with an exactly rounded sum (math.fsum), so
 that the error does not depend on the order in which a CPU's vector units add.
 """
@@ -13,11 +20,11 @@ import math
 
 import numpy as np
 
-from .bodies import Body
+from .bodies import Body, cell_centres
 
-POINTS = ("grid",)
-FORMULAS = ("mean",)
-DEFAULTS = dict(points="grid", formula="mean")  # the paper's: eq. 10 over the target grid
+POINTS = ("grid", "path", "centres")
+FORMULAS = ("mean", "mean_squared", "rms")
+DEFAULTS = dict(points="grid", formula="mean", path_steps=7)
 
 
 def eval_epochs(epochs: int, per_decade: int = 20) -> np.ndarray:
@@ -27,10 +34,18 @@ def eval_epochs(epochs: int, per_decade: int = 20) -> np.ndarray:
     return np.union1d(e[e <= epochs], [1, epochs])
 
 
-def eval_points(body: Body, size: float, which: str = "grid") -> np.ndarray:
+def eval_points(body: Body, size: float, which: str = "grid", path_steps: int = 7) -> np.ndarray:
     """The evaluation points (N, n) of the body at `size`."""
     if which == "grid":
         return body.target_set(size)
+    if which == "centres":
+        return cell_centres(body.targets) * size
+    if which == "path":
+        t = body.targets
+        a, b = np.nonzero(~np.eye(len(t), dtype=bool))  # every ordered pair of distinct targets
+        frac = (np.arange(path_steps) / path_steps)[None, :, None]
+        path = (1.0 - frac) * t[a][:, None, :] + frac * t[b][:, None, :]
+        return path.reshape(-1, t.shape[1]) * size
     raise ValueError(f"evaluation.points={which!r}: choose one of {list(POINTS)}")
 
 
@@ -42,14 +57,18 @@ def distances(predict, body: Body, scale, xs: np.ndarray) -> np.ndarray:
 def error(d: np.ndarray, formula: str = "mean") -> float:
     if formula == "mean":
         return math.fsum(d) / len(d)
+    if formula == "mean_squared":
+        return math.fsum(d * d) / len(d)
+    if formula == "rms":
+        return math.sqrt(math.fsum(d * d) / len(d))
     raise ValueError(f"evaluation.formula={formula!r}: choose one of {list(FORMULAS)}")
 
 
 def evaluate(learner, state, params, body: Body, size: float, scale, points: str = "grid",
-             formula: str = "mean") -> float:
+             formula: str = "mean", path_steps: int = 7) -> float:
     """The absolute error of a learner's state, with the body at size `size` (per-joint length
     factors `scale`): the learner's own `distances` if it has one, else f(predict(x*)) here."""
-    xs = eval_points(body, size, points)
+    xs = eval_points(body, size, points, path_steps)
     if hasattr(learner, "distances"):
         d = learner.distances(state, params, body, scale, xs)
     else:

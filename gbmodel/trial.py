@@ -71,6 +71,7 @@ class TrialSpec:
         ev = {**evaluation.DEFAULTS, **self.evaluation}
         check_choice("evaluation.points", ev["points"], evaluation.POINTS)
         check_choice("evaluation.formula", ev["formula"], evaluation.FORMULAS)
+        check_int("evaluation.path_steps", ev["path_steps"], 1)
         for e in self.snapshots:
             if not 1 <= e <= self.epochs:
                 raise SpecError("snapshots", e, f"outside the epochs 1 ... {self.epochs}")

@@ -58,6 +58,11 @@ def table(aggs: dict) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def escape(text: str) -> str:
+    """A table cell's text with its pipes escaped (labels such as |g - home|)."""
+    return text.replace("|", "\\|")
+
+
 def markdown(t: pd.DataFrame, aggs: dict) -> str:
     setups = []
     for figure, agg in aggs.items():
@@ -86,7 +91,7 @@ def markdown(t: pd.DataFrame, aggs: dict) -> str:
         if r.diverged:
             final += f" ({r.diverged} of {r.trials + r.diverged} trials diverged)"
         lines.append(
-            f"| {r.body} | {r.choice} | {r.variant.replace('|', '\\|')}{' *' if r.chosen else ''} | {final} "
+            f"| {r.body} | {r.choice} | {escape(r.variant)}{' *' if r.chosen else ''} | {final} "
             f"| {r.rms_mm:.1f} | {r.mean_sq_mm2:.0f} | {r.worst_mm:.1f} | {r.off_grid_mm:.1f} "
             f"| {'' if np.isnan(r.growth_rise_pct) else f'+{r.growth_rise_pct:.0f} %'} |")
     return "\n".join(lines) + "\n"

@@ -31,6 +31,12 @@ CRITERIA = f"""Verdicts, with criteria fixed before the full-scale run:
   above its running minimum, and ends below its value at the end of growth;
 - *bootstrapping succeeds in every trial*: no trial failed to run or to bootstrap (final
   relative error above `aggregate.fail_factor` times its condition's median);
+- *above the start body during growth* (added after the full run, marked "added": the paper's
+  "more distant targets" compare the growing body with the body it starts from): the mean
+  absolute error of a growing body exceeds the constant short reference at the same epoch,
+  during epochs 1 ... T_G + 1, by more than {RISE:.0%} (required for T_G <= 1000);
+- *no degeneration during growth* (added): during growth the mean relative error never rebounds
+  more than {EXCESS:.0%} above its running minimum;
 - *Fig. 2 stages*: after epoch 1 the estimate is within 0.2 rad of home (0.1 at initialisation
   plus one step), its spread over the targets grows
   from stage to stage, and at the end both extreme heights are reached within 5 cm."""
@@ -93,6 +99,20 @@ def growth_claims(figure: str, curves: pd.DataFrame, summary: pd.DataFrame) -> l
                          claim="the absolute error rises above both constant-size references "
                                "during growth, T_G in {10, 100, 1000} (measure added after the "
                                "full run)", measured="; ".join(parts), verdict=_verdict(failing)))
+        short_abs = _curve(curves, refs["condition"].iloc[0], "abs_error")
+        parts, failing = [], []
+        for r in growing.itertuples():
+            g = _curve(curves, r.condition, "abs_error")
+            during = g[g.index <= r.growth_period + 1]
+            excess = during / short_abs[during.index] - 1
+            parts.append(f"T_G={r.growth_period}: +{100 * max(excess.max(), 0):.0f} % at epoch "
+                         f"{excess.idxmax()}")
+            if r.growth_period <= 1000 and excess.max() <= RISE:
+                failing.append(f"T_G={r.growth_period}")
+        rows.append(dict(figure=figure,
+                         claim="the absolute error rises above the body growth starts from "
+                               "during growth, T_G in {10, 100, 1000} (added)",
+                         measured="; ".join(parts), verdict=_verdict(failing)))
         short, long_ = (_curve(curves, c, "rel_error") for c in refs["condition"])
         upper = np.maximum(short, long_)
         parts, failing = [], []
@@ -123,6 +143,17 @@ def growth_claims(figure: str, curves: pd.DataFrame, summary: pd.DataFrame) -> l
                 failing.append(f"T_G={r.growth_period}")
         rows.append(dict(figure=figure, claim="no degeneration: the error keeps decreasing "
                          "after growth", measured="; ".join(parts), verdict=_verdict(failing)))
+        parts, failing = [], []
+        for r in growing.itertuples():
+            g = _curve(curves, r.condition, "rel_error")
+            during = g[g.index <= r.growth_period + 1].to_numpy()
+            bounce = float((during / np.minimum.accumulate(during) - 1).max())
+            parts.append(f"T_G={r.growth_period}: largest rebound {100 * bounce:.0f} %")
+            if bounce > EXCESS:
+                failing.append(f"T_G={r.growth_period}")
+        rows.append(dict(figure=figure, claim="no degeneration during growth: the relative error "
+                         "does not rebound while the body grows (added)",
+                         measured="; ".join(parts), verdict=_verdict(failing)))
     fails = int(summary["n_bootstrap_failures"].sum() + summary["n_run_failures"].sum())
     rows.append(dict(figure=figure, claim="bootstrapping succeeds in every trial",
                      measured=f"{fails} of {int(summary['n_trials'].sum())} trials failed "

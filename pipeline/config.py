@@ -55,7 +55,7 @@ class BodyConf:
 # growth: gbmodel.Growth's fields; pattern `none` is a body of constant size end_size
 GrowthConf = schema_of(gbmodel.Growth, "GrowthConf")
 EvaluationConf = dataclasses.make_dataclass(
-    "EvaluationConf", [(k, str, field(default=v)) for k, v in evaluation.DEFAULTS.items()])
+    "EvaluationConf", [(k, type(v), field(default=v)) for k, v in evaluation.DEFAULTS.items()])
 LEARNER_EXTRA = (("name", str, field(default=MISSING)), ("epochs", int, field(default=MISSING)),
                  ("evals_per_decade", int, field(default=MISSING)))
 
@@ -117,6 +117,7 @@ class ReportConf:
     publish: bool = False  # write the committed report (paths.published): make reproduce only
     paper_experiments: list[str] = MISSING  # what the committed report must hold, at full scale
     stamp_findings: bool = False  # record these numbers as the ones findings.md discusses
+    explain: bool = True  # run the explanation experiments (pipeline/explain.py, ~10 s)
 
 
 @dataclass

@@ -91,15 +91,15 @@ def local(todo: list[dict], workers: int, fn=run_one):
         pool.shutdown(wait=True, cancel_futures=True)
 
 
-BACKENDS = {"local": local}
-
-
 def results(todo: list[dict], workers: int, backend: str = "local", address=None, fn=run_one):
-    """Yield (trial, result) for every trial of `todo` on the chosen backend."""
+    """Yield (trial, result) for every trial of `todo` on the chosen backend: `local`, or a
+    cluster engine of pipeline.backends (optional extras)."""
     if backend == "local":
         yield from local(todo, workers, fn)
-    else:
-        yield from BACKENDS[backend](todo, workers, fn=fn, address=address)
+        return
+    from . import backends  # imports an engine only when it is asked for
+
+    yield from backends.run(backend, todo, workers, fn=fn, address=address)
 
 
 def warm_up(trials: list[dict]) -> None:

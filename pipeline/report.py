@@ -28,7 +28,7 @@ import numpy as np
 import pandas as pd
 from omegaconf import DictConfig, OmegaConf
 
-from . import choices, claims, cli, figures, io
+from . import choices, claims, cli, explain, figures, io, readings
 from .config import ConfigError
 
 log = logging.getLogger("pipeline.report")
@@ -131,8 +131,10 @@ def report(cfg: DictConfig) -> list[Path]:
     if cfg.report.publish:
         check_published_scale(cfg, aggs)
     out = Path(cfg.paths.published if cfg.report.publish else cfg.paths.report)
-    chosen = {k: a for k, a in aggs.items() if a["summary"]["choice"].astype(bool).any()}
-    aggs = {k: a for k, a in aggs.items() if k not in chosen}
+    studies = {k: a for k, a in aggs.items() if k in readings.STUDIES}
+    chosen = {k: a for k, a in aggs.items()
+              if k not in studies and a["summary"]["choice"].astype(bool).any()}
+    aggs = {k: a for k, a in aggs.items() if k not in chosen and k not in studies}
     rc, dpi = figures.RC, cfg.report.dpi
     written, sections = [], []
     js = cfg.report.joint_space_figure  # Fig. 2: stages in a joint space over one target axis
@@ -197,6 +199,19 @@ def report(cfg: DictConfig) -> list[Path]:
            claims.CRITERIA, "", claims.markdown(claim_rows)]
     if cfg.report.stamp_findings:
         stamp_findings(summary, claim_rows)
+    if cfg.report.explain:
+        rows = explain.rows(aggs)
+        if rows:
+            io.write_text(out / "explanations.csv", pd.DataFrame(rows).to_csv(index=False))
+            written.append(out / "explanations.csv")
+            md += ["## Decisive experiments behind the explanations", "",
+                   "Computed by the report stage from the final models (pipeline/explain.py): "
+                   "what a cubic can reach when fitted directly (the capacity bound), the 2-DOF "
+                   "arm learned with its extremes away from the stretched arm, and the iCub's "
+                   "models continued at a smaller learning rate.", "",
+                   "| figure | experiment | measured |", "|---|---|---|"]
+            md += [f"| {r['figure']} | {r['experiment']} | {r['measured']} |" for r in rows]
+            md += [""]
     md += [findings(summary, claim_rows)]  # the discussion of the committed run, if it is this
     for name, title, images, summ in sections:
         r0 = summ.iloc[0] if len(summ) else None
@@ -207,6 +222,18 @@ def report(cfg: DictConfig) -> list[Path]:
         md += [f"![{name}]({img})" for img in images] + ["", summary_markdown(summ)]
     for title, paths in extra:
         md += [f"## {title}", "", f"![{paths[0].stem}]({paths[0].name})", ""]
+    reading_table = readings.table(studies)
+    if len(reading_table):
+        io.write_text(out / "readings.csv", reading_table.to_csv(index=False))
+        with figures.plt.rc_context(rc):
+            paths = figures.save(readings.figure(studies, "Readings of the paper: absolute error "
+                                                 "of every condition (mean over trials)"),
+                                 out / "readings_curves", dpi)
+        written += [out / "readings.csv"] + paths
+        md += ["## Every reading of the paper against every claim", "",
+               "Each row is a reading of the text (conf/experiment/readings_*.yaml, "
+               "pipeline/readings.py); each column a claim, checked as above.", "",
+               f"![readings]({paths[0].name})", "", readings.markdown(reading_table)]
     if len(choice_table):
         text = (out / "choices.md").read_text().split("\n", 1)[1]
         md += ["## Choices the paper leaves open: measured effect of the alternatives", text]

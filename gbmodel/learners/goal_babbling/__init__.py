@@ -12,7 +12,7 @@ import numpy as np
 
 from ... import evaluation
 from ...features import exponents
-from ...growth import SpecError, check_int, check_number
+from ...growth import SpecError, check_choice, check_int, check_number
 from . import reference
 
 
@@ -32,6 +32,11 @@ class Params:
     init_range: float = 0.1  # |g(x) - home| bound at initialisation (sec. 3: "0.1 radian")
     degree: int = 3  # P, polynomial degree of the features (eq. 7)
     fast: bool = True  # the compiled kernel (fast.py); False: the numpy reference path
+    # readings of the text it leaves open (reference.py; the readings study measures each)
+    step: str = "normalised"  # normalised | plain: the gradient step divided by sum w or not
+    amplitude: str = "exact"  # exact | uniform: each disturbance row at R, or at U(0, 1) R
+    updates: str = "batch"  # batch | steps | online: one step, update_steps steps, per sample
+    update_steps: int = 1  # steps per epoch for updates=steps
 
     def validate(self) -> "Params":
         for name in ("variations", "targets_per_epoch", "steps", "degree"):
@@ -41,6 +46,17 @@ class Params:
             check_number(f"learner.{name}", getattr(self, name), 0.0)
         if not isinstance(self.fast, bool):
             raise SpecError("learner.fast", self.fast, "must be true or false")
+        check_choice("learner.step", self.step, ("normalised", "plain"))
+        check_choice("learner.amplitude", self.amplitude, ("exact", "uniform"))
+        check_choice("learner.updates", self.updates, ("batch", "steps", "online"))
+        check_int("learner.update_steps", self.update_steps, 1)
+        if self.fast:
+            for name, default in (("step", "normalised"), ("amplitude", "exact"),
+                                  ("updates", "batch")):
+                if getattr(self, name) != default:
+                    raise SpecError(f"learner.{name}", getattr(self, name),
+                                    "the compiled kernel does not take this reading yet; "
+                                    "add learner.fast=false")
         return self
 
 
@@ -55,7 +71,8 @@ def init(params: Params, body, size: float, rng: np.random.Generator) -> np.ndar
 
 
 def draw(params: Params, body, B: int, rng: np.random.Generator) -> tuple:
-    """Target indices (B, K+1) and raw disturbances (B, V, m, n+1) of B epochs.
+    """Target indices (B, K+1) and raw disturbances (B, V, m, n+1) of B epochs, and with
+    amplitude=uniform the amplitude factors (B, V, m), drawn last.
 
     Successive targets of a path differ (the next is uniform over the other targets), so that
     every path step is a movement with a direction.
@@ -65,18 +82,21 @@ def draw(params: Params, body, B: int, rng: np.random.Generator) -> tuple:
     hops = rng.integers(1, n_targets, size=(B, K))
     idx = np.cumsum(np.concatenate([first, hops], axis=1), axis=1) % n_targets
     raw = rng.uniform(-1.0, 1.0, size=(B, params.variations, body.m, body.n + 1))
+    if params.amplitude == "uniform":
+        return idx, raw, rng.uniform(0.0, 1.0, size=(B, params.variations, body.m))
     return idx, raw
 
 
 def train(M, params: Params, body, sizes, scales, draws) -> np.ndarray:
-    idx, raw = draws
+    idx, raw, *amp = draws
     exps = _exps(params, body)
     if params.fast:
         from . import fast
         return fast.run_block(M, body, params, exps, sizes, scales, idx, raw)
     for e in range(len(sizes)):
         M, _ = reference.epoch(M, body, sizes[e], scales[e], exps, idx[e], raw[e], params.radius,
-                               params.steps, params.learning_rate)
+                               params.steps, params.learning_rate, amp[0][e] if amp else None,
+                               params.step, params.updates, params.update_steps)
     return M
 
 

@@ -12,6 +12,14 @@ compiled loops and is tested against it. One epoch:
 4. weights w_t = w_dir * w_eff (eq. 1-3) from the movement between samples t-1 and t;
 5. one gradient step on the weighted command error (eq. 6):
        M <- M - eta * sum_vt w (M Phi(x) - q) Phi(x)^T / sum_vt w.
+
+Readings of the text that it leaves open are options (Params in __init__.py), the defaults above:
+- step: `normalised` (divided by sum w, as above) or `plain` (the text's plain gradient descent on
+  eq. 6: M <- M - eta * sum w (M Phi - q) Phi^T; its eta is much smaller, see the readings study);
+- amplitude: `exact` (every row of [A, b] explores at exactly R) or `uniform` (row i of variation
+  v at u_vi R, u_vi ~ U(0, 1): the disturbance "never exceeds R", eq. 8);
+- updates: `batch` (one step per epoch), `steps` (update_steps steps on the epoch's samples) or
+  `online` (one step per sample, in the order the samples were reached).
 """
 from __future__ import annotations
 
@@ -41,17 +49,18 @@ def init_inverse(home, lo, hi, exps, init_range, rng) -> np.ndarray:
     return D
 
 
-def scale_perturbations(raw, lo, hi, radius):
+def scale_perturbations(raw, lo, hi, radius, amp=None):
     """Linear disturbances E^v(x) = A x + b (eq. 8) from raw draws (..., m, n + 1) = [A | b].
 
     Each row i is scaled so that max over the box lo <= x <= hi of |A_i x + b_i| is exactly
-    `radius`; the box holds the whole target set and every path between targets, and a linear
-    function takes its maximum over the box at a corner: |A_i c + b_i| + sum_j |A_ij| h_j.
+    `radius` (times amp[..., i] if given, amp in [0, 1]); the box holds the whole target set and
+    every path between targets, and a linear function takes its maximum over the box at a corner:
+    |A_i c + b_i| + sum_j |A_ij| h_j.
     """
     A, b = raw[..., :-1], raw[..., -1]
     c, h = 0.5 * (lo + hi), 0.5 * (hi - lo)
     peak = np.abs(A @ c + b) + np.abs(A) @ h
-    k = radius / peak
+    k = radius / peak if amp is None else radius * amp / peak
     return A * k[..., None], b * k
 
 
@@ -102,21 +111,40 @@ def rollout(M, body, scale, exps, path, A, b):
     return xstar, x, q
 
 
-def gradient_step(M, x, q, w, exps, learning_rate):
-    """One gradient-descent step on the weighted command error (eq. 6), normalised by sum w."""
+def gradient_step(M, x, q, w, exps, learning_rate, step="normalised"):
+    """One gradient-descent step on the weighted command error (eq. 6), normalised by sum w
+    (step="normalised") or not (step="plain")."""
     phi = features(x, exps)
     r = phi @ M.T - q
     grad = np.einsum("vt,vti,vtk->ik", w, r, phi)
-    return M - learning_rate * grad / w.sum()
+    return M - learning_rate * grad / (w.sum() if step == "normalised" else 1.0)
 
 
-def epoch(M, body, size, scale, exps, idx, raw, radius, steps, learning_rate):
+def update(M, x, q, w, exps, learning_rate, step="normalised", updates="batch", update_steps=1):
+    """The learning step of one epoch on its samples (x, q, w), by the `updates` reading."""
+    if updates == "batch":
+        return gradient_step(M, x, q, w, exps, learning_rate, step)
+    if updates == "steps":
+        for _ in range(update_steps):
+            M = gradient_step(M, x, q, w, exps, learning_rate, step)
+        return M
+    # online: one step per sample, variation by variation, in the order they were reached
+    eta = learning_rate / (w.sum() if step == "normalised" else 1.0)
+    phi = features(x, exps).reshape(-1, len(exps))
+    for f, qi, wi in zip(phi, q.reshape(-1, q.shape[-1]), w.reshape(-1)):
+        M = M - (eta * wi) * np.outer(M @ f - qi, f)
+    return M
+
+
+def epoch(M, body, size, scale, exps, idx, raw, radius, steps, learning_rate, amp=None,
+          step="normalised", updates="batch", update_steps=1):
     """One epoch of Goal Babbling with the body at size `size` (per-joint length factors
     `scale`); returns the updated M and the samples (xstar, x, q, w)."""
     lo, hi = body.target_box(size)
     path = target_path(body.target_set(size), idx, steps)
-    A, b = scale_perturbations(raw, lo, hi, radius)
+    A, b = scale_perturbations(raw, lo, hi, radius, amp)
     xstar, x, q = rollout(M, body, scale, exps, path, A, b)
     w = sample_weights(xstar, x, q)
-    return gradient_step(M, x, q, w, exps, learning_rate), (xstar, x, q, w)
+    M = update(M, x, q, w, exps, learning_rate, step, updates, update_steps)
+    return M, (xstar, x, q, w)
 

@@ -1,0 +1,134 @@
+"""The readings x claims study: which readings of the paper's text reproduce which claim.
+
+The runs are experiments (conf/experiment/readings_fig4|fig5|fig7.yaml): each paper figure's
+conditions under every reading that can change a verdict, as variants with common random
+numbers. This module checks the paper's claims (pipeline.claims) on each reading separately and
+lays them out as one table (rows: readings, columns: claims) and one figure. It also holds the
+rule that fixes the plain step's rate before the run (`weight_sum`).
+"""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+import gbmodel
+from gbmodel.learners import goal_babbling as gb
+from gbmodel.learners.goal_babbling import reference
+
+from . import claims, figures
+from .choices import escape
+
+STUDIES = {"readings_fig4": "fig4", "readings_fig5": "fig5", "readings_fig7": "fig7"}
+
+
+def weight_sum(body: str, params: dict, seeds=(0, 1, 2), epochs: int = 20_000,
+               probe: int = 50) -> float:
+    """W: the median sum of weights per epoch at full size after `epochs` epochs of the
+    normalised step (3 seeds, `probe` epochs each). The plain step's rate is 1 / W, which makes
+    it equal to the normalised step at rate 1 at full-size convergence (the rule of the study,
+    fixed before its runs: arm5 W = 1142, iCub W = 1791)."""
+    sums = []
+    for seed in seeds:
+        spec = gbmodel.TrialSpec(body={"name": body}, learner={"name": "goal_babbling", **params},
+                                 epochs=epochs)
+        M = gbmodel.run_trial(spec, np.random.default_rng(seed)).M
+        b, p = spec.make_body(), gb.Params(**params)
+        rng = np.random.default_rng(1000 + seed)
+        idx, raw = gb.draw(p, b, probe, rng)
+        exps = gbmodel.exponents(b.n, p.degree)
+        for e in range(probe):
+            _, (_, _, _, w) = reference.epoch(M, b, 1.0, np.ones(b.m), exps, idx[e], raw[e],
+                                              p.radius, p.steps, 0.0)
+            sums.append(float(w.sum()))
+    return float(np.median(sums))
+
+
+def split(agg: dict) -> dict:
+    """reading -> (curves, summary) with the conditions named as in the paper's figure."""
+    out = {}
+    s, c = agg["summary"], agg["curves"]
+    for label in s["variant"].drop_duplicates():
+        sv = s[s["variant"] == label].copy()
+        names = sv["condition"].tolist()
+        rename = {n: n.split(" | ", 1)[1] for n in names}
+        sv["condition"] = sv["condition"].map(rename)
+        cv = c[c["condition"].isin(names)].copy()
+        cv["condition"] = cv["condition"].map(rename)
+        out[label] = (cv, sv)
+    return out
+
+
+def table(aggs: dict) -> pd.DataFrame:
+    """One row per (figure, reading, claim): measured and verdict."""
+    rows = []
+    for study, fig in STUDIES.items():
+        if study not in aggs:
+            continue
+        for label, (cv, sv) in split(aggs[study]).items():
+            for r in claims.growth_claims(fig, cv, sv):
+                rows.append(dict(figure=fig, reading=label, claim=r["claim"],
+                                 measured=r["measured"], verdict=r["verdict"],
+                                 trials=int(sv["n_trials"].max())))
+    return pd.DataFrame(rows)
+
+
+SHORT = (("final error about", "final error about the paper's"),
+         ("rises temporarily", "temporary rise (pre-set)"),
+         ("above both constant-size", "above both references"),
+         ("above the body growth starts", "above the start body (added)"),
+         ("blends", "blending"), ("after growth", "no degeneration after growth"),
+         ("during growth: the relative", "no degeneration during growth (added)"),
+         ("bootstrapping succeeds", "every trial bootstraps"))
+
+
+def _short(claim: str) -> str:
+    return next((short for key, short in SHORT if key in claim), claim)
+
+
+def markdown(t: pd.DataFrame) -> str:
+    """Per figure: rows = readings, columns = claims, cells = verdict (measured below)."""
+    lines = []
+    for fig, tf in t.groupby("figure", sort=False):
+        cl = list(dict.fromkeys(tf["claim"]))
+        lines += [f"### {fig} ({int(tf['trials'].max())} trials per condition and reading)", "",
+                  "| reading | " + " | ".join(escape(_short(c)) for c in cl) + " |",
+                  "|---|" + "---|" * len(cl)]
+        for reading, tr in tf.groupby("reading", sort=False):
+            cells = {r.claim: r.verdict for r in tr.itertuples()}
+            lines.append(f"| {escape(reading)} | "
+                         + " | ".join(escape(cells.get(c, "")) for c in cl) + " |")
+        lines += ["", "<details><summary>measured numbers</summary>", ""]
+        for r in tf.itertuples():
+            lines.append(f"- {r.reading} — {r.claim}: {r.measured}")
+        lines += ["", "</details>", ""]
+    return "\n".join(lines)
+
+
+def figure(aggs: dict, title: str):
+    """The key curves side by side: absolute error of every condition, one panel per figure and
+    reading (rows: figures, columns: readings)."""
+    studies = [s for s in STUDIES if s in aggs]
+    per = {s: split(aggs[s]) for s in studies}
+    readings = list(dict.fromkeys(r for s in studies for r in per[s]))
+    fig, axes = figures.plt.subplots(len(studies), len(readings), squeeze=False,
+                                     figsize=(2.5 * len(readings), 2.3 * len(studies)),
+                                     sharex=True)
+    for i, s in enumerate(studies):
+        for j, reading in enumerate(readings):
+            ax = axes[i, j]
+            if reading not in per[s]:
+                ax.set_visible(False)
+                continue
+            cv, sv = per[s][reading]
+            styles = figures.condition_styles(sv)
+            for row in sv.itertuples():
+                cu = cv[cv["condition"] == row.condition].sort_values("epoch")
+                ax.plot(cu["epoch"], cu["abs_error_mean"], lw=1.0, **styles[row.condition])
+            ax.set(xscale="log", yscale="log")
+            if i == 0:
+                ax.set_title(reading if len(reading) < 34 else reading[:31] + "...", fontsize=7)
+            if j == 0:
+                ax.set_ylabel(f"{STUDIES[s]}: abs. error [m]")
+    fig.suptitle(title)
+    fig.tight_layout()
+    return fig

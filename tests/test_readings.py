@@ -1,0 +1,148 @@
+"""The readings of the paper that it leaves open: evaluation points and formulas, the gradient
+step, the disturbance amplitude, the updates per epoch (reference path), and the study's pieces."""
+import numpy as np
+import pandas as pd
+import pytest
+
+import gbmodel
+from gbmodel import evaluation
+from gbmodel.learners import goal_babbling as gb
+from gbmodel.learners.goal_babbling import reference
+from pipeline import claims, readings
+
+
+def test_path_points_are_every_ordered_pair_in_steps():
+    body = gbmodel.make_body("arm5")
+    pts = evaluation.eval_points(body, 0.5, "path", path_steps=7)
+    n = len(body.targets)
+    assert pts.shape == (n * (n - 1) * 7, 2)
+    lo, hi = body.target_box(0.5)
+    assert (pts >= lo - 1e-12).all() and (pts <= hi + 1e-12).all()
+    # every grid target starts n - 1 paths
+    grid = {tuple(np.round(t, 9)) for t in body.target_set(0.5)}
+    starts = [tuple(np.round(p, 9)) for p in pts[::7]]
+    assert set(starts) == grid and len(starts) == n * (n - 1)
+
+
+def test_cell_centres_lie_between_the_targets():
+    body = gbmodel.make_body("icub")
+    c = evaluation.eval_points(body, 1.0, "centres")
+    assert c.shape == (27, 3)
+    grid = {tuple(np.round(t, 9)) for t in body.targets}
+    assert not grid & {tuple(np.round(p, 9)) for p in c}
+
+
+def test_formulas_relate_as_they_should():
+    d = np.array([0.01, 0.02, 0.04])
+    mean, rms, msq = (evaluation.error(d, f) for f in ("mean", "rms", "mean_squared"))
+    assert mean == pytest.approx(0.07 / 3) and rms == pytest.approx(np.sqrt(msq))
+    assert rms > mean and msq == pytest.approx(np.mean(d ** 2))
+
+
+def _epoch_inputs(seed=0):
+    body = gbmodel.make_body("arm5")
+    p = gb.Params(fast=False)
+    rng = np.random.default_rng(seed)
+    M = gb.init(p, body, 1.0, rng)
+    idx, raw = gb.draw(p, body, 1, rng)
+    return body, p, M, idx[0], raw[0], gbmodel.exponents(2, 3)
+
+
+def test_plain_step_is_the_normalised_one_times_sum_w():
+    body, p, M, idx, raw, exps = _epoch_inputs()
+    one = np.ones(body.m)
+    M_norm, (_, _, _, w) = reference.epoch(M, body, 1.0, one, exps, idx, raw, p.radius, p.steps, 1.0)
+    M_plain, _ = reference.epoch(M, body, 1.0, one, exps, idx, raw, p.radius, p.steps,
+                                 1.0 / w.sum(), step="plain")
+    np.testing.assert_allclose(M_plain, M_norm, rtol=0, atol=1e-12)
+
+
+def test_steps_with_one_step_is_the_batch_step_and_more_steps_move_further():
+    body, p, M, idx, raw, exps = _epoch_inputs()
+    one = np.ones(body.m)
+    args = (M, body, 1.0, one, exps, idx, raw, p.radius, p.steps, 0.5)
+    M1, _ = reference.epoch(*args)
+    Ms, _ = reference.epoch(*args, updates="steps", update_steps=1)
+    M3, _ = reference.epoch(*args, updates="steps", update_steps=3)
+    np.testing.assert_array_equal(M1, Ms)
+    assert np.abs(M3 - M).sum() > np.abs(M1 - M).sum()
+
+
+def test_online_updates_visit_every_sample_and_approach_the_batch_step_for_small_rates():
+    body, p, M, idx, raw, exps = _epoch_inputs()
+    one = np.ones(body.m)
+    args = (M, body, 1.0, one, exps, idx, raw, p.radius, p.steps, 1e-4)
+    M_batch, _ = reference.epoch(*args)
+    M_online, _ = reference.epoch(*args, updates="online")
+    step = np.abs(M_batch - M).max()
+    assert np.abs(M_online - M_batch).max() < 1e-3 * step
+
+
+def test_uniform_amplitude_never_exceeds_R_and_exact_reaches_it():
+    body = gbmodel.make_body("arm5")
+    rng = np.random.default_rng(3)
+    raw = rng.uniform(-1, 1, size=(20, body.m, body.n + 1))
+    amp = rng.uniform(0, 1, size=(20, body.m))
+    lo, hi = body.target_box(1.0)
+    corners = np.array([[x, y] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])])
+    for a, want in ((None, np.full((20, body.m), 0.2)), (amp, 0.2 * amp)):
+        A, b = reference.scale_perturbations(raw, lo, hi, 0.2, a)
+        peak = np.abs(corners @ A.transpose(0, 2, 1) + b[:, None, :]).max(axis=1)
+        np.testing.assert_allclose(peak, want, rtol=1e-12)
+
+
+def test_uniform_amplitude_draws_after_the_exact_draws():
+    body = gbmodel.make_body("arm5")
+    exact = gb.draw(gb.Params(), body, 5, np.random.default_rng(0))
+    uniform = gb.draw(gb.Params(amplitude="uniform", fast=False), body, 5, np.random.default_rng(0))
+    for a, b in zip(exact, uniform):
+        np.testing.assert_array_equal(a, b)
+    assert uniform[2].shape == (5, 20, 5) and (0 <= uniform[2]).all() and (uniform[2] <= 1).all()
+
+
+@pytest.mark.parametrize("kw", [dict(step="plain", learning_rate=1 / 1142),
+                                dict(amplitude="uniform"), dict(updates="online")])
+def test_every_reading_learns(kw):
+    spec = gbmodel.TrialSpec(body={"name": "arm5"},
+                             learner={"name": "goal_babbling", "fast": False, **kw}, epochs=40)
+    res = gbmodel.run_trial(spec, np.random.default_rng(0))
+    assert res.abs_error[-1] < 0.75 * res.abs_error[0]
+
+
+def _curves(conds):
+    rows = []
+    for name, values in conds.items():
+        for e, v in enumerate(values, start=1):
+            rows.append(dict(condition=name, epoch=e, abs_error_mean=v, rel_error_mean=v))
+    return pd.DataFrame(rows)
+
+
+def test_added_measures_see_a_rise_above_the_start_body_and_a_rebound_during_growth():
+    # T_G = 4: the growing body's error climbs above the short reference while it grows
+    curves = _curves({"TG4": [0.10, 0.12, 0.15, 0.16, 0.10, 0.08],
+                      "const0.5": [0.10, 0.09, 0.08, 0.07, 0.06, 0.05],
+                      "const1.0": [0.40, 0.30, 0.20, 0.15, 0.12, 0.10]})
+    summary = pd.DataFrame([
+        dict(figure="f", condition="TG4", growth="proportional", growth_period=4, end_size=1.0,
+             peak_abs_error_growth=0.16, rise_abs_error_growth=0.06, peak_epoch_growth=4,
+             n_trials=1, n_bootstrap_failures=0, n_run_failures=0, final_abs_error_mean=0.08,
+             paper_final_abs_error=np.nan),
+        *[dict(figure="f", condition=c, growth="none", growth_period=0, end_size=s,
+               peak_abs_error_growth=np.nan, rise_abs_error_growth=np.nan, peak_epoch_growth=-1,
+               n_trials=1, n_bootstrap_failures=0, n_run_failures=0, final_abs_error_mean=0.05,
+               paper_final_abs_error=np.nan) for c, s in (("const0.5", 0.5), ("const1.0", 1.0))]])
+    rows = {r["claim"]: r for r in claims.growth_claims("f", curves, summary)}
+    start = next(r for c, r in rows.items() if "starts from" in c)
+    assert start["verdict"] == "reproduced" and "+129 %" in start["measured"]  # 0.16 / 0.07
+    during = next(r for c, r in rows.items() if "does not rebound" in c)
+    assert during["verdict"].startswith("not reproduced") and "rebound 60 %" in during["measured"]
+
+
+def test_readings_split_names_conditions_as_in_the_figure():
+    summary = pd.DataFrame(dict(variant=["a", "a", "b"], condition=["a | TG10", "a | const1.0",
+                                                                       "b | TG10"]))
+    curves = pd.DataFrame(dict(condition=["a | TG10", "b | TG10"], epoch=[1, 1]))
+    out = readings.split(dict(summary=summary, curves=curves))
+    assert list(out) == ["a", "b"]
+    assert out["a"][1]["condition"].tolist() == ["TG10", "const1.0"]
+    assert out["b"][0]["condition"].tolist() == ["TG10"]
