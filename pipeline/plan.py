@@ -117,8 +117,15 @@ def variants(cfg: DictConfig) -> list[tuple[dict | None, DictConfig]]:
             out.append((None, cfg))
             continue
         vcfg = cfg.copy()
+        groups = [o for o in v.set if "=" in o and "." not in o.split("=", 1)[0]]
         try:
-            vcfg.merge_with(OmegaConf.from_dotlist(list(v.set)))
+            for o in groups:  # `learner=<name>`: that learner's config, for this body
+                group, name = o.split("=", 1)
+                if group != "learner":
+                    raise ValueError(f"{o}: a variant can choose a learner, not a {group}")
+                from .config import compose
+                vcfg.learner = compose([f"body={cfg.body.name}", o]).learner
+            vcfg.merge_with(OmegaConf.from_dotlist([o for o in v.set if o not in groups]))
         except Exception as err:  # an unknown key or a wrong type in the variant
             _bad("conditions.variants", v.label, f"set {list(v.set)}: {err}".splitlines()[0])
         out.append((dict(label=v.label, choice=v.choice, chosen=bool(v.chosen)), vcfg))

@@ -280,7 +280,7 @@ def findings(summary: pd.DataFrame, claim_rows: list[dict]) -> str:
 def stamp_findings(summary: pd.DataFrame, claim_rows: list[dict]) -> None:
     """Record the numbers findings.md was written against (after rereading it against them)."""
     io.write_text(FINDINGS_NUMBERS, findings_numbers(summary, claim_rows)
-                  .to_csv(index=False, float_format="%.17g"))
+                  .to_csv(index=False, float_format="%.17g", na_rep="nan"))
 
 
 def listed_files(report_md: Path) -> list[str]:
