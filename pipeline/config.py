@@ -121,9 +121,22 @@ class ReportConf:
 
 
 @dataclass
+class SlurmConf:
+    """SLURM jobs through submitit (executor=slurm; pipeline/backends.py)."""
+
+    partition: Optional[str] = None  # --partition; null: the cluster's default
+    timeout_min: int = 1440  # --time of each job, minutes (a job runs a whole shard)
+    mem_gb: float = 2.0  # --mem per job
+    shards: Optional[int] = None  # array jobs; null: `workers`
+    setup: list[str] = field(default_factory=list)  # shell lines before each job
+    poll_s: float = 10.0  # how often the driver asks SLURM about its jobs
+
+
+@dataclass
 class ExecutorConf:
-    backend: str = "local"  # local (worker processes)
-    address: Optional[str] = None  # a cluster's address, for backends that have one
+    backend: str = MISSING  # local | ray | slurm | submitit_local (conf/executor/)
+    address: Optional[str] = None  # a Ray cluster's address (`auto`, `ray://host:10001`)
+    slurm: SlurmConf = field(default_factory=SlurmConf)
 
 
 @dataclass

@@ -31,6 +31,13 @@ def run_one(trial: dict) -> dict:
     epoch), or failed (an exception; not cached, so the next run tries again)."""
     start = time.perf_counter()
     try:
+        from .plan import code_fingerprint
+
+        mine = code_fingerprint(trial["spec"]["learner"]["name"])
+        if trial.get("code", mine) != mine:  # code changed since the plan, or another node's
+            raise RuntimeError(f"this process's gbmodel code has fingerprint {mine}, the trial's "
+                               f"key names {trial['code']}: the code changed since the plan "
+                               "(or differs on this node); run the command again")
         spec = gbmodel.TrialSpec.from_dict(trial["spec"])
         seed = np.random.SeedSequence(trial["seed"]["entropy"],
                                       spawn_key=tuple(trial["seed"]["spawn_key"]))
@@ -91,15 +98,17 @@ def local(todo: list[dict], workers: int, fn=run_one):
         pool.shutdown(wait=True, cancel_futures=True)
 
 
-def results(todo: list[dict], workers: int, backend: str = "local", address=None, fn=run_one):
+def results(todo: list[dict], workers: int, backend: str = "local", address=None, fn=run_one,
+            options=None, logs=None):
     """Yield (trial, result) for every trial of `todo` on the chosen backend: `local`, or a
-    cluster engine of pipeline.backends (optional extras)."""
+    cluster engine of pipeline.backends (optional extras; options and logs: its settings)."""
     if backend == "local":
         yield from local(todo, workers, fn)
         return
     from . import backends  # imports an engine only when it is asked for
 
-    yield from backends.run(backend, todo, workers, fn=fn, address=address)
+    yield from backends.run(backend, todo, workers, fn=fn, address=address, options=options,
+                            logs=logs)
 
 
 def warm_up(trials: list[dict]) -> None:

@@ -173,6 +173,9 @@ def plan(cfg: DictConfig) -> list[dict]:
     check_int("trials.count", cfg.trials.count, 1)
     check_int("trials.root_seed", cfg.trials.root_seed, 0)
     check_int("workers", cfg.workers, 1)
+    from .backends import check as check_backend
+
+    check_backend(cfg.executor.backend)  # an unknown engine, or one whose package is missing
     if not cfg.figure or "/" in cfg.figure or cfg.figure.startswith("."):
         _bad("figure", cfg.figure, "must be a plain name (it names a folder)")
     check_paths(cfg)

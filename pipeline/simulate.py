@@ -112,8 +112,10 @@ def simulate(cfg: DictConfig) -> Summary:
     try:
         if mine:
             execute.warm_up(mine)
-        for trial, result in execute.results(mine, cfg.workers, cfg.executor.backend,
-                                             cfg.executor.address):
+        for trial, result in execute.results(
+                mine, cfg.workers, cfg.executor.backend, cfg.executor.address,
+                options=OmegaConf.to_container(cfg.executor.slurm),
+                logs=Path(cfg.paths.out) / "logs" / "submitit"):
             record(cache_dir, trial, result, summary)
             claims[trial["key"]].release()
             progress.update(trial, result)

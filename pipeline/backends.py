@@ -1,0 +1,236 @@
+"""Cluster engines for the simulate stage: Ray, and SLURM (or a local stand-in) through submitit.
+
+    python -m pipeline.simulate experiment=fig4 executor=ray                    # a local Ray
+    python -m pipeline.simulate experiment=fig4 executor=ray executor.address=auto   # a cluster
+    python -m pipeline.simulate experiment=fig4 executor=slurm workers=64       # 64 array jobs
+
+Each engine takes the same plain-data trials as the local executor (pipeline.execute.local) and
+yields (trial, result) as trials finish; the driver (pipeline.simulate) writes every result to
+the cache itself. So no cache file is ever written by a worker or by two jobs, the per-trial
+claims and plan records stay where they are, and the trial files are byte for byte those of a
+local run (a result is the same plain data whichever process computed it).
+
+Why Ray core and submitit rather than Hydra's launchers (hydra-ray-launcher, submitit-launcher):
+a Hydra launcher's unit of work is a whole stage run (one composed config, one `simulate`); here
+the unit of work is a trial, and one figure is hundreds of trials of very different lengths. A
+launcher would either run each figure on one node, or run many `simulate` processes that all
+write into one cache. Driver-side engines keep one writer and schedule trials longest first.
+
+- Ray (`executor=ray`): one Ray task per trial (num_cpus=1, one BLAS/numba thread), all submitted
+  longest first, collected with ray.wait as they finish. Without an address a local Ray instance
+  of `workers` CPUs is started for the run and shut down after it. A task whose worker died
+  (killed, out of memory, node lost) is not retried by Ray: it comes back as a failed result,
+  which the driver records and the next run of the same command computes again.
+- submitit (`executor=slurm`, `executor=submitit_local`): trials are packed into shards (one
+  array job each, `shards`), balanced by their estimated cost; `workers` jobs run at once. A job
+  returns the results of its whole shard; a job that failed, timed out or was cancelled returns
+  its trials as failed results. Job files and logs go under <paths.out>/logs/submitit/.
+
+Every worker checks that its gbmodel code has the fingerprint the driver put into the trial's key
+(pipeline.plan.code_fingerprint), so a node with other code fails the trial instead of caching a
+result computed by code the key does not name.
+"""
+from __future__ import annotations
+
+import importlib.util
+import os
+import shutil
+import time
+import traceback
+from pathlib import Path
+
+from dataclasses import asdict
+
+from .config import REPO_ROOT, ConfigError, SlurmConf
+from .execute import THREAD_VARS
+
+BACKENDS = ("local", "ray", "slurm", "submitit_local")
+EXTRA = {"ray": ("ray", "ray"), "slurm": ("submitit", "slurm"),
+         "submitit_local": ("submitit", "slurm")}  # backend -> (package, pyproject extra)
+
+# SLURM / submitit settings (executor.slurm.* once the schema has them; see conf/executor/slurm.yaml)
+SLURM_DEFAULTS = dict(partition=None, timeout_min=24 * 60, mem_gb=2.0, shards=None, setup=[],
+                      poll_s=10.0)
+LOCAL_POLL_S = 0.5
+RAY_OBJECT_STORE_BYTES = 100 * 1000**2  # a result is a few hundred kB at most
+
+
+def check(backend: str) -> None:
+    """ConfigError (one line) for an unknown backend, or one whose package is not installed."""
+    if backend not in BACKENDS:
+        raise ConfigError(f"executor.backend={backend!r}: choose one of {', '.join(BACKENDS)}")
+    if backend in EXTRA:
+        package, extra = EXTRA[backend]
+        if importlib.util.find_spec(package) is None:
+            raise ConfigError(f"executor.backend={backend!r} needs the package {package}: "
+                              f"pip install -e '.[{extra}]'")
+
+
+def run(backend: str, todo: list[dict], workers: int, fn=None, address=None, options=None,
+        logs=None):
+    """Yield (trial, fn(trial)) for every trial of `todo` on a cluster engine, as they finish.
+
+    options: the backend's settings (for slurm/submitit_local: keys of SLURM_DEFAULTS);
+    logs: the folder for submitit's job files (default <repo>/outputs/logs/submitit)."""
+    check(backend)
+    if backend == "local":
+        raise ConfigError("executor.backend='local' runs through pipeline.execute.local")
+    if fn is None:
+        from .execute import run_one as fn
+    if not todo:
+        return
+    if backend == "ray":
+        yield from ray_results(todo, workers, fn, address)
+    else:
+        if address:
+            raise ConfigError(f"executor.address={address!r}: the {backend} backend takes no "
+                              "address (submitit submits from this machine)")
+        yield from submitit_results(todo, workers, fn, cluster="slurm" if backend == "slurm"
+                                    else "local", options=options, logs=logs)
+
+
+# --- what runs in a worker ---------------------------------------------------------------------
+
+def call(fn, trial: dict) -> dict:
+    """fn(trial) in a worker (pipeline.execute.run_one checks the worker's code fingerprint)."""
+    return fn(trial)
+
+
+def run_shard(fn, trials: list[dict]) -> list[dict]:
+    """A submitit job: the trials of one shard, one after the other."""
+    os.environ.update({k: "1" for k in THREAD_VARS})  # for anything started from here on
+    return [call(fn, t) for t in trials]
+
+
+def failed(trial: dict, error: str, seconds: float = 0.0, tb: str | None = None) -> dict:
+    """A failed result as pipeline.execute.run_one makes one: not cached, retried next run."""
+    lines = [ln for ln in str(error).splitlines() if ln.strip()]
+    out = dict(status="failed", error=lines[0] if lines else "failed", key=trial["key"],
+               seconds=seconds)
+    out["traceback"] = tb or str(error)
+    return out
+
+
+# --- sharding ----------------------------------------------------------------------------------
+
+def shards(todo: list[dict], n: int, cost=None) -> list[list[dict]]:
+    """Split `todo` into at most n shards of about equal total cost (pipeline.plan.cost).
+
+    Longest first, each trial goes to the shard with the least cost so far (LPT), so the costs
+    of any two shards differ by at most one trial's cost. Every trial is in exactly one shard,
+    within a shard in the order of `todo`; no shard is empty; the first shard is the costliest."""
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise ValueError(f"shards: n={n!r} must be an int >= 1")
+    if cost is None:
+        from .plan import cost
+    costs = [float(cost(t)) for t in todo]
+    n = min(n, len(todo))
+    loads, members = [0.0] * n, [[] for _ in range(n)]
+    for i in sorted(range(len(todo)), key=lambda i: -costs[i]):  # stable: ties keep todo order
+        s = min(range(n), key=lambda s: (loads[s], s))
+        loads[s] += costs[i]
+        members[s].append(i)
+    order = sorted(range(n), key=lambda s: (-loads[s], s))
+    return [[todo[i] for i in sorted(members[s])] for s in order]
+
+
+# --- Ray ---------------------------------------------------------------------------------------
+
+def ray_results(todo: list[dict], workers: int, fn, address=None):
+    """One Ray task per trial, submitted in the order of `todo`, yielded as they finish."""
+    import logging
+
+    import ray
+    from ray.exceptions import RayError
+
+    own = not ray.is_initialized()
+    if own:
+        kw = dict(address=address or None, include_dashboard=False, log_to_driver=False,
+                  logging_level=logging.WARNING, configure_logging=True)
+        if not address:  # a local instance for this run only
+            kw.update(num_cpus=workers, object_store_memory=RAY_OBJECT_STORE_BYTES)
+        ray.init(**kw)
+    task = ray.remote(call).options(
+        num_cpus=1, max_retries=0, name="gbgrowth-trial",
+        runtime_env={"env_vars": {k: "1" for k in THREAD_VARS}})
+    pending = {}
+    try:
+        fn_ref = ray.put(fn)
+        pending = {task.remote(fn_ref, t): t for t in todo}
+        while pending:
+            (ref,), _ = ray.wait(list(pending), num_returns=1)
+            trial = pending.pop(ref)
+            try:
+                result = ray.get(ref)
+            except RayError as err:  # the worker died, the node was lost, the task was cancelled
+                result = failed(trial, f"{type(err).__name__}: {err}", tb=traceback.format_exc())
+            yield trial, result
+    finally:
+        for ref in pending:  # Ctrl-C, an error or a dropped generator: stop the rest now
+            try:
+                ray.cancel(ref, force=True)
+            except Exception:  # noqa: BLE001 - already finished or gone
+                pass
+        if own:
+            ray.shutdown()
+
+
+# --- submitit (SLURM, or local processes) ------------------------------------------------------
+
+def submitit_results(todo: list[dict], workers: int, fn, cluster: str = "slurm", options=None,
+                     logs=None):
+    """The trials in shards, one array job each, `workers` at a time; yield each job's results
+    when it ends (a failed job: its trials as failed results)."""
+    import submitit
+
+    opts = dict(SLURM_DEFAULTS)
+    opts.update({k: v for k, v in dict(options or {}).items() if v is not None})
+    unknown = set(opts) - set(SLURM_DEFAULTS)
+    if unknown:
+        raise ConfigError(f"executor.slurm: unknown setting(s) {sorted(unknown)}; "
+                          f"known: {', '.join(SLURM_DEFAULTS)}")
+    if cluster == "slurm" and shutil.which("sbatch") is None:
+        raise ConfigError("executor.backend='slurm': sbatch not found; submit from a SLURM login "
+                          "node, or use executor=submitit_local (or ray) on this machine")
+    n = opts["shards"] or workers
+    if cluster == "local":
+        n = min(n, workers)  # every local job starts at once
+    parts = shards(todo, n)
+    folder = Path(logs) if logs else REPO_ROOT / "outputs" / "logs" / "submitit"
+    folder.mkdir(parents=True, exist_ok=True)
+    executor = submitit.AutoExecutor(folder=str(folder / "%j"), cluster=cluster)
+    setup = [f"export {k}=1" for k in THREAD_VARS] + list(opts["setup"])
+    params = dict(name=f"gbgrowth-{todo[0]['labels']['figure']}", timeout_min=int(opts["timeout_min"]),
+                  cpus_per_task=1, tasks_per_node=1, nodes=1)
+    params[f"{cluster}_setup"] = setup
+    if cluster == "slurm":
+        params.update(mem_gb=opts["mem_gb"], slurm_partition=opts["partition"],
+                      slurm_array_parallelism=workers)
+    executor.update_parameters(**params)
+    jobs = executor.map_array(run_shard, [fn] * len(parts), parts)
+    pending = dict(zip(jobs, parts))
+    poll = LOCAL_POLL_S if cluster == "local" else float(opts["poll_s"])
+    try:
+        while pending:
+            finished = [j for j in pending if j.done()]
+            if not finished:
+                time.sleep(poll)
+                continue
+            for job in finished:
+                part = pending.pop(job)
+                try:
+                    results = job.result()
+                    if len(results) != len(part):
+                        raise RuntimeError(f"job {job.job_id} returned {len(results)} results "
+                                           f"for {len(part)} trials")
+                except Exception as err:  # noqa: BLE001 - failed, timed out, cancelled, lost
+                    tb = traceback.format_exc()
+                    results = [failed(t, f"job {job.job_id} {job.state}: "
+                                      f"{type(err).__name__}: {err}", tb=tb) for t in part]
+                yield from zip(part, results)
+    finally:
+        for job in pending:  # Ctrl-C, an error or a dropped generator: cancel the rest
+            try:
+                job.cancel(check=False)
+            except Exception:  # noqa: BLE001 - already finished or gone
+                pass
