@@ -74,3 +74,24 @@ def evaluate(learner, state, params, body: Body, size: float, scale, points: str
     else:
         d = distances(lambda x: learner.predict(state, params, body, x), body, scale, xs)
     return error(np.asarray(d, dtype=np.float64), formula)
+
+
+def lines(body: Body, size: float, points: int = 201) -> np.ndarray:
+    """Straight lines through the target box at `size`: one per axis, through the box's centre,
+    `points` points each from one face to the other: (n, points, n)."""
+    lo, hi = body.target_box(size)
+    centre = 0.5 * (lo + hi)
+    out = np.repeat(centre[None, None, :], body.n, axis=0).repeat(points, axis=1)
+    for j in range(body.n):
+        out[j, :, j] = np.linspace(lo[j], hi[j], points)
+    return out
+
+
+def largest_jump(predict, body: Body, size: float, points: int = 201) -> float:
+    """The redundancy measure: the largest joint-space step |q(x_k+1) - q(x_k)| of the inverse
+    between neighbouring points on the lines through the target box (`lines`), in command units.
+    A smooth inverse changes little between points 1/200 of the box apart; an inverse that
+    switches between redundant solutions (branch switching) or is a lookup table jumps."""
+    steps = [np.linalg.norm(np.diff(predict(line), axis=0), axis=-1).max()
+             for line in lines(body, size, points)]
+    return float(max(steps))

@@ -96,6 +96,7 @@ class TrialResult:
     M: np.ndarray | None  # the learner's final model (the inverse estimate's M), if it has one
     snapshots: dict = field(default_factory=dict)  # epoch -> model after that epoch
     samples_per_epoch: int = 0  # forward-kinematics evaluations per epoch
+    largest_jump: float = float("nan")  # the final inverse's redundancy measure (evaluation)
 
 
 def run_trial(spec: TrialSpec, rng: np.random.Generator) -> TrialResult:
@@ -129,6 +130,9 @@ def run_trial(spec: TrialSpec, rng: np.random.Generator) -> TrialResult:
                 abs_error[k] = err
                 k += 1
     size = sizes[evals - 1]
+    jump = evaluation.largest_jump(lambda x: learner.predict(state, params, body, x), body,
+                                   sizes[-1])
     return TrialResult(epoch=evals, size=size, abs_error=abs_error, rel_error=abs_error / size,
                        M=learner.model(state), snapshots=snapshots,
-                       samples_per_epoch=learner.samples_per_epoch(params, body))
+                       samples_per_epoch=learner.samples_per_epoch(params, body),
+                       largest_jump=jump)

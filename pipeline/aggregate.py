@@ -60,7 +60,8 @@ def load_trials(cache_dir, figure: str) -> tuple[pd.DataFrame, dict, dict, list[
             c["diverged"][i] = side["epoch"]
         else:
             frames.append(cache.read_curve(cache_dir, t))
-            c["trials"][i] = {"key": t["key"], "M": side["M"], "snapshots": side["snapshots"]}
+            c["trials"][i] = {"key": t["key"], "M": side["M"], "snapshots": side["snapshots"],
+                              "largest_jump": side["largest_jump"]}
     empty = io.CURVE.empty_table().to_pandas()
     df = pd.concat(frames, ignore_index=True) if frames else empty
     return df, conds, paper, problems
@@ -126,6 +127,9 @@ def summarize(trials: pd.DataFrame, curves: pd.DataFrame, conds: dict, paper: di
         row["peak_epoch_growth"] = peak[0] if peak else -1
         median = final["rel_error"].median() if len(final) else np.nan
         row["n_bootstrap_failures"] = int((final["rel_error"] > fail_factor * median).sum())
+        jumps = [t["largest_jump"] for t in c["trials"].values()]
+        row["largest_jump_mean"] = float(np.mean(jumps)) if jumps else np.nan
+        row["final_samples"] = int(final["samples"].max()) if len(final) else 0
         row["paper_final_abs_error"] = np.nan if paper_abs is None else float(paper_abs)
         rows.append(row)
     return pd.DataFrame(rows)

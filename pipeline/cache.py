@@ -67,6 +67,7 @@ def write_trial(cache_dir, trial: dict, result: dict) -> None:
                                              result["size"], result["abs_error"],
                                              result["rel_error"]))
         record["curve_sha256"] = io.sha256_file(curve)
+        record["largest_jump"] = float(result["largest_jump"])
         M = result["M"]
         record["M"] = None if M is None else np.asarray(M).tolist()
         record["snapshots"] = {str(e): np.asarray(m).tolist()

@@ -1,12 +1,19 @@
-"""Unit tests of the numerical core: features, bodies, growth, the learner's pieces, a trial."""
+"""Unit tests of the numerical core: features, bodies, growth, the learner's pieces, a trial.
+
+Trials here run Goal Babbling's numpy reference path (learner.fast=false); tests/test_fast.py
+checks the compiled path against it.
+"""
 import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
 import gbmodel
-from gbmodel import learner
+from gbmodel import Growth, SpecError
+from gbmodel.evaluation import eval_epochs, evaluate
 from gbmodel.features import exponents, feature_bounds, features
-from gbmodel.trial import TrialSpec, eval_epochs, run_trial, size_schedule
+from gbmodel.learners import goal_babbling
+from gbmodel.learners.goal_babbling import reference as learner
+from gbmodel.trial import TrialSpec, run_trial
 
 BODY_NAMES = ["arm2", "arm5", "icub"]
 
@@ -94,11 +101,19 @@ def test_nonproportional_growth_of_arm5():
 
 
 def test_size_schedule():
-    spec = TrialSpec(epochs=50, period=10, start_size=0.5, end_size=1.0)
-    s = size_schedule(spec)
+    s = Growth(period=10, start_size=0.5, end_size=1.0).sizes(np.arange(1, 51))
     assert s[0] == 0.5 and s[10] == 1.0 and (s[10:] == 1.0).all()
     assert np.all(np.diff(s[:11]) == pytest.approx(0.05))
-    assert (size_schedule(TrialSpec(epochs=5, period=0, end_size=0.5)) == 0.5).all()
+    assert (Growth(period=0, end_size=0.5).sizes(np.arange(1, 6)) == 0.5).all()
+
+
+@pytest.mark.parametrize("name", ["arm2", "icub"])
+def test_nonproportional_growth_refused_where_every_segment_grows(name):
+    body = gbmodel.make_body(name)
+    assert body.growing.all()
+    with pytest.raises(SpecError, match="^growth.pattern='nonproportional': every segment"):
+        Growth(pattern="nonproportional", period=10).validate(body)
+    Growth(pattern="proportional", period=10).validate(body)
 
 
 @pytest.mark.parametrize("name", BODY_NAMES)
@@ -183,6 +198,23 @@ def test_target_path_follows_eq9():
     np.testing.assert_allclose(path[-1], [1.0, 1.5])
 
 
+def test_epoch_reaches_with_the_grown_body():
+    """One reference epoch on arm5 grown non-proportionally: every reached position is the hand
+    of the grown body at the posture taken, the home example leads each variation with weight 1,
+    and the step changes M."""
+    body, exps, rng = gbmodel.make_body("arm5"), exponents(2), np.random.default_rng(6)
+    size = 0.7
+    scale = body.segment_scale(size, "nonproportional")
+    M = learner.init_inverse(body.home, *body.target_box(size), exps, 0.1, rng)
+    idx, raw = goal_babbling.draw(goal_babbling.Params(), body, 1, rng)
+    M_new, (xstar, x, q, w) = learner.epoch(M, body, size, scale, exps, idx[0], raw[0], 0.2, 7,
+                                            1.0)
+    assert x.shape == (20, 15 * 7 + 1, 2) and q.shape == (20, 15 * 7 + 1, 5)
+    np.testing.assert_allclose(x, body.forward(q, size, "nonproportional"), atol=1e-15)
+    np.testing.assert_array_equal(w[:, 0], 1.0)
+    assert not np.allclose(M_new, M)
+
+
 def test_eval_epochs():
     e = eval_epochs(100_000)
     assert e[0] == 1 and e[-1] == 100_000 and (np.diff(e) > 0).all()
@@ -191,18 +223,35 @@ def test_eval_epochs():
 
 
 def test_validate_names_the_bad_value():
-    for kwargs, name in [(dict(body="arm7"), "body"), (dict(pattern="sideways"), "pattern"),
-                         (dict(period=-1), "period"), (dict(period=2.5), "period"),
-                         (dict(epochs=0), "epochs"), (dict(radius=-0.1), "radius"),
-                         (dict(learning_rate=0.0), "learning_rate"),
-                         (dict(snapshot_epochs=(0,)), "snapshot_epochs")]:
+    for kwargs, name in [(dict(body={"name": "arm7"}), "body.name"),
+                         (dict(growth={"pattern": "sideways"}), "growth.pattern"),
+                         (dict(growth={"period": -1}), "growth.period"),
+                         (dict(growth={"period": 2.5}), "growth.period"),
+                         (dict(epochs=0), "learner.epochs"),
+                         (dict(learner={"name": "goal_babbling", "radius": -0.1}),
+                          "learner.radius"),
+                         (dict(learner={"name": "goal_babbling", "learning_rate": 0.0}),
+                          "learner.learning_rate"),
+                         (dict(snapshots=(0,)), "snapshots")]:
         with pytest.raises(ValueError, match=f"^{name}="):
             TrialSpec(**kwargs).validate()
+    with pytest.raises(SpecError) as err:
+        TrialSpec(learner={"name": "goal_babbling", "radius": -0.1}).validate()
+    assert str(err.value) == "learner.radius=-0.1: must be >= 0"
+    assert err.value.key == "learner.radius"
 
 
 # ---- whole trials -----------------------------------------------------------------------------
+REFERENCE = {"name": "goal_babbling", "learning_rate": 1.0, "fast": False}
+
+
+def _spec(name="arm5", epochs=120, snapshots=(), **growth):
+    return TrialSpec(body={"name": name}, growth=growth, learner=REFERENCE, epochs=epochs,
+                     snapshots=snapshots)
+
+
 def test_determinism():
-    spec = TrialSpec(body="arm5", epochs=120, period=50, snapshot_epochs=(7,))
+    spec = _spec(epochs=120, period=50, snapshots=(7,))
     a = run_trial(spec, np.random.default_rng(11))
     b = run_trial(spec, np.random.default_rng(11))
     c = run_trial(spec, np.random.default_rng(12))
@@ -210,27 +259,32 @@ def test_determinism():
     np.testing.assert_array_equal(a.M, b.M)
     np.testing.assert_array_equal(a.snapshots[7], b.snapshots[7])
     assert not np.array_equal(a.abs_error, c.abs_error)
-    # snapshots cut the compiled blocks but change no number
-    d = run_trial(TrialSpec(body="arm5", epochs=120, period=50), np.random.default_rng(11))
+    # snapshots cut the blocks of epochs but change no number
+    d = run_trial(_spec(epochs=120, period=50), np.random.default_rng(11))
     np.testing.assert_array_equal(a.abs_error, d.abs_error)
 
 
 def test_curve_columns():
-    spec = TrialSpec(body="arm5", epochs=300, period=100)
+    spec = _spec(epochs=300, period=100)
     r = run_trial(spec, np.random.default_rng(0))
     np.testing.assert_array_equal(r.epoch, eval_epochs(300))
-    np.testing.assert_allclose(r.size, size_schedule(spec, r.epoch))
+    np.testing.assert_allclose(r.size, spec.make_growth().sizes(r.epoch))
     np.testing.assert_allclose(r.rel_error, r.abs_error / r.size)
     assert r.size[0] == 0.5 and r.size[-1] == 1.0
+    # the last point of the curve is the evaluation of the final model
+    body, params = spec.make_body(), spec.make_learner()[1]
+    scale = body.segment_scale(1.0, "proportional")
+    assert r.abs_error[-1] == evaluate(goal_babbling, r.M, params, body, 1.0, scale)
 
 
 @pytest.mark.parametrize("name, epochs, start_max, end_max", [
-    # measured (seed 0, learning rate 1.0): arm2 0.52 m -> 0.010 m, arm5 0.44 m -> 0.082 m
+    # measured (seed 0, learning rate 1.0, reference path): arm2 0.52 m -> 0.010 m,
+    # arm5 0.44 m -> 0.082 m
     ("arm2", 300, 0.6, 0.02),
     ("arm5", 300, 0.6, 0.12),
 ])
 def test_learning_reduces_the_error(name, epochs, start_max, end_max):
-    spec = TrialSpec(body=name, epochs=epochs, start_size=1.0, end_size=1.0)
+    spec = _spec(name, epochs=epochs, start_size=1.0, end_size=1.0)
     r = run_trial(spec, np.random.default_rng(0))
     assert r.abs_error[0] > 0.3 and r.abs_error[0] < start_max
     assert r.abs_error[-1] < end_max, r.abs_error[-1]

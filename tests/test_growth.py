@@ -1,0 +1,94 @@
+"""Growth schedules and patterns (gbmodel.growth): linear, infant, proximal-first."""
+import numpy as np
+import pytest
+
+import gbmodel
+from gbmodel import Growth, SpecError
+from gbmodel.growth import INFANT_RATE, WHO_LENGTH_CM, progress
+
+EPOCHS = np.arange(1, 302)
+
+
+def test_linear_schedule_unchanged():
+    g = Growth(period=200, start_size=0.5, end_size=1.0)
+    s = g.sizes(EPOCHS)
+    np.testing.assert_allclose(s, 0.5 + 0.5 * np.clip((EPOCHS - 1) / 200, 0, 1), atol=1e-15)
+    assert s[0] == 0.5 and s[200] == 1.0 and (s[200:] == 1.0).all()
+    assert (Growth(period=0, end_size=0.7).sizes(EPOCHS) == 0.7).all()
+
+
+def test_infant_rate_fits_the_who_curve():
+    birth, year, two_years = WHO_LENGTH_CM
+    half = (year - birth) / (two_years - birth)  # 0.694 of 0-24 months' growth in the first 12
+    assert progress(0.5, "infant") == pytest.approx(half, abs=1e-12)
+    assert INFANT_RATE == pytest.approx(1.6335, abs=1e-4)
+
+
+@pytest.mark.parametrize("start, end", [(0.5, 1.0), (1.0, 0.6)])
+def test_infant_schedule_is_monotone_concave_and_hits_both_ends(start, end):
+    g = Growth(period=200, start_size=start, end_size=end, schedule="infant")
+    s = g.sizes(EPOCHS)
+    assert s[0] == start and s[200] == pytest.approx(end, abs=1e-15)
+    assert (s[200:] == s[200]).all()
+    rise = np.sign(end - start) * np.diff(s[:201])
+    assert (rise > 0).all(), "monotone during growth"
+    assert (np.diff(rise) < 0).all(), "fast early, then slowing (concave)"
+    lin = Growth(period=200, start_size=start, end_size=end).sizes(EPOCHS)
+    assert (np.sign(end - start) * (s - lin)[1:200] > 0).all(), "ahead of linear growth"
+    # the first half of the period brings 69 % of the growth (WHO: 0-12 of 0-24 months)
+    assert (s[100] - start) / (end - start) == pytest.approx(0.694, abs=1e-3)
+
+
+@pytest.mark.parametrize("name", ["arm2", "arm5", "icub"])
+@pytest.mark.parametrize("schedule", ["linear", "infant"])
+def test_proximal_first_keeps_the_total_length(name, schedule):
+    body = gbmodel.make_body(name)
+    seg = np.hypot(body.a, body.d)
+    g = Growth(pattern="proximal_first", period=200, schedule=schedule).validate(body)
+    sizes = g.sizes(EPOCHS)
+    scales = g.scales(body, sizes)
+    assert scales.shape == (len(EPOCHS), body.m)
+    # the total length is proportional growth's at every epoch
+    np.testing.assert_allclose(scales @ seg, sizes * seg.sum(), rtol=1e-12)
+    # every segment starts at start_size and ends at end_size: the bodies of proportional growth
+    proportional = Growth(period=200, schedule=schedule).scales(body, sizes)
+    np.testing.assert_allclose(scales[0], proportional[0], atol=1e-15)
+    np.testing.assert_allclose(scales[200:], proportional[200:], atol=1e-15)
+    # during growth, along the chain (segments of non-zero length), proximal >= distal
+    grown = scales[1:200][:, seg > 0]
+    assert (np.diff(grown, axis=1) <= 1e-15).all()
+    assert (grown[:, 0] > grown[:, -1]).all(), "the first segment strictly ahead of the last"
+    assert (np.diff(scales[:201], axis=0) >= 0).all(), "every segment grows monotonically"
+
+
+def test_proximal_first_on_arm5_by_numbers():
+    body = gbmodel.make_body("arm5")
+    g = Growth(pattern="proximal_first", period=10)
+    np.testing.assert_allclose(g.scales(body, 0.75), [0.875, 0.8125, 0.75, 0.6875, 0.625])
+    np.testing.assert_allclose(Growth(pattern="proximal_first", proximal_lead=0.0).scales(
+        body, 0.75), 0.75)
+    # the straight arm reaches its total length
+    scale = g.scales(body, 0.6)
+    assert body.forward(np.zeros(5), scale=scale) == pytest.approx([0.6, 0.0])
+
+
+def test_proximal_first_runs_in_a_trial():
+    spec = gbmodel.TrialSpec(growth={"pattern": "proximal_first", "period": 20,
+                                     "schedule": "infant"},
+                             learner={"name": "goal_babbling", "fast": False}, epochs=30)
+    r = gbmodel.run_trial(spec, np.random.default_rng(0))
+    np.testing.assert_allclose(r.size, spec.make_growth().sizes(r.epoch))
+    assert r.size[-1] == 1.0 and np.isfinite(r.abs_error).all()
+
+
+def test_growth_validation_names_the_field():
+    arm5 = gbmodel.make_body("arm5")
+    for kwargs, key in [(dict(schedule="cubic"), "growth.schedule"),
+                        (dict(pattern="distal_first"), "growth.pattern"),
+                        (dict(proximal_lead=1.5), "growth.proximal_lead"),
+                        (dict(proximal_lead=-0.1), "growth.proximal_lead"),
+                        (dict(start_size=0.0), "growth.start_size"),
+                        (dict(period=-3), "growth.period")]:
+        with pytest.raises(SpecError, match=f"^{key}=") as err:
+            Growth(**kwargs).validate(arm5)
+        assert err.value.key == key
