@@ -70,29 +70,32 @@ class Body:
         return q + self.theta_offset
 
     # ---- growth ----------------------------------------------------------------------------------
-    def segment_scale(self, size, pattern: str = "proportional") -> np.ndarray:
+    def segment_scale(self, size, pattern: str = "proportional", fixed: float = 1.0) -> np.ndarray:
         """Per-joint length factors (..., m) when the body has `size` (scalar or array) times
         its full total length.
 
-        proportional: every length times size. nonproportional: only the growing segments
-        change, by the common factor that makes the total length size * full total.
+        proportional: every length times size. nonproportional: the non-growing segments stay at
+        `fixed` times their full length (1.0: the full-size body is the common end of every
+        size; 0.5: the half-size body is the common start), the growing ones change by the
+        common factor that makes the total length size * full total.
         """
         size = np.asarray(size, dtype=np.float64)[..., None]
         if pattern == "proportional":
             return np.broadcast_to(size, size.shape[:-1] + (self.m,)).copy()
         if pattern != "nonproportional":
-            raise ValueError(f"unknown growth pattern {pattern!r}; choose one of {GROWTH_PATTERNS}")
+            raise ValueError(f"unknown growth pattern {pattern!r}; choose proportional or "
+                             "nonproportional")
         seg = np.hypot(self.a, self.d)
-        grow, fixed = seg[self.growing].sum(), seg[~self.growing].sum()
+        grow, held = seg[self.growing].sum(), fixed * seg[~self.growing].sum()
         if grow <= 0:
             raise ValueError(f"body {self.name!r} has no growing segment")
-        gamma = (size * (grow + fixed) - fixed) / grow
+        gamma = (size * seg.sum() - held) / grow
         if np.any(gamma <= 0):
             raise ValueError(
                 f"size {size.min()} is too small for non-proportional growth of {self.name!r}: "
-                f"the fixed segments alone are {fixed / (grow + fixed):.2f} of the full length"
+                f"the fixed segments alone are {held / seg.sum():.2f} of the full length"
             )
-        return np.where(self.growing, gamma, 1.0)
+        return np.where(self.growing, gamma, fixed)
 
     def chain(self, size: float = 1.0, pattern: str = "proportional", scale=None) -> dict:
         """Arrays describing the chain at a given size (or per-joint length factors `scale`):

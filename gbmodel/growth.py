@@ -111,12 +111,17 @@ class Growth:
     period: int = 0  # T_G [epochs]
     schedule: str = "linear"
     proximal_lead: float = 1.0
+    # non-proportional growth holds the non-growing segments at this fraction of their length:
+    # 1.0, the full-size arm is the common end body (our reading of Fig. 3c); 0.5, the half-size
+    # arm (5 x 0.1 m) is the common start body and the end body is unequal (the other reading)
+    fixed_scale: float = 1.0
 
     def validate(self, body: Body) -> "Growth":
         check_choice("growth.pattern", self.pattern, PATTERNS)
         check_choice("growth.schedule", self.schedule, SCHEDULES)
         check_int("growth.period", self.period, 0)
         check_number("growth.proximal_lead", self.proximal_lead, 0.0)
+        check_number("growth.fixed_scale", self.fixed_scale, 0.0, strict=True)
         if self.proximal_lead > 1.0:
             raise SpecError("growth.proximal_lead", self.proximal_lead,
                             "must be <= 1 (beyond, distal segments would shrink for a while)")
@@ -124,7 +129,7 @@ class Growth:
             check_number(f"growth.{name}", getattr(self, name), 0.0, strict=True)
             if self.pattern in ("proportional", "nonproportional"):
                 try:
-                    body.segment_scale(getattr(self, name), self.pattern)
+                    body.segment_scale(getattr(self, name), self.pattern, self.fixed_scale)
                 except ValueError as err:
                     raise SpecError(f"growth.{name}", getattr(self, name), str(err)) from None
         if self.pattern == "nonproportional" and body.growing.all():
@@ -149,7 +154,7 @@ class Growth:
         if self.pattern == "proximal_first":
             return proximal_first_scale(body, sizes, self.start_size, self.end_size,
                                         self.proximal_lead)
-        return body.segment_scale(sizes, self.pattern)
+        return body.segment_scale(sizes, self.pattern, self.fixed_scale)
 
     def to_dict(self) -> dict:
         return asdict(self)

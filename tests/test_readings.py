@@ -146,3 +146,17 @@ def test_readings_split_names_conditions_as_in_the_figure():
     assert list(out) == ["a", "b"]
     assert out["a"][1]["condition"].tolist() == ["TG10", "const1.0"]
     assert out["b"][0]["condition"].tolist() == ["TG10"]
+
+
+def test_common_start_reading_grows_the_half_size_arm_into_an_unequal_one():
+    body = gbmodel.make_body("arm5")
+    g = gbmodel.Growth(pattern="nonproportional", period=10, fixed_scale=0.5).validate(body)
+    start, end = g.scales(body, [0.5, 1.0])
+    np.testing.assert_allclose(start, 0.5)  # the proportionally halved arm, 5 x 0.1 m
+    np.testing.assert_allclose(end, [4 / 3, 0.5, 4 / 3, 0.5, 4 / 3])  # segments 1, 3, 5 grow
+    for size, k in ((0.5, start), (1.0, end)):
+        assert (0.2 * k).sum() == pytest.approx(size)
+    # the paper's other reading (ours): the full-size arm is the common end
+    common_end = gbmodel.Growth(pattern="nonproportional", period=10).scales(body, [0.5, 1.0])
+    np.testing.assert_allclose(common_end[1], 1.0)
+    assert common_end[0][1] == 1.0 and common_end[0][0] == pytest.approx(1 / 6)
