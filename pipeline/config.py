@@ -95,6 +95,11 @@ class ConditionsConf:
     references: list[float] = field(default_factory=list)  # constant sizes run as references
     snapshots: list[int] = field(default_factory=list)  # epochs after which M is stored
     variants: list[VariantConf] = field(default_factory=list)  # each: all of the above again
+    # a budget of reaching movements (forward-kinematics samples) per trial instead of epochs:
+    # each learner gets budget / its samples per epoch epochs, growing over growth_share of them
+    budget: Optional[int] = None
+    growth_share: float = 0.5
+    budget_scale: float = 1.0  # profiles shrink the budget (smoke)
 
 
 @dataclass

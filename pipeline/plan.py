@@ -114,6 +114,7 @@ def variants(cfg: DictConfig) -> list[tuple[dict | None, DictConfig]]:
     out = []
     for v in cfg.conditions.variants or [None]:
         if v is None:
+            apply_budget(cfg)
             out.append((None, cfg))
             continue
         vcfg = cfg.copy()
@@ -128,11 +129,31 @@ def variants(cfg: DictConfig) -> list[tuple[dict | None, DictConfig]]:
             vcfg.merge_with(OmegaConf.from_dotlist([o for o in v.set if o not in groups]))
         except Exception as err:  # an unknown key or a wrong type in the variant
             _bad("conditions.variants", v.label, f"set {list(v.set)}: {err}".splitlines()[0])
+        apply_budget(vcfg)
         out.append((dict(label=v.label, choice=v.choice, chosen=bool(v.chosen)), vcfg))
     labels = [v["label"] for v, _ in out if v]
     if len(set(labels)) != len(labels):
         _bad("conditions.variants", labels, "labels must differ")
     return out
+
+
+def apply_budget(cfg: DictConfig) -> None:
+    """conditions.budget: the learner's epochs and the growth period from a sample budget."""
+    c = cfg.conditions
+    if c.budget is None:
+        return
+    check_int("conditions.budget", c.budget, 1)
+    learner = dict(OmegaConf.to_container(cfg.learner))
+    for k in ("epochs", "evals_per_decade"):
+        learner.pop(k)
+    name = learner.pop("name")
+    module = gbmodel.learners.get(name)
+    per_epoch = module.samples_per_epoch(module.Params(**learner), gbmodel.make_body(
+        **OmegaConf.to_container(cfg.body)))
+    epochs = max(1, round(c.budget * c.budget_scale / per_epoch))
+    cfg.learner.epochs = epochs
+    if cfg.growth.pattern != "none":
+        c.periods = [max(1, round(c.growth_share * epochs))]
 
 
 def trial_spec(cfg: DictConfig, growth: dict) -> gbmodel.TrialSpec:

@@ -28,7 +28,7 @@ import numpy as np
 import pandas as pd
 from omegaconf import DictConfig, OmegaConf
 
-from . import choices, claims, cli, explain, figures, io, readings
+from . import baselines, choices, claims, cli, explain, figures, io, readings
 from .config import ConfigError
 
 log = logging.getLogger("pipeline.report")
@@ -132,9 +132,11 @@ def report(cfg: DictConfig) -> list[Path]:
         check_published_scale(cfg, aggs)
     out = Path(cfg.paths.published if cfg.report.publish else cfg.paths.report)
     studies = {k: a for k, a in aggs.items() if k in readings.STUDIES}
-    chosen = {k: a for k, a in aggs.items()
-              if k not in studies and a["summary"]["choice"].astype(bool).any()}
-    aggs = {k: a for k, a in aggs.items() if k not in chosen and k not in studies}
+    rivals = {k: a for k, a in aggs.items() if k in baselines.STUDIES}
+    chosen = {k: a for k, a in aggs.items() if k not in studies and k not in rivals
+              and a["summary"]["choice"].astype(bool).any()}
+    aggs = {k: a for k, a in aggs.items()
+            if k not in chosen and k not in studies and k not in rivals}
     rc, dpi = figures.RC, cfg.report.dpi
     written, sections = [], []
     js = cfg.report.joint_space_figure  # Fig. 2: stages in a joint space over one target axis
@@ -167,7 +169,8 @@ def report(cfg: DictConfig) -> list[Path]:
     for _, paths in extra:
         written += paths
 
-    summary = pd.concat([a["summary"] for a in aggs.values()], ignore_index=True)
+    summary = (pd.concat([a["summary"] for a in aggs.values()], ignore_index=True) if aggs
+               else pd.DataFrame(columns=["figure", "condition"] + FINDINGS_COLUMNS))
     table_md = summary_markdown(summary)
     io.write_text(out / "summary.csv", summary.to_csv(index=False, float_format="%.6g"))
     io.write_text(out / "summary.md", table_md)
@@ -180,9 +183,11 @@ def report(cfg: DictConfig) -> list[Path]:
     if stages is not None:
         claim_rows += claims.stage_claims(js, *stages)
     io.write_text(out / "claims.csv", pd.DataFrame(claim_rows).to_csv(index=False))
-    curves = pd.concat([a["curves"] for a in aggs.values()], ignore_index=True)
-    io.write_table(out / "curves.parquet", io.frame_to_table(curves))
-    written += [out / "claims.csv", out / "curves.parquet"]
+    written.append(out / "claims.csv")
+    if aggs:
+        curves = pd.concat([a["curves"] for a in aggs.values()], ignore_index=True)
+        io.write_table(out / "curves.parquet", io.frame_to_table(curves))
+        written.append(out / "curves.parquet")
     choice_table = choices.table(chosen)
     if len(choice_table):
         io.write_text(out / "choices.csv", choice_table.to_csv(index=False, float_format="%.6g"))
@@ -234,6 +239,23 @@ def report(cfg: DictConfig) -> list[Path]:
                "Each row is a reading of the text (conf/experiment/readings_*.yaml, "
                "pipeline/readings.py); each column a claim, checked as above.", "",
                f"![readings]({paths[0].name})", "", readings.markdown(reading_table)]
+    rival_table = baselines.table(rivals)
+    if len(rival_table):
+        rival_claims = baselines.claims(rival_table)
+        io.write_text(out / "baselines.csv", rival_table.to_csv(index=False, float_format="%.6g"))
+        with figures.plt.rc_context(rc):
+            paths = figures.save(baselines.figure(rivals, "Goal Babbling and its alternatives: "
+                                                  "error against reaching movements"),
+                                 out / "baselines_curves", dpi)
+        written += [out / "baselines.csv"] + paths
+        md += ["## Beyond the paper: Goal Babbling against its alternatives under growth", "",
+               "Four learners (gbmodel/learners/) with the same budget of reaching movements, on "
+               "the 5-DOF arm and the iCub, without growth, with the paper's linear growth and "
+               "with an infant-like schedule (conf/experiment/baselines_*.yaml, "
+               "pipeline/baselines.py). Errors at the end of the budget; the largest jump is the "
+               "final inverse's largest joint-space step between neighbouring points on lines "
+               "through the target box (branch switching, lookup).", "",
+               f"![baselines]({paths[0].name})", "", baselines.markdown(rival_table, rival_claims)]
     if len(choice_table):
         text = (out / "choices.md").read_text().split("\n", 1)[1]
         md += ["## Choices the paper leaves open: measured effect of the alternatives", text]
@@ -251,11 +273,13 @@ FINDINGS_NUMBERS = Path(__file__).parent / "findings_numbers.csv"
 TOLERANCE = 1e-6  # relative: the discussion holds for numbers this close to its run's
 
 
+FINDINGS_COLUMNS = ["final_abs_error_mean", "final_rel_error_mean", "peak_abs_error_growth"]
+
+
 def findings_numbers(summary: pd.DataFrame, claim_rows: list[dict]) -> pd.DataFrame:
     """What the discussion was written against: every final and peak error, and every verdict."""
-    cols = ["final_abs_error_mean", "final_rel_error_mean", "peak_abs_error_growth"]
     rows = [dict(what=f"{r.figure} {r.condition} {c}", value=float(getattr(r, c)), verdict="")
-            for r in summary.itertuples() for c in cols]
+            for r in summary.itertuples() for c in FINDINGS_COLUMNS]
     rows += [dict(what=f"{r['figure']} {r['claim']}", value=float("nan"), verdict=r["verdict"])
              for r in claim_rows]
     return pd.DataFrame(rows)
