@@ -61,7 +61,8 @@ bench: $(STAMP) ## time the fast path against the numpy reference (outputs/bench
 test: $(STAMP) ## run the test suite (slow tests excluded)
 	$(PY) -m pytest
 
-test-slow: $(STAMP) ## run the slow tests only
+test-slow: $(STAMP) ## install the cluster extras (Ray, submitit), then run the slow tests only
+	$(PY) -m pip install --quiet -c requirements.lock -e '.[test,ray,slurm]'
 	$(PY) -m pytest -m slow
 
 clean: ## remove generated outputs (asks first; YES=1 to skip the question); keeps the committed report and bench
