@@ -21,6 +21,7 @@ from pathlib import Path
 import hydra
 import numpy as np
 import pandas as pd
+import pyarrow as pa
 from omegaconf import DictConfig
 
 from . import cache, cli, io
@@ -148,7 +149,8 @@ def aggregate(cfg: DictConfig) -> list[str]:
         curves = curve_stats(trials)
         summary = summarize(trials, curves, conds, paper, cfg.aggregate.fail_factor)
         folder = out_root / fig
-        io.write_table(folder / "trials.parquet", io.frame_to_table(trials))
+        io.write_table(folder / "trials.parquet",
+                       pa.Table.from_pandas(trials, schema=io.CURVE, preserve_index=False))
         io.write_table(folder / "curves.parquet", io.frame_to_table(curves))
         io.write_table(folder / "summary.parquet", io.frame_to_table(summary))
         io.write_json(folder / "models.json", {

@@ -101,7 +101,7 @@ class Claim:
         return True
 
     def release(self) -> None:
-        if self.fh is not None:
+        if self.fh is not None:  # a run that opened the old file meanwhile re-checks the cache
             self.path.unlink(missing_ok=True)
             fcntl.flock(self.fh, fcntl.LOCK_UN)
             self.fh.close()

@@ -154,11 +154,13 @@ def growth_claims(figure: str, curves: pd.DataFrame, summary: pd.DataFrame) -> l
         rows.append(dict(figure=figure, claim="no degeneration during growth: the relative error "
                          "does not rebound while the body grows (added)",
                          measured="; ".join(parts), verdict=_verdict(failing)))
-    fails = int(summary["n_bootstrap_failures"].sum() + summary["n_run_failures"].sum())
+    fails = int(summary["n_bootstrap_failures"].sum() + summary["n_run_failures"].sum()
+                + summary.get("n_diverged", pd.Series(dtype=int)).sum())
     rows.append(dict(figure=figure, claim="bootstrapping succeeds in every trial",
                      measured=f"{fails} of {int(summary['n_trials'].sum())} trials failed "
                               f"(per condition: "
-                              + ", ".join(f"{r.condition} {r.n_bootstrap_failures + r.n_run_failures}"
+                              + ", ".join(f"{r.condition} "
+                                          f"{r.n_bootstrap_failures + r.n_run_failures + getattr(r, 'n_diverged', 0)}"
                                           for r in summary.itertuples()) + ")",
                      verdict=_verdict([] if fails == 0 else [f"{fails} trials"])))
     return rows

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any, Optional
 
 from hydra.core.config_store import ConfigStore
-from omegaconf import MISSING, DictConfig, OmegaConf, open_dict
+from omegaconf import MISSING, DictConfig, OmegaConf
 
 import gbmodel
 from gbmodel import evaluation
@@ -184,21 +184,14 @@ if not OmegaConf.has_resolver("repo_root"):
 register_schemas()
 
 
-def compose(overrides: list[str] | tuple = (), hydra_choices: bool = False) -> DictConfig:
+def compose(overrides: list[str] | tuple = ()) -> DictConfig:
     """The config `python -m pipeline.<stage> OVERRIDES` would get (Hydra's compose API).
 
-    With hydra_choices=True, returns (config, the chosen option of every config group)."""
+    Used by the tests and by callers that want a config without the command line."""
     from hydra import compose as hydra_compose
     from hydra import initialize_config_dir
     from hydra.core.global_hydra import GlobalHydra
 
     GlobalHydra.instance().clear()
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
-        cfg = hydra_compose(config_name="config", overrides=list(overrides),
-                            return_hydra_config=hydra_choices)
-    if not hydra_choices:
-        return cfg
-    choices = OmegaConf.to_container(cfg.hydra.runtime.choices)
-    with open_dict(cfg):
-        del cfg["hydra"]
-    return cfg, choices
+        return hydra_compose(config_name="config", overrides=list(overrides))

@@ -52,13 +52,13 @@ def _code_of(source: str) -> str:
     return ast.dump(tree, annotate_fields=False, include_attributes=False)
 
 
-def source_fingerprint(files, root: Path) -> str:
-    """Hash of the code of `files` (names relative to root + syntax trees): a change of what the
-    code computes changes it; comments, docstrings and layout do not."""
+def source_fingerprint(sources) -> str:
+    """Hash of the code of `sources`, (name, source text) pairs (names + syntax trees): a change
+    of what the code computes changes it; comments, docstrings and layout do not."""
     h = hashlib.sha256()
-    for path in sorted(Path(f) for f in files):
-        h.update(path.relative_to(root).as_posix().encode() + b"\0")
-        h.update(_code_of(path.read_text()).encode() + b"\0")
+    for name, text in sorted(sources):
+        h.update(name.encode() + b"\0")
+        h.update(_code_of(text).encode() + b"\0")
     return h.hexdigest()[:16]
 
 
@@ -71,7 +71,8 @@ def code_fingerprint(learner: str) -> str:
     shared = [p for p in root.rglob("*.py")
               if "learners" not in p.relative_to(root).parts[:-1]]
     shared.append(root / "learners" / "__init__.py")
-    return source_fingerprint(shared + gbmodel.learners.source_files(learner), root)
+    own = [(p.relative_to(root.parent).as_posix(), p.read_text()) for p in shared]
+    return source_fingerprint(own + gbmodel.learners.sources(learner))
 
 
 def _sized(pattern, size):
@@ -178,7 +179,7 @@ def trial_spec(cfg: DictConfig, growth: dict) -> gbmodel.TrialSpec:
 
 def check_paths(cfg: DictConfig) -> None:
     """Every output folder is a folder (or can become one)."""
-    for key in ("root", "out", "cache", "aggregate", "report"):
+    for key in ("root", "out", "cache", "aggregate", "report", "published", "bench"):
         path = Path(cfg.paths[key])
         for p in [path, *path.parents]:
             if p.exists():
@@ -191,17 +192,17 @@ def check_paths(cfg: DictConfig) -> None:
 
 def plan(cfg: DictConfig) -> list[dict]:
     """Every trial of the config as plain data, in order (variant, condition, trial index)."""
-    check_int("trials.count", cfg.trials.count, 1)
-    check_int("trials.root_seed", cfg.trials.root_seed, 0)
-    check_int("workers", cfg.workers, 1)
     from .backends import check as check_backend
 
-    check_backend(cfg.executor.backend)  # an unknown engine, or one whose package is missing
-    if not cfg.figure or "/" in cfg.figure or cfg.figure.startswith("."):
-        _bad("figure", cfg.figure, "must be a plain name (it names a folder)")
-    check_paths(cfg)
     trials = []
     try:
+        check_int("trials.count", cfg.trials.count, 1)
+        check_int("trials.root_seed", cfg.trials.root_seed, 0)
+        check_int("workers", cfg.workers, 1)
+        check_backend(cfg.executor.backend)  # an unknown engine, or one whose package is missing
+        if not cfg.figure or "/" in cfg.figure or cfg.figure.startswith("."):
+            _bad("figure", cfg.figure, "must be a plain name (it names a folder)")
+        check_paths(cfg)
         for variant, vcfg in variants(cfg):
             conds = conditions(vcfg)
             for cond in conds:

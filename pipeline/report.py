@@ -78,7 +78,7 @@ def summary_markdown(summary: pd.DataFrame) -> str:
     """The summary as a Markdown table, errors in mm (relative errors: mm per unit body size)."""
     head = ("| figure | condition | body | growth | T_G | trials | final abs. error [mm] "
             "| final rel. error [mm/size] | peak abs. error during growth [mm] (rise, epoch) "
-            "| run failures | failed to bootstrap | paper: final abs. error [mm] |")
+            "| run failures | diverged | failed to bootstrap | paper: final abs. error [mm] |")
     lines = [head, "|" + "---|" * head.count(" | ") + "---|"]
     for _, r in summary.iterrows():
         peak = (f"{_mm(r['peak_abs_error_growth'])} (+{_mm(r['rise_abs_error_growth'])}, "
@@ -88,7 +88,7 @@ def summary_markdown(summary: pd.DataFrame) -> str:
             f"| {r['growth_period'] if r['growth'] != 'none' else ''} | {r['n_trials']} "
             f"| {_pm(r['final_abs_error_mean'], r['final_abs_error_std'])} "
             f"| {_pm(r['final_rel_error_mean'], r['final_rel_error_std'])} | {peak} "
-            f"| {r['n_run_failures']} | {r['n_bootstrap_failures']} "
+            f"| {r['n_run_failures']} | {r['n_diverged']} | {r['n_bootstrap_failures']} "
             f"| {_mm(r['paper_final_abs_error'])} |")
     return "\n".join(lines) + "\n"
 

@@ -90,7 +90,7 @@ def simulate(cfg: DictConfig) -> Summary:
     figure = cfg.figure
     (cache_dir / figure).mkdir(parents=True, exist_ok=True)
     io.remove_stale_tmp(cache_dir / figure)
-    todo = []
+    todo, diverged = [], {}
     for t in trials:
         done, damaged = cache.check(cache_dir, t)
         if damaged:
@@ -98,13 +98,21 @@ def simulate(cfg: DictConfig) -> Summary:
                   f"{t['labels']['trial']}: {damaged}", file=sys.stderr)
         if done is None:
             todo.append(t)
+        elif done["status"] == "diverged":
+            diverged[t["key"]] = f"{done['error']} (cached)"
     todo.sort(key=cost, reverse=True)
-    summary = Summary(figure=figure, total=len(trials), cached=len(trials) - len(todo))
+    summary = Summary(figure=figure, total=len(trials), cached=len(trials) - len(todo),
+                      failed=diverged)
     summary.labels = {t["key"]: f"{t['labels']['condition']} trial {t['labels']['trial']}"
                       for t in trials}
     claims = {t["key"]: cache.Claim(cache_dir, t) for t in todo}
     mine = [t for t in todo if claims[t["key"]].acquire()]
     elsewhere = [t for t in todo if claims[t["key"]].fh is None]
+    finished = [t for t in mine if cache.check(cache_dir, t)[0] is not None]  # by another run
+    for t in finished:  # between our look at the cache and our claim
+        claims[t["key"]].release()
+        mine.remove(t)
+        summary.cached += 1
     log.info("[%s] %d trials: %d cached, %d to run on %d worker(s)%s", figure, len(trials),
              summary.cached, len(mine), min(cfg.workers, max(len(mine), 1)),
              f", {len(elsewhere)} being computed by another run" if elsewhere else "")
@@ -124,7 +132,10 @@ def simulate(cfg: DictConfig) -> Summary:
             claim = claims[trial["key"]]
             if cache.check(cache_dir, trial)[0] is not None:
                 summary.cached += 1
-            elif claim.acquire():
+            elif claim.acquire() and cache.check(cache_dir, trial)[0] is not None:
+                claim.release()
+                summary.cached += 1
+            elif claim.fh is not None:
                 result = execute.run_one(trial)
                 record(cache_dir, trial, result, summary)
                 claim.release()

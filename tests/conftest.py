@@ -4,6 +4,7 @@
 one worker) and rooted in a temporary folder, so a test exercises the real config and code path
 and writes nothing into the repository.
 """
+import json
 import os
 import subprocess
 import sys
@@ -14,6 +15,8 @@ import pytest
 from pipeline.config import REPO_ROOT, compose
 
 TINY = ("profile=smoke", "learner.epochs=30", "trials.count=1", "workers=1")
+# what a plan record holds about the run that wrote it (when, which process): not its content
+PLAN_RUN_FIELDS = ("created_ns", "pid")
 
 
 def tiny_overrides(root: Path, *overrides: str) -> list[str]:
@@ -35,6 +38,18 @@ def run_cli(module: str, *args: str, timeout: int = 300) -> subprocess.Completed
 
 
 def files_of(folder: Path) -> dict[str, bytes]:
-    """Relative path -> bytes of every file under folder (lock files left out)."""
-    return {p.relative_to(folder).as_posix(): p.read_bytes()
-            for p in sorted(Path(folder).rglob("*")) if p.is_file() and p.name != ".lock"}
+    """Relative path -> bytes of every file under folder, lock files left out. A plan record
+    (cache/<figure>/plans/*.json) is compared by its content: the time and process id of the run
+    that wrote it are dropped (its name already hashes the rest)."""
+    out = {}
+    for p in sorted(Path(folder).rglob("*")):
+        if not p.is_file() or p.suffix == ".lock":
+            continue
+        data = p.read_bytes()
+        if p.parent.name == "plans" and p.suffix == ".json":
+            record = json.loads(data)
+            for k in PLAN_RUN_FIELDS:
+                record.pop(k, None)
+            data = json.dumps(record, sort_keys=True).encode()
+        out[p.relative_to(folder).as_posix()] = data
+    return out

@@ -71,17 +71,28 @@ def test_a_rebound_after_growth_is_degeneration():
         "not reproduced")
 
 
-def test_the_discussion_is_shown_only_beside_the_tables_it_was_written_for(tmp_path,
-                                                                          monkeypatch):
-    (tmp_path / "summary.csv").write_text("a,b\n1,2\n")
-    (tmp_path / "choices.csv").write_text("c\n3\n")
+def test_the_discussion_is_shown_only_beside_the_numbers_it_was_written_for(tmp_path,
+                                                                            monkeypatch):
+    """findings.md is included when findings_numbers.csv matches the run (the same rows and
+    verdicts, numbers within report.TOLERANCE), and left out otherwise, or when nothing was
+    stamped."""
     text = "## Why\n\nBecause 17.5 mm.\n"
-    notes = tmp_path / "findings.md"
-    notes.write_text(f"<!-- tables: {report.tables_stamp(tmp_path)} -->\n{text}")
-    monkeypatch.setattr(report, "FINDINGS", notes)
-    assert report.findings(tmp_path) == text
-    (tmp_path / "summary.csv").write_text("a,b\n1,3\n")  # another run
-    assert "left out" in report.findings(tmp_path)
+    (tmp_path / "findings.md").write_text(text)
+    monkeypatch.setattr(report, "FINDINGS", tmp_path / "findings.md")
+    monkeypatch.setattr(report, "FINDINGS_NUMBERS", tmp_path / "findings_numbers.csv")
+    curves, summary = _figure(np.array([0.2, 0.3, 0.4, 0.5, 0.45, 0.2, 0.1, 0.02]))
+    summary["figure"] = "figX"
+    summary["final_rel_error_mean"] = summary["final_abs_error_mean"] / summary["end_size"]
+    rows = claims.growth_claims("figX", curves, summary)
+    assert "left out" in report.findings(summary, rows)  # nothing stamped yet
+    report.stamp_findings(summary, rows)
+    assert report.findings(summary, rows) == text
+    other = summary.copy()
+    other.loc[0, "final_abs_error_mean"] *= 1 + 1e-4  # another run
+    assert "left out" in report.findings(other, rows)
+    assert "left out" in report.findings(summary.iloc[:2], rows)  # a condition fewer
+    flipped = [dict(r, verdict="reproduced") for r in rows]
+    assert flipped != rows and "left out" in report.findings(summary, flipped)
 
 
 @pytest.mark.parametrize("spread, verdict", [(0.06, "reproduced"), (0.5, "not reproduced")])
@@ -94,6 +105,7 @@ def test_fig2_stages_start_near_home(spread, verdict):
     start[0, 0] = spread  # g(x) = home + (spread, 0) everywhere
     final = np.zeros((2, len(exps)))
     final[0, 1] = np.pi / 2  # q1 = pi/2 * x: reaches heights +-1 m exactly, and 0 at home
-    spec = dict(body="arm2", degree=3, end_size=1.0, pattern="proportional")
+    spec = dict(body=dict(name="arm2"), growth=dict(pattern="proportional", end_size=1.0),
+                learner=dict(name="goal_babbling", degree=3))
     rows = claims.stage_claims("fig2", spec, [("(a)", start), ("(b)", final)])
     assert rows[0]["verdict"].startswith(verdict)

@@ -27,6 +27,7 @@ snapshots; a learner only learns. `register` adds a module under a name at run t
 from __future__ import annotations
 
 import importlib
+import inspect
 import pkgutil
 from pathlib import Path
 from types import ModuleType
@@ -58,7 +59,16 @@ def get(name: str) -> ModuleType:
     return importlib.import_module(f"{__name__}.{name}")
 
 
-def source_files(name: str) -> list[Path]:
-    """The files of learner `name`'s code (for the cache key's code fingerprint)."""
-    path = Path(get(name).__file__)
-    return sorted(path.parent.rglob("*.py")) if path.name == "__init__.py" else [path]
+def sources(name: str) -> list[tuple[str, str]]:
+    """(label, source text) of learner `name`'s code, for the cache key's code fingerprint: its
+    files under gbmodel/learners/, or, for a module registered from elsewhere (or built at run
+    time), its module name and the source of what it provides."""
+    module = get(name)
+    here = Path(__file__).resolve().parent
+    path = Path(getattr(module, "__file__", None) or "")
+    if path.is_file() and here in path.resolve().parents:
+        files = sorted(path.parent.rglob("*.py")) if path.name == "__init__.py" else [path]
+        return [(f.resolve().relative_to(here.parent).as_posix(), f.read_text()) for f in files]
+    text = "\n".join(inspect.getsource(getattr(module, a)) for a in REQUIRED
+                     if callable(getattr(module, a)) or inspect.isclass(getattr(module, a)))
+    return [(f"{module.__name__}:{name}", text)]
