@@ -6,7 +6,8 @@ PY      := $(VENV)/bin/python
 STAMP   := $(VENV)/.installed
 PAPER   := fig2 fig4 fig5 fig7
 CHOICES := choices_arm2 choices_arm5 choices_icub
-FIGURES ?= $(PAPER) $(CHOICES)
+STUDIES := readings_fig4 readings_fig5 readings_fig7 baselines_arm5 baselines_icub
+FIGURES ?= $(PAPER) $(CHOICES) $(STUDIES)
 PROFILE ?= full
 ARGS    ?=
 
@@ -15,7 +16,7 @@ ARGS    ?=
 
 help: ## list the targets
 	@awk 'BEGIN {FS = ":.*## "} /^[a-z-]+:.*## / {printf "  make %-10s %s\n", $$1, $$2}' $(MAKEFILE_LIST)
-	@echo "  variables: PROFILE=full|smoke, FIGURES=\"$(PAPER) $(CHOICES)\", ARGS=\"<hydra overrides>\""
+	@echo "  variables: PROFILE=full|smoke, FIGURES=\"$(PAPER) $(CHOICES) $(STUDIES)\", ARGS=\"<hydra overrides>\""
 
 # The virtual environment: created when missing, reinstalled when pyproject.toml or the lock
 # changes; the packages are the locked versions the committed report was made with. Then numba

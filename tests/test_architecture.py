@@ -313,16 +313,7 @@ def test_a_variant_may_choose_a_learner_for_its_body_but_not_another_group():
 
 
 # ---- (e) every experiment file composes and plans ----------------------------------------------
-READINGS_XFAIL = pytest.mark.xfail(raises=ConfigError, strict=False, reason=(
-    "conf/experiment/readings_fig4|5|7.yaml: the variants `plain step`, `uniform amplitude` and "
-    "`online updates` set learner.step/amplitude/updates, which Goal Babbling's Params.validate "
-    "refuses on the compiled path (learner.fast=true, the default): 'the compiled kernel does "
-    "not take this reading yet; add learner.fast=false'. Fix: add learner.fast=false to those "
-    "variants' set (or to the experiment), or teach fast.py those readings"))
-
-
-@pytest.mark.parametrize("name", [pytest.param(e, marks=READINGS_XFAIL)
-                                  if e.startswith("readings_") else e for e in EXPERIMENTS])
+@pytest.mark.parametrize("name", EXPERIMENTS)
 @pytest.mark.parametrize("profile", ["full", "smoke"])
 def test_every_experiment_composes_and_plans(name, profile):
     cfg = compose([f"experiment={name}", f"profile={profile}"])

@@ -20,9 +20,8 @@ from pipeline.report import listed_files
 from conftest import files_of, run_cli, tiny_overrides
 
 EXPERIMENTS = sorted(p.stem for p in (CONF_DIR / "experiment").glob("*.yaml"))
-# The readings studies vary the reference path's readings; as configured they do not plan (see
-# test_architecture.py::test_every_experiment_composes_and_plans), so they run here on the
-# reference path, shorter and with one growing condition (the path evaluation is slow).
+# The readings studies run here on the reference path (every reading, short, one growing
+# condition; the path evaluation is slow), the kernel's agreement is tests/test_readings.py's.
 READINGS = ("learner.fast=false", "learner.epochs=12", "learner.evals_per_decade=3",
             "conditions.periods=[10]")
 CURVE_STATS = [f"{c}_{s}" for c in ("abs_error", "rel_error") for s in ("mean", "std", "q25", "q75")]

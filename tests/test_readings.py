@@ -160,3 +160,24 @@ def test_common_start_reading_grows_the_half_size_arm_into_an_unequal_one():
     common_end = gbmodel.Growth(pattern="nonproportional", period=10).scales(body, [0.5, 1.0])
     np.testing.assert_allclose(common_end[1], 1.0)
     assert common_end[0][1] == 1.0 and common_end[0][0] == pytest.approx(1 / 6)
+
+
+@pytest.mark.parametrize("body, kw", [("arm5", dict(step="plain", learning_rate=1 / 1142)),
+                                      ("arm5", dict(amplitude="uniform")),
+                                      ("icub", dict(step="plain", learning_rate=1 / 1791)),
+                                      ("icub", dict(amplitude="uniform"))])
+def test_the_kernel_takes_the_readings_as_the_reference_does(body, kw):
+    """The same draws on both paths give the same curve and M (the kernel's float32 rollout)."""
+    growth = {"pattern": "proportional", "period": 20, "start_size": 0.5}
+    runs = [gbmodel.run_trial(gbmodel.TrialSpec(body={"name": body}, growth=growth, epochs=40,
+                                                learner={"name": "goal_babbling", "fast": f,
+                                                         **kw}), np.random.default_rng(5))
+            for f in (True, False)]
+    np.testing.assert_allclose(runs[0].abs_error, runs[1].abs_error, rtol=0, atol=1e-5)
+    np.testing.assert_allclose(runs[0].M, runs[1].M, rtol=0, atol=1e-5)
+
+
+def test_online_updates_stay_on_the_reference_path():
+    with pytest.raises(gbmodel.SpecError, match="learner.updates"):
+        gb.Params(updates="online").validate()
+    gb.Params(updates="online", fast=False).validate()

@@ -68,7 +68,7 @@ def sources(name: str) -> list[tuple[str, str]]:
     path = Path(getattr(module, "__file__", None) or "")
     if path.is_file() and here in path.resolve().parents:
         files = sorted(path.parent.rglob("*.py")) if path.name == "__init__.py" else [path]
-        return [(f.resolve().relative_to(here.parent).as_posix(), f.read_text()) for f in files]
+        return [(f.resolve().relative_to(here.parents[1]).as_posix(), f.read_text()) for f in files]
     text = "\n".join(inspect.getsource(getattr(module, a)) for a in REQUIRED
                      if callable(getattr(module, a)) or inspect.isclass(getattr(module, a)))
     return [(f"{module.__name__}:{name}", text)]

@@ -1,35 +1,41 @@
 """The fast path of Goal Babbling: whole blocks of epochs in one compiled (numba) call.
 
 It computes what `reference.py` states, epoch by epoch and with the same random numbers, in
-float32 loops over the N samples of an epoch that the compiler vectorises:
+float32 vector loops over the samples of an epoch:
 
-- samples are laid out variation-major, one block of Bv columns per variation: column 0 the home
-  example, columns 1 ... T the path, and the rest up to a multiple of LANES padding (the home
-  posture again, weight 0, so it adds exactly nothing); the weight of a sample only looks at the
-  column before it;
-- the variations are processed in groups of about _GROUP columns (rollout, weights, features,
-  residuals, gradient), so that a group's arrays stay in the L1/L2 cache;
+- samples are columns, laid out variation-major, T + 1 columns per variation: the home example,
+  then the path; the weight of a sample only looks at the column before it. After the last
+  variation, padding up to a multiple of LANES (the home posture, weight 0, so that it adds
+  exactly nothing);
+- every step of the epoch is one pass over all columns (commands, kinematics, weights), the
+  last ones in blocks of _BLOCK columns that stay in cache (features, weighted residuals,
+  gradient);
 - the rollout runs in float32; M stays float64 and is updated once per epoch. Positions agree
-  with the float64 reference to ~1e-6 m (tests/test_fast.py states the tolerances);
-- the hand is carried backwards through the DH chain, one rotation about z per joint, from
-  separate input and output arrays (an in-place update defeats the compiler's alias analysis);
-- sin and cos are a branch-free polynomial (fdlibm's kernels after a Cody-Waite reduction), which
-  vectorises where libm's sinf/cosf would be one scalar call per element;
-- features are built monomial by monomial, each a parent monomial times one coordinate.
+  with the float64 reference to ~2e-7 m (tests/test_fast.py states the tolerances);
+- the hand is carried backwards through the DH chain, one rotation about z per joint, in
+  registers, LANES samples at a time;
+- sin and cos are a branch-free polynomial (Cephes' kernels after a Cody-Waite reduction);
+- features are built monomial by monomial, each a parent monomial times one coordinate;
+- the gradient sum_t w (M Phi - q) Phi^T: the weighted residuals (rows in register tiles of 5),
+  then 5 x 5 tiles of vector accumulators (10 loads per 25 fused multiply-adds), float32 lanes
+  over the epoch whose sum is float64.
 
-Bit-identical results on every x86-64 CPU with AVX2 and FMA, with or without AVX-512 (tested by
-tests/test_kernel_targets.py): the compiler may not reassociate floating-point sums (no
-`reassoc`, so the order of a sum never depends on the vector width of the CPU) nor use
-approximate reciprocals (no `arcp`); every sum over samples (the gradient, sum w) is written with
-explicit LANES-wide vector accumulators (`F32x16` below, LLVM <16 x float>, which a CPU without
-AVX-512 runs as two 8-wide halves with the same result), added up in a fixed order at the end;
-multiply-adds of those sums are explicit fused multiply-adds (llvm.fma). Elementwise loops are
-left to the vectoriser with `contract` (a * b + c may become one fused multiply-add, the same
-on every FMA CPU). No threads.
+Bit-identical results on every x86-64 CPU, with or without AVX-512, whatever vector width LLVM
+prefers (tests/test_kernel_targets.py: AVX2 + FMA, AVX-512, and the SSE2 baseline without FMA):
+- every loop over samples is written on explicit LANES-wide vectors (`F32x16` below: LLVM
+  <16 x float>, one zmm register, or two ymm halves without AVX-512, with the same result lane
+  by lane), so the compiler never chooses how to split a sum: every sum over samples (the
+  gradient, sum w) has one partial sum per lane, added up lane by lane in a fixed order at the
+  end;
+- multiply-adds are explicit fused multiply-adds (llvm.fma: one instruction on an FMA CPU, a
+  correctly rounded libm call without), divisions and square roots exact IEEE operations;
+- nothing is compiled with fastmath: no reassociation, no contraction of a * b + c, no
+  approximate reciprocals, no NaN/inf assumptions (a diverging learner stays visible);
+- no threads.
+(Tested with numba 0.68 / llvmlite 0.50; LLVM may not change what these operations compute.)
 """
 from __future__ import annotations
 
-import numba
 import numpy as np
 from llvmlite import ir
 from numba import njit, types
@@ -39,33 +45,12 @@ from numba.extending import intrinsic, models, register_model
 from .reference import NO_MOVEMENT
 
 
-def _prefer_wide_vectors():
-    """Let LLVM use full 512-bit vectors where the CPU has them.
-
-    LLVM tunes AVX-512 CPUs to prefer 256-bit vectors; the elementwise loops here are long,
-    regular and float32 and run faster on 16 lanes. This sets numba's CPU features for the
-    process, before anything is compiled, and only if nobody else has. Results do not depend on
-    it (no sum is reassociated; tests/test_kernel_targets.py), only speed does.
-    """
-    import llvmlite.binding as ll
-
-    if numba.config.CPU_FEATURES is None:
-        features = ll.get_host_cpu_features().flatten()
-        if "+avx512f" in features.split(","):
-            numba.config.CPU_FEATURES = features + ",-prefer-256-bit"
-
-
-_prefer_wide_vectors()
-
 F4 = np.float32
-# `contract` only: no reassociation, no approximate reciprocals, no NaN/inf assumptions (a
-# diverging learner stays visible)
-_FLAGS = {"contract"}
-LANES = 16  # width of the explicit vector accumulators (F32x16)
-_GROUP = 512  # columns (samples) per group of variations: the group's arrays stay in cache
-_TILE = 5  # rows x columns of a register tile of the gradient (m = 5, 10; p = 10, 20)
+LANES = 16  # width of the explicit vectors (F32x16)
+_BLOCK = 512  # columns per block of features, residuals and gradient (multiple of LANES)
+_TILE = 5  # rows of a register tile of M Phi and of the gradient (m = 5, 10; p = 10, 20)
 
-# ---- explicit float32 vectors: LANES lanes, each lane a sum in a fixed order -------------------
+# ---- explicit float32 vectors of LANES lanes -----------------------------------------------------
 _VEC = ir.VectorType(ir.FloatType(), LANES)
 
 
@@ -85,20 +70,21 @@ class _F32x16Model(models.PrimitiveModel):
         super().__init__(dmm, fe_type, _VEC)
 
 
-def _address(context, builder, aryty, ary, inds):
-    inds = [context.cast(builder, i, t, types.intp) for i, t in inds]
+def _vector_pointer(context, builder, sig, args, n):
+    """Address of element args[1:1 + n] of the array args[0], as a pointer to a vector."""
+    aryty = sig.args[0]
+    inds = [context.cast(builder, v, t, types.intp) for v, t in zip(args[1:1 + n],
+                                                                    sig.args[1:1 + n])]
     ptr = cgutils.get_item_pointer(context, builder, aryty,
-                                   context.make_array(aryty)(context, builder, ary), inds)
+                                   context.make_array(aryty)(context, builder, args[0]), inds)
     return builder.bitcast(ptr, _VEC.as_pointer())
 
 
 @intrinsic
 def vload(typingctx, a, k, i):
-    """a[k, i:i + LANES] of a 2-d float32 array whose rows are contiguous (no bounds check)."""
+    """a[k, i:i + LANES] of a 2-d float32 array with contiguous rows (no bounds check)."""
     def codegen(context, builder, sig, args):
-        ptr = _address(context, builder, sig.args[0], args[0],
-                       [(args[1], sig.args[1]), (args[2], sig.args[2])])
-        return builder.load(ptr, align=4)
+        return builder.load(_vector_pointer(context, builder, sig, args, 2), align=4)
     return F32x16(a, k, i), codegen
 
 
@@ -106,8 +92,7 @@ def vload(typingctx, a, k, i):
 def vload1(typingctx, a, i):
     """a[i:i + LANES] of a contiguous 1-d float32 array (no bounds check)."""
     def codegen(context, builder, sig, args):
-        ptr = _address(context, builder, sig.args[0], args[0], [(args[1], sig.args[1])])
-        return builder.load(ptr, align=4)
+        return builder.load(_vector_pointer(context, builder, sig, args, 1), align=4)
     return F32x16(a, i), codegen
 
 
@@ -115,254 +100,238 @@ def vload1(typingctx, a, i):
 def vstore(typingctx, a, k, i, v):
     """a[k, i:i + LANES] = v."""
     def codegen(context, builder, sig, args):
-        ptr = _address(context, builder, sig.args[0], args[0],
-                       [(args[1], sig.args[1]), (args[2], sig.args[2])])
-        builder.store(args[3], ptr, align=4)
+        builder.store(args[3], _vector_pointer(context, builder, sig, args, 2), align=4)
         return context.get_dummy_value()
     return types.none(a, k, i, v), codegen
 
 
 @intrinsic
+def vstore1(typingctx, a, i, v):
+    """a[i:i + LANES] = v."""
+    def codegen(context, builder, sig, args):
+        builder.store(args[2], _vector_pointer(context, builder, sig, args, 1), align=4)
+        return context.get_dummy_value()
+    return types.none(a, i, v), codegen
+
+
+@intrinsic
 def vsplat(typingctx, x):
-    """Every lane x (a float32)."""
+    """Every lane x (cast to float32)."""
     def codegen(context, builder, sig, args):
         x = context.cast(builder, args[0], sig.args[0], types.float32)
-        v = builder.insert_element(ir.Constant(_VEC, ir.Undefined), x, ir.Constant(ir.IntType(32), 0))
+        v = builder.insert_element(ir.Constant(_VEC, ir.Undefined), x,
+                                   ir.Constant(ir.IntType(32), 0))
         return builder.shuffle_vector(v, v, ir.Constant(ir.VectorType(ir.IntType(32), LANES),
                                                          [0] * LANES))
     return F32x16(x), codegen
 
 
+def _llvm(builder, name, args):
+    """A call of the LLVM intrinsic `name` on vectors."""
+    fn = cgutils.get_or_insert_function(
+        builder.module, ir.FunctionType(_VEC, [_VEC] * len(args)), f"{name}.v{LANES}f32")
+    return builder.call(fn, args)
+
+
 @intrinsic
-def vzero(typingctx):
-    def codegen(context, builder, sig, args):
-        return ir.Constant(_VEC, [0.0] * LANES)
-    return F32x16(), codegen
+def vadd(typingctx, a, b):
+    return F32x16(a, b), lambda context, builder, sig, args: builder.fadd(*args)
+
+
+@intrinsic
+def vsub(typingctx, a, b):
+    return F32x16(a, b), lambda context, builder, sig, args: builder.fsub(*args)
+
+
+@intrinsic
+def vmul(typingctx, a, b):
+    return F32x16(a, b), lambda context, builder, sig, args: builder.fmul(*args)
+
+
+@intrinsic
+def vdiv(typingctx, a, b):
+    """a / b, correctly rounded (IEEE)."""
+    return F32x16(a, b), lambda context, builder, sig, args: builder.fdiv(*args)
+
+
+@intrinsic
+def vneg(typingctx, a):
+    return F32x16(a), lambda context, builder, sig, args: builder.fneg(args[0])
+
+
+@intrinsic
+def vsqrt(typingctx, a):
+    """sqrt(a), correctly rounded (IEEE)."""
+    return F32x16(a), lambda context, builder, sig, args: _llvm(builder, "llvm.sqrt", args)
 
 
 @intrinsic
 def vfma(typingctx, a, b, c):
-    """a * b + c, rounded once (llvm.fma: one instruction on every FMA CPU)."""
+    """a * b + c, rounded once."""
+    return F32x16(a, b, c), lambda context, builder, sig, args: _llvm(builder, "llvm.fma", args)
+
+
+@intrinsic
+def vwhere(typingctx, a, b, x, y):
+    """x where a > b, else y, lane by lane (a NaN compares false)."""
     def codegen(context, builder, sig, args):
-        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(_VEC, [_VEC] * 3),
-                                            "llvm.fma.v16f32")
-        return builder.call(fn, args)
-    return F32x16(a, b, c), codegen
-
-
-def _binary(op):
-    @intrinsic
-    def vop(typingctx, a, b):
-        def codegen(context, builder, sig, args):
-            return getattr(builder, op)(*args)
-        return F32x16(a, b), codegen
-    return vop
-
-
-vadd, vsub, vmul = _binary("fadd"), _binary("fsub"), _binary("fmul")
+        return builder.select(builder.fcmp_ordered(">", args[0], args[1]), args[2], args[3])
+    return F32x16(a, b, x, y), codegen
 
 
 @intrinsic
 def vsum(typingctx, v):
-    """The lanes' sum in float64, lane 0 first."""
+    """The lanes' sum in float64, in a fixed tree: lanes l and l + 8 first, then l and l + 4,
+    and so on."""
     def codegen(context, builder, sig, args):
-        total = ir.Constant(ir.DoubleType(), 0.0)
-        for lane in range(LANES):
-            x = builder.extract_element(args[0], ir.Constant(ir.IntType(32), lane))
-            total = builder.fadd(total, builder.fpext(x, ir.DoubleType()))
-        return total
+        x = builder.fpext(args[0], ir.VectorType(ir.DoubleType(), LANES))
+        width = LANES
+        while width > 1:
+            width //= 2
+            lo, hi = (ir.Constant(ir.VectorType(ir.IntType(32), width),
+                                  list(range(start, start + width))) for start in (0, width))
+            x = builder.fadd(builder.shuffle_vector(x, x, lo), builder.shuffle_vector(x, x, hi))
+        return builder.extract_element(x, ir.Constant(ir.IntType(32), 0))
     return types.float64(v), codegen
 
 
-# ---- kinematics --------------------------------------------------------------------------------
-_0, _HALF, _1, _2, _QUARTER, _4 = F4(0.0), F4(0.5), F4(1.0), F4(2.0), F4(0.25), F4(4.0)
-# fdlibm's kernel coefficients for sin and cos on [-pi/4, pi/4], to float precision
-_S1, _S2 = F4(-1.66666666666666324348e-01), F4(8.33333333332248946124e-03)
-_S3, _S4 = F4(-1.98412698298579493134e-04), F4(2.75573137070700676789e-06)
-_C1, _C2 = F4(4.16666666666666019037e-02), F4(-1.38888888888741095749e-03)
-_C3, _C4 = F4(2.48015872894767294178e-05), F4(-2.75573143513906633035e-07)
+# ---- kinematics ----------------------------------------------------------------------------------
+_HALF, _1 = F4(0.5), F4(1.0)
+# Cephes' single-precision minimax kernels for sin and cos on [-pi/4, pi/4] (error ~3e-8)
+_S0, _S1, _S2 = F4(-1.9515295891e-4), F4(8.3321608736e-3), F4(-1.6666654611e-1)
+_C0, _C1, _C2 = F4(2.443315711809948e-5), F4(-1.388731625493765e-3), F4(4.166664568298827e-2)
 _TWO_OVER_PI = F4(6.36619772367581382433e-01)
 _PIO2_HI, _PIO2_LO = F4(1.5707963705062866), F4(-4.371139000186243e-08)  # pi/2 = HI + LO
+_ROUND = F4(1.5 * 2 ** 23)  # y + _ROUND - _ROUND rounds |y| < 2^22 to an integer (to even)
 
 
-@njit(fastmath=_FLAGS, inline="always", cache=True)
+@intrinsic
+def _quadrant(typingctx, kf, s, c):
+    """(sin x, cos x) from s = sin r, c = cos r for x = k pi/2 + r, with k in the low bits of
+    kf = k + _ROUND: odd k swaps s and c, then bit 1 of k (of k + 1) is the sign of the sine
+    (of the cosine). Exact: a select and a flip of the sign bit."""
+    def codegen(context, builder, sig, args):
+        i32 = ir.VectorType(ir.IntType(32), LANES)
+
+        def const(x):
+            return ir.Constant(i32, [x] * LANES)
+        k = builder.bitcast(args[0], i32)
+        odd = builder.icmp_unsigned("!=", builder.and_(k, const(1)), const(0))
+        sn, cs = builder.select(odd, args[2], args[1]), builder.select(odd, args[1], args[2])
+        sign_s = builder.shl(builder.and_(k, const(2)), const(30))
+        sign_c = builder.shl(builder.and_(builder.add(k, const(1)), const(2)), const(30))
+        sn = builder.bitcast(builder.xor(builder.bitcast(sn, i32), sign_s), _VEC)
+        cs = builder.bitcast(builder.xor(builder.bitcast(cs, i32), sign_c), _VEC)
+        return context.make_tuple(builder, sig.return_type, [sn, cs])
+    return types.UniTuple(F32x16, 2)(kf, s, c), codegen
+
+
+@njit(inline="always")
 def sincos(x):
-    """(sin x, cos x) of a float32, within 2e-6 for |x| < 10 (joint angles), branch-free."""
-    k = np.floor(x * _TWO_OVER_PI + _HALF)
-    r = (x - k * _PIO2_HI) - k * _PIO2_LO
-    z = r * r
-    s = r + r * z * (_S1 + z * (_S2 + z * (_S3 + z * _S4)))
-    c = _1 - _HALF * z + z * z * (_C1 + z * (_C2 + z * (_C3 + z * _C4)))
-    # quadrant 0..3: swap sin and cos in odd quadrants, then fix the signs, all by arithmetic
-    quadrant = k - _4 * np.floor(_QUARTER * k)
-    odd = quadrant - _2 * np.floor(_HALF * quadrant)
-    upper = np.floor(_HALF * quadrant)  # quadrants 2, 3
-    sn = (s + odd * (c - s)) * (_1 - _2 * upper)
-    cs = (c + odd * (s - c)) * (_1 - _2 * np.abs(odd - upper))
-    return sn, cs
+    """(sin x, cos x) lane by lane, within 1e-7 for |x| < 10 (joint angles), branch-free:
+    x = k pi/2 + r with |r| <= pi/4 (Cody-Waite, two parts of pi/2), the kernels on r, then the
+    quadrant k mod 4 swaps and negates them."""
+    kf = vfma(x, vsplat(_TWO_OVER_PI), vsplat(_ROUND))
+    k = vsub(kf, vsplat(_ROUND))
+    r = vfma(k, vsplat(-_PIO2_HI), x)
+    r = vfma(k, vsplat(-_PIO2_LO), r)
+    z = vmul(r, r)
+    s = vfma(vmul(r, z), vfma(vfma(vsplat(_S0), z, vsplat(_S1)), z, vsplat(_S2)), r)
+    c = vfma(vfma(vfma(vfma(vsplat(_C0), z, vsplat(_C1)), z, vsplat(_C2)), z, vsplat(-_HALF)),
+             z, vsplat(_1))
+    return _quadrant(kf, s, c)
 
 
-@njit(fastmath=_FLAGS, cache=True)
-def _angles(Q, c0, C, joints, theta):
-    """Saturate commands Q[:, c0:c0 + C] in place (if the body does) and turn them into DH joint
-    angles theta[:, :C]: theta = offset + lo + (q + 1) / 2 * span, or offset + q."""
+@njit(cache=True)
+def sincos_array(x):
+    """sincos of a float32 array (for tests)."""
+    n = len(x)
+    pad = np.zeros(n + LANES, np.float32)
+    pad[:n] = x
+    s, c = np.empty_like(pad), np.empty_like(pad)
+    for i in range(0, n, LANES):
+        si, ci = sincos(vload1(pad, i))
+        vstore1(s, i, si)
+        vstore1(c, i, ci)
+    return s[:n], c[:n]
+
+
+@njit(inline="always")
+def _clip(q):
+    """q clipped to [-1, 1] lane by lane (a NaN stays NaN)."""
+    one, minus_one = vsplat(_1), vsplat(-_1)
+    return vwhere(minus_one, q, minus_one, vwhere(q, one, one, q))
+
+
+@njit(cache=True)
+def _kinematics(Q, X, C, joints, body):
+    """Hand positions X[:, :C] of the commands Q[:, :C] (C a multiple of LANES),
+    saturating Q in place where the body does. Joint angles theta = q (span / 2) + offset + lo +
+    span / 2 for normalised commands, else offset + q. The hand point is carried from the last
+    joint to the base, LANES samples at a time in registers: p <- Rz(theta) (p_x + a,
+    cos(alpha) p_y - sin(alpha) p_z, sin(alpha) p_y + cos(alpha) p_z + d); for the twists 0 and
+    +-90 degrees (every joint of our bodies) without the products by 0 and +-1 (the same
+    values, up to the sign of a zero)."""
     normalized, saturates, q_lo, q_span, offset = joints
-    for i in range(Q.shape[0]):
-        qi, ti = Q[i, c0:c0 + C], theta[i, :C]
-        if normalized:
-            lo, span, off = q_lo[i], q_span[i], offset[i]
-            if saturates:
-                for r in range(C):
-                    qi[r] = min(max(qi[r], -_1), _1)
-            for r in range(C):
-                ti[r] = off + lo + _HALF * (qi[r] + _1) * span
-        else:
-            off = offset[i]
-            for r in range(C):
-                ti[r] = off + qi[r]
-
-
-@njit(fastmath=_FLAGS, cache=True)
-def _joint(theta, a, d, ca, sa, px, py, pz, qx, qy, qz):
-    """(qx, qy, qz) = A_i (px, py, pz) for one joint over all samples."""
-    for r in range(len(theta)):
-        u = px[r] + a
-        v = ca * py[r] - sa * pz[r]
-        w = sa * py[r] + ca * pz[r] + d
-        s, c = sincos(theta[r])
-        qx[r] = c * u - s * v
-        qy[r] = s * u + c * v
-        qz[r] = w
-
-
-@njit(fastmath=_FLAGS, cache=True)
-def _forward(theta, C, body, X, c0, P0, P1):
-    """Hand positions X[:, c0:c0 + C] of joint angles theta[:, :C]; P0, P1 are (3, >= C) work
-    arrays."""
     a, d, ca, sa, base, outputs = body
-    P0[:, :C] = _0
-    for i in range(theta.shape[0] - 1, -1, -1):
-        _joint(theta[i, :C], a[i], d[i], ca[i], sa[i], P0[0, :C], P0[1, :C], P0[2, :C],
-               P1[0, :C], P1[1, :C], P1[2, :C])
-        P0, P1 = P1, P0
-    for j in range(len(outputs)):
-        o = outputs[j]
-        b0, b1, b2, b3 = base[o, 0], base[o, 1], base[o, 2], base[o, 3]
-        xj, p0, p1, p2 = X[j, c0:c0 + C], P0[0], P0[1], P0[2]
-        for r in range(C):
-            xj[r] = b0 * p0[r] + b1 * p1[r] + b2 * p2[r] + b3
+    m = Q.shape[0]
+    for c in range(0, C, LANES):
+        px = py = pz = vsplat(0)
+        for ii in range(m):
+            i = m - 1 - ii
+            q = vload(Q, i, c)
+            if normalized:
+                if saturates:
+                    q = _clip(q)
+                    vstore(Q, i, c, q)
+                half_span = _HALF * q_span[i]
+                theta = vfma(q, vsplat(half_span), vsplat(offset[i] + q_lo[i] + half_span))
+            else:
+                theta = vadd(q, vsplat(offset[i]))
+            s, co = sincos(theta)
+            u = vadd(px, vsplat(a[i]))
+            if sa[i] == 0 and ca[i] == 1:
+                v = py
+                pz = vadd(pz, vsplat(d[i]))
+            elif ca[i] == 0 and sa[i] == 1:
+                v = vneg(pz)
+                pz = vadd(py, vsplat(d[i]))
+            elif ca[i] == 0 and sa[i] == -1:
+                v = pz
+                pz = vsub(vsplat(d[i]), py)
+            else:
+                v = vfma(vsplat(ca[i]), py, vmul(vsplat(-sa[i]), pz))
+                pz = vadd(vfma(vsplat(sa[i]), py, vmul(vsplat(ca[i]), pz)), vsplat(d[i]))
+            px = vfma(co, u, vmul(vneg(s), v))
+            py = vfma(s, u, vmul(co, v))
+        for j in range(len(outputs)):
+            o = outputs[j]
+            x = vfma(vsplat(base[o, 0]), px, vsplat(base[o, 3]))
+            x = vfma(vsplat(base[o, 1]), py, x)
+            vstore(X, j, c, vfma(vsplat(base[o, 2]), pz, x))
 
 
-@njit(fastmath=_FLAGS, cache=True)
+@njit(cache=True)
 def _features(X, c0, C, parent, var, Phi):
     """Phi[:, :C] of X[:, c0:c0 + C]: monomial k = monomial parent[k] * x[var[k]], the constant
     first."""
-    Phi[0, :C] = _1
+    one = vsplat(_1)
+    for c in range(0, C, LANES):
+        vstore(Phi, 0, c, one)
     for k in range(1, Phi.shape[0]):
-        src, x, dst = Phi[parent[k], :C], X[var[k], c0:c0 + C], Phi[k, :C]
-        for r in range(C):
-            dst[r] = src[r] * x[r]
-
-
-@njit(fastmath=_FLAGS, cache=True)
-def _matmul(M, Phi, out):
-    """out (m, N) = M (m, p) Phi (p, N), float32, summed over k in order."""
-    for i in range(M.shape[0]):
-        oi = out[i]
-        oi[:] = _0
-        for k in range(M.shape[1]):
-            mik, pk = M[i, k], Phi[k]
-            for r in range(len(oi)):
-                oi[r] += mik * pk[r]
-
-
-# ---- one epoch ---------------------------------------------------------------------------------
-@njit(fastmath=_FLAGS, cache=True)
-def _disturbances(raw, s, centre, half, radius, A, b):
-    """Eq. 8: rows of [A | b] scaled so that max |A_i x + b_i| = radius over the target box
-    (float64; stored as float32)."""
-    m, n = A.shape
-    for i in range(m):
-        at_centre = raw[i, n]
-        spread = 0.0
-        for j in range(n):
-            at_centre += raw[i, j] * s * centre[j]
-            spread += abs(raw[i, j]) * s * half[j]
-        k_i = radius / (abs(at_centre) + spread)
-        for j in range(n):
-            A[i, j] = raw[i, j] * k_i
-        b[i] = raw[i, n] * k_i
-
-
-@njit(fastmath=_FLAGS, cache=True)
-def _commands(gpath, path, A, b, home, r0, Bv, Q):
-    """Commands of one variation in Q[:, r0:r0 + Bv]: home, g + A x* + b along the path, home
-    again as padding."""
-    m, T = gpath.shape
-    for i in range(m):
-        qi, gi, bi = Q[i, r0:r0 + Bv], gpath[i], b[i]
-        qi[0] = home[i]
-        for t in range(T):
-            qi[1 + t] = gi[t] + bi
-        for j in range(path.shape[0]):
-            aij, pj = A[i, j], path[j]
-            for t in range(T):
-                qi[1 + t] += aij * pj[t]
-        for t in range(T + 1, Bv):
-            qi[t] = home[i]
-
-
-@njit(fastmath=_FLAGS, cache=True)
-def _weights(path, dxs, nxs, X, Q, r0, Bv, w, tmp):
-    """w_dir * w_eff (eq. 1-3) of every column of one variation against the column before; the
-    home column weighs 1 (eq. 5), the padding 0. dxs, nxs: the intended steps and their squared
-    lengths (the same for every variation); the first starts at the home position."""
-    n, T = dxs.shape
-    no_move2 = F4(NO_MOVEMENT * NO_MOVEMENT)
-    nxs[0] = _0
-    for j in range(n):
-        dxs[j, 0] = path[j, 0] - X[j, r0]
-        nxs[0] += dxs[j, 0] * dxs[j, 0]
-    dot, nx, nq = tmp[0], tmp[1], tmp[2]
-    dot[:] = _0
-    nx[:] = _0
-    nq[:] = _0
-    for j in range(n):
-        xj, dj = X[j, r0:r0 + T + 1], dxs[j]
-        for t in range(T):
-            dx = xj[t + 1] - xj[t]
-            dot[t] += dj[t] * dx
-            nx[t] += dx * dx
-    for i in range(Q.shape[0]):
-        qi = Q[i, r0:r0 + T + 1]
-        for t in range(T):
-            dq = qi[t + 1] - qi[t]
-            nq[t] += dq * dq
-    wv = w[r0 + 1:r0 + T + 1]
-    for t in range(T):
-        den = np.sqrt(nxs[t] * nx[t])
-        cos = dot[t] / den if den > _0 else _0
-        w_dir = _HALF * (_1 + min(max(cos, -_1), _1)) if nxs[t] > no_move2 else _0
-        w_eff = np.sqrt(nx[t] / nq[t]) if nq[t] > _0 else _0
-        wv[t] = w_dir * w_eff
-    w[r0] = _1
-    w[r0 + T + 1:r0 + Bv] = _0
+        src, coord = parent[k], var[k]
+        for c in range(0, C, LANES):
+            vstore(Phi, k, c, vmul(vload(Phi, src, c), vload(X, coord, c0 + c)))
 
 
 @njit(cache=True)
-def _lane_sum(w, c0, C):
-    """sum w[c0:c0 + C] (C a multiple of LANES): LANES partial sums, then lane by lane."""
-    acc = vzero()
-    for c in range(c0, c0 + C, LANES):
-        acc = vadd(acc, vload1(w, c))
-    return vsum(acc)
-
-
-@njit(cache=True)
-def _residual(M32, Phi, Q, w, c0, C, Rw):
-    """Rw[i, c] = w (M Phi - q) of the columns c0 + c, c < C (a multiple of LANES): rows in
-    tiles of _TILE, the tile's LANES columns in registers while k runs."""
+def _predict(M32, Phi, C, out, Q, w, c0):
+    """out[:, :C] = M Phi[:, :C] (float32, summed over k in order); with weights w given
+    (len(w) > 0), the weighted residuals w (M Phi - Q) of the columns c0 ... c0 + C - 1 of Q
+    and w instead. Rows in tiles of _TILE, a tile's
+    LANES columns in registers while k runs."""
     m, p = M32.shape
+    residual = len(w) > 0
     mt = m - m % _TILE
     for i in range(0, mt, _TILE):
         for c in range(0, C, LANES):
@@ -377,20 +346,29 @@ def _residual(M32, Phi, Q, w, c0, C, Rw):
                 a2 = vfma(vsplat(M32[i + 2, k]), f, a2)
                 a3 = vfma(vsplat(M32[i + 3, k]), f, a3)
                 a4 = vfma(vsplat(M32[i + 4, k]), f, a4)
-            wc = vload1(w, c0 + c)
-            vstore(Rw, i, c, vmul(vsub(a0, vload(Q, i, c0 + c)), wc))
-            vstore(Rw, i + 1, c, vmul(vsub(a1, vload(Q, i + 1, c0 + c)), wc))
-            vstore(Rw, i + 2, c, vmul(vsub(a2, vload(Q, i + 2, c0 + c)), wc))
-            vstore(Rw, i + 3, c, vmul(vsub(a3, vload(Q, i + 3, c0 + c)), wc))
-            vstore(Rw, i + 4, c, vmul(vsub(a4, vload(Q, i + 4, c0 + c)), wc))
+            if residual:
+                wc = vload1(w, c0 + c)
+                a0 = vmul(vsub(a0, vload(Q, i, c0 + c)), wc)
+                a1 = vmul(vsub(a1, vload(Q, i + 1, c0 + c)), wc)
+                a2 = vmul(vsub(a2, vload(Q, i + 2, c0 + c)), wc)
+                a3 = vmul(vsub(a3, vload(Q, i + 3, c0 + c)), wc)
+                a4 = vmul(vsub(a4, vload(Q, i + 4, c0 + c)), wc)
+            vstore(out, i, c, a0)
+            vstore(out, i + 1, c, a1)
+            vstore(out, i + 2, c, a2)
+            vstore(out, i + 3, c, a3)
+            vstore(out, i + 4, c, a4)
     for i in range(mt, m):
         for c in range(0, C, LANES):
             a0 = vmul(vsplat(M32[i, 0]), vload(Phi, 0, c))
             for k in range(1, p):
                 a0 = vfma(vsplat(M32[i, k]), vload(Phi, k, c), a0)
-            vstore(Rw, i, c, vmul(vsub(a0, vload(Q, i, c0 + c)), vload1(w, c0 + c)))
+            if residual:
+                a0 = vmul(vsub(a0, vload(Q, i, c0 + c)), vload1(w, c0 + c))
+            vstore(out, i, c, a0)
 
 
+# ---- the gradient: register tiles of vector accumulators ---------------------------------------
 @njit(inline="always")
 def _flush(GL, i, k, b0, b1, b2, b3, b4):
     """GL[i, lanes of k ... k + 4] += b0 ... b4."""
@@ -406,11 +384,11 @@ def _flush(GL, i, k, b0, b1, b2, b3, b4):
 def _tile5x5(Rw, Phi, C, i, k, GL):
     """Lanes of G[i:i+5, k:k+5] += Rw[i:i+5, :C] Phi[k:k+5, :C]^T: 25 vector accumulators, 10
     loads per 25 fused multiply-adds."""
-    a00 = a01 = a02 = a03 = a04 = vzero()
-    a10 = a11 = a12 = a13 = a14 = vzero()
-    a20 = a21 = a22 = a23 = a24 = vzero()
-    a30 = a31 = a32 = a33 = a34 = vzero()
-    a40 = a41 = a42 = a43 = a44 = vzero()
+    a00 = a01 = a02 = a03 = a04 = vsplat(0)
+    a10 = a11 = a12 = a13 = a14 = vsplat(0)
+    a20 = a21 = a22 = a23 = a24 = vsplat(0)
+    a30 = a31 = a32 = a33 = a34 = vsplat(0)
+    a40 = a41 = a42 = a43 = a44 = vsplat(0)
     for c in range(0, C, LANES):
         x0, x1, x2 = vload(Rw, i, c), vload(Rw, i + 1, c), vload(Rw, i + 2, c)
         x3, x4 = vload(Rw, i + 3, c), vload(Rw, i + 4, c)
@@ -439,7 +417,7 @@ def _tile5x5(Rw, Phi, C, i, k, GL):
 @njit(cache=True)
 def _tile1x5(Rw, Phi, C, i, k, GL):
     """Lanes of G[i, k:k+5] += Rw[i, :C] Phi[k:k+5, :C]^T."""
-    a0 = a1 = a2 = a3 = a4 = vzero()
+    a0 = a1 = a2 = a3 = a4 = vsplat(0)
     for c in range(0, C, LANES):
         x = vload(Rw, i, c)
         a0, a1 = vfma(x, vload(Phi, k, c), a0), vfma(x, vload(Phi, k + 1, c), a1)
@@ -451,7 +429,7 @@ def _tile1x5(Rw, Phi, C, i, k, GL):
 @njit(cache=True)
 def _tile1x1(Rw, Phi, C, i, k, GL):
     """Lanes of G[i, k] += Rw[i, :C] . Phi[k, :C]."""
-    a = vzero()
+    a = vsplat(0)
     for c in range(0, C, LANES):
         a = vfma(vload(Rw, i, c), vload(Phi, k, c), a)
     vstore(GL, i, k * LANES, vadd(vload(GL, i, k * LANES), a))
@@ -460,7 +438,7 @@ def _tile1x1(Rw, Phi, C, i, k, GL):
 @njit(cache=True)
 def _accumulate(Rw, Phi, C, GL):
     """Lanes of the gradient, GL (m, p * LANES) += Rw[:, :C] Phi[:, :C]^T: lane l of G[i, k]
-    sums the columns c = l (mod LANES) in order, whatever the CPU's vector width."""
+    sums the columns c = l (mod LANES) in order, whatever the CPU."""
     m, p = Rw.shape[0], Phi.shape[0]
     mt, pt = m - m % _TILE, p - p % _TILE
     for i in range(0, mt, _TILE):
@@ -474,107 +452,200 @@ def _accumulate(Rw, Phi, C, GL):
             _tile1x1(Rw, Phi, C, i, k, GL)
 
 
-@njit(fastmath=_FLAGS, cache=True)
-def _epoch(M, idx, raw, s, body, targets, home, parent, var, joints, radius, steps,
-           learning_rate, work):
+# ---- one epoch -----------------------------------------------------------------------------------
+@njit(cache=True)
+def _disturbances(raw, amp, s, centre, half, radius, A, b):
+    """Eq. 8: rows of [A | b] of every variation, scaled so that max |A_i x + b_i| = radius
+    times amp[v, i] over the target box (centre +- half) at size s (float64; stored as float32;
+    amp is 1 for the exact reading, U(0, 1) for the uniform one)."""
+    V, m, n = A.shape
+    for v in range(V):
+        for i in range(m):
+            at_centre = raw[v, i, n]
+            spread = 0.0
+            for j in range(n):
+                at_centre += raw[v, i, j] * s * centre[j]
+                spread += abs(raw[v, i, j]) * s * half[j]
+            k_i = radius / (abs(at_centre) + spread) * amp[v, i]
+            for j in range(n):
+                A[v, i, j] = F4(raw[v, i, j] * k_i)
+            b[v, i] = F4(raw[v, i, n] * k_i)
+
+
+@njit(cache=True)
+def _commands(gpath, path, A, b, home, T, Npad, Q):
+    """Commands of every variation, v in the columns v (T + 1) ... v (T + 1) + T of Q: the home
+    posture, then g + A x* + b along the path; home again in the columns N ... Npad - 1.
+    (A variation's last vector runs into the next variation's columns, which that variation
+    then writes; hence in order.)"""
+    m, Bv = gpath.shape
+    V, n = A.shape[0], path.shape[0]
+    for v in range(V):
+        r0 = v * (T + 1)
+        for u in range(0, Bv, LANES):
+            # x* of these columns (n <= 3: the hand coordinates controlled), in registers
+            x0 = vload(path, 0, u)
+            x1 = vload(path, min(1, n - 1), u)
+            x2 = vload(path, min(2, n - 1), u)
+            for i in range(m):
+                q = vfma(vsplat(A[v, i, 0]), x0, vadd(vload(gpath, i, u), vsplat(b[v, i])))
+                if n > 1:
+                    q = vfma(vsplat(A[v, i, 1]), x1, q)
+                if n > 2:
+                    q = vfma(vsplat(A[v, i, 2]), x2, q)
+                for j in range(3, n):
+                    q = vfma(vsplat(A[v, i, j]), vload(path, j, u), q)
+                vstore(Q, i, r0 + u, q)
+        for i in range(m):
+            Q[i, r0] = home[i]
+    for i in range(m):
+        Q[i, V * (T + 1):Npad] = home[i]
+
+
+@njit(cache=True)
+def _weights(dxs, nxs, X, Q, V, T, Npad, w):
+    """w_dir * w_eff (eq. 1-3) of every path column r0 + 1 ... r0 + T of a variation (r0 =
+    v (T + 1)) against the column before, w = 1 for its home column r0 (eq. 5); 0 for the
+    columns N ... Npad - 1. dxs, nxs: the intended steps u -> u + 1 and their squared lengths,
+    the same for every variation. (In order, as _commands.)"""
+    n, m = X.shape[0], Q.shape[0]
+    Bv = len(nxs)
+    zero, one, half = vsplat(0), vsplat(_1), vsplat(_HALF)
+    no_move2 = vsplat(F4(NO_MOVEMENT * NO_MOVEMENT))
+    for v in range(V):
+        r0 = v * (T + 1)
+        for u in range(0, Bv, LANES):
+            c = r0 + u
+            dot = nx = nq = zero
+            for j in range(n):
+                dx = vsub(vload(X, j, c + 1), vload(X, j, c))
+                dot = vfma(vload(dxs, j, u), dx, dot)
+                nx = vfma(dx, dx, nx)
+            for i in range(m):
+                dq = vsub(vload(Q, i, c + 1), vload(Q, i, c))
+                nq = vfma(dq, dq, nq)
+            nxs_u = vload1(nxs, u)
+            den = vsqrt(vmul(nxs_u, nx))
+            cos = vwhere(den, zero, vdiv(dot, den), zero)
+            cos = _clip(cos)
+            w_dir = vwhere(nxs_u, no_move2, vmul(half, vadd(one, cos)), zero)
+            w_eff = vwhere(nq, zero, vsqrt(vdiv(nx, nq)), zero)
+            vstore1(w, c + 1, vmul(w_dir, w_eff))
+        w[r0] = _1
+    w[V * (T + 1):Npad] = 0
+
+
+@njit(cache=True)
+def _lane_sum(w, C):
+    """sum w[:C] (C a multiple of LANES): LANES partial sums, then the lanes (vsum)."""
+    acc = vsplat(0)
+    for c in range(0, C, LANES):
+        acc = vadd(acc, vload1(w, c))
+    return vsum(acc)
+
+
+@njit(cache=True)
+def _epoch(M, idx, raw, amp, s, body, targets, home, parent, var, joints, radius, steps,
+           learning_rate, plain, box, work):
     """One epoch (see reference.epoch): rolls out, weights, updates M in place.
 
     Leaves the samples in work: Q (m, N) postures, X (n, N) reached positions, w (N) weights,
-    variation v in columns v * Bv ... v * Bv + T.
+    variation v in the columns v (T + 1) ... v (T + 1) + T (N = V (T + 1); then columns of
+    padding up to a multiple of LANES, and LANES spare ones).
     """
-    (Q, X, w, theta, P0, P1, Phi, Rw, path, Phip, gpath, dxs, nxs, wtmp, A, b, M32,
-     GL) = work
+    Q, X, w, Phi, Rw, path, Phip, gpath, dxs, nxs, A, b, M32, GL, Qh, Xh = work
     m, p = M.shape
     n = targets.shape[1]
     V = raw.shape[0]
-    T = path.shape[1]
-    Bv = Q.shape[1] // V
-    VG = theta.shape[1] // Bv  # variations per group
+    Bv = gpath.shape[1]
+    Npad = len(w) - LANES
+    T = (len(idx) - 1) * steps
     s4 = F4(s)
-    # target path (eq. 9) at the current size, and g along it
+    # the home posture and where it puts the hand (every lane the same)
+    for i in range(m):
+        vstore(Qh, i, 0, vsplat(home[i]))
+    _kinematics(Qh, Xh, LANES, joints, body)
+    # the target path (eq. 9) at the current size in columns 1 ... T, the hand at home in
+    # column 0, the last target in the rest
+    for j in range(n):
+        path[j, 0] = Xh[j, 0]
     for k in range(len(idx) - 1):
         t0, t1 = idx[k], idx[k + 1]
         for l in range(steps):
             f = F4(l) / F4(steps)
             for j in range(n):
-                path[j, k * steps + l] = s4 * ((_1 - f) * targets[t0, j] + f * targets[t1, j])
+                path[j, 1 + k * steps + l] = s4 * ((_1 - f) * targets[t0, j] +
+                                                   f * targets[t1, j])
+    for u in range(T + 1, path.shape[1]):
+        for j in range(n):
+            path[j, u] = s4 * targets[idx[-1], j]
+    # the intended steps u -> u + 1 and their squared lengths
+    nxs[:] = 0
+    for j in range(n):
+        for u in range(Bv):
+            dxs[j, u] = path[j, u + 1] - path[j, u]
+            nxs[u] += dxs[j, u] * dxs[j, u]
+    # g along the path
     for i in range(m):
         for k in range(p):
             M32[i, k] = M[i, k]
-    _features(path, 0, T, parent, var, Phip)
-    _matmul(M32, Phip, gpath)
-    # the intended steps after the first (the first starts at home: _weights)
-    nxs[:] = _0
-    for j in range(n):
-        for t in range(1, T):
-            dxs[j, t] = path[j, t] - path[j, t - 1]
-            nxs[t] += dxs[j, t] * dxs[j, t]
-    # the variations' disturbances (eq. 8)
-    centre = np.empty(n)
-    half = np.empty(n)
-    for j in range(n):
-        lo, hi = targets[:, j].min(), targets[:, j].max()
-        centre[j], half[j] = 0.5 * (lo + hi), 0.5 * (hi - lo)
-    A64 = np.empty((m, n))
-    b64 = np.empty(m)
-    for v in range(V):
-        _disturbances(raw[v], s, centre, half, radius, A64, b64)
-        for i in range(m):
-            b[v, i] = b64[i]
-            for j in range(n):
-                A[v, i, j] = A64[i, j]
-    # groups of variations: rollout, weights, residuals, gradient lanes
-    GL[:] = _0
-    wsum = 0.0
-    for v0 in range(0, V, VG):
-        v1 = min(v0 + VG, V)
-        c0, C = v0 * Bv, (v1 - v0) * Bv
-        for v in range(v0, v1):
-            _commands(gpath, path, A[v], b[v], home, v * Bv, Bv, Q)
-        _angles(Q, c0, C, joints, theta)
-        _forward(theta, C, body, X, c0, P0, P1)
-        for v in range(v0, v1):
-            _weights(path, dxs, nxs, X, Q, v * Bv, Bv, w, wtmp)
-        wsum += _lane_sum(w, c0, C)
+    _features(path, 0, Bv, parent, var, Phip)
+    _predict(M32, Phip, Bv, gpath, Q, w[:0], 0)
+    # the variations' disturbances (eq. 8), their rollouts, weights, residuals, gradient lanes
+    _disturbances(raw, amp, s, box[0], box[1], radius, A, b)
+    _commands(gpath, path, A, b, home, T, Npad, Q)
+    _kinematics(Q, X, Npad, joints, body)
+    _weights(dxs, nxs, X, Q, V, T, Npad, w)
+    GL[:] = 0
+    for c0 in range(0, Npad, _BLOCK):  # blocks of columns: their Phi and Rw stay in cache
+        C = min(_BLOCK, Npad - c0)
         _features(X, c0, C, parent, var, Phi)
-        _residual(M32, Phi, Q, w, c0, C, Rw)
+        _predict(M32, Phi, C, Rw, Q, w, c0)
         _accumulate(Rw, Phi, C, GL)
-    # one normalised gradient step on the weighted command error (eq. 6)
-    step = learning_rate / wsum
+    # one gradient step on the weighted command error (eq. 6), normalised by sum w or plain
+    step = learning_rate if plain else learning_rate / _lane_sum(w, Npad)
     for i in range(m):
         for k in range(p):
             M[i, k] -= step * vsum(vload(GL, i, k * LANES))
 
 
-def _layout(V, T):
-    """(Bv, VG): columns per variation (T + 1 rounded up to LANES), variations per group."""
+@njit(cache=True)
+def _work(m, n, p, V, T):
+    """Work arrays of one epoch: Npad = V (T + 1) rounded up to LANES sample columns (and LANES
+    spare), Bv = T + 1 rounded up for the path."""
     Bv = -(-(T + 1) // LANES) * LANES
-    return Bv, max(1, min(V, _GROUP // Bv))
+    Npad = -(-(V * (T + 1)) // LANES) * LANES
+    N = Npad + LANES
+    f4 = np.float32
+    return (np.zeros((m, N), f4), np.zeros((n, N), f4), np.zeros(N, f4),
+            np.empty((p, min(Npad, _BLOCK)), f4), np.empty((m, min(Npad, _BLOCK)), f4),
+            np.empty((n, Bv + LANES), f4), np.empty((p, Bv), f4), np.empty((m, Bv), f4),
+            np.empty((n, Bv), f4), np.empty(Bv, f4),
+            np.empty((V, m, n), f4), np.empty((V, m), f4),
+            np.empty((m, p), f4), np.empty((m, p * LANES), f4),
+            np.empty((m, LANES), f4), np.empty((n, LANES), f4))
 
 
 @njit(cache=True)
-def _work(m, n, p, V, T, Bv, VG):
-    """Work arrays of one epoch: N = V Bv columns, C = VG Bv per group."""
-    N, C = V * Bv, VG * Bv
-    f4 = np.float32
-    return (np.empty((m, N), f4), np.empty((n, N), f4), np.empty(N, f4),
-            np.empty((m, C), f4), np.empty((3, C), f4), np.empty((3, C), f4),
-            np.empty((p, C), f4), np.empty((m, C), f4),
-            np.empty((n, T), f4), np.empty((p, T), f4), np.empty((m, T), f4),
-            np.empty((n, T), f4), np.empty(T, f4), np.empty((3, T), f4),
-            np.empty((V, m, n), f4), np.empty((V, m), f4),
-            np.empty((m, p), f4), np.empty((m, p * LANES), f4))
+def _box(targets):
+    """(centre, half width) of the box around the targets (at full size), per coordinate."""
+    n = targets.shape[1]
+    centre, half = np.empty(n), np.empty(n)
+    for j in range(n):
+        lo, hi = float(targets[:, j].min()), float(targets[:, j].max())
+        centre[j], half[j] = 0.5 * (lo + hi), 0.5 * (hi - lo)
+    return centre, half
 
 
-@njit(fastmath=_FLAGS, cache=True)
-def _block(M, idx, raw, sizes, scales, chain, targets, home, parent, var, joints, radius, steps,
-           learning_rate, Bv, VG):
+@njit(cache=True)
+def _block(M, idx, raw, amp, sizes, scales, chain, targets, home, parent, var, joints, radius,
+           steps, learning_rate, plain):
     """Epochs e = 0 ... B-1 with sizes[e] and per-joint length factors scales[e]."""
     a, d, ca, sa, base, outputs = chain
     m, p = M.shape
     n = targets.shape[1]
-    T = (idx.shape[1] - 1) * steps
-    work = _work(m, n, p, raw.shape[1], T, Bv, VG)
+    work = _work(m, n, p, raw.shape[1], (idx.shape[1] - 1) * steps)
+    box = _box(targets)
     ae = np.empty(m, np.float32)
     de = np.empty(m, np.float32)
     for e in range(idx.shape[0]):
@@ -582,11 +653,11 @@ def _block(M, idx, raw, sizes, scales, chain, targets, home, parent, var, joints
             ae[i] = a[i] * scales[e, i]
             de[i] = d[i] * scales[e, i]
         body = (ae, de, ca, sa, base, outputs)
-        _epoch(M, idx[e], raw[e], sizes[e], body, targets, home, parent, var, joints, radius,
-               steps, learning_rate, work)
+        _epoch(M, idx[e], raw[e], amp[e], sizes[e], body, targets, home, parent, var, joints,
+               radius, steps, learning_rate, plain, box, work)
 
 
-@njit(fastmath=_FLAGS, cache=True)
+@njit(cache=True)
 def _distances(M, scale, chain, xs, parent, var, joints, out):
     """out[t] = |f(g(xs_t)) - xs_t| (float64) with the chain's lengths times scale."""
     a, d, ca, sa, base, outputs = chain
@@ -600,16 +671,15 @@ def _distances(M, scale, chain, xs, parent, var, joints, out):
     for i in range(m):
         for k in range(p):
             M32[i, k] = M[i, k]
-    X, Phi = np.empty((n, NT), np.float32), np.empty((p, NT), np.float32)
-    Q, theta = np.empty((m, NT), np.float32), np.empty((m, NT), np.float32)
-    P0, P1 = np.empty((3, NT), np.float32), np.empty((3, NT), np.float32)
-    for t in range(NT):
+    C = -(-NT // LANES) * LANES
+    X, Phi, Q = np.empty((n, C), np.float32), np.empty((p, C), np.float32), np.empty((m, C),
+                                                                                      np.float32)
+    for t in range(C):
         for j in range(n):
-            X[j, t] = xs[t, j]
-    _features(X, 0, NT, parent, var, Phi)
-    _matmul(M32, Phi, Q)
-    _angles(Q, 0, NT, joints, theta)
-    _forward(theta, NT, body, X, 0, P0, P1)
+            X[j, t] = xs[min(t, NT - 1), j]
+    _features(X, 0, C, parent, var, Phi)
+    _predict(M32, Phi, C, Q, Q, np.empty(0, np.float32), 0)
+    _kinematics(Q, X, C, joints, body)
     for t in range(NT):
         d2 = 0.0
         for j in range(n):
@@ -662,17 +732,23 @@ def _arrays(body, exps):
     return arr
 
 
-def run_block(M, body, params, exps, sizes, scales, idx, raw):
-    """Epochs with sizes `sizes`, per-joint length factors `scales` (B, m) and draws idx, raw.
-    Returns the updated M (a new array)."""
+def _amplitudes(raw, amp):
+    """The amplitude factors (..., V, m): the drawn ones (uniform reading), or 1 (exact)."""
+    if amp is None:
+        return np.ones(raw.shape[:-1])
+    return np.ascontiguousarray(amp, np.float64)
+
+
+def run_block(M, body, params, exps, sizes, scales, idx, raw, amp=None):
+    """Epochs with sizes `sizes`, per-joint length factors `scales` (B, m) and draws idx, raw
+    (and amp, the amplitude factors of the uniform reading). Returns the updated M."""
     M = np.array(M, dtype=np.float64, order="C")
-    idx = np.ascontiguousarray(idx, np.int64)
-    raw = np.ascontiguousarray(raw, np.float64)
-    Bv, VG = _layout(raw.shape[1], (idx.shape[1] - 1) * int(params.steps))
-    _block(M, idx, raw, np.ascontiguousarray(sizes, np.float64),
+    _block(M, np.ascontiguousarray(idx, np.int64), np.ascontiguousarray(raw, np.float64),
+           _amplitudes(raw, amp), np.ascontiguousarray(sizes, np.float64),
            np.ascontiguousarray(scales, np.float32).reshape(len(sizes), body.m),
            radius=float(params.radius), steps=int(params.steps),
-           learning_rate=float(params.learning_rate), Bv=Bv, VG=VG, **_arrays(body, exps))
+           learning_rate=float(params.learning_rate), plain=params.step == "plain",
+           **_arrays(body, exps))
     return M
 
 
@@ -686,7 +762,7 @@ def distances(M, body, exps, scale, xs):
     return out
 
 
-def epoch_samples(M, body, params, exps, size, scale, idx, raw):
+def epoch_samples(M, body, params, exps, size, scale, idx, raw, amp=None):
     """One epoch on the fast path, for tests: returns (M after, Q, X, w) with the samples laid
     out as (V, T + 1, ...) like reference.epoch's."""
     M = np.array(M, dtype=np.float64, order="C")
@@ -696,13 +772,12 @@ def epoch_samples(M, body, params, exps, size, scale, idx, raw):
     chain = (a * k, d * k, ca, sa, base, outputs)
     T = (len(idx) - 1) * params.steps
     V = raw.shape[0]
-    Bv, VG = _layout(V, T)
-    work = _work(body.m, body.n, len(exps), V, T, Bv, VG)
-    _epoch(M, np.asarray(idx, np.int64), np.ascontiguousarray(raw, np.float64), float(size),
-           chain, arr["targets"], arr["home"], arr["parent"], arr["var"], arr["joints"],
-           float(params.radius), int(params.steps), float(params.learning_rate), work)
+    work = _work(body.m, body.n, len(exps), V, T)
+    _epoch(M, np.asarray(idx, np.int64), np.ascontiguousarray(raw, np.float64),
+           _amplitudes(raw, amp), float(size), chain, arr["targets"], arr["home"], arr["parent"],
+           arr["var"], arr["joints"], float(params.radius), int(params.steps),
+           float(params.learning_rate), params.step == "plain", _box(arr["targets"]), work)
     Q, X, w = work[0], work[1], work[2]
-
-    def samples(a):  # (rows, V * Bv) -> (V, T + 1, rows)
-        return a.reshape(len(a), V, Bv)[:, :, :T + 1].transpose(1, 2, 0)
-    return M, samples(Q), samples(X), w.reshape(V, Bv)[:, :T + 1]
+    N = V * (T + 1)
+    return (M, Q[:, :N].T.reshape(V, T + 1, -1), X[:, :N].T.reshape(V, T + 1, -1),
+            w[:N].reshape(V, T + 1))
