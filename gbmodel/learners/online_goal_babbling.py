@@ -42,9 +42,6 @@ from numba import njit
 
 from ..features import exponents, features
 from ..growth import SpecError, check_int, check_number
-# before this module's @njit: defining a kernel fixes numba's CPU target for the process, and
-# Goal Babbling's kernel module sets the target's features first (speed only, see there)
-from .goal_babbling import fast as _goal_babbling_fast  # noqa: F401
 from .goal_babbling.reference import (NO_MOVEMENT, init_inverse, predict as predict_inverse,
                                       sample_weights, scale_perturbations)
 
