@@ -56,6 +56,21 @@ def _curve(curves: pd.DataFrame, condition: str, column: str) -> pd.Series:
     return pd.Series(c[f"{column}_mean"].to_numpy(), index=c["epoch"].to_numpy())
 
 
+def _above(figure, curves, growing, reference: pd.Series, claim: str) -> dict:
+    """How far each growing body's mean absolute error exceeds `reference` at the same epoch
+    during epochs 1 ... T_G + 1; required above RISE for T_G <= 1000."""
+    parts, failing = [], []
+    for r in growing.itertuples():
+        g = _curve(curves, r.condition, "abs_error")
+        during = g[g.index <= r.growth_period + 1]
+        excess = during / reference[during.index] - 1
+        parts.append(f"T_G={r.growth_period}: +{100 * max(excess.max(), 0):.0f} % at epoch "
+                     f"{excess.idxmax()}")
+        if r.growth_period <= 1000 and excess.max() <= RISE:
+            failing.append(f"T_G={r.growth_period}")
+    return dict(figure=figure, claim=claim, measured="; ".join(parts), verdict=_verdict(failing))
+
+
 def growth_claims(figure: str, curves: pd.DataFrame, summary: pd.DataFrame) -> list[dict]:
     """Claims of Fig. 4, 5 and 7 (sec. 3.1-3.3) for one figure's conditions."""
     rows = []
@@ -86,33 +101,13 @@ def growth_claims(figure: str, curves: pd.DataFrame, summary: pd.DataFrame) -> l
                          measured="; ".join(parts), verdict=_verdict(failing)))
     if len(growing) and len(refs) == 2:
         upper = np.maximum(*(_curve(curves, c, "abs_error") for c in refs["condition"]))
-        parts, failing = [], []
-        for r in growing.itertuples():
-            g = _curve(curves, r.condition, "abs_error")
-            during = g[g.index <= r.growth_period + 1]
-            excess = during / upper[during.index] - 1
-            parts.append(f"T_G={r.growth_period}: +{100 * max(excess.max(), 0):.0f} % at epoch "
-                         f"{excess.idxmax()}")
-            if r.growth_period <= 1000 and excess.max() <= RISE:
-                failing.append(f"T_G={r.growth_period}")
-        rows.append(dict(figure=figure,
-                         claim="the absolute error rises above both constant-size references "
-                               "during growth, T_G in {10, 100, 1000} (measure added after the "
-                               "full run)", measured="; ".join(parts), verdict=_verdict(failing)))
-        short_abs = _curve(curves, refs["condition"].iloc[0], "abs_error")
-        parts, failing = [], []
-        for r in growing.itertuples():
-            g = _curve(curves, r.condition, "abs_error")
-            during = g[g.index <= r.growth_period + 1]
-            excess = during / short_abs[during.index] - 1
-            parts.append(f"T_G={r.growth_period}: +{100 * max(excess.max(), 0):.0f} % at epoch "
-                         f"{excess.idxmax()}")
-            if r.growth_period <= 1000 and excess.max() <= RISE:
-                failing.append(f"T_G={r.growth_period}")
-        rows.append(dict(figure=figure,
-                         claim="the absolute error rises above the body growth starts from "
-                               "during growth, T_G in {10, 100, 1000} (added)",
-                         measured="; ".join(parts), verdict=_verdict(failing)))
+        rows.append(_above(figure, curves, growing, upper,
+                           "the absolute error rises above both constant-size references during "
+                           "growth, T_G in {10, 100, 1000} (measure added after the full run)"))
+        rows.append(_above(figure, curves, growing,
+                           _curve(curves, refs["condition"].iloc[0], "abs_error"),
+                           "the absolute error rises above the body growth starts from during "
+                           "growth, T_G in {10, 100, 1000} (added)"))
         short, long_ = (_curve(curves, c, "rel_error") for c in refs["condition"])
         upper = np.maximum(short, long_)
         parts, failing = [], []

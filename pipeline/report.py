@@ -227,27 +227,28 @@ def report(cfg: DictConfig) -> list[Path]:
         md += [f"![{name}]({img})" for img in images] + ["", summary_markdown(summ)]
     for title, paths in extra:
         md += [f"## {title}", "", f"![{paths[0].stem}]({paths[0].name})", ""]
+    def study(name, table, fig):
+        """A study's table (CSV) and figure; returns the figure's PNG name."""
+        io.write_text(out / f"{name}.csv", table.to_csv(index=False, float_format="%.6g"))
+        with figures.plt.rc_context(rc):
+            paths = figures.save(fig, out / f"{name}_curves", dpi)
+        written.extend([out / f"{name}.csv"] + paths)
+        return paths[0].name
+
     reading_table = readings.table(studies)
     if len(reading_table):
-        io.write_text(out / "readings.csv", reading_table.to_csv(index=False))
-        with figures.plt.rc_context(rc):
-            paths = figures.save(readings.figure(studies, "Readings of the paper: absolute error "
-                                                 "of every condition (mean over trials)"),
-                                 out / "readings_curves", dpi)
-        written += [out / "readings.csv"] + paths
+        png = study("readings", reading_table, readings.figure(
+            studies, "Readings of the paper: absolute error of every condition (mean over "
+            "trials)"))
         md += ["## Every reading of the paper against every claim", "",
                "Each row is a reading of the text (conf/experiment/readings_*.yaml, "
                "pipeline/readings.py); each column a claim, checked as above.", "",
-               f"![readings]({paths[0].name})", "", readings.markdown(reading_table)]
+               f"![readings]({png})", "", readings.markdown(reading_table)]
     rival_table = baselines.table(rivals)
     if len(rival_table):
         rival_claims = baselines.claims(rival_table)
-        io.write_text(out / "baselines.csv", rival_table.to_csv(index=False, float_format="%.6g"))
-        with figures.plt.rc_context(rc):
-            paths = figures.save(baselines.figure(rivals, "Goal Babbling and its alternatives: "
-                                                  "error against reaching movements"),
-                                 out / "baselines_curves", dpi)
-        written += [out / "baselines.csv"] + paths
+        png = study("baselines", rival_table, baselines.figure(
+            rivals, "Goal Babbling and its alternatives: error against reaching movements"))
         md += ["## Beyond the paper: Goal Babbling against its alternatives under growth", "",
                "Four learners (gbmodel/learners/) with the same budget of reaching movements, on "
                "the 5-DOF arm and the iCub, without growth, with the paper's linear growth and "
@@ -255,7 +256,7 @@ def report(cfg: DictConfig) -> list[Path]:
                "pipeline/baselines.py). Errors at the end of the budget; the largest jump is the "
                "final inverse's largest joint-space step between neighbouring points on lines "
                "through the target box (branch switching, lookup).", "",
-               f"![baselines]({paths[0].name})", "", baselines.markdown(rival_table, rival_claims)]
+               f"![baselines]({png})", "", baselines.markdown(rival_table, rival_claims)]
     if len(choice_table):
         text = (out / "choices.md").read_text().split("\n", 1)[1]
         md += ["## Choices the paper leaves open: measured effect of the alternatives", text]
