@@ -1,0 +1,17 @@
+"""`make bench` runs end to end (one repeat, no parallel timing) and the fast path is faster."""
+import json
+from pathlib import Path
+
+from pipeline import bench
+from pipeline.config import compose
+
+
+def test_bench_writes_medians_and_the_fast_path_wins(tmp_path):
+    cfg = compose(["bench.repeats=1", "bench.parallel=false", f"paths.root={tmp_path}"])
+    result = bench.bench(cfg)
+    saved = json.loads((Path(cfg.paths.bench) / "bench.json").read_text())
+    assert saved == json.loads(json.dumps(result))
+    for body in ("arm5", "icub"):
+        row = saved[body]
+        assert 0 < row["fast_us_per_trial_epoch"] < row["reference_us_per_trial_epoch"]
+        assert row["speedup"] > 5
