@@ -66,11 +66,12 @@ def test_ray_local_instance_matches_local_run(tmp_path, local_files):
 
 def test_submitit_local_matches_local_run(tmp_path, local_files, monkeypatch):
     pytest.importorskip("submitit")
-    with_options(monkeypatch, logs=tmp_path / "submitit")
-    summary = simulate(cfg_of(tmp_path, "executor=submitit_local", "workers=2"))
+    cfg = cfg_of(tmp_path, "executor=submitit_local", "workers=2")
+    summary = simulate(cfg)
     assert summary.ran == 6 and not summary.failed, summary.lines()
     assert trial_files(tmp_path) == local_files
-    assert len(list((tmp_path / "submitit").glob("*/*_result.pkl"))) == 2  # two shard jobs
+    jobs = Path(cfg.paths.out) / "logs" / "submitit"  # where simulate puts submitit's job files
+    assert len(list(jobs.glob("*/*_result.pkl"))) == 2  # two shard jobs
 
 
 class KillOnce:
