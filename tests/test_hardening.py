@@ -274,3 +274,16 @@ def test_warm_runs_and_says_so():
     r = run_cli("pipeline.warm")
     assert r.returncode == 0, r.stderr
     assert re.fullmatch(r"kernels compiled or loaded from numba's cache in [\d.]+ s\n", r.stdout)
+
+
+def test_make_refuses_a_python_older_than_311_and_says_which(tmp_path):
+    """The Makefile takes python3.11, else python3, and checks the version before creating
+    anything (a fake interpreter that reports 3.9 is refused, with its path named)."""
+    fake = tmp_path / "python3"
+    fake.write_text("#!/bin/sh\ncase \"$2\" in *version_info*) exit 1;; "
+                    "*python_version*) echo 3.9.0;; esac\n")
+    fake.chmod(0o755)
+    r = subprocess.run(["make", "-B", "-s", ".venv/.installed", f"PYTHON={fake}"],
+                       cwd=REPO_ROOT, capture_output=True, text=True, timeout=60)
+    assert r.returncode != 0
+    assert f"{fake} is Python 3.9.0; need >= 3.11" in r.stdout + r.stderr
