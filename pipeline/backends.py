@@ -48,9 +48,7 @@ BACKENDS = ("local", "ray", "slurm", "submitit_local")
 EXTRA = {"ray": ("ray", "ray"), "slurm": ("submitit", "slurm"),
          "submitit_local": ("submitit", "slurm")}  # backend -> (package, pyproject extra)
 
-# SLURM / submitit settings (executor.slurm.* once the schema has them; see conf/executor/slurm.yaml)
-SLURM_DEFAULTS = dict(partition=None, timeout_min=24 * 60, mem_gb=2.0, shards=None, setup=[],
-                      poll_s=10.0)
+SLURM_DEFAULTS = asdict(SlurmConf())  # executor.slurm.* (pipeline/config.py SlurmConf)
 LOCAL_POLL_S = 0.5
 RAY_OBJECT_STORE_BYTES = 100 * 1000**2  # a result is a few hundred kB at most
 

@@ -22,7 +22,6 @@ import json
 import logging
 from pathlib import Path
 
-import gbmodel
 import hydra
 import numpy as np
 import pandas as pd

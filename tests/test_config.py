@@ -8,10 +8,9 @@ import pipeline.plan as plan_module
 from hydra.errors import ConfigCompositionException
 from omegaconf import OmegaConf
 
-import gbmodel
 from gbmodel.learners import goal_babbling
 from pipeline.config import CONF_DIR, ConfigError, compose
-from pipeline.plan import code_fingerprint, conditions, plan, source_fingerprint
+from pipeline.plan import code_fingerprint, conditions, plan
 
 EXPERIMENTS = sorted(p.stem for p in (CONF_DIR / "experiment").glob("*.yaml"))
 

@@ -11,7 +11,6 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import pipeline.simulate as simulate_mod
 from pipeline import aggregate, cache, claims, cli, report, simulate
 from pipeline.config import REPO_ROOT, ConfigError, VariantConf, compose
 from pipeline.plan import code_fingerprint, plan
