@@ -114,9 +114,10 @@ def variants(cfg: DictConfig) -> list[tuple[dict | None, DictConfig]]:
     """(variant, its config) for each variant of the experiment, or [(None, cfg)] without any."""
     out = []
     for v in cfg.conditions.variants or [None]:
-        if v is None:
-            apply_budget(cfg)
-            out.append((None, cfg))
+        if v is None:  # a copy: planning never changes the caller's config
+            vcfg = cfg.copy()
+            apply_budget(vcfg)
+            out.append((None, vcfg))
             continue
         vcfg = cfg.copy()
         groups = [o for o in v.set if "=" in o and "." not in o.split("=", 1)[0]]
