@@ -119,7 +119,8 @@ def run_trial(spec: TrialSpec, rng: np.random.Generator) -> TrialResult:
         bounds = sorted({start, stop} | {e for e in cuts if start < e < stop})
         for lo, hi in zip(bounds[:-1], bounds[1:]):
             part = tuple(d[lo - start:hi - start] for d in draws)
-            state = learner.train(state, params, body, sizes[lo:hi], scales[lo:hi], part)
+            state = learner.train(state, params, body, sizes[lo:hi], scales[lo:hi], part,
+                                  np.arange(lo + 1, hi + 1))
             if hi in spec.snapshots:
                 snapshots[hi] = learner.model(state)
             if k < len(evals) and hi == evals[k]:

@@ -77,6 +77,7 @@ def continuation(spec: dict, models: list, epochs: int = 1000, factor: float = 0
     learner, params = s.make_learner()
     size = growth.end_size
     sizes = np.full(epochs, size)
+    later = np.arange(1, epochs + 1)  # the epochs after the trial's last
     scales = growth.scales(body, sizes)
     out = {"before_mm": [], "same_mm": [], "smaller_mm": []}
     for i, M in enumerate(models):
@@ -86,7 +87,7 @@ def continuation(spec: dict, models: list, epochs: int = 1000, factor: float = 0
         for key, p in (("same_mm", params),
                        ("smaller_mm", gb.Params(**{**params.__dict__,
                                                    "learning_rate": params.learning_rate * factor}))):
-            M1 = learner.train(M, p, body, sizes, scales, draws)
+            M1 = learner.train(M, p, body, sizes, scales, draws, s.epochs + later)
             out[key].append(1e3 * gbmodel.evaluation.evaluate(learner, M1, p, body, size,
                                                               scales[-1]))
         out["before_mm"].append(1e3 * gbmodel.evaluation.evaluate(learner, M, params, body, size,

@@ -29,6 +29,7 @@ def weight_sum(body: str, params: dict, seeds=(0, 1, 2), epochs: int = 20_000,
     fixed before its runs: arm5 W = 1142, iCub W = 1791)."""
     sums = []
     for seed in seeds:
+        params = {**params, "step": "normalised", "learning_rate": 1.0}
         spec = gbmodel.TrialSpec(body={"name": body}, learner={"name": "goal_babbling", **params},
                                  epochs=epochs)
         M = gbmodel.run_trial(spec, np.random.default_rng(seed)).M

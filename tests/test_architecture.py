@@ -46,7 +46,7 @@ def stay_home_module(name: str = "stay_home") -> types.ModuleType:
     m.Params = StayParams
     m.init = lambda params, body, size, rng: None
     m.draw = lambda params, body, B, rng: (np.zeros(B),)
-    m.train = lambda state, params, body, sizes, scales, draws: state
+    m.train = lambda state, params, body, sizes, scales, draws, epochs: state
     m.predict = lambda state, params, body, x: np.tile(body.home, (len(x), 1))
     m.model = lambda state: None
     m.samples_per_epoch = lambda params, body: 1
@@ -215,20 +215,23 @@ def test_the_fingerprint_of_one_learner_ignores_another_learners_files(tmp_path,
 
 
 # ---- (c) one source per value ------------------------------------------------------------------
-def test_goal_babblings_learning_rate_is_set_in_conf_only_by_experiment_variants():
-    """Its default lives in gbmodel (Params); conf/ changes it only in an experiment's variants.
-    (Another learner's body settings, conf/body_learner/<body>_<other>.yaml, may set that
-    learner's own rate.)"""
-    hits = []
+def test_goal_babblings_learning_rate_is_set_in_conf_only_by_bodies_and_variants():
+    """Its default lives in gbmodel (Params: the 5-DOF arm's 1 / W); conf/ changes it only in a
+    body's settings (conf/body_learner/<body>_goal_babbling.yaml: that body's 1 / W, one line) and
+    in an experiment's variants."""
+    hits, bodies = [], []
     for path in sorted(CONF_DIR.rglob("*.yaml")):
         where = path.relative_to(CONF_DIR).as_posix()
-        if where.startswith("body_learner/") and path.stem not in {
-                f"{b}_goal_babbling" for b in gbmodel.BODIES}:
-            continue
         for line in path.read_text().splitlines():
             code = line.split("#", 1)[0]
-            if "learning_rate" in code:
+            if "learning_rate" not in code:
+                continue
+            if path.parent.name == "body_learner" and path.stem.split("_", 1)[1] == "goal_babbling":
+                assert re.fullmatch(r"learning_rate: 0\.\d+\s*", code), (where, code)
+                bodies.append(path.stem.split("_", 1)[0])
+            elif path.parent.name != "body_learner":  # another learner's body settings may
                 hits.append((where, code))
+    assert sorted(bodies) == ["arm2", "icub"]  # arm5 takes the default
     assert hits  # the variants of the choices and readings experiments
     for where, code in hits:
         assert where.startswith("experiment/"), where
@@ -252,15 +255,19 @@ def test_learner_files_set_no_hyperparameter():
 
 
 def test_the_composed_learner_is_the_cores_params():
+    """Every body composes the core's Params, except its own settings: the 2-DOF arm and the
+    iCub their plain-step rate 1 / W (W = 1931, 1791; arm5's 1142 is the default), the iCub also
+    its R, K, L (sec. 3.3)."""
     defaults = dataclasses.asdict(goal_babbling.Params())
-    for body in ("arm2", "arm5"):
+    assert defaults["learning_rate"] == pytest.approx(1 / 1142, rel=1e-3)
+    own = {"arm2": {"learning_rate": 1 / 1931}, "arm5": {},
+           "icub": {"learning_rate": 1 / 1791, "radius": 0.1, "targets_per_epoch": 30, "steps": 10}}
+    for body, settings in own.items():
         learner = compose([f"body={body}"]).learner
-        assert {k: learner[k] for k in defaults} == defaults, body
-    assert compose(["body=arm5"]).learner.learning_rate == goal_babbling.Params().learning_rate
-    icub = compose(["body=icub"]).learner
-    assert icub.radius == 0.1 and icub.targets_per_epoch == 30 and icub.steps == 10
-    assert {k: icub[k] for k in defaults if k not in ("radius", "targets_per_epoch", "steps")} \
-        == {k: v for k, v in defaults.items() if k not in ("radius", "targets_per_epoch", "steps")}
+        assert {k: learner[k] for k in defaults if k not in settings} \
+            == {k: v for k, v in defaults.items() if k not in settings}, body
+        for k, v in settings.items():
+            assert learner[k] == pytest.approx(v, rel=1e-3), (body, k)
 
 
 # ---- (d) common random numbers across variants -------------------------------------------------
@@ -269,8 +276,13 @@ CHOICES = [e for e in EXPERIMENTS if e.startswith("choices_")]
 
 @pytest.mark.parametrize("name", CHOICES)
 def test_choice_variants_share_their_random_numbers(name):
-    trials = plan(compose([f"experiment={name}"]))
+    cfg = compose([f"experiment={name}"])
+    trials = plan(cfg)
     assert len({t["key"] for t in trials}) == len(trials)
+    # a root-seed variant is the one that draws other numbers, on purpose
+    reseeded = [t for t in trials if t["seed"]["entropy"] != cfg.trials.root_seed]
+    trials = [t for t in trials if t not in reseeded]
+    assert not {json.dumps(t["seed"]) for t in reseeded} & {json.dumps(t["seed"]) for t in trials}
     streams = {}  # (body, growth) -> trial index -> seeds of every variant
     for t in trials:
         where = (t["spec"]["body"]["name"], json.dumps(t["spec"]["growth"], sort_keys=True))

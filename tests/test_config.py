@@ -88,10 +88,11 @@ def test_body_brings_its_learner_settings_unless_overridden():
     assert compose(["body=arm5"]).learner.targets_per_epoch == 15
 
 
-def test_default_learning_rate_is_the_cores():
-    for body in ("arm2", "arm5", "icub"):
-        cfg = compose([f"body={body}"])
-        assert cfg.learner.learning_rate == goal_babbling.Params().learning_rate
+def test_default_learning_rate_is_the_cores_or_the_bodys_rule():
+    """arm5 takes the core's default; the other bodies their own 1 / W (their body settings)."""
+    assert compose(["body=arm5"]).learner.learning_rate == goal_babbling.Params().learning_rate
+    for body, W in (("arm2", 1931), ("icub", 1791)):
+        assert compose([f"body={body}"]).learner.learning_rate == pytest.approx(1 / W, rel=1e-3)
 
 
 def test_fast_is_a_learner_setting():

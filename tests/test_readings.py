@@ -1,5 +1,6 @@
 """The readings of the paper that it leaves open: evaluation points and formulas, the gradient
-step, the disturbance amplitude, the updates per epoch (reference path), and the study's pieces."""
+step, the disturbance amplitude, the updates per epoch, the rate schedule, successive targets;
+each on both paths (reference and kernel, the same draws); and the study's pieces."""
 import numpy as np
 import pandas as pd
 import pytest
@@ -51,7 +52,8 @@ def _epoch_inputs(seed=0):
 def test_plain_step_is_the_normalised_one_times_sum_w():
     body, p, M, idx, raw, exps = _epoch_inputs()
     one = np.ones(body.m)
-    M_norm, (_, _, _, w) = reference.epoch(M, body, 1.0, one, exps, idx, raw, p.radius, p.steps, 1.0)
+    M_norm, (_, _, _, w) = reference.epoch(M, body, 1.0, one, exps, idx, raw, p.radius, p.steps,
+                                           1.0, step="normalised")
     M_plain, _ = reference.epoch(M, body, 1.0, one, exps, idx, raw, p.radius, p.steps,
                                  1.0 / w.sum(), step="plain")
     np.testing.assert_allclose(M_plain, M_norm, rtol=0, atol=1e-12)
@@ -60,7 +62,7 @@ def test_plain_step_is_the_normalised_one_times_sum_w():
 def test_steps_with_one_step_is_the_batch_step_and_more_steps_move_further():
     body, p, M, idx, raw, exps = _epoch_inputs()
     one = np.ones(body.m)
-    args = (M, body, 1.0, one, exps, idx, raw, p.radius, p.steps, 0.5)
+    args = (M, body, 1.0, one, exps, idx, raw, p.radius, p.steps, 0.5 / 1142)
     M1, _ = reference.epoch(*args)
     Ms, _ = reference.epoch(*args, updates="steps", update_steps=1)
     M3, _ = reference.epoch(*args, updates="steps", update_steps=3)
@@ -71,7 +73,7 @@ def test_steps_with_one_step_is_the_batch_step_and_more_steps_move_further():
 def test_online_updates_visit_every_sample_and_approach_the_batch_step_for_small_rates():
     body, p, M, idx, raw, exps = _epoch_inputs()
     one = np.ones(body.m)
-    args = (M, body, 1.0, one, exps, idx, raw, p.radius, p.steps, 1e-4)
+    args = (M, body, 1.0, one, exps, idx, raw, p.radius, p.steps, 1e-4 / 1142)
     M_batch, _ = reference.epoch(*args)
     M_online, _ = reference.epoch(*args, updates="online")
     step = np.abs(M_batch - M).max()
@@ -100,8 +102,12 @@ def test_uniform_amplitude_draws_after_the_exact_draws():
     assert uniform[2].shape == (5, 20, 5) and (0 <= uniform[2]).all() and (uniform[2] <= 1).all()
 
 
-@pytest.mark.parametrize("kw", [dict(step="plain", learning_rate=1 / 1142),
-                                dict(amplitude="uniform"), dict(updates="online")])
+READINGS = [dict(), dict(step="normalised", learning_rate=1.0), dict(amplitude="uniform"),
+            dict(updates="steps", update_steps=2, learning_rate=0.5 / 1142), dict(updates="online"),
+            dict(rate_schedule="annealed", anneal_epochs=40.0), dict(targets="any")]
+
+
+@pytest.mark.parametrize("kw", READINGS)
 def test_every_reading_learns(kw):
     spec = gbmodel.TrialSpec(body={"name": "arm5"},
                              learner={"name": "goal_babbling", "fast": False, **kw}, epochs=40)
@@ -162,12 +168,12 @@ def test_common_start_reading_grows_the_half_size_arm_into_an_unequal_one():
     assert common_end[0][1] == 1.0 and common_end[0][0] == pytest.approx(1 / 6)
 
 
-@pytest.mark.parametrize("body, kw", [("arm5", dict(step="plain", learning_rate=1 / 1142)),
-                                      ("arm5", dict(amplitude="uniform")),
-                                      ("icub", dict(step="plain", learning_rate=1 / 1791)),
-                                      ("icub", dict(amplitude="uniform"))])
+@pytest.mark.parametrize("body", ["arm5", "icub"])
+@pytest.mark.parametrize("kw", READINGS)
 def test_the_kernel_takes_the_readings_as_the_reference_does(body, kw):
     """The same draws on both paths give the same curve and M (the kernel's float32 rollout)."""
+    if body == "icub":
+        kw = {**dict(radius=0.1, targets_per_epoch=30, steps=10, learning_rate=1 / 1791), **kw}
     growth = {"pattern": "proportional", "period": 20, "start_size": 0.5}
     runs = [gbmodel.run_trial(gbmodel.TrialSpec(body={"name": body}, growth=growth, epochs=40,
                                                 learner={"name": "goal_babbling", "fast": f,
@@ -177,7 +183,36 @@ def test_the_kernel_takes_the_readings_as_the_reference_does(body, kw):
     np.testing.assert_allclose(runs[0].M, runs[1].M, rtol=0, atol=1e-5)
 
 
-def test_online_updates_stay_on_the_reference_path():
-    with pytest.raises(gbmodel.SpecError, match="learner.updates"):
-        gb.Params(updates="online").validate()
-    gb.Params(updates="online", fast=False).validate()
+@pytest.mark.parametrize("key, value", [("updates", "sample"), ("rate_schedule", "cosine"),
+                                        ("anneal_epochs", 0.0), ("targets", "same"),
+                                        ("step", "normalized")])
+def test_a_bad_reading_is_refused_naming_its_key(key, value):
+    with pytest.raises(gbmodel.SpecError, match=f"learner.{key}"):
+        gb.Params(**{key: value}).validate()
+
+
+def test_the_annealed_rate_falls_as_tau_over_tau_plus_epochs():
+    p = gb.Params(rate_schedule="annealed", anneal_epochs=10_000.0, learning_rate=0.001)
+    np.testing.assert_allclose(p.rates([1, 10_001, 90_001]), [0.001, 0.0005, 0.0001])
+    np.testing.assert_array_equal(gb.Params(learning_rate=0.001).rates([1, 5, 10**5]), 0.001)
+
+
+def test_the_annealed_rate_changes_the_run_and_the_schedule_follows_the_epoch_number():
+    """Annealing acts through the epoch number the trial passes: a trial of E epochs equals E
+    annealed epochs from the start, whatever the evaluation schedule cuts them into."""
+    def run(epochs, kw, per_decade=20):
+        spec = gbmodel.TrialSpec(body={"name": "arm5"}, learner={"name": "goal_babbling", **kw},
+                                 epochs=epochs, evals_per_decade=per_decade)
+        return gbmodel.run_trial(spec, np.random.default_rng(4))
+    annealed = dict(rate_schedule="annealed", anneal_epochs=5.0)
+    a, b = run(60, annealed), run(60, annealed, per_decade=3)
+    np.testing.assert_array_equal(a.M, b.M)
+    assert not np.allclose(a.M, run(60, {}).M, atol=1e-6)
+
+
+def test_successive_targets_may_repeat_only_with_targets_any():
+    body = gbmodel.make_body("arm5")
+    for targets, repeats in (("distinct", False), ("any", True)):
+        idx = gb.draw(gb.Params(targets=targets), body, 200, np.random.default_rng(1))[0]
+        assert (np.diff(idx, axis=1) == 0).any() == repeats
+        assert idx.min() == 0 and idx.max() == len(body.targets) - 1

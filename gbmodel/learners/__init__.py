@@ -11,9 +11,10 @@ A learner is one module (or package) in this folder, found by its name (`goal_ba
                            the random numbers of B epochs, each array with leading axis B (drawn
                            in blocks of gbmodel.trial.DRAW_BLOCK epochs, so that where a trial is
                            evaluated or snapshot never changes the draws)
-    train(state, params, body, sizes, scales, draws) -> state
+    train(state, params, body, sizes, scales, draws, epochs) -> state
                            len(sizes) epochs with the body at size sizes[e] and per-joint length
-                           factors scales[e] (m,), consuming draws (sliced to those epochs)
+                           factors scales[e] (m,), consuming draws (sliced to those epochs);
+                           epochs: their numbers, 1-based (for a schedule over the epochs)
     predict(state, params, body, x) -> q
                            the inverse estimate: commands (N, m) for positions (N, n)
     model(state) -> np.ndarray | None

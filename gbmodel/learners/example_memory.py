@@ -72,7 +72,7 @@ def draw(params: Params, body, B: int, rng: np.random.Generator) -> tuple:
     return idx, rng.standard_normal((B, params.goals, body.m))
 
 
-def train(state: State, params: Params, body, sizes, scales, draws) -> State:
+def train(state: State, params: Params, body, sizes, scales, draws, epochs=None) -> State:
     idx, noise = draws
     outcomes, commands, epochs = state.outcomes.copy(), state.commands.copy(), state.epochs
     for e in range(len(sizes)):

@@ -93,7 +93,7 @@ def fit_inverse(M, gram, cross, count, params: Params) -> np.ndarray:
     return M - params.learning_rate * (M @ gram - cross.T) / count
 
 
-def train(state: State, params: Params, body, sizes, scales, draws) -> State:
+def train(state: State, params: Params, body, sizes, scales, draws, epochs=None) -> State:
     (offsets,) = draws
     exps = _exps(params, body)
     M, gram, cross, count = state.M, state.gram.copy(), state.cross.copy(), state.count.copy()

@@ -142,7 +142,7 @@ def perturbations(P, walk, params: Params, lo, hi):
     return A, b, P
 
 
-def train(state: State, params: Params, body, sizes, scales, draws) -> State:
+def train(state: State, params: Params, body, sizes, scales, draws, epochs=None) -> State:
     if params.fast:
         return train_fast(state, params, body, sizes, scales, draws)
     return train_reference(state, params, body, sizes, scales, draws)

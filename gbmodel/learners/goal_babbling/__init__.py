@@ -24,19 +24,32 @@ class Params:
     radius: float = 0.2  # R, bound of the exploratory disturbance (eq. 8)
     targets_per_epoch: int = 15  # K
     steps: int = 7  # L, linear steps between successive targets (eq. 9)
-    # eta of the normalised gradient step (reference.gradient_step); the paper gives none. 1.0
-    # was chosen on convergence before the full run: on arm5 (20k epochs, 3 seeds) 0.5 -> 22 mm,
-    # 1.0 -> 20 mm, 1.5 -> 28 mm with oscillation; on the iCub 0.5, 1.0 and 1.5 end alike.
-    # The measured table: conf/experiment/choices_*.yaml (outputs/report/choices.md).
-    learning_rate: float = 1.0
+    # eta of the gradient step on eq. 6 (reference.gradient_step); the paper gives none. The
+    # plain step's rule, fixed before its runs: eta = 1 / W, W the median sum of the weights per
+    # epoch at full size after 20,000 epochs of the normalised step at eta = 1.0, so that both
+    # steps agree at full-size convergence (pipeline/readings.py: weight_sum); arm5 W = 1142, so
+    # eta = 1 / 1142; the iCub's (1 / 1791) and the 2-DOF arm's (1 / 1931) come with the body
+    # (conf/body_learner). Recomputed with today's kernel W is 1173 (arm5) and 1782 (iCub): the
+    # rates were kept as fixed before the runs. Measured alternatives (0.5 to 2 / W, the
+    # normalised step): conf/experiment/choices_*.yaml (outputs/report/choices.md).
+    learning_rate: float = 0.000876
     init_range: float = 0.1  # |g(x) - home| bound at initialisation (sec. 3: "0.1 radian")
     degree: int = 3  # P, polynomial degree of the features (eq. 7)
     fast: bool = True  # the compiled kernel (fast.py); False: the numpy reference path
     # readings of the text it leaves open (reference.py; the readings study measures each)
-    step: str = "normalised"  # normalised | plain: the gradient step divided by sum w or not
+    step: str = "plain"  # plain | normalised: the gradient step of eq. 6, or divided by sum w
     amplitude: str = "exact"  # exact | uniform: each disturbance row at R, or at U(0, 1) R
     updates: str = "batch"  # batch | steps | online: one step, update_steps steps, per sample
     update_steps: int = 1  # steps per epoch for updates=steps
+    # the rate over the epochs: constant (the paper's), or annealed, eta tau / (tau + e - 1) in
+    # epoch e with tau = anneal_epochs (not the paper's). tau = 10,000: eta / 11 at the end of a
+    # 100,000-epoch run, near the tenth at which continuing the iCub's models lowered the error
+    # (pipeline/explain.py: continuation)
+    rate_schedule: str = "constant"
+    anneal_epochs: float = 10000.0
+    # successive path targets: distinct (each differs from the one before) or any (uniform
+    # over all targets, repeats allowed: a repeat is a still segment whose samples weigh 0)
+    targets: str = "distinct"
 
     def validate(self) -> "Params":
         for name in ("variations", "targets_per_epoch", "steps", "degree"):
@@ -50,10 +63,18 @@ class Params:
         check_choice("learner.amplitude", self.amplitude, ("exact", "uniform"))
         check_choice("learner.updates", self.updates, ("batch", "steps", "online"))
         check_int("learner.update_steps", self.update_steps, 1)
-        if self.fast and self.updates != "batch":
-            raise SpecError("learner.updates", self.updates, "the compiled kernel takes one "
-                            "batch step per epoch; add learner.fast=false for this reading")
+        check_choice("learner.rate_schedule", self.rate_schedule, ("constant", "annealed"))
+        check_number("learner.anneal_epochs", self.anneal_epochs, 0.0, strict=True)
+        check_choice("learner.targets", self.targets, ("distinct", "any"))
         return self
+
+    def rates(self, epochs) -> np.ndarray:
+        """eta in each of the (1-based) epochs."""
+        e = np.asarray(epochs, dtype=np.float64)
+        if self.rate_schedule == "constant":
+            return np.full(e.shape, self.learning_rate)
+        tau = self.anneal_epochs
+        return self.learning_rate * tau / (tau + e - 1.0)
 
 
 def _exps(params, body):
@@ -70,12 +91,13 @@ def draw(params: Params, body, B: int, rng: np.random.Generator) -> tuple:
     """Target indices (B, K+1) and raw disturbances (B, V, m, n+1) of B epochs, and with
     amplitude=uniform the amplitude factors (B, V, m), drawn last.
 
-    Successive targets of a path differ (the next is uniform over the other targets), so that
-    every path step is a movement with a direction.
+    With targets=distinct, successive targets of a path differ (the next is uniform over the
+    other targets), so that every path step is a movement with a direction; with targets=any
+    the next is uniform over all targets.
     """
     n_targets, K = len(body.targets), params.targets_per_epoch
     first = rng.integers(0, n_targets, size=(B, 1))
-    hops = rng.integers(1, n_targets, size=(B, K))
+    hops = rng.integers(1 if params.targets == "distinct" else 0, n_targets, size=(B, K))
     idx = np.cumsum(np.concatenate([first, hops], axis=1), axis=1) % n_targets
     raw = rng.uniform(-1.0, 1.0, size=(B, params.variations, body.m, body.n + 1))
     if params.amplitude == "uniform":
@@ -83,15 +105,16 @@ def draw(params: Params, body, B: int, rng: np.random.Generator) -> tuple:
     return idx, raw
 
 
-def train(M, params: Params, body, sizes, scales, draws) -> np.ndarray:
+def train(M, params: Params, body, sizes, scales, draws, epochs) -> np.ndarray:
     idx, raw, *amp = draws
     exps = _exps(params, body)
+    rates = params.rates(epochs)
     if params.fast:
         from . import fast
-        return fast.run_block(M, body, params, exps, sizes, scales, idx, raw, *amp)
+        return fast.run_block(M, body, params, exps, sizes, scales, rates, idx, raw, *amp)
     for e in range(len(sizes)):
         M, _ = reference.epoch(M, body, sizes[e], scales[e], exps, idx[e], raw[e], params.radius,
-                               params.steps, params.learning_rate, amp[0][e] if amp else None,
+                               params.steps, rates[e], amp[0][e] if amp else None,
                                params.step, params.updates, params.update_steps)
     return M
 

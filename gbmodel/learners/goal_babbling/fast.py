@@ -10,8 +10,10 @@ float32 vector loops over the samples of an epoch:
 - every step of the epoch is one pass over all columns (commands, kinematics, weights), the
   last ones in blocks of _BLOCK columns that stay in cache (features, weighted residuals,
   gradient);
-- the rollout runs in float32; M stays float64 and is updated once per epoch. Positions agree
-  with the float64 reference to ~2e-7 m (tests/test_fast.py states the tolerances);
+- the rollout runs in float32; M stays float64 and is updated once per epoch (updates=batch;
+  updates=steps repeats the gradient pass, updates=online goes sample by sample in float64
+  scalars). Positions agree with the float64 reference to ~2e-7 m (tests/test_fast.py states the
+  tolerances);
 - the hand is carried backwards through the DH chain, one rotation about z per joint, in
   registers, LANES samples at a time;
 - sin and cos are a branch-free polynomial (Cephes' kernels after a Cody-Waite reduction);
@@ -545,9 +547,52 @@ def _lane_sum(w, C):
 
 
 @njit(cache=True)
+def _gradient_step(M, M32, X, Q, w, Npad, parent, var, Phi, Rw, GL, eta):
+    """M -= eta sum_t w (M Phi - q) Phi^T over the columns of X, Q, w (float32 lanes, float64
+    sum); M32 holds M in float32 on entry."""
+    m, p = M.shape
+    GL[:] = 0
+    for c0 in range(0, Npad, _BLOCK):  # blocks of columns: their Phi and Rw stay in cache
+        C = min(_BLOCK, Npad - c0)
+        _features(X, c0, C, parent, var, Phi)
+        _predict(M32, Phi, C, Rw, Q, w, c0)
+        _accumulate(Rw, Phi, C, GL)
+    for i in range(m):
+        for k in range(p):
+            M[i, k] -= eta * vsum(vload(GL, i, k * LANES))
+
+
+@njit(cache=True)
+def _online(M, X, Q, w, N, parent, var, eta):
+    """One step per sample, columns 0 ... N-1 in order (reference.update, updates=online), in
+    float64 scalars: M -= eta w_t (M phi_t - q_t) phi_t^T."""
+    m, p = M.shape
+    phi = np.empty(p)
+    r = np.empty(m)
+    for c in range(N):
+        if w[c] == 0:
+            continue
+        phi[0] = 1.0
+        for k in range(1, p):
+            phi[k] = phi[parent[k]] * float(X[var[k], c])
+        g = eta * float(w[c])
+        for i in range(m):
+            acc = 0.0
+            for k in range(p):
+                acc += M[i, k] * phi[k]
+            r[i] = g * (acc - float(Q[i, c]))
+        for i in range(m):
+            for k in range(p):
+                M[i, k] -= r[i] * phi[k]
+
+
+BATCH, STEPS, ONLINE = 0, 1, 2  # the updates readings, as the kernel takes them
+
+
+@njit(cache=True)
 def _epoch(M, idx, raw, amp, s, body, targets, home, parent, var, joints, radius, steps,
-           learning_rate, plain, box, work):
-    """One epoch (see reference.epoch): rolls out, weights, updates M in place.
+           rate, plain, updates, update_steps, box, work):
+    """One epoch (see reference.epoch): rolls out, weights, updates M in place with rate eta.
 
     Leaves the samples in work: Q (m, N) postures, X (n, N) reached positions, w (N) weights,
     variation v in the columns v (T + 1) ... v (T + 1) + T (N = V (T + 1); then columns of
@@ -574,8 +619,10 @@ def _epoch(M, idx, raw, amp, s, body, targets, home, parent, var, joints, radius
         for l in range(steps):
             f = F4(l) / F4(steps)
             for j in range(n):
-                path[j, 1 + k * steps + l] = s4 * ((_1 - f) * targets[t0, j] +
-                                                   f * targets[t1, j])
+                # t0 + f (t1 - t0): exactly t0 along a repeated target (targets=any), so that
+                # its intended steps are 0 and weigh nothing, as in the float64 reference
+                path[j, 1 + k * steps + l] = s4 * (targets[t0, j] +
+                                                   f * (targets[t1, j] - targets[t0, j]))
     for u in range(T + 1, path.shape[1]):
         for j in range(n):
             path[j, u] = s4 * targets[idx[-1], j]
@@ -596,17 +643,17 @@ def _epoch(M, idx, raw, amp, s, body, targets, home, parent, var, joints, radius
     _commands(gpath, path, A, b, home, T, Npad, Q)
     _kinematics(Q, X, Npad, joints, body)
     _weights(dxs, nxs, X, Q, V, T, Npad, w)
-    GL[:] = 0
-    for c0 in range(0, Npad, _BLOCK):  # blocks of columns: their Phi and Rw stay in cache
-        C = min(_BLOCK, Npad - c0)
-        _features(X, c0, C, parent, var, Phi)
-        _predict(M32, Phi, C, Rw, Q, w, c0)
-        _accumulate(Rw, Phi, C, GL)
-    # one gradient step on the weighted command error (eq. 6), normalised by sum w or plain
-    step = learning_rate if plain else learning_rate / _lane_sum(w, Npad)
-    for i in range(m):
-        for k in range(p):
-            M[i, k] -= step * vsum(vload(GL, i, k * LANES))
+    # gradient descent on the weighted command error (eq. 6), plain or normalised by sum w
+    eta = rate if plain else rate / _lane_sum(w, Npad)
+    if updates == ONLINE:
+        _online(M, X, Q, w, V * (T + 1), parent, var, eta)
+        return
+    for u in range(update_steps if updates == STEPS else 1):
+        if u > 0:
+            for i in range(m):
+                for k in range(p):
+                    M32[i, k] = M[i, k]
+        _gradient_step(M, M32, X, Q, w, Npad, parent, var, Phi, Rw, GL, eta)
 
 
 @njit(cache=True)
@@ -638,9 +685,9 @@ def _box(targets):
 
 
 @njit(cache=True)
-def _block(M, idx, raw, amp, sizes, scales, chain, targets, home, parent, var, joints, radius,
-           steps, learning_rate, plain):
-    """Epochs e = 0 ... B-1 with sizes[e] and per-joint length factors scales[e]."""
+def _block(M, idx, raw, amp, sizes, scales, rates, chain, targets, home, parent, var, joints,
+           radius, steps, plain, updates, update_steps):
+    """Epochs e = 0 ... B-1 with sizes[e], per-joint length factors scales[e] and rates[e]."""
     a, d, ca, sa, base, outputs = chain
     m, p = M.shape
     n = targets.shape[1]
@@ -654,7 +701,7 @@ def _block(M, idx, raw, amp, sizes, scales, chain, targets, home, parent, var, j
             de[i] = d[i] * scales[e, i]
         body = (ae, de, ca, sa, base, outputs)
         _epoch(M, idx[e], raw[e], amp[e], sizes[e], body, targets, home, parent, var, joints,
-               radius, steps, learning_rate, plain, box, work)
+               radius, steps, rates[e], plain, updates, update_steps, box, work)
 
 
 @njit(cache=True)
@@ -739,16 +786,24 @@ def _amplitudes(raw, amp):
     return np.ascontiguousarray(amp, np.float64)
 
 
-def run_block(M, body, params, exps, sizes, scales, idx, raw, amp=None):
-    """Epochs with sizes `sizes`, per-joint length factors `scales` (B, m) and draws idx, raw
-    (and amp, the amplitude factors of the uniform reading). Returns the updated M."""
+_UPDATES = {"batch": BATCH, "steps": STEPS, "online": ONLINE}
+
+
+def _options(params):
+    return dict(radius=float(params.radius), steps=int(params.steps),
+                plain=params.step == "plain", updates=_UPDATES[params.updates],
+                update_steps=int(params.update_steps))
+
+
+def run_block(M, body, params, exps, sizes, scales, rates, idx, raw, amp=None):
+    """Epochs with sizes `sizes`, per-joint length factors `scales` (B, m), rates eta (B,) and
+    draws idx, raw (and amp, the amplitude factors of the uniform reading). Returns the
+    updated M."""
     M = np.array(M, dtype=np.float64, order="C")
     _block(M, np.ascontiguousarray(idx, np.int64), np.ascontiguousarray(raw, np.float64),
            _amplitudes(raw, amp), np.ascontiguousarray(sizes, np.float64),
            np.ascontiguousarray(scales, np.float32).reshape(len(sizes), body.m),
-           radius=float(params.radius), steps=int(params.steps),
-           learning_rate=float(params.learning_rate), plain=params.step == "plain",
-           **_arrays(body, exps))
+           np.ascontiguousarray(rates, np.float64), **_options(params), **_arrays(body, exps))
     return M
 
 
@@ -762,9 +817,9 @@ def distances(M, body, exps, scale, xs):
     return out
 
 
-def epoch_samples(M, body, params, exps, size, scale, idx, raw, amp=None):
+def epoch_samples(M, body, params, exps, size, scale, idx, raw, amp=None, rate=None):
     """One epoch on the fast path, for tests: returns (M after, Q, X, w) with the samples laid
-    out as (V, T + 1, ...) like reference.epoch's."""
+    out as (V, T + 1, ...) like reference.epoch's (rate: eta, params.learning_rate if None)."""
     M = np.array(M, dtype=np.float64, order="C")
     arr = _arrays(body, exps)
     a, d, ca, sa, base, outputs = arr["chain"]
@@ -775,8 +830,8 @@ def epoch_samples(M, body, params, exps, size, scale, idx, raw, amp=None):
     work = _work(body.m, body.n, len(exps), V, T)
     _epoch(M, np.asarray(idx, np.int64), np.ascontiguousarray(raw, np.float64),
            _amplitudes(raw, amp), float(size), chain, arr["targets"], arr["home"], arr["parent"],
-           arr["var"], arr["joints"], float(params.radius), int(params.steps),
-           float(params.learning_rate), params.step == "plain", _box(arr["targets"]), work)
+           arr["var"], arr["joints"], rate=float(params.learning_rate if rate is None else rate),
+           box=_box(arr["targets"]), work=work, **_options(params))
     Q, X, w = work[0], work[1], work[2]
     N = V * (T + 1)
     return (M, Q[:, :N].T.reshape(V, T + 1, -1), X[:, :N].T.reshape(V, T + 1, -1),

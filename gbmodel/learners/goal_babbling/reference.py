@@ -11,15 +11,17 @@ compiled loops and is tested against it. One epoch:
    (x_home, q_home) is prepended as t = 0 with weight 1 (eq. 5) and is where the movement starts;
 4. weights w_t = w_dir * w_eff (eq. 1-3) from the movement between samples t-1 and t;
 5. one gradient step on the weighted command error (eq. 6):
-       M <- M - eta * sum_vt w (M Phi(x) - q) Phi(x)^T / sum_vt w.
+       M <- M - eta * sum_vt w (M Phi(x) - q) Phi(x)^T.
 
 Readings of the text that it leaves open are options (Params in __init__.py), the defaults above:
-- step: `normalised` (divided by sum w, as above) or `plain` (the text's plain gradient descent on
-  eq. 6: M <- M - eta * sum w (M Phi - q) Phi^T; its eta is much smaller, see the readings study);
+- step: `plain` (as above: the text's gradient descent on eq. 6, eta = 1 / W with W the sum of
+  the weights at full-size convergence) or `normalised` (the step divided by sum_vt w, eta 1.0);
 - amplitude: `exact` (every row of [A, b] explores at exactly R) or `uniform` (row i of variation
   v at u_vi R, u_vi ~ U(0, 1): the disturbance "never exceeds R", eq. 8);
 - updates: `batch` (one step per epoch), `steps` (update_steps steps on the epoch's samples) or
-  `online` (one step per sample, in the order the samples were reached).
+  `online` (one step per sample, in the order the samples were reached);
+- the rate schedule (Params.rates: constant, or annealed, not the paper's) and whether successive
+  path targets must differ (Params.targets) act through draw and eta, not here.
 """
 from __future__ import annotations
 
@@ -111,16 +113,16 @@ def rollout(M, body, scale, exps, path, A, b):
     return xstar, x, q
 
 
-def gradient_step(M, x, q, w, exps, learning_rate, step="normalised"):
-    """One gradient-descent step on the weighted command error (eq. 6), normalised by sum w
-    (step="normalised") or not (step="plain")."""
+def gradient_step(M, x, q, w, exps, learning_rate, step="plain"):
+    """One gradient-descent step on the weighted command error (eq. 6), plain (step="plain") or
+    normalised by sum w (step="normalised")."""
     phi = features(x, exps)
     r = phi @ M.T - q
     grad = np.einsum("vt,vti,vtk->ik", w, r, phi)
     return M - learning_rate * grad / (w.sum() if step == "normalised" else 1.0)
 
 
-def update(M, x, q, w, exps, learning_rate, step="normalised", updates="batch", update_steps=1):
+def update(M, x, q, w, exps, learning_rate, step="plain", updates="batch", update_steps=1):
     """The learning step of one epoch on its samples (x, q, w), by the `updates` reading."""
     if updates == "batch":
         return gradient_step(M, x, q, w, exps, learning_rate, step)
@@ -137,7 +139,7 @@ def update(M, x, q, w, exps, learning_rate, step="normalised", updates="batch", 
 
 
 def epoch(M, body, size, scale, exps, idx, raw, radius, steps, learning_rate, amp=None,
-          step="normalised", updates="batch", update_steps=1):
+          step="plain", updates="batch", update_steps=1):
     """One epoch of Goal Babbling with the body at size `size` (per-joint length factors
     `scale`); returns the updated M and the samples (xstar, x, q, w)."""
     lo, hi = body.target_box(size)
