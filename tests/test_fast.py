@@ -88,7 +88,7 @@ def test_distances_match_numpy_evaluation(name, pattern, size):
     M1 = gb.train(M0, params, body, np.full(20, size), np.tile(scale, (20, 1)),
                   gb.draw(params, body, 20, rng), np.arange(1, 21))
     for M in (M0, M1):
-        for points in ("grid", "centres"):
+        for points in ("grid", "centres", "path"):
             xs = evaluation.eval_points(body, size, points)
             d_fast = gb.distances(M, params, body, scale, xs)
             d_ref = evaluation.distances(lambda x: gb.predict(M, params, body, x), body, scale,

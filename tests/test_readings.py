@@ -183,6 +183,17 @@ def test_the_kernel_takes_the_readings_as_the_reference_does(body, kw):
     np.testing.assert_allclose(runs[0].M, runs[1].M, rtol=0, atol=1e-5)
 
 
+@pytest.mark.parametrize("fixed_scale", [1.0, 0.5])
+def test_the_kernel_grows_both_non_proportional_readings_as_the_reference_does(fixed_scale):
+    growth = {"pattern": "nonproportional", "period": 20, "start_size": 0.5,
+              "fixed_scale": fixed_scale}
+    runs = [gbmodel.run_trial(gbmodel.TrialSpec(body={"name": "arm5"}, growth=growth, epochs=40,
+                                                learner={"name": "goal_babbling", "fast": f}),
+                              np.random.default_rng(6)) for f in (True, False)]
+    np.testing.assert_allclose(runs[0].abs_error, runs[1].abs_error, rtol=0, atol=1e-5)
+    np.testing.assert_allclose(runs[0].M, runs[1].M, rtol=0, atol=1e-5)
+
+
 @pytest.mark.parametrize("key, value", [("updates", "sample"), ("rate_schedule", "cosine"),
                                         ("anneal_epochs", 0.0), ("targets", "same"),
                                         ("step", "normalized")])
