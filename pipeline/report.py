@@ -10,6 +10,7 @@ Writes under paths.report (all bytes reproducible, no timestamps, only relative 
     summary.csv, summary.md    per condition: final errors, peak during growth, failures, paper
     claims.csv                 each claim of the paper, what was measured, and the verdict
     choices.csv, choices.md    the open choices (experiments choices_*): each variant's effect
+    conventions.csv            the reporting conventions: each alternative's effect, measured
     curves.parquet             the aggregated learning curves of every figure, in one table
     report.md                  the above, and the list of every file this stage writes
 It reads only the aggregate stage's output, never the cache. It writes into paths.report; only
@@ -27,7 +28,7 @@ import numpy as np
 import pandas as pd
 from omegaconf import DictConfig, OmegaConf
 
-from . import baselines, choices, claims, cli, explain, figures, io, readings
+from . import baselines, choices, claims, cli, conventions, explain, figures, io, readings
 from .config import ConfigError
 
 log = logging.getLogger("pipeline.report")
@@ -256,6 +257,14 @@ def report(cfg: DictConfig) -> list[Path]:
                "final inverse's largest joint-space step between neighbouring points on lines "
                "through the target box (branch switching, lookup).", "",
                f"![baselines]({png})", "", baselines.markdown(rival_table, rival_claims)]
+    convention_table = conventions.table(  # the paper's figures: reporting conventions
+        aggs, conventions.read_trials(cfg.paths.aggregate, aggs), cfg.aggregate.fail_factor,
+        OmegaConf.to_container(cfg.report.postures))
+    if len(convention_table):
+        io.write_text(out / "conventions.csv",
+                      convention_table.to_csv(index=False, float_format="%.6g"))
+        written.append(out / "conventions.csv")
+        md += [conventions.markdown(convention_table)]
     if len(choice_table):
         text = (out / "choices.md").read_text().split("\n", 1)[1]
         md += ["## Choices the paper leaves open: measured effect of the alternatives", text]

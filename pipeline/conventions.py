@@ -1,0 +1,246 @@
+"""Reporting conventions: the measured effect of each alternative, from the aggregated data alone.
+
+Some rows of the README's table of choices are conventions of the report, not of the learner;
+their alternatives need no new simulation. This module measures them on the paper's figures
+(FIGURES, those aggregated) and returns conventions.csv / the report's section:
+- spread over trials: the standard deviation of the final errors with ddof 0 against ddof 1,
+  computed from the per-trial finals (and checked against sqrt((n - 1) / n));
+- failed to bootstrap: the trials flagged at other factors than aggregate.fail_factor, and the
+  largest final / median ratio of any condition;
+- Fig. 3 / 6 postures: where trial 0, whose final model is drawn, ranks in its condition;
+- learning-curve sampling: the rise of the error during growth (aggregate.growth_peak) read from
+  the stored mean curves subsampled to every 2nd and every 4th evaluation point;
+- relative error (eq. 11): the size factor S against the current total length of the arm's
+  segments over the full one, at every evaluation epoch of each condition's spec.
+A row whose data is absent is left out. Only read_trials touches files.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+import gbmodel
+from gbmodel import evaluation
+
+from .aggregate import growth_peak
+from .choices import escape
+
+FIGURES = ("fig2", "fig4", "fig5", "fig7")
+FACTORS = (1.5, 2.0, 5.0)  # alternatives to aggregate.fail_factor
+STRIDES = (2, 4)  # every 2nd, every 4th evaluation point
+COLUMNS = ["convention", "ours", "alternative", "measured_effect"]
+
+
+def read_trials(folder, figures) -> dict:
+    """figure -> its per-trial learning curves (aggregate's trials.parquet) for the FIGURES
+    among `figures` whose file is present."""
+    paths = {f: Path(folder) / f / "trials.parquet" for f in figures if f in FIGURES}
+    return {f: pd.read_parquet(p) for f, p in paths.items() if p.exists()}
+
+
+def finals(trials: dict) -> pd.DataFrame:
+    """Each trial's final row (the last epoch of its condition, as aggregate.summarize takes it)."""
+    frames = []
+    for t in trials.values():
+        last = t.groupby("condition", sort=False)["epoch"].transform("max")
+        frames.append(t[t["epoch"] == last])
+    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+
+
+def _where(figure, condition) -> str:
+    return f"{figure} {condition}"
+
+
+def spread(fin: pd.DataFrame) -> dict | None:
+    """ddof 0 / ddof 1 of the final errors per trial count n, measured, and its largest deviation
+    from sqrt((n - 1) / n) over conditions and both errors (None without 2 trials anywhere)."""
+    per_n, count, dev = {}, {}, 0.0
+    for _, g in fin.groupby(["figure", "condition"], sort=False):
+        n = len(g)
+        cols = [c for c in ("abs_error", "rel_error") if n > 1 and g[c].std(ddof=1) > 0]
+        count[n] = count.get(n, 0) + bool(cols)
+        for col in cols:
+            ratio = g[col].std(ddof=0) / g[col].std(ddof=1)
+            per_n.setdefault(n, []).append(ratio)
+            dev = max(dev, abs(ratio - np.sqrt((n - 1) / n)))
+    if not per_n:
+        return None
+    return dict(ratio={n: float(np.mean(r)) for n, r in sorted(per_n.items(), reverse=True)},
+                conditions=count, deviation=dev)
+
+
+def flagged(fin: pd.DataFrame, factors) -> dict:
+    """Trials whose final relative error exceeds factor x their condition's median, per factor;
+    the trial count and the largest final / median ratio (value, where)."""
+    median = fin.groupby(["figure", "condition"], sort=False)["rel_error"].transform("median")
+    ratio = fin["rel_error"] / median
+    i = int(np.argmax(ratio.to_numpy()))
+    r = fin.iloc[i]
+    return dict(counts={f: int((fin["rel_error"] > f * median).sum()) for f in factors},
+                trials=len(fin), largest=float(ratio.iloc[i]),
+                where=f"{_where(r['figure'], r['condition'])}, trial {r['trial']}")
+
+
+def trial0_rank(fin: pd.DataFrame, wanted) -> list[dict]:
+    """For each (panel, figure, condition): trial 0's final error, its rank (1 = smallest) among
+    the condition's trials, its percentile (0 best, 100 worst), and the condition's median."""
+    out = []
+    for panel, figure, condition in wanted:
+        g = fin[(fin["figure"] == figure) & (fin["condition"] == condition)]
+        if not (g["trial"] == 0).any():
+            continue
+        e = g["abs_error"].to_numpy()
+        e0 = float(g.loc[g["trial"] == 0, "abs_error"].iloc[0])
+        rank = int((e < e0).sum()) + 1
+        out.append(dict(panel=panel, where=_where(figure, condition), error=e0, rank=rank, n=len(e),
+                        percentile=100 * (rank - 1) / (len(e) - 1) if len(e) > 1 else np.nan,
+                        median=float(np.median(e))))
+    return out
+
+
+def rise_pct(curve: pd.DataFrame) -> float:
+    """The rise of the mean absolute error during growth (aggregate.growth_peak) in % of the
+    lowest error before it."""
+    _, peak, rise = growth_peak(curve)
+    before = peak - rise
+    return 100 * rise / before if before > 0 else np.nan
+
+
+def subsampled_rise(curves: pd.DataFrame, summary: pd.DataFrame, strides) -> list[dict]:
+    """Per growing condition: the rise (% of the error before it) from the stored mean curve, and
+    from the curve keeping every k-th evaluation point (the first kept), for k in strides."""
+    out = []
+    for r in summary.itertuples():
+        if r.growth == "none":
+            continue
+        c = curves[curves["condition"] == r.condition].sort_values("epoch")
+        if not len(c):
+            continue
+        row = dict(where=_where(r.figure, r.condition), full=rise_pct(
+            c[c["epoch"] <= r.growth_period + 1]))
+        for k in strides:
+            sub = c.iloc[::k]
+            row[k] = rise_pct(sub[sub["epoch"] <= r.growth_period + 1])
+        out.append(row)
+    return out
+
+
+def length_ratio(body, scales) -> np.ndarray:
+    """Total length of the chain's segments at per-joint length factors `scales` (..., m) over
+    the full-size total."""
+    def total(k):
+        ch = body.chain(scale=k)
+        return np.hypot(ch["a"], ch["d"]).sum(axis=-1)
+
+    return total(np.asarray(scales, np.float64)) / total(np.ones(body.m))
+
+
+def normalisations(spec: dict) -> dict:
+    """eq. 11's S against total length / full length over the spec's evaluation epochs: the
+    largest |S / (L / L_full) - 1| (the relative difference of the two relative errors), and the
+    range of the per-joint length factors over S (1 = every segment at S)."""
+    s = gbmodel.TrialSpec.from_dict(spec)
+    body, growth = s.make_body(), s.make_growth()
+    sizes = growth.sizes(evaluation.eval_epochs(s.epochs, s.evals_per_decade))
+    scales = growth.scales(body, sizes)
+    per_joint = scales / sizes[:, None]
+    return dict(difference=float(np.max(np.abs(sizes / length_ratio(body, scales) - 1))),
+                spread=(float(per_joint.min()), float(per_joint.max())))
+
+
+def _g(v) -> str:
+    return f"{v:.3g}"
+
+
+def table(aggs: dict, trials: dict, fail_factor: float, postures: dict) -> pd.DataFrame:
+    """The conventions' rows from the paper's aggregates (figure -> aggregate), their per-trial
+    curves (read_trials), aggregate.fail_factor and report.postures (panel -> [[figure,
+    condition], ...])."""
+    aggs = {k: a for k, a in aggs.items() if k in FIGURES}
+    fin = finals({k: t for k, t in trials.items() if k in aggs})
+    rows = []
+    sp = spread(fin) if len(fin) else None
+    if sp:
+        each = ", ".join(f"{_g(r)} for n = {n} ({_g(100 * (r - 1))} %, {sp['conditions'][n]} "
+                         "conditions)" for n, r in sp["ratio"].items())
+        rows.append(dict(
+            convention="spread over trials", ours="standard deviation with ddof = 1",
+            alternative="ddof = 0",
+            measured_effect=f"std(ddof 0) / std(ddof 1) of the final errors: {each}; equal to "
+                            f"sqrt((n - 1) / n) within {sp['deviation']:.1g}"))
+    if len(fin):
+        fl = flagged(fin, sorted({*FACTORS, fail_factor}))
+        counts = ", ".join(f"{f:g} x{' (ours)' if f == fail_factor else ''}: {c}"
+                           for f, c in fl["counts"].items())
+        rows.append(dict(
+            convention="failed to bootstrap",
+            ours=f"final relative error > {fail_factor:g} x the condition's median",
+            alternative=", ".join(f"{f:g} x" for f in FACTORS if f != fail_factor),
+            measured_effect=f"trials flagged of {fl['trials']}: {counts}; largest final / "
+                            f"median ratio {_g(fl['largest'])} ({fl['where']})"))
+    wanted = [(p, f, c) for p, pairs in postures.items() for f, c in pairs if f in aggs]
+    ranks = trial0_rank(fin, wanted) if len(fin) else []
+    if ranks:
+        cells = []
+        for r in ranks:
+            pct = "" if np.isnan(r["percentile"]) else f", percentile {r['percentile']:.0f}"
+            cells.append(f"{r['where']} ({r['panel']}): rank {r['rank']} of {r['n']}{pct}, "
+                         f"{_g(1e3 * r['error'])} mm against the median {_g(1e3 * r['median'])} "
+                         f"mm ({100 * (r['error'] / r['median'] - 1):+.3g} %)")
+        rows.append(dict(
+            convention="Fig. 3 / 6 postures", ours="trial 0's final model",
+            alternative="another trial (e.g. the median one)",
+            measured_effect="trial 0's final abs. error (rank 1 = smallest): " + "; ".join(cells)))
+    sub = [r for name, a in aggs.items()
+           for r in subsampled_rise(a["curves"], a["summary"], STRIDES)]
+    cells = []
+    for k in STRIDES:
+        d = [(r[k] - r["full"], r) for r in sub if np.isfinite(r[k]) and np.isfinite(r["full"])]
+        if not d:
+            continue
+        pp, r = max(d, key=lambda x: abs(x[0]))
+        cell = (f"every {k}{'nd' if k == 2 else 'th'}: largest change {pp:+.3g} percentage "
+                f"points ({r['where']}: +{_g(r['full'])} % -> +{_g(r[k])} %)")
+        rel = [(r[k] / r["full"], r) for _, r in d if r["full"] > 0]
+        if rel:
+            _, q = min(rel, key=lambda x: x[0])
+            cell += f", relatively most {q['where']} (+{_g(q['full'])} % -> +{_g(q[k])} %)"
+        cells.append(cell)
+    if cells:
+        rows.append(dict(
+            convention="learning-curve sampling",
+            ours="about 20 log-spaced evaluations per decade; the growth peak read from them",
+            alternative="every 2nd / every 4th evaluation point",
+            measured_effect=f"rise of the mean abs. error during growth (% of the lowest error "
+                            f"before it), over {len(sub)} growing conditions: "
+                            + "; ".join(cells)))
+    norms = [(name, cond, normalisations(c["spec"])) for name, a in aggs.items()
+             for cond, c in a["models"]["conditions"].items()]
+    if norms:
+        diff, name, cond = max((x[2]["difference"], x[0], x[1]) for x in norms)
+        uneven = [x[2]["spread"] for x in norms if not np.allclose(x[2]["spread"], 1.0)]
+        effect = (f"0 within rounding ({diff:.1g})" if diff < 1e-12 else
+                  f"up to {_g(100 * diff)} % ({_where(name, cond)})")
+        effect += f", largest over {len(norms)} conditions and their evaluation epochs"
+        if uneven:
+            effect += (f"; in the {len(uneven)} with unequal segments (per-joint length factors "
+                       f"{_g(min(u[0] for u in uneven))}-{_g(max(u[1] for u in uneven))} x S) "
+                       "the total length is still S x the full one")
+        rows.append(dict(
+            convention="relative error (eq. 11)", ours="absolute error / size factor S",
+            alternative="absolute error / (current total arm length / full arm length)",
+            measured_effect=effect))
+    return pd.DataFrame(rows, columns=COLUMNS)
+
+
+def markdown(t: pd.DataFrame) -> str:
+    """The section of report.md: the table of conventions."""
+    lines = ["## Reporting conventions: measured effect of the alternative", "",
+             "Measured on the paper's figures (" + ", ".join(FIGURES) + ", those aggregated) "
+             "from the aggregated data, without new runs (pipeline/conventions.py).", "",
+             "| convention | ours | alternative | measured effect |", "|---|---|---|---|"]
+    lines += ["| " + " | ".join(escape(str(getattr(r, c))) for c in COLUMNS) + " |"
+              for r in t.itertuples()]
+    return "\n".join(lines) + "\n"
