@@ -74,16 +74,16 @@ def draw(params: Params, body, B: int, rng: np.random.Generator) -> tuple:
 
 def train(state: State, params: Params, body, sizes, scales, draws, epochs=None) -> State:
     idx, noise = draws
-    outcomes, commands, epochs = state.outcomes.copy(), state.commands.copy(), state.epochs
+    outcomes, commands, done = state.outcomes.copy(), state.commands.copy(), state.epochs
     for e in range(len(sizes)):
-        known_x, known_q = memory(State(outcomes, commands, state.home, epochs))
+        known_x, known_q = memory(State(outcomes, commands, state.home, done))
         goals = body.target_set(sizes[e])[idx[e]]
         _, nearest = cKDTree(known_x).query(goals)
         q = body.saturate(known_q[nearest] + params.sigma * noise[e])
-        slot = epochs % params.window
+        slot = done % params.window
         outcomes[slot], commands[slot] = body.forward(q, scale=scales[e]), q
-        epochs += 1
-    return State(outcomes, commands, state.home, epochs)
+        done += 1
+    return State(outcomes, commands, state.home, done)
 
 
 def predict(state: State, params: Params, body, x) -> np.ndarray:
