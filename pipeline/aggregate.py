@@ -98,16 +98,21 @@ def growth_peak(curve: pd.DataFrame) -> tuple[int, float, float]:
     return int(c["epoch"].iloc[i]), float(err[i]), r
 
 
+def finals(trials: pd.DataFrame) -> pd.DataFrame:
+    """Each trial's final row: the rows of every condition at that condition's last epoch."""
+    last = trials.groupby("condition", sort=False)["epoch"].transform("max")
+    return trials[trials["epoch"] == last]
+
+
 def summarize(trials: pd.DataFrame, curves: pd.DataFrame, conds: dict, paper: dict,
               fail_factor: float) -> pd.DataFrame:
     """One row per condition: final errors (mean, std over trials), the temporary increase of the
     mean absolute error during growth (epochs 1 ... T_G + 1; growth_peak), trials that diverged
     or are missing, trials that failed to bootstrap, and the paper's stated final accuracy."""
     paper_abs = paper.get("final_abs_error")
-    rows = []
+    rows, last = [], finals(trials)
     for name, c in conds.items():
-        tr = trials[trials["condition"] == name]
-        final = tr[tr["epoch"] == tr["epoch"].max()] if len(tr) else tr
+        final = last[last["condition"] == name]
         v = c["variant"] or {}
         row = {k: c["labels"][k] for k in GROUP}
         row.update(variant=v.get("label", ""), choice=v.get("choice", ""),

@@ -24,6 +24,7 @@ import pandas as pd
 import gbmodel
 from gbmodel import evaluation
 
+from .aggregate import finals as aggregate_finals
 from .aggregate import growth_peak
 from .choices import escape
 
@@ -41,11 +42,8 @@ def read_trials(folder, figures) -> dict:
 
 
 def finals(trials: dict) -> pd.DataFrame:
-    """Each trial's final row (the last epoch of its condition, as aggregate.summarize takes it)."""
-    frames = []
-    for t in trials.values():
-        last = t.groupby("condition", sort=False)["epoch"].transform("max")
-        frames.append(t[t["epoch"] == last])
+    """Each trial's final row, of every figure (aggregate.finals, as the summary takes them)."""
+    frames = [aggregate_finals(t) for t in trials.values()]
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
 
 

@@ -26,10 +26,10 @@ def weight_sum(body: str, params: dict, seeds=(0, 1, 2), epochs: int = 20_000,
     """W: the median sum of weights per epoch at full size after `epochs` epochs of the
     normalised step (3 seeds, `probe` epochs each). The plain step's rate is 1 / W, which makes
     it equal to the normalised step at rate 1 at full-size convergence (the rule of the study,
-    fixed before its runs: arm5 W = 1142, iCub W = 1791)."""
+    fixed before its runs: arm5 W = 1142, iCub W = 1791, arm2 W = 1931)."""
     sums = []
+    params = {**params, "step": "normalised", "learning_rate": 1.0}
     for seed in seeds:
-        params = {**params, "step": "normalised", "learning_rate": 1.0}
         spec = gbmodel.TrialSpec(body={"name": body}, learner={"name": "goal_babbling", **params},
                                  epochs=epochs)
         M = gbmodel.run_trial(spec, np.random.default_rng(seed)).M

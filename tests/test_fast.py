@@ -73,6 +73,26 @@ def test_one_epoch_matches_reference(name, pattern, size, degree):
         M = M_ref
 
 
+@pytest.mark.parametrize("name", ["arm5", "icub"])
+def test_one_epoch_takes_its_own_rate_as_the_reference_does(name):
+    """The kernel's eta of one epoch (a schedule's, here half the learning rate) is the one it is
+    given, not params.learning_rate: the same M as the reference at that rate."""
+    body = gbmodel.make_body(name)
+    params = gb.Params(**SETTINGS[name])
+    exps = exponents(body.n, params.degree)
+    scale = np.ones(body.m)
+    rng = np.random.default_rng(9)
+    M = gb.init(params, body, 1.0, rng)
+    idx, raw = gb.draw(params, body, 1, rng)
+    rate = 0.5 * params.learning_rate
+    M_ref, _ = reference.epoch(M, body, 1.0, scale, exps, idx[0], raw[0], params.radius,
+                               params.steps, rate)
+    M_fast = fast.epoch_samples(M, body, params, exps, 1.0, scale, idx[0], raw[0], rate=rate)[0]
+    M_full = fast.epoch_samples(M, body, params, exps, 1.0, scale, idx[0], raw[0])[0]
+    np.testing.assert_allclose(M_fast, M_ref, atol=1e-6)
+    np.testing.assert_allclose(M_fast - M, 0.5 * (M_full - M), atol=1e-9)
+
+
 @pytest.mark.parametrize("name, pattern, size", [
     ("arm2", "proportional", 1.0), ("arm5", "nonproportional", 0.6),
     ("icub", "proportional", 0.5), ("icub", "proportional", 1.0),
