@@ -32,7 +32,6 @@ result computed by code the key does not name.
 """
 from __future__ import annotations
 
-import importlib.util
 import os
 import shutil
 import time
@@ -41,27 +40,13 @@ from pathlib import Path
 
 from dataclasses import asdict
 
-from .config import REPO_ROOT, ConfigError, SlurmConf
-from .execute import THREAD_VARS
-
-BACKENDS = ("local", "ray", "slurm", "submitit_local")
-EXTRA = {"ray": ("ray", "ray"), "slurm": ("submitit", "slurm"),
-         "submitit_local": ("submitit", "slurm")}  # backend -> (package, pyproject extra)
+from .config import BACKENDS, EXTRA, REPO_ROOT, ConfigError, SlurmConf
+from .config import check_backend as check
+from .worker import THREAD_VARS
 
 SLURM_DEFAULTS = asdict(SlurmConf())  # executor.slurm.* (pipeline/config.py SlurmConf)
 LOCAL_POLL_S = 0.5
 RAY_OBJECT_STORE_BYTES = 100 * 1000**2  # a result is a few hundred kB at most
-
-
-def check(backend: str) -> None:
-    """ConfigError (one line) for an unknown backend, or one whose package is not installed."""
-    if backend not in BACKENDS:
-        raise ConfigError(f"executor.backend={backend!r}: choose one of {', '.join(BACKENDS)}")
-    if backend in EXTRA:
-        package, extra = EXTRA[backend]
-        if importlib.util.find_spec(package) is None:
-            raise ConfigError(f"executor.backend={backend!r} needs the package {package}: "
-                              f"pip install -e '.[{extra}]'")
 
 
 def run(backend: str, todo: list[dict], workers: int, fn=None, address=None, options=None,
@@ -74,7 +59,7 @@ def run(backend: str, todo: list[dict], workers: int, fn=None, address=None, opt
     if backend == "local":
         raise ConfigError("executor.backend='local' runs through pipeline.execute.local")
     if fn is None:
-        from .execute import run_one as fn
+        from .worker import run_one as fn
     if not todo:
         return
     if backend == "ray":
@@ -90,7 +75,7 @@ def run(backend: str, todo: list[dict], workers: int, fn=None, address=None, opt
 # --- what runs in a worker ---------------------------------------------------------------------
 
 def call(fn, trial: dict) -> dict:
-    """fn(trial) in a worker (pipeline.execute.run_one checks the worker's code fingerprint)."""
+    """fn(trial) in a worker (pipeline.worker.run_one checks the worker's code fingerprint)."""
     return fn(trial)
 
 
@@ -101,7 +86,7 @@ def run_shard(fn, trials: list[dict]) -> list[dict]:
 
 
 def failed(trial: dict, error: str, seconds: float = 0.0, tb: str | None = None) -> dict:
-    """A failed result as pipeline.execute.run_one makes one: not cached, retried next run."""
+    """A failed result as pipeline.worker.run_one makes one: not cached, retried next run."""
     lines = [ln for ln in str(error).splitlines() if ln.strip()]
     out = dict(status="failed", error=lines[0] if lines else "failed", key=trial["key"],
                seconds=seconds)

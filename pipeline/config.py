@@ -9,6 +9,7 @@ Checks of *values* live in gbmodel (TrialSpec.validate) and pipeline.plan.
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,6 +27,22 @@ CONF_DIR = REPO_ROOT / "conf"
 
 class ConfigError(ValueError):
     """A bad value in the config; its message is one line naming the key and the value."""
+
+
+BACKENDS = ("local", "ray", "slurm", "submitit_local")
+EXTRA = {"ray": ("ray", "ray"), "slurm": ("submitit", "slurm"),
+         "submitit_local": ("submitit", "slurm")}  # backend -> (package, pyproject extra)
+
+
+def check_backend(backend: str) -> None:
+    """ConfigError (one line) for an unknown backend, or one whose package is not installed."""
+    if backend not in BACKENDS:
+        raise ConfigError(f"executor.backend={backend!r}: choose one of {', '.join(BACKENDS)}")
+    if backend in EXTRA:
+        package, extra = EXTRA[backend]
+        if importlib.util.find_spec(package) is None:
+            raise ConfigError(f"executor.backend={backend!r} needs the package {package}: "
+                              f"pip install -e '.[{extra}]'")
 
 
 def schema_of(cls, name: str, extra: tuple = ()) -> type:
@@ -122,7 +139,7 @@ class ReportConf:
     publish: bool = False  # write the committed report (paths.published): make reproduce only
     paper_experiments: list[str] = MISSING  # what the committed report must hold, at full scale
     stamp_findings: bool = False  # record these numbers as the ones findings.md discusses
-    explain: bool = True  # run the explanation experiments (pipeline/explain.py, ~10 s)
+    explain: bool = True  # run the explanation experiments (pipeline/studies/explain.py, ~10 s)
 
 
 @dataclass

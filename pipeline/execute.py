@@ -1,4 +1,4 @@
-"""Running trials: one trial in a worker (`run_one`), and the executor that spreads them.
+"""Running trials: the executor that spreads them (one trial in a worker: pipeline.worker).
 
 The executor takes plain-data trials, runs them longest first and yields each result as soon as
 it is there, so the driver can write it to the cache at once: an interrupted run loses only the
@@ -9,64 +9,10 @@ here (`backends`).
 from __future__ import annotations
 
 import multiprocessing
-import os
 import signal
-import time
-import traceback
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-from contextlib import contextmanager
 
-import numpy as np
-
-import gbmodel
-
-THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
-               "NUMBA_NUM_THREADS", "VECLIB_MAXIMUM_THREADS")
-
-
-def run_one(trial: dict) -> dict:
-    """Run one trial: plain data in, plain data out, errors returned as text.
-
-    status: ok (a learning curve), diverged (the error became non-finite: a result, with the
-    epoch), or failed (an exception; not cached, so the next run tries again)."""
-    start = time.perf_counter()
-    try:
-        from .plan import code_fingerprint
-
-        mine = code_fingerprint(trial["spec"]["learner"]["name"])
-        if trial.get("code", mine) != mine:  # code changed since the plan, or another node's
-            raise RuntimeError(f"this process's gbmodel code has fingerprint {mine}, the trial's "
-                               f"key names {trial['code']}: the code changed since the plan "
-                               "(or differs on this node); run the command again")
-        spec = gbmodel.TrialSpec.from_dict(trial["spec"])
-        seed = np.random.SeedSequence(trial["seed"]["entropy"],
-                                      spawn_key=tuple(trial["seed"]["spawn_key"]))
-        res = gbmodel.run_trial(spec, np.random.default_rng(seed))
-        out = dict(status="ok", epoch=res.epoch, samples=res.epoch * res.samples_per_epoch,
-                   size=res.size, abs_error=res.abs_error, rel_error=res.rel_error, M=res.M,
-                   snapshots=res.snapshots, largest_jump=res.largest_jump)
-    except gbmodel.Diverged as err:
-        out = dict(status="diverged", error=str(err), epoch=err.epoch)
-    except Exception as err:  # recorded and reported; the other trials go on
-        out = dict(status="failed", error=f"{type(err).__name__}: {err}",
-                   traceback=traceback.format_exc())
-    out["key"], out["seconds"] = trial["key"], time.perf_counter() - start
-    return out
-
-
-@contextmanager
-def single_threaded_children():
-    """Children inherit the environment: one BLAS/OpenMP/numba thread each."""
-    old = {k: os.environ.get(k) for k in THREAD_VARS}
-    os.environ.update({k: "1" for k in THREAD_VARS})
-    try:
-        yield
-    finally:
-        for k, v in old.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
+from .worker import THREAD_VARS, run_one, single_threaded_children  # noqa: F401
 
 
 def _ignore_sigint():

@@ -22,7 +22,7 @@ import gbmodel
 from gbmodel.growth import check_int
 from omegaconf import DictConfig, OmegaConf
 
-from .config import ConfigError
+from .config import ConfigError, check_backend
 
 MAX_EPOCHS = 10**9  # a trial's memory does not grow with its epochs, but its time does
 
@@ -193,8 +193,6 @@ def check_paths(cfg: DictConfig) -> None:
 
 def plan(cfg: DictConfig) -> list[dict]:
     """Every trial of the config as plain data, in order (variant, condition, trial index)."""
-    from .backends import check as check_backend
-
     trials = []
     try:
         check_int("trials.count", cfg.trials.count, 1)

@@ -28,7 +28,8 @@ import numpy as np
 import pandas as pd
 from omegaconf import DictConfig, OmegaConf
 
-from . import baselines, choices, claims, cli, conventions, explain, figures, io, readings
+from . import cli, io
+from .studies import baselines, choices, claims, conventions, explain, figures, readings
 from .config import ConfigError
 
 log = logging.getLogger("pipeline.report")
@@ -210,7 +211,7 @@ def report(cfg: DictConfig) -> list[Path]:
             io.write_text(out / "explanations.csv", pd.DataFrame(rows).to_csv(index=False))
             written.append(out / "explanations.csv")
             md += ["## Decisive experiments behind the explanations", "",
-                   "Computed by the report stage from the final models (pipeline/explain.py): "
+                   "Computed by the report stage from the final models (pipeline/studies/explain.py): "
                    "what a cubic can reach when fitted directly (the capacity bound), the 2-DOF "
                    "arm learned with its extremes away from the stretched arm, and the iCub's "
                    "models continued at a smaller learning rate.", "",
@@ -242,7 +243,7 @@ def report(cfg: DictConfig) -> list[Path]:
             "trials)"))
         md += ["## Every reading of the paper against every claim", "",
                "Each row is a reading of the text (conf/experiment/readings_*.yaml, "
-               "pipeline/readings.py); each column a claim, checked as above.", "",
+               "pipeline/studies/readings.py); each column a claim, checked as above.", "",
                f"![readings]({png})", "", readings.markdown(reading_table)]
     rival_table = baselines.table(rivals)
     if len(rival_table):
@@ -253,7 +254,7 @@ def report(cfg: DictConfig) -> list[Path]:
                "Four learners (gbmodel/learners/) with the same budget of reaching movements, on "
                "the 5-DOF arm and the iCub, without growth, with the paper's linear growth and "
                "with an infant-like schedule (conf/experiment/baselines_*.yaml, "
-               "pipeline/baselines.py). Errors at the end of the budget; the largest jump is the "
+               "pipeline/studies/baselines.py). Errors at the end of the budget; the largest jump is the "
                "final inverse's largest joint-space step between neighbouring points on lines "
                "through the target box (branch switching, lookup).", "",
                f"![baselines]({png})", "", baselines.markdown(rival_table, rival_claims)]
@@ -277,8 +278,8 @@ def report(cfg: DictConfig) -> list[Path]:
     return written
 
 
-FINDINGS = Path(__file__).parent / "findings.md"
-FINDINGS_NUMBERS = Path(__file__).parent / "findings_numbers.csv"
+FINDINGS = Path(__file__).parent / "studies" / "findings.md"
+FINDINGS_NUMBERS = Path(__file__).parent / "studies" / "findings_numbers.csv"
 TOLERANCE = 1e-6  # relative: the discussion holds for numbers this close to its run's
 
 
@@ -295,7 +296,7 @@ def findings_numbers(summary: pd.DataFrame, claim_rows: list[dict]) -> pd.DataFr
 
 
 def findings(summary: pd.DataFrame, claim_rows: list[dict]) -> str:
-    """pipeline/findings.md, hand-written about one run, if these are that run's numbers (every
+    """pipeline/studies/findings.md, hand-written about one run, if these are that run's numbers (every
     verdict the same, every number within TOLERANCE); else a note that it is left out."""
     now = findings_numbers(summary, claim_rows)
     if FINDINGS_NUMBERS.exists():
@@ -306,7 +307,7 @@ def findings(summary: pd.DataFrame, claim_rows: list[dict]) -> str:
                 and np.allclose(now["value"], ref["value"], rtol=TOLERANCE, atol=0,
                                 equal_nan=True)):
             return FINDINGS.read_text()
-    return ("## Discussion\n\n`pipeline/findings.md` discusses the committed full-scale run; "
+    return ("## Discussion\n\n`pipeline/studies/findings.md` discusses the committed full-scale run; "
             "these numbers come from another run, so it is left out.\n")
 
 

@@ -19,7 +19,7 @@ import gbmodel.learners
 import pipeline.config
 from gbmodel.learners import goal_babbling
 from pipeline import aggregate, plan as plan_mod, report, simulate
-from pipeline.config import CONF_DIR, ConfigError, compose
+from pipeline.config import CONF_DIR, REPO_ROOT, ConfigError, compose
 from pipeline.plan import code_fingerprint, cost, plan
 from conftest import tiny_overrides
 
@@ -337,3 +337,48 @@ def test_every_experiment_composes_and_plans(name, profile):
     if cfg.conditions.variants:
         labels = [v.label for v in cfg.conditions.variants]
         assert list(dict.fromkeys(t["variant"]["label"] for t in trials)) == labels
+
+
+def _pipeline_imports() -> dict[str, set[str]]:
+    """module -> the pipeline modules it imports (at the top or inside a function)."""
+    import ast
+
+    root = REPO_ROOT / "pipeline"
+    out = {}
+    for path in root.rglob("*.py"):
+        mod = ".".join(("pipeline",) + path.relative_to(root).with_suffix("").parts)
+        mod = mod.removesuffix(".__init__")
+        pkg = mod if path.name == "__init__.py" else mod.rsplit(".", 1)[0]
+        deps = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.level:
+                base = pkg.split(".")[: len(pkg.split(".")) - node.level + 1]
+                target = ".".join(base + ([node.module] if node.module else []))
+                names = [target] if node.module else [f"{target}.{a.name}" for a in node.names]
+                deps |= set(names)
+            elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith("pipeline"):
+                deps.add(node.module)
+        out[mod] = deps
+    return out
+
+
+def test_pipeline_has_no_import_circle_and_the_machinery_knows_no_study():
+    graph = _pipeline_imports()
+    graph = {m: {d for d in deps if d in graph} for m, deps in graph.items()}
+    state = {}
+
+    def visit(m, stack):
+        state[m] = "open"
+        for d in graph[m]:
+            assert state.get(d) != "open", f"import circle: {' -> '.join(stack + [m, d])}"
+            if d not in state:
+                visit(d, stack + [m])
+        state[m] = "done"
+
+    for m in graph:
+        if m not in state:
+            visit(m, [])
+    machinery = [m for m in graph if not m.startswith("pipeline.studies") and m != "pipeline.report"]
+    for m in machinery:
+        studies = {d for d in graph[m] if d.startswith("pipeline.studies")}
+        assert not studies, f"{m} imports the studies {sorted(studies)}"

@@ -3,7 +3,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipeline import claims, report
+from pipeline import report
+from pipeline.studies import claims
 from pipeline.aggregate import growth_peak
 
 EPOCHS = np.array([1, 2, 5, 10, 11, 20, 50, 100])

@@ -1,4 +1,4 @@
-"""The reporting conventions' measured alternatives (pipeline/conventions.py), on synthetic
+"""The reporting conventions' measured alternatives (pipeline/studies/conventions.py), on synthetic
 aggregates whose numbers are known: the ddof ratio, the failure flags at other factors, trial 0's
 rank, the growth rise of subsampled curves, and the two normalisations of the relative error."""
 import numpy as np
@@ -6,7 +6,8 @@ import pandas as pd
 import pytest
 
 import gbmodel
-from pipeline import aggregate, conventions
+from pipeline import aggregate
+from pipeline.studies import conventions
 
 
 def _curves(figure, condition, finals, growth="none", period=0, epochs=(1, 2, 3, 4)):

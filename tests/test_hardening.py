@@ -11,7 +11,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipeline import aggregate, cache, claims, cli, report, simulate
+from pipeline import aggregate, cache, cli, report, simulate
+from pipeline.studies import claims
 from pipeline.config import REPO_ROOT, ConfigError, VariantConf, compose
 from pipeline.plan import code_fingerprint, plan
 from conftest import TINY, files_of, run_cli, tiny_overrides

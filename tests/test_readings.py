@@ -9,7 +9,7 @@ import gbmodel
 from gbmodel import evaluation
 from gbmodel.learners import goal_babbling as gb
 from gbmodel.learners.goal_babbling import reference
-from pipeline import claims, readings
+from pipeline.studies import claims, readings
 
 
 def test_path_points_are_every_ordered_pair_in_steps():

@@ -36,7 +36,7 @@ METADATA = {
 
 def save(fig, stem: Path, dpi: int) -> list[Path]:
     """Write stem.png and stem.pdf with reproducible bytes; return the paths."""
-    from .io import atomic_path
+    from ..io import atomic_path
 
     paths = []
     for ext in ("png", "pdf"):

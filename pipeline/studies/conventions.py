@@ -24,8 +24,8 @@ import pandas as pd
 import gbmodel
 from gbmodel import evaluation
 
-from .aggregate import finals as aggregate_finals
-from .aggregate import growth_peak
+from ..aggregate import finals as aggregate_finals
+from ..aggregate import growth_peak
 from .choices import escape
 
 FIGURES = ("fig2", "fig4", "fig5", "fig7")
@@ -237,7 +237,7 @@ def markdown(t: pd.DataFrame) -> str:
     """The section of report.md: the table of conventions."""
     lines = ["## Reporting conventions: measured effect of the alternative", "",
              "Measured on the paper's figures (" + ", ".join(FIGURES) + ", those aggregated) "
-             "from the aggregated data, without new runs (pipeline/conventions.py).", "",
+             "from the aggregated data, without new runs (pipeline/studies/conventions.py).", "",
              "| convention | ours | alternative | measured effect |", "|---|---|---|---|"]
     lines += ["| " + " | ".join(escape(str(getattr(r, c))) for c in COLUMNS) + " |"
               for r in t.itertuples()]

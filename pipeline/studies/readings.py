@@ -2,7 +2,7 @@
 
 The runs are experiments (conf/experiment/readings_fig4|fig5|fig7.yaml): each paper figure's
 conditions under every reading that can change a verdict, as variants with common random
-numbers. This module checks the paper's claims (pipeline.claims) on each reading separately and
+numbers. This module checks the paper's claims (pipeline.studies.claims) on each reading separately and
 lays them out as one table (rows: readings, columns: claims) and one figure. It also holds the
 rule that fixes the plain step's rate before the run (`weight_sum`).
 """
