@@ -1,19 +1,24 @@
 """Stage 2, aggregate: the cache into one tidy table per figure, its statistics and summary.
 
-    python -m pipeline.aggregate            # every figure in the cache
+    python -m pipeline.aggregate              # every figure in the cache
+    python -m pipeline.aggregate figure=fig4  # one figure (or experiment=fig4)
 
-For every figure (the trials its plan records list, pipeline.cache.figure_trials) it writes,
-under paths.aggregate/<figure>/:
+For every figure (the conditions of its current plan group, pipeline.cache.figure_conditions,
+each labelled by what differs between them) whose inputs changed, it writes as one set, under
+paths.aggregate/<figure>/:
     trials.parquet    every trial's learning curve (pipeline.io.CURVE, concatenated)
     curves.parquet    per condition and epoch: mean, std (over trials, ddof 1), 25 % and 75 %
                       quantiles of abs_error and rel_error, and n_trials
     summary.parquet   per condition: final errors, peak error during growth, failures, diverged
     models.json       per condition and trial: the final model M and its snapshots
+    manifest.json     the digest of the inputs (conditions, trials' seals, code): unchanged
+                      inputs leave the figure as it is
 Only the trials of the plan are read, so stale cache entries never mix in. A trial that diverged
 or failed is counted as such and left out of every mean; a damaged or missing file is named.
 """
 from __future__ import annotations
 
+import hashlib
 import logging
 import sys
 from pathlib import Path
@@ -25,6 +30,7 @@ import pyarrow as pa
 from omegaconf import DictConfig
 
 from . import cache, cli, io
+from .plan import condition_labels, source_fingerprint
 
 log = logging.getLogger("pipeline.aggregate")
 
@@ -32,35 +38,53 @@ GROUP = [c for c in io.LABEL_COLUMNS if c != "trial"]
 ERRORS = ("abs_error", "rel_error")
 
 
-def condition_order(t: dict) -> tuple:
-    """Variants in their order, then growing bodies by period, then references by size."""
-    l, g = t["labels"], t["spec"]["growth"]
-    return (t.get("_variant_index", 0), l["growth"] == "none", l["growth_period"], g["end_size"])
+def condition_order(c: dict) -> tuple:
+    """Variants in their order, then growing bodies by period, then references by size (a
+    stable sort: conditions that tie keep the order they were planned in)."""
+    return (c["_variant_index"], c["growth"] == "none", c["growth_period"],
+            c["spec"]["growth"]["end_size"])
+
+
+def figure_conditions(cache_dir, figure: str) -> tuple[list[dict], dict, list[str]]:
+    """The figure's conditions in order, each labelled by what differs between them."""
+    conds, paper, problems = cache.figure_conditions(cache_dir, figure)
+    variant_order = {}
+    for c in conds:
+        label = (c.get("variant") or {}).get("label")
+        c["_variant_index"] = variant_order.setdefault(label, len(variant_order))
+    conds = sorted(conds, key=condition_order)
+    for c, label in zip(conds, condition_labels(conds)):
+        c["label"] = label
+    return conds, paper, problems
 
 
 def load_trials(cache_dir, figure: str) -> tuple[pd.DataFrame, dict, dict, list[str]]:
-    """(curves of the figure's finished trials, conditions, paper, problems found)."""
-    trials, paper, problems = cache.figure_trials(cache_dir, figure)
-    variant_order = {}
-    for t in trials:
-        label = (t.get("variant") or {}).get("label")
-        t["_variant_index"] = variant_order.setdefault(label, len(variant_order))
+    """(curves of the figure's finished trials, conditions by label, paper, problems found)."""
+    conditions, paper, problems = figure_conditions(cache_dir, figure)
     frames, conds = [], {}
-    for t in sorted(trials, key=lambda t: (condition_order(t), t["labels"]["trial"])):
-        l = t["labels"]
-        c = conds.setdefault(l["condition"], dict(labels={k: l[k] for k in GROUP},
-                                                  spec=t["spec"], variant=t.get("variant"),
-                                                  trials={}, diverged={}, missing=[]))
-        side, damaged = cache.check(cache_dir, t)
-        i = str(l["trial"])
-        if side is None:
-            why = damaged or "not computed (run pipeline.simulate)"
-            c["missing"].append(i)
-            problems.append(f"{l['condition']} trial {i}: {why}")
-        elif side["status"] == "diverged":
-            c["diverged"][i] = side["epoch"]
-        else:
-            frames.append(cache.read_curve(cache_dir, t))
+    for cond in conditions:
+        name, spec = cond["label"], cond["spec"]
+        labels = dict(figure=figure, body=spec["body"]["name"], learner=spec["learner"]["name"],
+                      growth=cond["growth"], growth_period=cond["growth_period"], condition=name)
+        c = conds[name] = dict(labels=labels, spec=spec, variant=cond.get("variant"), id=cond["id"],
+                               trials={}, diverged={}, missing=[], seals=[])
+        for t in sorted(cond["trials"], key=lambda t: t["trial"]):
+            side, damaged = cache.check(cache_dir, t)
+            i = str(t["trial"])
+            if side is None:
+                why = damaged or "not computed (run pipeline.simulate)"
+                c["missing"].append(i)
+                problems.append(f"{name} trial {i}: {why}")
+                continue
+            c["seals"].append(side["seal"])
+            if side["status"] == "diverged":
+                c["diverged"][i] = side["epoch"]
+                continue
+            curve = cache.read_curve(cache_dir, t)
+            for col, value in labels.items():
+                curve[col] = value
+            curve["trial"] = t["trial"]
+            frames.append(curve[io.CURVE_COLUMNS])
             c["trials"][i] = {"key": t["key"], "M": side["M"], "snapshots": side["snapshots"],
                               "largest_jump": side["largest_jump"]}
     empty = io.CURVE.empty_table().to_pandas()
@@ -141,35 +165,89 @@ def summarize(trials: pd.DataFrame, curves: pd.DataFrame, conds: dict, paper: di
     return pd.DataFrame(rows)
 
 
-def aggregate(cfg: DictConfig) -> list[str]:
-    """Aggregate every figure in the cache; return the problems found."""
-    out_root, problems = Path(cfg.paths.aggregate), []
-    figures = cache.figures(cfg.paths.cache)
-    if not figures:
+CODE = ("aggregate.py", "cache.py", "io.py", "plan.py")  # what an aggregate's bytes depend on
+
+
+def inputs_digest(figure: str, conds: dict, fail_factor: float) -> str:
+    """What one figure's aggregate is made of: its conditions (label, settings, trials' seals),
+    the failure factor and the code of this stage. The same digest, the same files."""
+    here = Path(__file__).parent
+    code = source_fingerprint((n, (here / n).read_text()) for n in CODE)
+    body = dict(figure=figure, fail_factor=fail_factor, code=code,
+                conditions=[[k, c["id"], c["variant"], sorted(c["trials"]), c["missing"],
+                             c["seals"]] for k, c in conds.items()])
+    return hashlib.sha256(io.dump_json(body).encode()).hexdigest()[:20]
+
+
+def aggregate_figure(cfg: DictConfig, fig: str) -> tuple[list[str], bool]:
+    """Aggregate one figure, unless its aggregate is already made of the same inputs; (problems,
+    whether it was rebuilt). The figure's files are replaced as one set (pipeline.io.replace_dir)."""
+    trials, conds, paper, problems = load_trials(cfg.paths.cache, fig)
+    folder = Path(cfg.paths.aggregate) / fig
+    digest = inputs_digest(fig, conds, cfg.aggregate.fail_factor)
+    try:
+        if io.read_json(folder / "manifest.json").get("inputs") == digest:
+            return problems, False
+    except (OSError, ValueError):
+        pass
+    curves = curve_stats(trials)
+    summary = summarize(trials, curves, conds, paper, cfg.aggregate.fail_factor)
+    with io.new_dir(folder) as tmp:
+        io.write_table(tmp / "trials.parquet",
+                       pa.Table.from_pandas(trials, schema=io.CURVE, preserve_index=False))
+        io.write_table(tmp / "curves.parquet", io.frame_to_table(curves))
+        io.write_table(tmp / "summary.parquet", io.frame_to_table(summary))
+        io.write_json(tmp / "models.json", {
+            "figure": fig, "paper": paper,
+            "conditions": {k: {"spec": c["spec"], "id": c["id"], "trials": c["trials"]}
+                           for k, c in conds.items()}})
+        io.write_json(tmp / "manifest.json", dict(figure=fig, inputs=digest))
+    log.info("[%s] %d conditions, %d trial curves -> %s", fig, len(summary),
+             trials.groupby(["condition", "trial"]).ngroups if len(trials) else 0, folder)
+    return problems, True
+
+
+def selected_figures(cfg: DictConfig, explicit: bool) -> list[str]:
+    """The figures a stage works on: every simulated one, or (figure= / experiment= /
+    experiments= on the command line) those named; an unknown one is a FileNotFoundError."""
+    known = cache.figures(cfg.paths.cache)
+    if cfg.get("experiments"):
+        from .config import compose
+
+        wanted = [compose([f"experiment={e}"]).figure for e in cfg.experiments]
+    elif explicit:
+        wanted = [cfg.figure]
+    else:
+        wanted = known
+    if not known:
         raise FileNotFoundError(f"no simulated figure under {cfg.paths.cache}: "
                                 "run pipeline.simulate first")
+    missing = [f for f in wanted if f not in known]
+    if missing:
+        raise FileNotFoundError(f"figure={missing[0]}: not simulated under {cfg.paths.cache} "
+                                f"(simulated: {', '.join(known)})")
+    return wanted
+
+
+def aggregate(cfg: DictConfig, explicit: bool = False) -> list[str]:
+    """Aggregate the selected figures (selected_figures) whose inputs changed; return the
+    problems found."""
+    problems, rebuilt, figures = [], 0, selected_figures(cfg, explicit)
     for fig in figures:
-        trials, conds, paper, found = load_trials(cfg.paths.cache, fig)
+        found, new = aggregate_figure(cfg, fig)
         problems += [f"[{fig}] {p}" for p in found]
-        curves = curve_stats(trials)
-        summary = summarize(trials, curves, conds, paper, cfg.aggregate.fail_factor)
-        folder = out_root / fig
-        io.write_table(folder / "trials.parquet",
-                       pa.Table.from_pandas(trials, schema=io.CURVE, preserve_index=False))
-        io.write_table(folder / "curves.parquet", io.frame_to_table(curves))
-        io.write_table(folder / "summary.parquet", io.frame_to_table(summary))
-        io.write_json(folder / "models.json", {
-            "figure": fig, "paper": paper,
-            "conditions": {k: {"spec": c["spec"], "trials": c["trials"]}
-                           for k, c in conds.items()}})
-        log.info("[%s] %d conditions, %d trial curves -> %s", fig, len(summary),
-                 trials.groupby(["condition", "trial"]).ngroups if len(trials) else 0, folder)
+        rebuilt += new
+    log.info("aggregate: %d of %d figure(s) rebuilt, the others unchanged", rebuilt, len(figures))
     return problems
+
+
+def names_a_figure(overrides: list[str]) -> bool:
+    return any(o.lstrip("+").startswith(("figure=", "experiment=")) for o in overrides)
 
 
 def run(cfg: DictConfig) -> int:
     """aggregate() for the command line: a warning per problem, exit status 1 if any."""
-    problems = aggregate(cfg)
+    problems = aggregate(cfg, names_a_figure(cli.hydra_run()[0]))
     for p in problems:
         print(f"warning: {p}", file=sys.stderr)
     return 1 if problems else 0

@@ -183,7 +183,7 @@ def submitit_results(todo: list[dict], workers: int, fn, cluster: str = "slurm",
     folder.mkdir(parents=True, exist_ok=True)
     executor = submitit.AutoExecutor(folder=str(folder / "%j"), cluster=cluster)
     setup = [f"export {k}=1" for k in THREAD_VARS] + list(opts["setup"])
-    params = dict(name=f"gbgrowth-{todo[0]['labels']['figure']}", timeout_min=int(opts["timeout_min"]),
+    params = dict(name=f"gbgrowth-{todo[0]['figure']}", timeout_min=int(opts["timeout_min"]),
                   cpus_per_task=1, tasks_per_node=1, nodes=1)
     params[f"{cluster}_setup"] = setup
     if cluster == "slurm":

@@ -1,25 +1,32 @@
-"""The trial cache: per trial one Parquet learning curve and one JSON sidecar, checked on read.
+"""The trial cache: per trial one Parquet learning curve and one JSON sidecar, checked on read;
+per figure the plan records that say which trials make it.
 
 Layout under paths.cache:
-    <figure>/<key>.parquet        the learning curve (pipeline.io.CURVE)
-    <figure>/<key>.json           the trial's config slice, seed, code fingerprint, status, final
-                                  model and snapshots, and the SHA-256 of the Parquet file
-    <figure>/<key>.lock           held (flock) by the process computing the trial
-    <figure>/plans/<hash>.json    the trials of one simulate run (written once, by that run)
+    trials/<kk>/<key>.parquet     the learning curve (pipeline.io.TRIAL_CURVE); kk = key[:2]
+    trials/<kk>/<key>.json        the trial's spec, seed, code fingerprint, status, final model,
+                                  snapshots, the SHA-256 of the Parquet file, and a seal (the
+                                  SHA-256 of everything else in the sidecar)
+    trials/<kk>/<key>.lock        held (flock) by the process computing the trial
+    failed/<key>.json             the error of a trial that failed (not cached: it runs again)
+    plans/<figure>/<group>/<hash>.json   the conditions one simulate run planned for a figure
+    plans/<figure>/current.json   the group that makes the figure now
 
-The key hashes the trial's config slice and its learner's code fingerprint (pipeline.plan), so a
-trial is computed once and recomputed only when something it depends on changes. The curve is
-written first and the sidecar last: the sidecar marks a finished trial, and its checksum proves
-the curve complete. A trial that diverged is a result too (status `diverged`, no curve); a trial
-that failed with an error is not cached and runs again next time. No file is written by two
-runs: trial files are named by content, plan records by their own hash.
+A trial's key hashes its content only (spec, seed, code fingerprint: pipeline.plan.trial_key),
+never the figure or the label that asked for it: the same trial under two figures or two sweeps
+is computed once. The curve is written first and the sidecar last: the sidecar marks a finished
+trial, its curve checksum proves the curve complete and its seal proves the sidecar unchanged (the
+model, the snapshots, the status). A trial that diverged is a result too (status `diverged`, no
+curve); a trial that failed with an error is not cached and runs again next time.
+
+A figure is a *group* of plan records: one simulate run, or every job of one Hydra multirun (they
+share the sweep's folder). The group a run writes becomes the figure's current group; its
+conditions are the union of its records' (one per distinct setting).
 """
 from __future__ import annotations
 
 import fcntl
 import hashlib
 import os
-import time
 from pathlib import Path
 
 import numpy as np
@@ -27,10 +34,24 @@ import pyarrow.parquet as pq
 
 from . import io
 
+TRIALS, PLANS, FAILED = "trials", "plans", "failed"
+
 
 def trial_paths(cache_dir, trial: dict) -> tuple[Path, Path]:
-    folder = Path(cache_dir) / trial["labels"]["figure"]
-    return folder / f"{trial['key']}.parquet", folder / f"{trial['key']}.json"
+    key = trial["key"]
+    folder = Path(cache_dir) / TRIALS / key[:2]
+    return folder / f"{key}.parquet", folder / f"{key}.json"
+
+
+def failure_path(cache_dir, trial: dict) -> Path:
+    return Path(cache_dir) / FAILED / f"{trial['key']}.json"
+
+
+def seal(record: dict) -> str:
+    """The SHA-256 of a sidecar's content without its seal: any change of the model, the
+    snapshots, the status or the error breaks it."""
+    body = {k: v for k, v in record.items() if k != "seal"}
+    return hashlib.sha256(io.dump_json(body).encode()).hexdigest()
 
 
 def check(cache_dir, trial: dict) -> tuple[dict | None, str | None]:
@@ -43,6 +64,8 @@ def check(cache_dir, trial: dict) -> tuple[dict | None, str | None]:
         s = io.read_json(side)
         if s.get("key") != trial["key"]:
             return None, f"{side.name} belongs to another trial"
+        if s.get("seal") != seal(s):
+            return None, f"{side.name} does not match its seal (changed or damaged)"
         if s.get("status") == "diverged":
             return s, None
         if not curve.exists():
@@ -54,26 +77,26 @@ def check(cache_dir, trial: dict) -> tuple[dict | None, str | None]:
     return s, None
 
 
+CONTENT = ("key", "spec", "seed", "code", "labels")  # what a sidecar keeps of the planned trial
+
+
 def write_trial(cache_dir, trial: dict, result: dict) -> None:
-    """Store a finished trial: the curve first, then the sidecar with its checksum."""
+    """Store a finished trial: the curve first, then the sealed sidecar with its checksum."""
     curve, side = trial_paths(cache_dir, trial)
-    record = dict(trial, status=result["status"], seconds=round(result["seconds"], 3))
+    record = {k: trial[k] for k in CONTENT} | dict(status=result["status"])
     if result["status"] == "diverged":
         record.update(error=result["error"], epoch=result["epoch"])
         curve.unlink(missing_ok=True)
     else:
-        l = trial["labels"]
-        io.write_table(curve, io.curve_table(l, result["epoch"], result["samples"],
-                                             result["size"], result["abs_error"],
-                                             result["rel_error"]))
+        io.write_table(curve, io.trial_curve_table(result))
         record["curve_sha256"] = io.sha256_file(curve)
         record["largest_jump"] = float(result["largest_jump"])
         M = result["M"]
         record["M"] = None if M is None else np.asarray(M).tolist()
         record["snapshots"] = {str(e): np.asarray(m).tolist()
                                for e, m in sorted(result["snapshots"].items())}
-    record.pop("seconds")  # timing varies from run to run; the sidecar's bytes must not
-    io.write_json(side, record)
+    record["seal"] = seal(record)
+    io.write_json(side, record)  # timing is left out: the sidecar's bytes must not vary
 
 
 def read_curve(cache_dir, trial: dict):
@@ -108,40 +131,93 @@ class Claim:
             self.fh = None
 
 
-# ---- plan records: which trials make a figure --------------------------------------------------
-def write_plan(cache_dir, figure: str, trials: list[dict], whole: bool, paper: dict) -> Path:
-    """Record the trials of one simulate run. whole=True: they are the figure (an experiment);
-    whole=False: each condition replaces that condition of earlier runs (a sweep's jobs)."""
-    body = dict(figure=figure, whole=whole, paper=paper,
-                trials=[{k: t[k] for k in ("key", "labels", "spec") if k in t}
-                        | ({"variant": t["variant"]} if "variant" in t else {}) for t in trials])
-    digest = hashlib.sha256(io.dump_json(body).encode()).hexdigest()[:16]
-    path = Path(cache_dir) / figure / "plans" / f"{digest}.json"
-    io.write_json(path, dict(body, created_ns=time.time_ns(), pid=os.getpid()))
-    return path
+# ---- plan records: which conditions make a figure ----------------------------------------------
+def plan_record(figure: str, conditions: list[dict], paper: dict, experiment: str | None) -> dict:
+    return dict(figure=figure, experiment=experiment, paper=paper, conditions=conditions)
 
 
-def figure_trials(cache_dir, figure: str) -> tuple[list[dict], dict, list[str]]:
-    """The trials of a figure from its plan records: the newest whole record, then newer partial
-    ones replacing its conditions. Returns (trials, paper, problems with unreadable records)."""
-    records, problems = [], []
-    for p in sorted((Path(cache_dir) / figure / "plans").glob("*.json")):
+def record_digest(record: dict) -> str:
+    return hashlib.sha256(io.dump_json(record).encode()).hexdigest()[:16]
+
+
+def write_plan(cache_dir, record: dict, group: str | None = None) -> tuple[str, dict | None]:
+    """Record the conditions of one simulate run and make its group the figure's current one.
+
+    group: the multirun this run is a job of (its jobs' records form one figure); None: this run
+    alone. Nothing is rewritten when the same record is there already. Returns (group, the
+    previous current group's summary when this run replaced another group, else None)."""
+    folder = Path(cache_dir) / PLANS / record["figure"]
+    digest = record_digest(record)
+    group = group or f"run-{digest}"
+    path = folder / group / f"{digest}.json"
+    if not path.exists():
+        io.write_json(path, record)
+    current = folder / "current.json"
+    before = read_current(folder)
+    if before != group:
+        replaced = None
+        if before is not None:
+            old, _, _ = group_conditions(folder, before)
+            replaced = dict(group=before, conditions=len(old),
+                            experiment=_group_experiment(folder, before))
+        io.write_json(current, dict(group=group))
+        return group, replaced
+    return group, None
+
+
+def read_current(folder: Path) -> str | None:
+    path = Path(folder) / "current.json"
+    if not path.exists():
+        return None
+    group = io.read_json(path).get("group")
+    if not isinstance(group, str) or not io.is_plain_name(group):
+        raise ValueError(f"{path}: names no valid group")
+    return group
+
+
+def _group_experiment(folder: Path, group: str) -> str | None:
+    for p in sorted((folder / group).glob("*.json")):
         try:
-            records.append(io.read_json(p))
+            return io.read_json(p).get("experiment")
+        except ValueError:
+            continue
+    return None
+
+
+def group_conditions(folder: Path, group: str) -> tuple[list[dict], dict, list[str]]:
+    """(conditions, paper, problems) of one group: the union of its records' conditions, one per
+    (variant, settings), in the order of the records' writing (file names are content hashes, so
+    they are sorted by the run order each record stores)."""
+    records, problems = [], []
+    for p in sorted((Path(folder) / group).glob("*.json")):
+        try:
+            r = io.read_json(p)
+            if not isinstance(r.get("conditions"), list):
+                raise ValueError(f"{p}: not a plan record (no conditions)")
+            records.append(r)
         except ValueError as err:
             problems.append(f"plan record ignored: {err}")
-    records.sort(key=lambda r: r.get("created_ns", 0))
-    start = max((i for i, r in enumerate(records) if r.get("whole")), default=0)
-    by_condition, paper = {}, {}
-    for r in records[start:]:
-        fresh = {}
-        for t in r["trials"]:
-            fresh.setdefault(t["labels"]["condition"], []).append(t)
-        by_condition.update(fresh)
-        if r.get("whole") or not paper:
-            paper = r.get("paper", {})
-    return [t for ts in by_condition.values() for t in ts], paper, problems
+    records.sort(key=lambda r: (r.get("job", 0), record_digest(r)))
+    conds, paper = {}, {}
+    for r in records:
+        for c in r["conditions"]:
+            v = c.get("variant")
+            conds.setdefault((v["label"] if v else None, c["id"]), c)
+        paper = paper or r.get("paper") or {}
+    return list(conds.values()), paper, problems
+
+
+def figure_conditions(cache_dir, figure: str) -> tuple[list[dict], dict, list[str]]:
+    """The conditions of a figure (its current group), its paper section and any problems."""
+    folder = Path(cache_dir) / PLANS / figure
+    group = read_current(folder)
+    if group is None:
+        raise FileNotFoundError(f"figure={figure}: not simulated (no plan under {folder})")
+    conds, paper, problems = group_conditions(folder, group)
+    if not conds:
+        raise ValueError(f"figure={figure}: its plan records under {folder / group} are unreadable")
+    return conds, paper, problems
 
 
 def figures(cache_dir) -> list[str]:
-    return sorted(p.parent.name for p in Path(cache_dir).glob("*/plans"))
+    return sorted(p.parent.name for p in (Path(cache_dir) / PLANS).glob("*/current.json"))

@@ -83,6 +83,26 @@ def check(argv: list[str]) -> str | None:
     return None
 
 
+def hydra_run() -> tuple[list[str], str | None, int]:
+    """(the command line's overrides, the multirun group, the job's number) of the running Hydra
+    job; ([], None, 0) outside @hydra.main. A multirun's jobs share its sweep folder, so their
+    plan records make one figure together."""
+    import hashlib
+
+    from hydra.core.hydra_config import HydraConfig
+    from hydra.types import RunMode
+
+    try:
+        hc = HydraConfig.get()
+    except ValueError:
+        return [], None, 0
+    overrides = list(hc.overrides.task)
+    if hc.mode != RunMode.MULTIRUN:
+        return overrides, None, 0
+    group = "sweep-" + hashlib.sha256(str(hc.sweep.dir).encode()).hexdigest()[:16]
+    return overrides, group, int(hc.job.num)
+
+
 def finish(run, cfg) -> None:
     """Run a stage on its composed config and exit with its status. What every stage can meet
     is one line: a bad value (ConfigError) or missing input (FileNotFoundError) exits 2, Ctrl-C

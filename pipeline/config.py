@@ -183,6 +183,9 @@ class Config:
     bench: BenchConf = field(default_factory=BenchConf)
     figure: str = MISSING
     workers: int = MISSING
+    # simulate: plan these experiments in one process (make smoke / make reproduce); the
+    # other overrides of the command line apply to each
+    experiments: list[str] = field(default_factory=list)
 
 
 def register_schemas() -> None:

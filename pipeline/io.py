@@ -26,6 +26,9 @@ CURVE = pa.schema(list(LABELS) + [("epoch", pa.int64()), ("samples", pa.int64())
                                   ("rel_error", pa.float64())])
 LABEL_COLUMNS = LABELS.names
 CURVE_COLUMNS = CURVE.names
+# One trial's curve as the cache keeps it: its content only (a cached trial may serve several
+# figures and conditions; aggregate adds the labels of the figure that uses it).
+TRIAL_CURVE = pa.schema([f for f in CURVE if f.name not in LABELS.names])
 
 
 def _tmp_name(path: Path) -> Path:
@@ -43,6 +46,34 @@ def atomic_path(path):
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
+
+
+@contextmanager
+def new_dir(final):
+    """Yield an empty folder beside `final`; if the block succeeds, it replaces `final` as one
+    set (two renames: the old set aside, the new one in, then the old one removed). A reader, or a
+    process killed at any moment, sees the old set, the new set or none, never a mix; a leftover
+    folder of a killed run is removed by the next."""
+    import shutil
+
+    final = Path(final)
+    final.parent.mkdir(parents=True, exist_ok=True)
+    for stale in final.parent.glob(f".{final.name}.*.dir"):
+        pid = stale.name.rsplit(".", 2)[-2].rsplit("-", 1)[-1]
+        if not (pid.isdigit() and _alive(int(pid))):
+            shutil.rmtree(stale, ignore_errors=True)
+    tmp = final.with_name(f".{final.name}.new-{os.getpid()}.dir")
+    old = final.with_name(f".{final.name}.old-{os.getpid()}.dir")
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir()
+    try:
+        yield tmp
+        if final.exists():
+            os.rename(final, old)
+        os.rename(tmp, final)
+        shutil.rmtree(old, ignore_errors=True)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
 
 
 def write_text(path, text: str) -> None:
@@ -79,13 +110,17 @@ def frame_to_table(df) -> pa.Table:
     return pa.Table.from_pandas(df, preserve_index=False)
 
 
-def curve_table(labels: dict, epoch, samples, size, abs_error, rel_error) -> pa.Table:
-    """One trial's learning curve in the CURVE schema."""
-    n = len(epoch)
-    cols = [pa.array([labels[f.name]] * n, type=f.type) for f in LABELS]
-    cols += [pa.array(np.asarray(v, dtype=np.int64)) for v in (epoch, samples)]
-    cols += [pa.array(np.asarray(v, dtype=np.float64)) for v in (size, abs_error, rel_error)]
-    return pa.Table.from_arrays(cols, schema=CURVE)
+def trial_curve_table(result: dict) -> pa.Table:
+    """One trial's learning curve in the TRIAL_CURVE schema (a worker's result)."""
+    return pa.Table.from_arrays(
+        [pa.array(np.asarray(result[f.name]), type=f.type) for f in TRIAL_CURVE],
+        schema=TRIAL_CURVE)
+
+
+def is_plain_name(name) -> bool:
+    """A name that can become one path component: no separator, not hidden, not empty."""
+    return (isinstance(name, str) and bool(name) and "/" not in name and "\\" not in name
+            and not name.startswith(".") and "\0" not in name)
 
 
 def sha256_file(path) -> str:

@@ -5,9 +5,11 @@ cluster and hashed into the cache key. Every value is checked here, before any s
 anything: the trial's own values by gbmodel (TrialSpec.validate, whose SpecError names the config
 key), the plan's by this module; either way a ConfigError with one line naming the key.
 
-A condition is a body growing by a pattern from a start to an end size over T_G epochs, or a body
-of constant size (a reference). Its name: `TG<period>` or `const<size>`, prefixed by the variant's
-label when the experiment has variants.
+A condition is its settings (the hash of its trial spec and root seed: condition_id), never a
+label. It grows a body by a pattern from a start to an end size over T_G epochs, or keeps it at a
+constant size (a reference). Labels are derived from what differs between the conditions of a
+figure (condition_labels): `V=10`, `R=0.1, L=5`, the growth label `TG<period>` / `const<size>`
+where the growth differs, or a variant's own label.
 """
 from __future__ import annotations
 
@@ -191,8 +193,25 @@ def check_paths(cfg: DictConfig) -> None:
                 break
 
 
+def condition_id(spec: dict, root_seed: int) -> str:
+    """A condition is its settings: the hash of its trial spec (body, growth, learner,
+    evaluation, epochs, snapshots) and the root seed, never a label."""
+    return hashlib.sha256(_canonical(dict(spec=spec, root_seed=root_seed)).encode()).hexdigest()[:16]
+
+
+def trial_key(spec: dict, seed: dict, code: str) -> str:
+    """A trial is its content: spec, seed and code fingerprint. The figure, the condition's
+    label or the variant that asked for it are not part of it, so the same trial under two
+    figures or two sweeps is computed once."""
+    return hashlib.sha256(_canonical(dict(spec=spec, seed=seed, code=code)).encode()).hexdigest()[:20]
+
+
 def plan(cfg: DictConfig) -> list[dict]:
-    """Every trial of the config as plain data, in order (variant, condition, trial index)."""
+    """Every trial of the config as plain data, in order (variant, condition, trial index).
+
+    Each trial carries its content (key, spec, seed, code), content-derived labels (body,
+    learner, growth pattern, period, trial index) and where this config uses it: the figure, the
+    condition's id, its growth label (TG<period> / const<size>) and its variant, if any."""
     trials = []
     try:
         check_int("trials.count", cfg.trials.count, 1)
@@ -203,8 +222,7 @@ def plan(cfg: DictConfig) -> list[dict]:
             _bad("figure", cfg.figure, "must be a plain name (it names a folder)")
         check_paths(cfg)
         for variant, vcfg in variants(cfg):
-            conds = conditions(vcfg)
-            for cond in conds:
+            for cond in conditions(vcfg):
                 spec = trial_spec(vcfg, cond["spec"]).to_dict()
                 # The random stream depends on the condition's body and growth only, so that the
                 # variants of an experiment differ by their choice, not by their draws.
@@ -212,22 +230,122 @@ def plan(cfg: DictConfig) -> list[dict]:
                 stream = stable_hash32(dict(body=spec["body"]["name"], pattern=g["pattern"],
                                             start_size=g["start_size"],
                                             end_size=g["end_size"], period=g["period"]))
-                name = (cond["condition"] if variant is None else variant["label"]
-                        if len(conds) == 1 else f"{variant['label']} | {cond['condition']}")
+                cid = condition_id(spec, vcfg.trials.root_seed)
+                code = code_fingerprint(spec["learner"]["name"])
                 for i in range(vcfg.trials.count):
-                    labels = dict(figure=cfg.figure, body=spec["body"]["name"],
-                                  learner=spec["learner"]["name"], growth=cond["growth"],
-                                  growth_period=cond["growth_period"], condition=name, trial=i)
-                    trial = dict(labels=labels, spec=spec,
-                                 seed=dict(entropy=vcfg.trials.root_seed, spawn_key=[stream, i]),
-                                 code=code_fingerprint(spec["learner"]["name"]))
-                    if variant is not None:
-                        trial["variant"] = variant
-                    trial["key"] = hashlib.sha256(_canonical(trial).encode()).hexdigest()[:20]
-                    trials.append(trial)
+                    seed = dict(entropy=vcfg.trials.root_seed, spawn_key=[stream, i])
+                    trials.append(dict(
+                        key=trial_key(spec, seed, code), spec=spec, seed=seed, code=code,
+                        labels=dict(body=spec["body"]["name"], learner=spec["learner"]["name"],
+                                    growth=cond["growth"], growth_period=cond["growth_period"],
+                                    trial=i),
+                        figure=cfg.figure, condition=cid, growth_label=cond["condition"],
+                        variant=variant))
     except gbmodel.SpecError as err:
         raise ConfigError(str(err)) from None
     return trials
+
+
+# ---- labels: what differs between a figure's conditions ------------------------------------
+SHORT = {"learner.variations": "V", "learner.radius": "R", "learner.targets_per_epoch": "K",
+         "learner.steps": "L", "learner.learning_rate": "eta", "learner.epochs": "epochs",
+         "learner.name": "learner", "body.name": "body", "root_seed": "seed"}
+GROWTH_AXIS = ("pattern", "period", "start_size", "end_size")  # named by the growth label
+
+
+def _settings(cond: dict) -> dict:
+    """A condition's settings as flat `section.field` -> value (the growth axis left out: its
+    growth label names it)."""
+    spec = cond["spec"]
+    flat = {"learner.epochs": spec["epochs"], "learner.evals_per_decade": spec["evals_per_decade"],
+            "snapshots": spec["snapshots"], "root_seed": cond["root_seed"]}
+    for section in ("body", "learner", "evaluation", "growth"):
+        for k, v in spec[section].items():
+            if not (section == "growth" and k in GROWTH_AXIS):
+                flat[f"{section}.{k}"] = v
+    return flat
+
+
+def _fmt(v) -> str:
+    if isinstance(v, float):
+        return repr(v)  # the shortest text that reads back as this float: distinct stays distinct
+    if isinstance(v, (list, dict)):
+        return json.dumps(v, separators=(",", ":"))
+    return str(v)
+
+
+def varying_keys(conds: list[dict]) -> list[str]:
+    """The settings that differ between conditions. A body or learner of another name differs
+    by its name alone (its fields only where they differ between conditions of one name)."""
+    flats = [_settings(c) for c in conds]
+    keys = sorted({k for f in flats for k in f})
+    differ = [k for k in keys if len({_canonical(f.get(k)) for f in flats}) > 1]
+    out = []
+    for k in differ:
+        section = k.split(".", 1)[0]
+        if section in ("body", "learner") and k != f"{section}.name" and f"{section}.name" in differ:
+            by_name = {}
+            for f in flats:
+                by_name.setdefault(_canonical(f.get(f"{section}.name")), set()).add(
+                    _canonical(f.get(k)))
+            if all(len(vals) == 1 for vals in by_name.values()):
+                continue
+        out.append(k)
+    return out
+
+
+def condition_labels(conds: list[dict]) -> list[str]:
+    """A label per condition, from what differs between them: `V=10`, `R=0.1, L=5`, the growth
+    label (`TG100`, `const0.5`) where the growth differs, or the variant's own label. Two
+    conditions that would share a label are a ConfigError naming both."""
+    keys = varying_keys([c for c in conds if not c.get("variant")])
+    per_variant = {}
+    for c in conds:
+        if c.get("variant"):
+            per_variant.setdefault(c["variant"]["label"], set()).add(c["growth_label"])
+    growth_varies = len({c["growth_label"] for c in conds}) > 1
+    labels = []
+    for c in conds:
+        if c.get("variant"):
+            name = c["variant"]["label"]
+            if len(per_variant[name]) > 1:
+                name = f"{name} | {c['growth_label']}"
+        else:
+            flat = _settings(c)
+            parts = [", ".join(f"{SHORT.get(k, k.split('.', 1)[-1])}={_fmt(flat.get(k))}"
+                               for k in keys)] if keys else []
+            if growth_varies or not parts:
+                parts.append(c["growth_label"])
+            name = " | ".join(parts)
+        labels.append(name)
+    seen = {}
+    for c, name in zip(conds, labels):
+        other = seen.setdefault(name, c)
+        if other is not c and other["id"] != c["id"]:
+            raise ConfigError(f"two different conditions share the label {name!r}: "
+                              f"{_diff(other, c)}; give them different variant labels")
+    return labels
+
+
+def _diff(a: dict, b: dict) -> str:
+    fa, fb = _settings(a), _settings(b)
+    keys = [k for k in sorted(set(fa) | set(fb)) if _canonical(fa.get(k)) != _canonical(fb.get(k))]
+    return "; ".join(f"{k}={_fmt(fa.get(k))} vs {_fmt(fb.get(k))}" for k in keys[:4]) or \
+        "same settings"
+
+
+def plan_conditions(trials: list[dict]) -> list[dict]:
+    """The conditions of planned trials, in order: id, spec, root seed, growth label, variant and
+    their trials' keys (one entry per variant and condition id)."""
+    out = {}
+    for t in trials:
+        v = t.get("variant")
+        c = out.setdefault((v["label"] if v else None, t["condition"]), dict(
+            id=t["condition"], spec=t["spec"], root_seed=t["seed"]["entropy"],
+            growth_label=t["growth_label"], growth=t["labels"]["growth"],
+            growth_period=t["labels"]["growth_period"], variant=v, trials=[]))
+        c["trials"].append(dict(key=t["key"], trial=t["labels"]["trial"]))
+    return list(out.values())
 
 
 def cost(trial: dict) -> float:

@@ -2,6 +2,7 @@
 
     python -m pipeline.simulate experiment=fig4                 # one paper figure
     python -m pipeline.simulate -m growth.period=10,100 trials.count=2   # a Hydra sweep
+    python -m pipeline.simulate 'experiments=[fig2,fig4]'      # several figures, one process
 
 Trials run longest first on the executor (pipeline.execute), and each finished trial is written
 to the cache at once, so an interrupted run loses only the trials in flight. A trial another run
@@ -20,7 +21,7 @@ import hydra
 from omegaconf import DictConfig, OmegaConf
 
 from . import cache, cli, execute, io
-from .plan import cost, plan
+from .plan import cost, plan, plan_conditions
 
 log = logging.getLogger("pipeline.simulate")
 WAIT_POLL_S = 2.0
@@ -68,33 +69,77 @@ class Progress:
 
 def record(cache_dir, trial: dict, result: dict, summary: Summary) -> None:
     """Write a finished trial (ok or diverged) to the cache, or its failure beside it."""
-    key, failure = trial["key"], cache.trial_paths(cache_dir, trial)[1].parent / "failed"
+    key, failure = trial["key"], cache.failure_path(cache_dir, trial)
     if result["status"] in ("ok", "diverged"):
         cache.write_trial(cache_dir, trial, result)
-        (failure / f"{key}.json").unlink(missing_ok=True)
+        failure.unlink(missing_ok=True)
     if result["status"] != "ok":
         summary.failed[key] = result["error"]
         where = summary.labels[key]
         log.error("[%s] %s %s: %s", summary.figure, where, result["status"],
                   result.get("traceback", result["error"]))
     if result["status"] == "failed":
-        io.write_json(failure / f"{key}.json", dict(key=key, labels=trial["labels"],
-                                                    error=result["error"]))
+        io.write_json(failure, dict(key=key, labels=trial["labels"], error=result["error"]))
     summary.ran += 1
 
 
-def simulate(cfg: DictConfig) -> Summary:
-    """Run the config's trials that are not cached; return what was done."""
-    trials = plan(cfg)  # raises ConfigError before anything is written
+@dataclass
+class Job:
+    """One figure of a simulate run: its config and planned trials."""
+
+    cfg: DictConfig
+    trials: list
+    experiment: str | None = None
+
+
+def jobs_of(cfg: DictConfig, overrides: list[str] = ()) -> list[Job]:
+    """The figures this run plans: the config's own, or with `experiments=[a, b]` each of those
+    experiments composed with the same other overrides (make smoke / make reproduce plan every
+    experiment in one process)."""
+    names = list(cfg.get("experiments") or [])
+    if not names:
+        return [Job(cfg, plan(cfg), _experiment_of(cfg))]
+    from .config import compose
+
+    rest = [o for o in overrides if not o.lstrip("+~").startswith(("experiments=", "experiment="))]
+    jobs = []
+    for name in names:
+        ecfg = compose([f"experiment={name}", *rest])
+        jobs.append(Job(ecfg, plan(ecfg), name))
+    return jobs
+
+
+def _experiment_of(cfg: DictConfig) -> str | None:
+    try:
+        from hydra.core.hydra_config import HydraConfig
+
+        return HydraConfig.get().runtime.choices.get("experiment")
+    except ValueError:  # not under @hydra.main (the API): the figure is its own experiment
+        return None
+
+
+def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = None,
+             job: int = 0) -> Summary:
+    """Run the config's trials that are not cached; return what was done.
+
+    group: the Hydra multirun this run is a job of (job: its number), whose records make one
+    figure together; None: this run's records make the figure alone."""
+    jobs = jobs_of(cfg, overrides)  # raises ConfigError before anything is written
     cache_dir = Path(cfg.paths.cache)
-    figure = cfg.figure
-    (cache_dir / figure).mkdir(parents=True, exist_ok=True)
-    io.remove_stale_tmp(cache_dir / figure)
+    figure = ", ".join(dict.fromkeys(j.cfg.figure for j in jobs))
+    unique = {}
+    for j in jobs:
+        for t in j.trials:
+            unique.setdefault(t["key"], t)  # the same trial under two figures: computed once
+    trials = list(unique.values())
+    (cache_dir / cache.TRIALS).mkdir(parents=True, exist_ok=True)
+    for folder in (cache_dir / cache.TRIALS).glob("*"):
+        io.remove_stale_tmp(folder)
     todo, diverged = [], {}
     for t in trials:
         done, damaged = cache.check(cache_dir, t)
         if damaged:
-            print(f"[{figure}] recomputing {t['labels']['condition']} trial "
+            print(f"[{t['figure']}] recomputing {t['growth_label']} trial "
                   f"{t['labels']['trial']}: {damaged}", file=sys.stderr)
         if done is None:
             todo.append(t)
@@ -103,8 +148,7 @@ def simulate(cfg: DictConfig) -> Summary:
     todo.sort(key=cost, reverse=True)
     summary = Summary(figure=figure, total=len(trials), cached=len(trials) - len(todo),
                       failed=diverged)
-    summary.labels = {t["key"]: f"{t['labels']['condition']} trial {t['labels']['trial']}"
-                      for t in trials}
+    summary.labels = {t["key"]: _where(t) for t in trials}
     claims = {t["key"]: cache.Claim(cache_dir, t) for t in todo}
     mine = [t for t in todo if claims[t["key"]].acquire()]
     elsewhere = [t for t in todo if claims[t["key"]].fh is None]
@@ -146,14 +190,32 @@ def simulate(cfg: DictConfig) -> Summary:
     finally:
         for c in claims.values():
             c.release()
-    whole = bool(cfg.conditions.periods or cfg.conditions.references or cfg.conditions.variants)
-    cache.write_plan(cache_dir, figure, trials, whole, OmegaConf.to_container(cfg.paper))
+    for j in jobs:
+        write_figure(cache_dir, j, group, job)
     return summary
+
+
+def _where(t: dict) -> str:
+    v = t.get("variant")
+    name = f"{v['label']} | {t['growth_label']}" if v else t["growth_label"]
+    return f"{t['figure']}: {name} trial {t['labels']['trial']}"
+
+
+def write_figure(cache_dir, j: Job, group: str | None, job: int) -> None:
+    """The plan record of one figure; says so when it replaces the figure's earlier group."""
+    record = cache.plan_record(j.cfg.figure, plan_conditions(j.trials),
+                               OmegaConf.to_container(j.cfg.paper), j.experiment)
+    record["job"] = job
+    _, replaced = cache.write_plan(cache_dir, record, group)
+    if replaced and group is None:
+        print(f"[{j.cfg.figure}] now the {len(record['conditions'])} condition(s) of this run; it "
+              f"replaces an earlier run's {replaced['conditions']} (name a run figure=NAME to "
+              "keep both)", file=sys.stderr)
 
 
 def run(cfg: DictConfig) -> int:
     """simulate() for the command line: the summary, and exit status 1 if a trial failed."""
-    summary = simulate(cfg)
+    summary = simulate(cfg, *cli.hydra_run())
     print("\n".join(summary.lines()), file=sys.stderr)
     return 1 if summary.failed else 0
 

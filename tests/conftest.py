@@ -46,10 +46,20 @@ def files_of(folder: Path) -> dict[str, bytes]:
         if not p.is_file() or p.suffix == ".lock":
             continue
         data = p.read_bytes()
-        if p.parent.name == "plans" and p.suffix == ".json":
+        if "plans" in p.relative_to(folder).parts and p.suffix == ".json":
             record = json.loads(data)
             for k in PLAN_RUN_FIELDS:
                 record.pop(k, None)
             data = json.dumps(record, sort_keys=True).encode()
         out[p.relative_to(folder).as_posix()] = data
     return out
+
+
+def figure_trials(cache_dir, figure: str) -> tuple[list[dict], list[str]]:
+    """(trials as (condition label, trial index, key) dicts, problems) of a figure's current
+    plan, as aggregate reads it."""
+    from pipeline.aggregate import figure_conditions
+
+    conds, _, problems = figure_conditions(cache_dir, figure)
+    return [dict(condition=c["label"], trial=t["trial"], key=t["key"])
+            for c in conds for t in c["trials"]], problems

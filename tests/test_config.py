@@ -49,7 +49,7 @@ def test_experiment_holds_the_papers_conditions(name):
         assert spec["learner"][k] == v, k
     growing = [t["spec"]["growth"] for t in trials if t["labels"]["growth"] != "none"]
     assert {(g["start_size"], g["end_size"]) for g in growing} == {(0.5, 1.0)}
-    refs = {t["labels"]["condition"]: t["spec"]["growth"] for t in trials
+    refs = {t["growth_label"]: t["spec"]["growth"] for t in trials
             if t["labels"]["growth"] == "none"}
     assert refs["const0.5"]["start_size"] == refs["const0.5"]["end_size"] == 0.5
     assert refs["const1.0"]["period"] == 0
@@ -57,7 +57,8 @@ def test_experiment_holds_the_papers_conditions(name):
     assert refs["const0.5"]["pattern"] == want["pattern"]
     assert cfg.paper.final_abs_error in (0.02, 0.006)
     for t in trials:
-        assert set(t) == {"labels", "spec", "seed", "code", "key"}
+        assert set(t) == {"labels", "spec", "seed", "code", "key", "figure", "condition",
+                          "growth_label", "variant"}
         assert set(t["labels"]) == {"figure", "body", "learner", "growth", "growth_period",
                                     "condition", "trial"}
         assert t["labels"]["figure"] == name and t["labels"]["learner"] == "goal_babbling"

@@ -39,11 +39,11 @@ def test_a_diverging_trial_is_a_result_named_with_its_epoch(tmp_path, compose_ti
     for error in s.failed.values():
         assert re.fullmatch(r"diverged: the error became (nan|inf|-inf) at epoch \d+", error), error
     assert any("diverged" in line and "epoch" in line for line in s.lines())
-    folder = Path(cfg.paths.cache) / "custom"
-    sides = [json.loads(p.read_text()) for p in folder.glob("*.json")]
+    folder = Path(cfg.paths.cache)
+    sides = [json.loads(p.read_text()) for p in (folder / "trials").rglob("*.json")]
     assert len(sides) == 2 and all(x["status"] == "diverged" for x in sides)
     assert all(isinstance(x["epoch"], int) and 1 <= x["epoch"] <= 30 for x in sides)
-    assert not list(folder.glob("*.parquet")) and not (folder / "failed").exists()
+    assert not list(folder.rglob("*.parquet")) and not (folder / "failed").exists()
     # a result: cached, not run again
     again = simulate.simulate(cfg)
     assert again.ran == 0 and again.cached == 2
@@ -118,8 +118,8 @@ def test_damaged_cache_files_are_named_and_recomputed_to_the_same_bytes(tmp_path
     simulate.simulate(clean)
     cfg = compose_tiny(tmp_path / "hurt", "experiment=fig4")
     simulate.simulate(cfg)
-    folder = Path(cfg.paths.cache) / "fig4"
-    curves = sorted(folder.glob("*.parquet"))
+    folder = Path(cfg.paths.cache) / "trials"
+    curves = sorted(folder.rglob("*.parquet"))
     assert len(curves) == 6
     sides = [c.with_suffix(".json") for c in curves]
     damage = {  # file -> new content
@@ -154,7 +154,8 @@ def test_damaged_cache_files_are_named_and_recomputed_to_the_same_bytes(tmp_path
 def test_a_damaged_plan_record_is_named_and_the_others_still_count(tmp_path, compose_tiny):
     cfg = compose_tiny(tmp_path, "experiment=fig4")
     simulate.simulate(cfg)
-    bad = Path(cfg.paths.cache) / "fig4" / "plans" / "0000000000000000.json"
+    group = json.loads((Path(cfg.paths.cache) / "plans/fig4/current.json").read_text())["group"]
+    bad = Path(cfg.paths.cache) / "plans/fig4" / group / "0000000000000000.json"
     bad.write_bytes(b'{"figure": "fig4", "whole": tr')
     problems = aggregate.aggregate(cfg)
     assert len(problems) == 1 and "plan record ignored" in problems[0] and bad.name in problems[0]

@@ -17,7 +17,7 @@ from pipeline import aggregate, cache, execute, io, report, simulate
 from pipeline.config import CONF_DIR, REPO_ROOT, compose
 from pipeline.plan import code_fingerprint
 from pipeline.report import listed_files
-from conftest import files_of, run_cli, tiny_overrides
+from conftest import figure_trials, files_of, run_cli, tiny_overrides
 
 EXPERIMENTS = sorted(p.stem for p in (CONF_DIR / "experiment").glob("*.yaml"))
 # The readings studies run here on the reference path (every reading, short, one growing
@@ -25,7 +25,8 @@ EXPERIMENTS = sorted(p.stem for p in (CONF_DIR / "experiment").glob("*.yaml"))
 READINGS = ("learner.fast=false", "learner.epochs=12", "learner.evals_per_decade=3",
             "conditions.periods=[10]")
 CURVE_STATS = [f"{c}_{s}" for c in ("abs_error", "rel_error") for s in ("mean", "std", "q25", "q75")]
-SIDECAR = {"key", "labels", "spec", "seed", "code", "status", "curve_sha256", "M", "snapshots"}
+SIDECAR = {"key", "labels", "spec", "seed", "code", "status", "curve_sha256", "M", "snapshots",
+           "seal"}
 
 
 def experiment_overrides(root, name):
@@ -50,9 +51,9 @@ def smoke_tree(tmp_path_factory):
 def test_every_experiment_runs(smoke_tree, name):
     _, cfg, summaries = smoke_tree
     s = summaries[name]
-    assert s.failed == {} and s.ran == s.total > 0
-    trials, _, problems = cache.figure_trials(cfg.paths.cache, compose([f"experiment={name}"]).figure)
-    assert len(trials) == s.total and problems == []
+    assert s.failed == {} and s.ran + s.cached == s.total > 0  # cached: shared with a figure before
+    trials, problems = figure_trials(cfg.paths.cache, compose([f"experiment={name}"]).figure)
+    assert len({t["key"] for t in trials}) == s.total and problems == []
 
 
 def test_aggregate_finds_every_trial(smoke_tree):
@@ -64,7 +65,7 @@ def test_trial_files_have_the_schema_and_sidecar(smoke_tree):
     curves = sorted(Path(cfg.paths.cache).rglob("*.parquet"))
     assert curves
     for path in curves:
-        assert pq.read_schema(path).equals(io.CURVE, check_metadata=False), path
+        assert pq.read_schema(path).equals(io.TRIAL_CURVE, check_metadata=False), path
         df = pq.read_table(path).to_pandas()
         assert df["epoch"].is_monotonic_increasing and (df["abs_error"] > 0).all()
         assert ((df["rel_error"] - df["abs_error"] / df["size"]).abs() < 1e-12).all()
@@ -73,8 +74,8 @@ def test_trial_files_have_the_schema_and_sidecar(smoke_tree):
         assert side["key"] == path.stem and side["code"]
         assert side["curve_sha256"] == io.sha256_file(path)
         assert "seconds" not in side  # timing varies from run to run; the sidecar's bytes do not
-        for col in io.LABEL_COLUMNS:
-            assert (df[col] == side["labels"][col]).all(), col
+        assert "figure" not in side and "condition" not in side["labels"]  # content only
+        assert side["seal"] == cache.seal(side)
         if side["spec"]["learner"]["name"] == "goal_babbling":  # M: (m, features)
             assert len(side["M"]) == gbmodel.make_body(**side["spec"]["body"]).m
 
@@ -170,7 +171,7 @@ def test_aggregate_reads_only_the_trials_of_the_newest_plan(tmp_path, compose_ti
     assert aggregate.aggregate(cfg) == []
     summ = pd.read_parquet(Path(cfg.paths.aggregate) / "fig4/summary.parquet")
     assert (summ["n_trials"] == 1).all() and len(summ) == 6
-    assert len(list((Path(cfg.paths.cache) / "fig4").glob("*.parquet"))) == 12
+    assert len(list((Path(cfg.paths.cache) / "trials").rglob("*.parquet"))) == 12
 
 
 def test_interrupted_run_resumes_to_the_same_files(tmp_path, compose_tiny, monkeypatch):
@@ -222,11 +223,11 @@ def test_a_failing_trial_is_recorded_and_the_others_finish(tmp_path, compose_tin
     s = simulate.simulate(cfg)
     assert len(s.failed) == 2 and s.ran == 4
     assert all("FloatingPointError: boom" in e for e in s.failed.values())
-    folder = tmp_path / "outputs/smoke/cache/custom"
+    folder = tmp_path / "outputs/smoke/cache"
     failed = [json.loads(p.read_text()) for p in sorted((folder / "failed").glob("*.json"))]
     assert sorted(f["key"] for f in failed) == sorted(s.failed)
-    assert {f["labels"]["condition"] for f in failed} == {"TG100"}
-    assert len(list(folder.glob("*.parquet"))) == 2
+    assert {f["labels"]["growth_period"] for f in failed} == {100}
+    assert len(list(folder.rglob("*.parquet"))) == 2
     problems = aggregate.aggregate(cfg)
     assert sorted(problems) == [f"[custom] TG100 trial {i}: not computed (run pipeline.simulate)"
                                 for i in (0, 1)]
@@ -266,8 +267,8 @@ def test_hydra_multirun_fills_one_cache_that_aggregate_and_report_read(tmp_path)
              "learner.epochs=20", "workers=1", "report.explain=false", f"paths.root={tmp_path}"]
     r = run_cli("pipeline.simulate", *sweep)
     assert r.returncode == 0, r.stderr
-    trials, _, problems = cache.figure_trials(tmp_path / "outputs/cache", "custom")
-    assert sorted({t["labels"]["condition"] for t in trials}) == ["TG10", "TG100"]
+    trials, problems = figure_trials(tmp_path / "outputs/cache", "custom")
+    assert sorted({t["condition"] for t in trials}) == ["TG10", "TG100"]
     assert len(trials) == 4 and problems == []
     # again, through the joblib launcher: everything is cached already
     r = run_cli("pipeline.simulate", *sweep, "hydra/launcher=joblib", "hydra.launcher.n_jobs=2")

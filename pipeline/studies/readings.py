@@ -23,25 +23,9 @@ STUDIES = {"readings_fig4": "fig4", "readings_fig5": "fig5", "readings_fig7": "f
 
 def weight_sum(body: str, params: dict, seeds=(0, 1, 2), epochs: int = 20_000,
                probe: int = 50) -> float:
-    """W: the median sum of weights per epoch at full size after `epochs` epochs of the
-    normalised step (3 seeds, `probe` epochs each). The plain step's rate is 1 / W, which makes
-    it equal to the normalised step at rate 1 at full-size convergence (the rule of the study,
-    fixed before its runs: arm5 W = 1142, iCub W = 1791, arm2 W = 1931)."""
-    sums = []
-    params = {**params, "step": "normalised", "learning_rate": 1.0}
-    for seed in seeds:
-        spec = gbmodel.TrialSpec(body={"name": body}, learner={"name": "goal_babbling", **params},
-                                 epochs=epochs)
-        M = gbmodel.run_trial(spec, np.random.default_rng(seed)).M
-        b, p = spec.make_body(), gb.Params(**params)
-        rng = np.random.default_rng(1000 + seed)
-        idx, raw = gb.draw(p, b, probe, rng)
-        exps = gbmodel.exponents(b.n, p.degree)
-        for e in range(probe):
-            _, (_, _, _, w) = reference.epoch(M, b, 1.0, np.ones(b.m), exps, idx[e], raw[e],
-                                              p.radius, p.steps, 0.0)
-            sums.append(float(w.sum()))
-    return float(np.median(sums))
+    """W of the plain step's rule (gbmodel.learners.goal_babbling.weight_sum; arm5 W = 1142,
+    iCub W = 1791, arm2 W = 1931 when the rates were fixed)."""
+    return gb.weight_sum({"name": body}, params, seeds, epochs, probe)
 
 
 def split(agg: dict) -> dict:

@@ -27,12 +27,17 @@ class Params:
     # eta of the gradient step on eq. 6 (reference.gradient_step); the paper gives none. The
     # plain step's rule, fixed before its runs: eta = 1 / W, W the median sum of the weights per
     # epoch at full size after 20,000 epochs of the normalised step at eta = 1.0, so that both
-    # steps agree at full-size convergence (pipeline/readings.py: weight_sum); arm5 W = 1142, so
+    # steps agree at full-size convergence (pipeline/studies/readings.py: weight_sum); arm5 W = 1142, so
     # eta = 1 / 1142; the iCub's (1 / 1791) and the 2-DOF arm's (1 / 1931) come with the body
     # (conf/body_learner). Recomputed with today's kernel W is 1173 (arm5) and 1782 (iCub): the
     # rates were kept as fixed before the runs. Measured alternatives (0.5 to 2 / W, the
     # normalised step): conf/experiment/choices_*.yaml (outputs/report/choices.md).
     learning_rate: float = 0.000876
+    # the samples per epoch, V (K L + 1), at which learning_rate was fixed (the paper's arm
+    # settings: 20 (15 x 7 + 1) = 2120). The plain step sums over the samples, so its effective
+    # rate is learning_rate x rate_samples / V (K L + 1): a sweep over V, K or L keeps the step per
+    # sample, instead of secretly sweeping the step size. null: learning_rate as it is.
+    rate_samples: int | None = 2120
     init_range: float = 0.1  # |g(x) - home| bound at initialisation (sec. 3: "0.1 radian")
     degree: int = 3  # P, polynomial degree of the features (eq. 7)
     fast: bool = True  # the compiled kernel (fast.py); False: the numpy reference path
@@ -44,7 +49,7 @@ class Params:
     # the rate over the epochs: constant (the paper's), or annealed, eta tau / (tau + e - 1) in
     # epoch e with tau = anneal_epochs (not the paper's). tau = 10,000: eta / 11 at the end of a
     # 100,000-epoch run, near the tenth at which continuing the iCub's models lowered the error
-    # (pipeline/explain.py: continuation)
+    # (pipeline/studies/explain.py: continuation)
     rate_schedule: str = "constant"
     anneal_epochs: float = 10000.0
     # successive path targets: distinct (each differs from the one before) or any (uniform
@@ -55,6 +60,8 @@ class Params:
         for name in ("variations", "targets_per_epoch", "steps", "degree"):
             check_int(f"learner.{name}", getattr(self, name), 1)
         check_number("learner.learning_rate", self.learning_rate, 0.0, strict=True)
+        if self.rate_samples is not None:
+            check_int("learner.rate_samples", self.rate_samples, 1)
         for name in ("radius", "init_range"):
             check_number(f"learner.{name}", getattr(self, name), 0.0)
         if not isinstance(self.fast, bool):
@@ -68,13 +75,22 @@ class Params:
         check_choice("learner.targets", self.targets, ("distinct", "any"))
         return self
 
+    def rate(self) -> float:
+        """eta of the plain step at these V, K, L: learning_rate scaled by rate_samples / the
+        samples per epoch (exactly learning_rate at the samples it was fixed for). The normalised
+        step divides by the sum of the weights, so it takes learning_rate as it is."""
+        if self.rate_samples is None or self.step == "normalised":
+            return self.learning_rate
+        samples = self.variations * (self.targets_per_epoch * self.steps + 1)
+        return self.learning_rate * (self.rate_samples / samples)
+
     def rates(self, epochs) -> np.ndarray:
         """eta in each of the (1-based) epochs."""
         e = np.asarray(epochs, dtype=np.float64)
         if self.rate_schedule == "constant":
-            return np.full(e.shape, self.learning_rate)
+            return np.full(e.shape, self.rate())
         tau = self.anneal_epochs
-        return self.learning_rate * tau / (tau + e - 1.0)
+        return self.rate() * tau / (tau + e - 1.0)
 
 
 def _exps(params, body):
@@ -140,3 +156,27 @@ def samples_per_epoch(params: Params, body) -> int:
     """V rollouts of K L path targets plus the home example each."""
     return params.variations * (params.targets_per_epoch * params.steps + 1)
 
+
+
+def weight_sum(body, params: dict, seeds=(0, 1, 2), epochs: int = 20_000, probe: int = 50) -> float:
+    """W, the rule that fixed the plain step's rates (eta = 1 / W): the median sum of the weights
+    per epoch at full size after `epochs` epochs of the normalised step at rate 1.0 (one trial per
+    seed, then `probe` epochs each of new draws, not learned from). It makes the plain step equal
+    to the normalised one at full-size convergence. body: a body description (make_body);
+    params: this learner's Params fields (V, R, K, L ...). `python -m pipeline.rate` prints it."""
+    from ...trial import TrialSpec, run_trial
+
+    params = {**params, "step": "normalised", "learning_rate": 1.0}
+    sums = []
+    for seed in seeds:
+        spec = TrialSpec(body=body, learner={"name": "goal_babbling", **params}, epochs=epochs)
+        M = run_trial(spec, np.random.default_rng(seed)).M
+        b, p = spec.make_body(), Params(**params)
+        rng = np.random.default_rng(1000 + seed)
+        idx, raw = draw(p, b, probe, rng)[:2]
+        exps = _exps(p, b)
+        for e in range(probe):
+            _, (_, _, _, w) = reference.epoch(M, b, 1.0, np.ones(b.m), exps, idx[e], raw[e],
+                                              p.radius, p.steps, 0.0)
+            sums.append(float(w.sum()))
+    return float(np.median(sums))
