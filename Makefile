@@ -42,16 +42,16 @@ smoke: ## the same at smoke scale (1000 epochs, 2 trials) into outputs/smoke/lat
 
 pipeline: simulate aggregate report
 
-simulate: $(STAMP) ## stage 1: run the trials of FIGURES that are not cached (PROFILE, ARGS)
-	@rc=0; for f in $(FIGURES); do \
-	  $(PY) -m pipeline.simulate experiment=$$f profile=$(PROFILE) $(ARGS) || rc=1; \
-	done; exit $$rc
+EXPS     = 'experiments=[$(shell echo $(FIGURES) | tr ' ' ',')]'
 
-aggregate: $(STAMP) ## stage 2: the cache into curves.parquet and summaries per figure
-	$(PY) -m pipeline.aggregate profile=$(PROFILE) $(ARGS)
+simulate: $(STAMP) ## stage 1: run the trials of FIGURES that are not cached, in one process (PROFILE, ARGS)
+	$(PY) -m pipeline.simulate $(EXPS) profile=$(PROFILE) $(ARGS)
+
+aggregate: $(STAMP) ## stage 2: the cache into curves.parquet and summaries per figure (changed figures only)
+	$(PY) -m pipeline.aggregate $(EXPS) profile=$(PROFILE) $(ARGS)
 
 report: $(STAMP) ## stage 3: figures, tables and report.md (outputs/latest/; make reproduce: outputs/report/)
-	$(PY) -m pipeline.report profile=$(PROFILE) $(PUBLISH) $(ARGS)
+	$(PY) -m pipeline.report $(EXPS) profile=$(PROFILE) $(PUBLISH) $(ARGS)
 
 choices: ## the open-choices experiments only (choices_*), then aggregate and report
 	@$(MAKE) --no-print-directory pipeline FIGURES="$(CHOICES)"

@@ -15,7 +15,7 @@ import sys
 from hydra.core.override_parser.overrides_parser import OverridesParser
 
 from .config import ConfigError, compose
-from .plan import plan
+from .plan import condition_labels, plan, plan_conditions
 
 # Hydra's command-line flags that take a value as the next argument
 _FLAGS_WITH_VALUE = {"--cfg", "-c", "--config-path", "-cp", "--config-name", "-cn",
@@ -73,14 +73,44 @@ def check(argv: list[str]) -> str | None:
             choices.append([f"{o.get_key_element()}={v}" for v in o.sweep_string_iterator()])
         else:
             choices.append([o.input_line])
+    planned = {}
     for combination in itertools.islice(itertools.product(*choices), _MAX_COMBINATIONS):
-        try:
-            plan(compose(list(combination)))  # values too: every sweep job is checked up front
+        try:  # values too: every sweep job is checked up front
+            cfg = compose(list(combination))
+            trials = plan(cfg)
+            keeps_experiment(list(combination), trials)
+            planned.setdefault(cfg.figure, []).extend(trials)
         except ConfigError as err:
             return str(err)
         except Exception as err:
             return _one_line(err)
+    try:
+        for trials in planned.values():  # a sweep's jobs make one figure: their labels must differ
+            condition_labels(plan_conditions(trials))
+    except ConfigError as err:
+        return str(err)
     return None
+
+
+# Overrides that leave an experiment's conditions as they are (where, how and how many)
+_KEEPS_CONDITIONS = ("profile", "paths.", "workers", "executor", "trials.count", "report.",
+                     "aggregate.", "bench.", "experiments")
+
+
+def keeps_experiment(overrides: list[str], trials: list[dict]) -> None:
+    """ConfigError when `experiment=E` with other settings would replace E's figure: the run
+    must then name its own figure (figure=NAME), so that E's stays as the experiment made it."""
+    keys = {o.lstrip("+~").split("=", 1)[0]: o for o in overrides}
+    if "experiment" not in keys or "figure" in keys or not trials:
+        return
+    own = [o for k, o in keys.items() if k == "experiment" or k.startswith(_KEEPS_CONDITIONS)]
+    if {t["condition"] for t in plan(compose(own))} == {t["condition"] for t in trials}:
+        return
+    changed = " ".join(o for k, o in keys.items() if o not in own)
+    figure = trials[0]["figure"]
+    raise ConfigError(f"{keys['experiment']} with {changed} would replace figure {figure} (the "
+                      f"experiment's own settings) with other settings; name this run: "
+                      f"figure={figure}_custom (any plain name)")
 
 
 def hydra_run() -> tuple[list[str], str | None, int]:

@@ -217,25 +217,32 @@ def test_every_output_path_that_is_a_file_is_refused(key):
         plan(compose([f"paths.{key}=/etc/passwd"]))
 
 
-def test_an_experiment_with_another_body_on_the_command_line_runs_that_body():
-    """Documented behaviour: `experiment=fig4 body=icub` is accepted; the command line's body
-    wins over the experiment's (and brings its learner settings), while the figure keeps the
-    experiment's name, so its trials are iCub trials filed as fig4 (their keys differ from the
-    paper's fig4, so report.publish would refuse such a figure)."""
-    overrides = ["experiment=fig4", "body=icub"]
+def test_an_experiment_with_another_body_must_name_its_own_figure(tmp_path):
+    """`experiment=fig4 body=icub` would replace the arm5 Fig. 4 with iCub trials (and judge
+    them by the 2 cm claim): refused in one line naming both, nothing written; with a figure
+    name of its own it runs that body, with the iCub's learner settings."""
+    r = run_cli("pipeline.simulate", "experiment=fig4", "body=icub", f"paths.root={tmp_path}")
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1, r.stderr
+    assert "experiment=fig4 with body=icub would replace figure fig4" in lines[0]
+    assert "figure=" in lines[0] and not list(tmp_path.rglob("*"))
+    overrides = ["experiment=fig4", "body=icub", "figure=fig4_icub"]
     assert cli.check(overrides) is None
     cfg = compose(overrides)
-    assert cfg.body.name == "icub" and cfg.figure == "fig4"
+    assert cfg.body.name == "icub" and cfg.figure == "fig4_icub"
     assert cfg.learner.radius == 0.1 and cfg.learner.targets_per_epoch == 30
     trials = plan(cfg)
     assert {t["spec"]["body"]["name"] for t in trials} == {"icub"}
     assert not {t["key"] for t in trials} & {t["key"] for t in plan(compose(["experiment=fig4"]))}
+    # what leaves the experiment's conditions as they are is no replacement
+    assert cli.check(["experiment=fig7", "trials.count=2", "profile=smoke", "workers=1"]) is None
 
 
 # ---- 5. two runs on one cache ------------------------------------------------------------------
 def test_two_simulate_runs_at_once_compute_each_trial_once(tmp_path):
     args = tiny_overrides(tmp_path, "experiment=fig7", "learner.epochs=4000", "trials.count=2",
-                          "conditions.periods=[100]", "conditions.references=[1.0]")
+                          "conditions.periods=[100]", "conditions.references=[1.0]",
+                          "figure=fig7_short")
     env = dict(os.environ, PYTHONPATH=str(REPO_ROOT))
     procs = [subprocess.Popen([sys.executable, "-m", "pipeline.simulate", *args], cwd="/",
                               env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
