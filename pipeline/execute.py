@@ -20,10 +20,19 @@ def _ignore_sigint():
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
+def in_launcher_worker() -> bool:
+    """True in a process that a launcher's pool started (joblib's loky workers under
+    `hydra/launcher=joblib`): the launcher runs the jobs in parallel already, and such a worker
+    cannot start a pool of its own (its start method, `loky`, is unknown to its children), so its
+    trials run one after the other in it."""
+    return multiprocessing.parent_process() is not None or \
+        multiprocessing.get_start_method(allow_none=True) not in (None, "spawn", "fork", "forkserver")
+
+
 def local(todo: list[dict], workers: int, fn=run_one):
     """Yield (trial, fn(trial)) as trials finish, on `workers` spawned processes (in this
     process when one worker suffices). `todo` is run in its order (longest first)."""
-    if workers == 1 or len(todo) <= 1:
+    if workers == 1 or len(todo) <= 1 or in_launcher_worker():
         for t in todo:
             yield t, fn(t)
         return
