@@ -163,8 +163,9 @@ def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = Non
         claims[t["key"]].release()
         mine.remove(t)
         summary.cached += 1
+    workers = 1 if execute.in_launcher_worker() else min(cfg.workers, max(len(mine), 1))
     log.info("[%s] %d trials: %d cached, %d to run on %d worker(s)%s", figure, len(trials),
-             summary.cached, len(mine), min(cfg.workers, max(len(mine), 1)),
+             summary.cached, len(mine), workers,
              f", {len(elsewhere)} being computed by another run" if elsewhere else "")
     progress = Progress(summary, todo)
     try:

@@ -58,6 +58,17 @@ def test_labels_name_only_what_differs_and_a_shared_label_is_an_error():
         condition_labels([a, b])
 
 
+def test_a_new_run_of_the_same_figure_says_what_it_replaces(tmp_path, compose_tiny, capsys):
+    simulate.simulate(compose_tiny(tmp_path, "growth=none"))
+    capsys.readouterr()
+    simulate.simulate(compose_tiny(tmp_path, "growth=none"))  # the same run: nothing replaced
+    assert "replaces" not in capsys.readouterr().err
+    simulate.simulate(compose_tiny(tmp_path, "growth=none", "learner.radius=0.3"))
+    err = capsys.readouterr().err
+    assert "[custom] now the 1 condition(s) of this run; it replaces an earlier run's 1" in err
+    assert "figure=NAME" in err
+
+
 # ---- 2. the trial key is the trial's content ---------------------------------------------------
 def test_the_same_trial_under_two_figures_is_computed_once(tmp_path, compose_tiny):
     first = simulate.simulate(compose_tiny(tmp_path, "growth=none", "figure=mine"))
