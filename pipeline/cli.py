@@ -8,12 +8,15 @@ one line, `error: ...`, with exit status 2, before Hydra or the stage has writte
 """
 from __future__ import annotations
 
+import errno
 import itertools
 import re
 import sys
 
 from hydra.core.override_parser.overrides_parser import OverridesParser
 
+from . import execute, stop
+from .io import DamagedFile
 from .config import ConfigError, compose
 from .plan import plan
 
@@ -83,28 +86,56 @@ def check(argv: list[str]) -> str | None:
     return None
 
 
+# what a full disk, a read-only folder or a missing permission raise: a fault of the place, named
+DISK_ERRNOS = (errno.ENOSPC, errno.EROFS, errno.EACCES, errno.EPERM, errno.EDQUOT)
+
+
 def finish(run, cfg) -> None:
     """Run a stage on its composed config and exit with its status. What every stage can meet
-    is one line: a bad value (ConfigError) or missing input (FileNotFoundError) exits 2, Ctrl-C
-    exits 130 (finished trials are cached, so the same command resumes)."""
-    try:
-        rc = run(cfg)
-    except (ConfigError, FileNotFoundError, NotADirectoryError) as err:
-        print(f"error: {err}", file=sys.stderr)
-        rc = 2
-    except MemoryError:
-        print("error: out of memory; run fewer workers or shorter trials", file=sys.stderr)
-        rc = 2
-    except KeyboardInterrupt:
-        print("interrupted: finished work is cached; run the same command again to resume",
-              file=sys.stderr)
-        rc = 130
+    is one line: a bad value (ConfigError), missing or damaged input (FileNotFoundError,
+    ValueError from pipeline.io's readers) or a full, read-only or forbidden folder (OSError)
+    exits 2; Ctrl-C, SIGTERM and SIGHUP stop the workers, release the claims (the stage's
+    `finally`) and exit 130, 143, 129 (finished trials are cached: the same command resumes)."""
+    with stop.armed():
+        try:
+            rc = run(cfg)
+        except (ConfigError, FileNotFoundError, NotADirectoryError) as err:
+            print(f"error: {err}", file=sys.stderr)
+            rc = 2
+        except DamagedFile as err:  # a damaged file, named by the reader
+            print(f"error: {err}", file=sys.stderr)
+            rc = 2
+        except OSError as err:
+            if err.errno not in DISK_ERRNOS:
+                raise
+            print(f"error: {disk_message(err)}", file=sys.stderr)
+            rc = 2
+        except MemoryError:
+            print("error: out of memory; run fewer workers or shorter trials", file=sys.stderr)
+            rc = 2
+        except KeyboardInterrupt as err:
+            execute.stop_pools()
+            how = "interrupted" if not isinstance(err, stop.Stopped) else f"stopped by {err}"
+            print(f"{how}: finished work is cached; run the same command again to resume",
+                  file=sys.stderr, flush=True)
+            rc = stop.exit_status(err)
     if rc:
         sys.exit(rc)
 
 
+def disk_message(err: OSError) -> str:
+    """One line for an OSError of the file system, naming the path."""
+    where = err.filename if err.filename is not None else "a file"
+    why = {errno.ENOSPC: "no space left on the device", errno.EDQUOT: "disk quota exceeded",
+           errno.EROFS: "read-only file system", errno.EACCES: "permission denied",
+           errno.EPERM: "operation not permitted"}[err.errno]
+    return f"{where}: {why}; free space or choose a writable paths.root"
+
+
 def main(hydra_main) -> None:
-    """Run a stage's @hydra.main function after checking its command line."""
+    """Run a stage's @hydra.main function after checking its command line. A signal before the
+    stage runs ends the process with one line (pipeline.stop)."""
+    stop.install()
     problem = check(sys.argv[1:])
     if problem is not None:
         print(f"error: {problem}", file=sys.stderr)

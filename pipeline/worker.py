@@ -3,7 +3,9 @@ with one BLAS/OpenMP/numba thread. The executor (pipeline.execute) and the clust
 (pipeline.backends) both import it; it imports neither."""
 from __future__ import annotations
 
+import ctypes
 import os
+import signal
 import time
 import traceback
 from contextlib import contextmanager
@@ -44,6 +46,24 @@ def run_one(trial: dict) -> dict:
                    traceback=traceback.format_exc())
     out["key"], out["seconds"] = trial["key"], time.perf_counter() - start
     return out
+
+
+PR_SET_PDEATHSIG = 1  # linux/prctl.h
+
+
+def quiet_worker(parent: int | None = None) -> None:
+    """A pool worker's start: Ctrl-C, SIGTERM and SIGHUP are left to the driver, which stops every
+    worker at once (pipeline.execute.stop_pools); and on Linux the kernel kills the worker if the
+    driver dies without doing so (kill -9), so no worker waits forever for work."""
+    for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(s, signal.SIG_IGN)
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+    except (OSError, AttributeError):  # not Linux: the driver's stop_pools still stops us
+        return
+    if parent is not None and os.getppid() != parent:  # it died before prctl took effect
+        os._exit(1)
 
 
 @contextmanager
