@@ -17,7 +17,8 @@ from hydra.core.override_parser.overrides_parser import OverridesParser
 
 from . import execute, stop
 from .io import DamagedFile
-from .config import ConfigError, compose
+from .config import (ConfigError, check_keys, check_limits, check_names, check_root,
+                     check_stamp, compose)
 from .plan import plan
 
 # Hydra's command-line flags that take a value as the next argument
@@ -61,8 +62,14 @@ def _one_line(err: BaseException) -> str:
 
 def check(argv: list[str]) -> str | None:
     """None when every configuration of the command line composes, else one line saying why."""
+    overrides = _overrides(argv)
+    for o in overrides:
+        if not o.isascii() and "LexerNoViableAlt" in (_parse_error(o) or ""):
+            key = o.split("=", 1)[0]
+            return (f"{o}: Hydra reads characters beyond ASCII only inside quotes; write "
+                    f"'{key}=\"{o.split('=', 1)[-1]}\"'")
     try:
-        parsed = OverridesParser.create().parse_overrides(_overrides(argv))
+        parsed = OverridesParser.create().parse_overrides(overrides)
     except Exception as err:  # a syntax error in an override
         return _one_line(err)
     multirun = "-m" in argv or "--multirun" in argv
@@ -76,13 +83,30 @@ def check(argv: list[str]) -> str | None:
             choices.append([f"{o.get_key_element()}={v}" for v in o.sweep_string_iterator()])
         else:
             choices.append([o.input_line])
+    notes = []
     for combination in itertools.islice(itertools.product(*choices), _MAX_COMBINATIONS):
         try:
-            plan(compose(list(combination)))  # values too: every sweep job is checked up front
+            cfg = compose(list(combination))
+            check_keys(cfg)
+            check_root(cfg)
+            check_names(cfg)
+            check_stamp(cfg)
+            notes += [n for n in check_limits(cfg) if n not in notes]  # before planning
+            plan(cfg)  # values too: every sweep job is checked up front
         except ConfigError as err:
             return str(err)
         except Exception as err:
             return _one_line(err)
+    for note in notes:
+        print(note, file=sys.stderr)
+    return None
+
+
+def _parse_error(override: str) -> str | None:
+    try:
+        OverridesParser.create().parse_overrides([override])
+    except Exception as err:
+        return type(err.__cause__ or err).__name__ + str(err)
     return None
 
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import sys
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
 from .worker import THREAD_VARS, quiet_worker, run_one, single_threaded_children  # noqa: F401
@@ -33,15 +34,35 @@ def _stop(pool) -> None:
     _POOLS.discard(pool)
 
 
+def cpus() -> int:
+    """The CPUs this process may run on (its affinity mask: a cluster job's share)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
+
+
+def capped(workers: int, trials: int) -> int:
+    """Local workers: at most one per trial and one per CPU (more would only share the CPUs and
+    cost each worker's memory); a note says so when the CPUs cap what was asked."""
+    n = max(1, min(workers, trials))
+    if n > cpus():
+        print(f"note: workers={workers}: this machine has {cpus()} CPUs; running {cpus()} "
+              "workers", file=sys.stderr)
+        n = cpus()
+    return n
+
+
 def local(todo: list[dict], workers: int, fn=run_one):
-    """Yield (trial, fn(trial)) as trials finish, on `workers` spawned processes (in this
-    process when one worker suffices). `todo` is run in its order (longest first)."""
+    """Yield (trial, fn(trial)) as trials finish, on `workers` spawned processes (at most one per
+    CPU; in this process when one worker suffices). `todo` is run in its order (longest first)."""
+    workers = capped(workers, len(todo))
     if workers == 1 or len(todo) <= 1:
         for t in todo:
             yield t, fn(t)
         return
     with single_threaded_children():
-        pool = ProcessPoolExecutor(min(workers, len(todo)),
+        pool = ProcessPoolExecutor(workers,
                                    mp_context=multiprocessing.get_context("spawn"),
                                    initializer=quiet_worker, initargs=(os.getpid(),))
     _POOLS.add(pool)
