@@ -221,9 +221,9 @@ MAX_EPOCHS = 10**9  # learner.epochs: a trial's memory does not grow with them, 
 MAX_INT64 = 2**63 - 1  # growth periods are stored as int64 (the curve table's growth_period)
 
 
-def _too_big(key, value, limit, unit):
+def _too_big(key, value, limit, unit, shown=None):
     if isinstance(value, int) and not isinstance(value, bool) and value > limit:
-        raise ConfigError(f"{key}={value!r}: at most {limit:,} {unit}")
+        raise ConfigError(f"{key}={value!r}: at most {shown or f'{limit:,}'} {unit}")
 
 
 def check_limits(cfg) -> list[str]:
@@ -231,7 +231,8 @@ def check_limits(cfg) -> list[str]:
     before a trial is planned: the trial count, the epochs, growth periods beyond int64, and the
     whole run's size. Returns notes about legitimate but unusual values (a shrinking body)."""
     _too_big("trials.count", cfg.trials.count, MAX_TRIALS, "trials per condition")
-    _too_big("learner.epochs", cfg.learner.epochs, MAX_EPOCHS, "epochs per trial")
+    _too_big("learner.epochs", cfg.learner.epochs, MAX_EPOCHS, "epochs per trial",
+             f"{MAX_EPOCHS:.0e}")
     growth = cfg.growth
     _too_big("growth.period", growth.get("period"), MAX_INT64, "epochs (int64)")
     for p in cfg.conditions.periods:

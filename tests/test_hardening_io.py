@@ -71,7 +71,7 @@ def test_stamping_the_findings_needs_the_publishing_run(tmp_path):
 # ---- limits before planning ---------------------------------------------------------------------
 @pytest.mark.parametrize("override, shown", [
     ("trials.count=100000000", "trials.count=100000000: at most 10,000 trials per condition"),
-    ("learner.epochs=10000000000", "learner.epochs=10000000000: at most 1,000,000,000 epochs"),
+    ("learner.epochs=10000000000", "learner.epochs=10000000000: at most 1e+09 epochs per trial"),
     ("growth.period=99999999999999999999999999", "growth.period=99999999999999999999999999: at "
                                                  "most 9,223,372,036,854,775,807 epochs (int64)"),
     ("+foo=1", "foo: not a config key"),
