@@ -14,6 +14,8 @@ import numpy as np
 
 import gbmodel
 
+from .warm import recovering
+
 THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
                "NUMBA_NUM_THREADS", "VECLIB_MAXIMUM_THREADS")
 
@@ -35,7 +37,8 @@ def run_one(trial: dict) -> dict:
         spec = gbmodel.TrialSpec.from_dict(trial["spec"])
         seed = np.random.SeedSequence(trial["seed"]["entropy"],
                                       spawn_key=tuple(trial["seed"]["spawn_key"]))
-        res = gbmodel.run_trial(spec, np.random.default_rng(seed))
+        # a damaged numba cache is removed and the trial run again, from the same seed
+        res = recovering(lambda: gbmodel.run_trial(spec, np.random.default_rng(seed)))
         out = dict(status="ok", epoch=res.epoch, samples=res.epoch * res.samples_per_epoch,
                    size=res.size, abs_error=res.abs_error, rel_error=res.rel_error, M=res.M,
                    snapshots=res.snapshots, largest_jump=res.largest_jump)
