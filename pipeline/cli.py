@@ -16,7 +16,8 @@ import sys
 from hydra.core.override_parser.overrides_parser import OverridesParser
 
 from . import execute, stop
-from .io import DamagedFile
+from .fingerprint import CodeChanged
+from .io import BadInput
 from .config import (ConfigError, check_keys, check_limits, check_names, check_root,
                      check_stamp, compose)
 from .plan import plan
@@ -117,8 +118,8 @@ DISK_ERRNOS = (errno.ENOSPC, errno.EROFS, errno.EACCES, errno.EPERM, errno.EDQUO
 def finish(run, cfg) -> None:
     """Run a stage on its composed config and exit with its status. What every stage can meet
     is one line: a bad value (ConfigError), missing or damaged input (FileNotFoundError,
-    ValueError from pipeline.io's readers) or a full, read-only or forbidden folder (OSError)
-    exits 2; Ctrl-C, SIGTERM and SIGHUP stop the workers, release the claims (the stage's
+    pipeline.io's BadInput: DamagedFile, UnsafeName), gbmodel code edited since the import
+    (CodeChanged) or a full, read-only or forbidden folder (OSError) exits 2; Ctrl-C, SIGTERM and SIGHUP stop the workers, release the claims (the stage's
     `finally`) and exit 130, 143, 129 (finished trials are cached: the same command resumes)."""
     with stop.armed():
         try:
@@ -126,7 +127,7 @@ def finish(run, cfg) -> None:
         except (ConfigError, FileNotFoundError, NotADirectoryError) as err:
             print(f"error: {err}", file=sys.stderr)
             rc = 2
-        except DamagedFile as err:  # a damaged file, named by the reader
+        except (BadInput, CodeChanged) as err:  # a damaged file or unsafe name; edited code
             print(f"error: {err}", file=sys.stderr)
             rc = 2
         except OSError as err:

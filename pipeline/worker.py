@@ -27,7 +27,7 @@ def run_one(trial: dict) -> dict:
     epoch), or failed (an exception; not cached, so the next run tries again)."""
     start = time.perf_counter()
     try:
-        from .plan import code_fingerprint
+        from .fingerprint import code_fingerprint
 
         mine = code_fingerprint(trial["spec"]["learner"]["name"])
         if trial.get("code", mine) != mine:  # code changed since the plan, or another node's
