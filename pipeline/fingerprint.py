@@ -47,13 +47,14 @@ def source_fingerprint(sources) -> str:
     return h.hexdigest()[:16]
 
 
-def _codes(code) -> dict:
-    """Every code object in `code` (a compiled module), by qualified name."""
-    out = {}
+def _codes(code, out=None) -> dict:
+    """Every code object in `code` (a compiled module), by qualified name (several lambdas of
+    one scope share theirs)."""
+    out = {} if out is None else out
     for const in code.co_consts:
         if inspect.iscode(const):
-            out[const.co_qualname] = const
-            out.update(_codes(const))
+            out.setdefault(const.co_qualname, []).append(const)
+            _codes(const, out)
     return out
 
 
@@ -93,7 +94,7 @@ def as_imported(path: Path, text: str) -> str:
         return text
     compiled = _codes(compile(text, str(path), "exec"))
     for code in _live_codes(module, path):
-        if compiled.get(code.co_qualname) != code:
+        if code not in compiled.get(code.co_qualname, ()):
             raise CodeChanged(f"{path}: changed since this process imported it ({code.co_qualname} "
                               "differs); run the command again")
     return text
