@@ -107,8 +107,8 @@ def _named(err: OSError, path: Path) -> OSError:
 
 
 @contextmanager
-def atomic_file(path):
-    """Yield a binary file object open on a new temporary file beside `path`; rename it onto
+def _atomic(path):
+    """Yield (temporary path, open descriptor) of a new file beside `path`; rename it onto
     `path` if the block succeeds, else delete it. OSError (a full disk, a read-only folder)
     names `path`."""
     path = Path(path)
@@ -116,8 +116,7 @@ def atomic_file(path):
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp, fd = _exclusive(path)
-        with os.fdopen(fd, "wb") as fh:
-            yield fh
+        yield tmp, fd
         os.replace(tmp, path)
     except OSError as err:
         raise _named(err, path) from None
@@ -127,22 +126,20 @@ def atomic_file(path):
 
 
 @contextmanager
+def atomic_file(path):
+    """Yield a binary file object on a new temporary file beside `path`, renamed onto `path` if
+    the block succeeds (else deleted)."""
+    with _atomic(path) as (_, fd), os.fdopen(fd, "wb") as fh:
+        yield fh
+
+
+@contextmanager
 def atomic_path(path):
     """Yield the path of a new, empty temporary file beside `path` (created exclusively) for a
-    writer that wants a file name (matplotlib); rename it onto `path` if the block succeeds."""
-    path = Path(path)
-    tmp = None
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp, fd = _exclusive(path)
+    writer that wants a file name (matplotlib); renamed onto `path` if the block succeeds."""
+    with _atomic(path) as (tmp, fd):
         os.close(fd)
         yield tmp
-        os.replace(tmp, path)
-    except OSError as err:
-        raise _named(err, path) from None
-    finally:
-        if tmp is not None:
-            tmp.unlink(missing_ok=True)
 
 
 def write_text(path, text: str) -> None:

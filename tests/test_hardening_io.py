@@ -191,9 +191,14 @@ def test_finish_turns_damage_a_full_disk_and_a_read_only_folder_into_one_line(ca
     def full(cfg):
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), "/data/out/a.parquet")
 
+    def read_only(cfg):
+        raise OSError(errno.EROFS, os.strerror(errno.EROFS), "/data/out/plans/1.json")
+
     for run, shown in [(damaged, "error: x.json: damaged\n"),
                        (full, "error: /data/out/a.parquet: no space left on the device; free "
-                              "space or choose a writable paths.root\n")]:
+                              "space or choose a writable paths.root\n"),
+                       (read_only, "error: /data/out/plans/1.json: read-only file system; free "
+                                   "space or choose a writable paths.root\n")]:
         with pytest.raises(SystemExit) as ex:
             cli.finish(run, None)
         assert ex.value.code == 2 and capsys.readouterr().err == shown

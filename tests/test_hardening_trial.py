@@ -1,7 +1,6 @@
 """A trial's memory does not grow with its epochs (sizes and scales are built per block of
 DRAW_BLOCK epochs), and building them per block gives the same bytes as for every epoch at once."""
 import tracemalloc
-import types
 
 import numpy as np
 import pytest
@@ -9,28 +8,14 @@ import pytest
 import gbmodel
 import gbmodel.learners
 from gbmodel.trial import DRAW_BLOCK
+from test_architecture import stay_home_module
 
 
 @pytest.fixture
 def stay_home(monkeypatch):
     """A learner that never learns, so that the trial loop's own memory is what is measured."""
     monkeypatch.setattr(gbmodel.learners, "_REGISTERED", dict(gbmodel.learners._REGISTERED))
-    m = types.ModuleType("stay_home")
-
-    class Params:
-        def __init__(self):
-            pass
-
-        def validate(self):
-            return self
-
-    m.Params = Params
-    m.init = lambda params, body, size, rng: None
-    m.draw = lambda params, body, B, rng: (np.zeros(B),)
-    m.train = lambda state, params, body, sizes, scales, draws, epochs: state
-    m.predict = lambda state, params, body, x: np.tile(body.home, (len(x), 1))
-    m.model = lambda state: None
-    m.samples_per_epoch = lambda params, body: 1
+    m = stay_home_module()
     gbmodel.learners.register("stay_home", m)
     return "stay_home"
 
