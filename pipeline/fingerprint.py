@@ -84,12 +84,18 @@ def _live_codes(module, path: Path):
             yield code
 
 
-def as_imported(path: Path, text: str) -> str:
+def _gbmodel_modules() -> dict:
+    """Resolved file -> module, for the imported modules of gbmodel."""
+    return {Path(m.__file__).resolve(): m for name, m in list(sys.modules.items())
+            if (name == "gbmodel" or name.startswith("gbmodel."))
+            and getattr(m, "__file__", None)}
+
+
+def as_imported(path: Path, text: str, modules: dict | None = None) -> str:
     """`text` (the file `path` as read now) if it is the code this process imported from it (or
-    the file is not an imported module), else CodeChanged naming the file."""
+    the file is not an imported module of gbmodel), else CodeChanged naming the file."""
     path = Path(path).resolve()
-    module = next((m for m in list(sys.modules.values())
-                   if getattr(m, "__file__", None) and Path(m.__file__).resolve() == path), None)
+    module = (_gbmodel_modules() if modules is None else modules).get(path)
     if module is None:
         return text
     compiled = _codes(compile(text, str(path), "exec"))
@@ -110,7 +116,9 @@ def code_fingerprint(learner: str) -> str:
     shared = [p for p in root.rglob("*.py")
               if "learners" not in p.relative_to(root).parts[:-1]]
     shared.append(root / "learners" / "__init__.py")
-    own = [(p.relative_to(root.parent).as_posix(), as_imported(p, p.read_text())) for p in shared]
-    theirs = [(label, as_imported(root.parent / label, text) if (root.parent / label).is_file()
-               else text) for label, text in gbmodel.learners.sources(learner)]
+    theirs = gbmodel.learners.sources(learner)  # imports the learner: its modules are checked
+    modules = _gbmodel_modules()
+    own = [(p.relative_to(root.parent).as_posix(), as_imported(p, p.read_text(), modules))
+           for p in shared]
+    theirs = [(label, as_imported(root.parent / label, text, modules)) for label, text in theirs]
     return source_fingerprint(own + theirs)
