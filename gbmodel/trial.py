@@ -105,32 +105,34 @@ def run_trial(spec: TrialSpec, rng: np.random.Generator) -> TrialResult:
     body, growth = spec.make_body(), spec.make_growth()
     learner, params = spec.make_learner()
     ev = {**evaluation.DEFAULTS, **spec.evaluation}
-    sizes = growth.sizes(np.arange(1, spec.epochs + 1))
-    scales = growth.scales(body, sizes)
-    state = learner.init(params, body, sizes[0], rng)
+    # Sizes and scales are built per block of DRAW_BLOCK epochs, never for every epoch at once,
+    # so a trial's memory does not grow with its epochs (each value is computed elementwise:
+    # the same bytes as from the whole array).
+    state = learner.init(params, body, growth.sizes(np.array([1]))[0], rng)
 
     evals = evaluation.eval_epochs(spec.epochs, spec.evals_per_decade)
     cuts = set(evals.tolist()) | set(spec.snapshots)
-    abs_error = np.empty(len(evals))
+    abs_error, size = np.empty(len(evals)), np.empty(len(evals))
     k, snapshots = 0, {}
     for start in range(0, spec.epochs, DRAW_BLOCK):  # epochs start+1 ... stop
         stop = min(start + DRAW_BLOCK, spec.epochs)
+        sizes = growth.sizes(np.arange(start + 1, stop + 1))  # of epochs start+1 ... stop
+        scales = growth.scales(body, sizes)
         draws = learner.draw(params, body, stop - start, rng)
         bounds = sorted({start, stop} | {e for e in cuts if start < e < stop})
         for lo, hi in zip(bounds[:-1], bounds[1:]):
             part = tuple(d[lo - start:hi - start] for d in draws)
-            state = learner.train(state, params, body, sizes[lo:hi], scales[lo:hi], part,
-                                  np.arange(lo + 1, hi + 1))
+            state = learner.train(state, params, body, sizes[lo - start:hi - start],
+                                  scales[lo - start:hi - start], part, np.arange(lo + 1, hi + 1))
             if hi in spec.snapshots:
                 snapshots[hi] = learner.model(state)
             if k < len(evals) and hi == evals[k]:
-                err = evaluation.evaluate(learner, state, params, body, sizes[hi - 1],
-                                          scales[hi - 1], **ev)
+                err = evaluation.evaluate(learner, state, params, body, sizes[hi - 1 - start],
+                                          scales[hi - 1 - start], **ev)
                 if not np.isfinite(err):
                     raise Diverged(hi, err)
-                abs_error[k] = err
+                abs_error[k], size[k] = err, sizes[hi - 1 - start]
                 k += 1
-    size = sizes[evals - 1]
     jump = evaluation.largest_jump(lambda x: learner.predict(state, params, body, x), body,
                                    sizes[-1])
     return TrialResult(epoch=evals, size=size, abs_error=abs_error, rel_error=abs_error / size,

@@ -181,18 +181,26 @@ def inputs_digest(figure: str, conds: dict, fail_factor: float) -> str:
 
 def aggregate_figure(cfg: DictConfig, fig: str) -> tuple[list[str], bool]:
     """Aggregate one figure, unless its aggregate is already made of the same inputs; (problems,
-    whether it was rebuilt). The figure's files are replaced as one set (pipeline.io.replace_dir)."""
-    trials, conds, paper, problems = load_trials(cfg.paths.cache, fig)
-    folder = Path(cfg.paths.aggregate) / fig
+    whether it was rebuilt). The figure's files are replaced as one set (pipeline.io.new_set); a
+    damaged plan record, or no trial at all where the aggregate had some, leaves it as it was."""
+    folder = Path(cfg.paths.aggregate) / io.safe_name("figure", fig)
+    try:
+        trials, conds, paper, problems = load_trials(cfg.paths.cache, fig)
+    except io.DamagedFile as err:
+        return [f"{err}; the figure's aggregate is left as it was"], False
     digest = inputs_digest(fig, conds, cfg.aggregate.fail_factor)
     try:
-        if io.read_json(folder / "manifest.json").get("inputs") == digest:
+        old = io.read_json(folder / "manifest.json")
+        if old.get("inputs") == digest:
             return problems, False
+        if not len(trials) and old.get("trials"):
+            return problems + ["no trial of the figure is readable; its aggregate is left as it "
+                               "was"], False
     except (OSError, ValueError):
         pass
     curves = curve_stats(trials)
     summary = summarize(trials, curves, conds, paper, cfg.aggregate.fail_factor)
-    with io.new_dir(folder) as tmp:
+    with io.new_set(folder) as tmp:
         io.write_table(tmp / "trials.parquet",
                        pa.Table.from_pandas(trials, schema=io.CURVE, preserve_index=False))
         io.write_table(tmp / "curves.parquet", io.frame_to_table(curves))
@@ -201,7 +209,8 @@ def aggregate_figure(cfg: DictConfig, fig: str) -> tuple[list[str], bool]:
             "figure": fig, "paper": paper,
             "conditions": {k: {"spec": c["spec"], "id": c["id"], "trials": c["trials"]}
                            for k, c in conds.items()}})
-        io.write_json(tmp / "manifest.json", dict(figure=fig, inputs=digest))
+        io.write_json(tmp / "manifest.json", dict(figure=fig, inputs=digest,
+                                                  trials=int(len(trials))))
     log.info("[%s] %d conditions, %d trial curves -> %s", fig, len(summary),
              trials.groupby(["condition", "trial"]).ngroups if len(trials) else 0, folder)
     return problems, True

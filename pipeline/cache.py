@@ -14,7 +14,7 @@ Layout under paths.cache:
 A trial's key hashes its content only (spec, seed, code fingerprint: pipeline.plan.trial_key),
 never the figure or the label that asked for it: the same trial under two figures or two sweeps
 is computed once. The curve is written first and the sidecar last: the sidecar marks a finished
-trial, its curve checksum proves the curve complete and its seal proves the sidecar unchanged (the
+trial, its curve checksum proves the curve complete and its seal (pipeline.io.seal) proves the sidecar unchanged (the
 model, the snapshots, the status). A trial that diverged is a result too (status `diverged`, no
 curve); a trial that failed with an error is not cached and runs again next time.
 
@@ -30,7 +30,6 @@ import os
 from pathlib import Path
 
 import numpy as np
-import pyarrow.parquet as pq
 
 from . import io
 
@@ -47,13 +46,6 @@ def failure_path(cache_dir, trial: dict) -> Path:
     return Path(cache_dir) / FAILED / f"{trial['key']}.json"
 
 
-def seal(record: dict) -> str:
-    """The SHA-256 of a sidecar's content without its seal: any change of the model, the
-    snapshots, the status or the error breaks it."""
-    body = {k: v for k, v in record.items() if k != "seal"}
-    return hashlib.sha256(io.dump_json(body).encode()).hexdigest()
-
-
 def check(cache_dir, trial: dict) -> tuple[dict | None, str | None]:
     """(sidecar, None) for a finished trial whose files are intact; (None, None) for one not
     run yet; (None, why) for one whose files are damaged (they are then recomputed)."""
@@ -61,11 +53,9 @@ def check(cache_dir, trial: dict) -> tuple[dict | None, str | None]:
     if not side.exists():
         return None, None
     try:
-        s = io.read_json(side)
+        s = io.check_seal(io.read_json(side), side.name)  # the model, snapshots, status too
         if s.get("key") != trial["key"]:
             return None, f"{side.name} belongs to another trial"
-        if s.get("seal") != seal(s):
-            return None, f"{side.name} does not match its seal (changed or damaged)"
         if s.get("status") == "diverged":
             return s, None
         if not curve.exists():
@@ -95,12 +85,11 @@ def write_trial(cache_dir, trial: dict, result: dict) -> None:
         record["M"] = None if M is None else np.asarray(M).tolist()
         record["snapshots"] = {str(e): np.asarray(m).tolist()
                                for e, m in sorted(result["snapshots"].items())}
-    record["seal"] = seal(record)
-    io.write_json(side, record)  # timing is left out: the sidecar's bytes must not vary
+    io.write_json(side, io.seal(record))  # timing is left out: the sidecar's bytes must not vary
 
 
 def read_curve(cache_dir, trial: dict):
-    return pq.read_table(trial_paths(cache_dir, trial)[0]).to_pandas()
+    return io.read_table(trial_paths(cache_dir, trial)[0], schema=io.TRIAL_CURVE).to_pandas()
 
 
 class Claim:
@@ -189,14 +178,13 @@ def group_conditions(folder: Path, group: str) -> tuple[list[dict], dict, list[s
     (variant, settings), in the order of the records' writing (file names are content hashes, so
     they are sorted by the run order each record stores)."""
     records, problems = [], []
-    for p in sorted((Path(folder) / group).glob("*.json")):
-        try:
-            r = io.read_json(p)
-            if not isinstance(r.get("conditions"), list):
-                raise ValueError(f"{p}: not a plan record (no conditions)")
-            records.append(r)
-        except ValueError as err:
-            problems.append(f"plan record ignored: {err}")
+    for p in sorted((Path(folder) / group).glob("*.json")):  # DamagedFile names a bad one
+        r = io.read_json(p, need=("figure", "conditions"))
+        if not isinstance(r["conditions"], list) or not all(
+                isinstance(c, dict) and {"id", "spec", "trials", "growth_label"} <= set(c)
+                for c in r["conditions"]):
+            raise io.DamagedFile(f"{p}: not a plan record (its conditions are malformed)")
+        records.append(r)
     records.sort(key=lambda r: (r.get("job", 0), record_digest(r)))
     conds, paper = {}, {}
     for r in records:
@@ -208,7 +196,9 @@ def group_conditions(folder: Path, group: str) -> tuple[list[dict], dict, list[s
 
 
 def figure_conditions(cache_dir, figure: str) -> tuple[list[dict], dict, list[str]]:
-    """The conditions of a figure (its current group), its paper section and any problems."""
+    """The conditions of a figure (its current group), its paper section and any problems; a
+    damaged plan record is an io.DamagedFile naming it (the figure is then not aggregated, so a
+    good aggregate is never replaced by a partial one)."""
     folder = Path(cache_dir) / PLANS / figure
     group = read_current(folder)
     if group is None:

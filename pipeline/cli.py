@@ -8,13 +8,18 @@ one line, `error: ...`, with exit status 2, before Hydra or the stage has writte
 """
 from __future__ import annotations
 
+import errno
 import itertools
 import re
 import sys
 
 from hydra.core.override_parser.overrides_parser import OverridesParser
 
-from .config import ConfigError, compose
+from . import execute, stop
+from .fingerprint import CodeChanged
+from .io import BadInput
+from .config import (ConfigError, check_keys, check_limits, check_names, check_root,
+                     check_stamp, compose)
 from .plan import condition_labels, plan, plan_conditions
 
 # Hydra's command-line flags that take a value as the next argument
@@ -58,8 +63,14 @@ def _one_line(err: BaseException) -> str:
 
 def check(argv: list[str]) -> str | None:
     """None when every configuration of the command line composes, else one line saying why."""
+    overrides = _overrides(argv)
+    for o in overrides:
+        if not o.isascii() and "LexerNoViableAlt" in (_parse_error(o) or ""):
+            key = o.split("=", 1)[0]
+            return (f"{o}: Hydra reads characters beyond ASCII only inside quotes; write "
+                    f"'{key}=\"{o.split('=', 1)[-1]}\"'")
     try:
-        parsed = OverridesParser.create().parse_overrides(_overrides(argv))
+        parsed = OverridesParser.create().parse_overrides(overrides)
     except Exception as err:  # a syntax error in an override
         return _one_line(err)
     multirun = "-m" in argv or "--multirun" in argv
@@ -73,10 +84,15 @@ def check(argv: list[str]) -> str | None:
             choices.append([f"{o.get_key_element()}={v}" for v in o.sweep_string_iterator()])
         else:
             choices.append([o.input_line])
-    planned = {}
+    planned, notes = {}, []
     for combination in itertools.islice(itertools.product(*choices), _MAX_COMBINATIONS):
         try:  # values too: every sweep job is checked up front
             cfg = compose(list(combination))
+            check_keys(cfg)
+            check_root(cfg)
+            check_names(cfg)
+            check_stamp(cfg)
+            notes += [n for n in check_limits(cfg) if n not in notes]  # before planning
             trials = plan(cfg)
             keeps_experiment(list(combination), trials)
             planned.setdefault(cfg.figure, []).extend(trials)
@@ -89,6 +105,8 @@ def check(argv: list[str]) -> str | None:
             condition_labels(plan_conditions(trials))
     except ConfigError as err:
         return str(err)
+    for note in notes:
+        print(note, file=sys.stderr)
     return None
 
 
@@ -133,28 +151,64 @@ def hydra_run() -> tuple[list[str], str | None, int]:
     return overrides, group, int(hc.job.num)
 
 
+def _parse_error(override: str) -> str | None:
+    try:
+        OverridesParser.create().parse_overrides([override])
+    except Exception as err:
+        return type(err.__cause__ or err).__name__ + str(err)
+    return None
+
+
+# what a full disk, a read-only folder or a missing permission raise: a fault of the place, named
+DISK_ERRNOS = (errno.ENOSPC, errno.EROFS, errno.EACCES, errno.EPERM, errno.EDQUOT)
+
+
 def finish(run, cfg) -> None:
     """Run a stage on its composed config and exit with its status. What every stage can meet
-    is one line: a bad value (ConfigError) or missing input (FileNotFoundError) exits 2, Ctrl-C
-    exits 130 (finished trials are cached, so the same command resumes)."""
-    try:
-        rc = run(cfg)
-    except (ConfigError, FileNotFoundError, NotADirectoryError) as err:
-        print(f"error: {err}", file=sys.stderr)
-        rc = 2
-    except MemoryError:
-        print("error: out of memory; run fewer workers or shorter trials", file=sys.stderr)
-        rc = 2
-    except KeyboardInterrupt:
-        print("interrupted: finished work is cached; run the same command again to resume",
-              file=sys.stderr)
-        rc = 130
+    is one line: a bad value (ConfigError), missing or damaged input (FileNotFoundError,
+    pipeline.io's BadInput: DamagedFile, UnsafeName), gbmodel code edited since the import
+    (CodeChanged) or a full, read-only or forbidden folder (OSError) exits 2; Ctrl-C, SIGTERM and SIGHUP stop the workers, release the claims (the stage's
+    `finally`) and exit 130, 143, 129 (finished trials are cached: the same command resumes)."""
+    with stop.armed():
+        try:
+            rc = run(cfg)
+        except (ConfigError, FileNotFoundError, NotADirectoryError) as err:
+            print(f"error: {err}", file=sys.stderr)
+            rc = 2
+        except (BadInput, CodeChanged) as err:  # a damaged file or unsafe name; edited code
+            print(f"error: {err}", file=sys.stderr)
+            rc = 2
+        except OSError as err:
+            if err.errno not in DISK_ERRNOS:
+                raise
+            print(f"error: {disk_message(err)}", file=sys.stderr)
+            rc = 2
+        except MemoryError:
+            print("error: out of memory; run fewer workers or shorter trials", file=sys.stderr)
+            rc = 2
+        except KeyboardInterrupt as err:
+            execute.stop_pools()
+            how = "interrupted" if not isinstance(err, stop.Stopped) else f"stopped by {err}"
+            print(f"{how}: finished work is cached; run the same command again to resume",
+                  file=sys.stderr, flush=True)
+            rc = stop.exit_status(err)
     if rc:
         sys.exit(rc)
 
 
+def disk_message(err: OSError) -> str:
+    """One line for an OSError of the file system, naming the path."""
+    where = err.filename if err.filename is not None else "a file"
+    why = {errno.ENOSPC: "no space left on the device", errno.EDQUOT: "disk quota exceeded",
+           errno.EROFS: "read-only file system", errno.EACCES: "permission denied",
+           errno.EPERM: "operation not permitted"}[err.errno]
+    return f"{where}: {why}; free space or choose a writable paths.root"
+
+
 def main(hydra_main) -> None:
-    """Run a stage's @hydra.main function after checking its command line."""
+    """Run a stage's @hydra.main function after checking its command line. A signal before the
+    stage runs ends the process with one line (pipeline.stop)."""
+    stop.install()
     problem = check(sys.argv[1:])
     if problem is not None:
         print(f"error: {problem}", file=sys.stderr)

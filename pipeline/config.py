@@ -215,3 +215,99 @@ def compose(overrides: list[str] | tuple = ()) -> DictConfig:
     GlobalHydra.instance().clear()
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
         return hydra_compose(config_name="config", overrides=list(overrides))
+
+
+# ---- limits checked before planning (pipeline.cli.check; plan() may call check_limits too) -----
+MAX_TRIALS = 10_000  # trials.count: independent trials per condition (the paper's figures use 20)
+MAX_PLANNED = 100_000  # trials of one run in all (conditions x variants x trials.count)
+MAX_EPOCHS = 10**9  # learner.epochs: a trial's memory does not grow with them, its time does
+MAX_INT64 = 2**63 - 1  # growth periods are stored as int64 (the curve table's growth_period)
+
+
+def _too_big(key, value, limit, unit, shown=None):
+    if isinstance(value, int) and not isinstance(value, bool) and value > limit:
+        raise ConfigError(f"{key}={value!r}: at most {shown or f'{limit:,}'} {unit}")
+
+
+def check_limits(cfg) -> list[str]:
+    """Refuse (ConfigError naming the key and its unit) what would exhaust memory or overflow
+    before a trial is planned: the trial count, the epochs, growth periods beyond int64, and the
+    whole run's size. Returns notes about legitimate but unusual values (a shrinking body)."""
+    _too_big("trials.count", cfg.trials.count, MAX_TRIALS, "trials per condition")
+    _too_big("learner.epochs", cfg.learner.epochs, MAX_EPOCHS, "epochs per trial",
+             f"{MAX_EPOCHS:.0e}")
+    growth = cfg.growth
+    _too_big("growth.period", growth.get("period"), MAX_INT64, "epochs (int64)")
+    for p in cfg.conditions.periods:
+        _too_big("conditions.periods", p, MAX_INT64, "epochs (int64)")
+    count = cfg.trials.count
+    if isinstance(count, int):
+        conditions = max(len(cfg.conditions.periods) + len(cfg.conditions.references), 1)
+        total = count * conditions * max(len(cfg.conditions.variants), 1)
+        if total > MAX_PLANNED:
+            raise ConfigError(f"trials.count={count}: {total:,} trials in all ({conditions} "
+                              f"conditions x {max(len(cfg.conditions.variants), 1)} variants); "
+                              f"at most {MAX_PLANNED:,} per run")
+    notes = []
+    start, end, period = growth.get("start_size"), growth.get("end_size"), growth.get("period")
+    if (isinstance(start, (int, float)) and isinstance(end, (int, float)) and start > end
+            and (period or cfg.conditions.periods)):
+        notes.append(f"note: growth.start_size={start} > growth.end_size={end} (size factors): "
+                     "the body shrinks over the growth period")
+    return notes
+
+
+def check_keys(cfg) -> None:
+    """Refuse a top-level key the schema does not know (`+foo=1` is composed without a word)."""
+    known = {f.name for f in dataclasses.fields(Config)}
+    unknown = sorted(set(cfg.keys()) - known - {"hydra"})
+    if unknown:
+        raise ConfigError(f"{unknown[0]}: not a config key; the top-level keys are "
+                          f"{', '.join(sorted(known))}")
+
+
+def check_root(cfg) -> None:
+    """paths.root must be an absolute folder, and every output folder must lie under it or be
+    the committed report (`published`, `bench`): an empty root would write at the file system's
+    root, a relative one wherever the command happens to run."""
+    root = cfg.paths.root
+    if not isinstance(root, str) or not root.strip():
+        raise ConfigError(f"paths.root={root!r}: must be a folder (an absolute path)")
+    if not Path(root).is_absolute():
+        raise ConfigError(f"paths.root={root!r}: must be an absolute path (it would be "
+                          f"{Path(root).resolve()} here); e.g. paths.root=$PWD/{root}")
+    base = Path(root).resolve()
+    for key in ("out", "cache", "aggregate", "report", "published", "bench"):
+        path = Path(cfg.paths[key])
+        if not path.is_absolute() or ".." in path.parts:
+            raise ConfigError(f"paths.{key}={str(path)!r}: must be an absolute path without '..'")
+        resolved = path.resolve()
+        if resolved != base and base not in resolved.parents:
+            raise ConfigError(f"paths.{key}={str(path)!r}: outside paths.root={root}")
+
+
+def check_names(cfg) -> None:
+    """Every name of the config that becomes part of a path (pipeline.io.safe_name): the figure,
+    the posture figures and their panels' figure names, the joint-space figure. A name like
+    `../../esc` would write outside paths.root."""
+    from .io import UnsafeName, safe_name
+
+    try:
+        safe_name("figure", cfg.figure)
+        safe_name("report.joint_space_figure", cfg.report.joint_space_figure)
+        for name, panels in cfg.report.postures.items():
+            safe_name("report.postures", name)
+            for panel in panels or ():
+                if panel:
+                    safe_name(f"report.postures.{name}", str(panel[0]))
+    except UnsafeName as err:
+        raise ConfigError(str(err)) from None
+
+
+def check_stamp(cfg) -> None:
+    """report.stamp_findings rewrites the committed pipeline/studies/findings_numbers.csv: only
+    the publishing run (make reproduce: report.publish=true) may, never a smoke or custom run."""
+    if cfg.report.stamp_findings and not cfg.report.publish:
+        raise ConfigError("report.stamp_findings=true: only with report.publish=true (make "
+                          "reproduce ARGS=report.stamp_findings=true); this run's numbers are not "
+                          "the committed report's")

@@ -3,21 +3,54 @@
 The executor takes plain-data trials, runs them longest first and yields each result as soon as
 it is there, so the driver can write it to the cache at once: an interrupted run loses only the
 trials in flight. Locally it is a `concurrent.futures.ProcessPoolExecutor` of spawned workers with
-one BLAS/OpenMP/numba thread each; Ctrl-C stops every worker at once. Cluster backends plug in
-here (`backends`).
+one BLAS/OpenMP/numba thread each. Ctrl-C, SIGTERM and SIGHUP reach the driver only (workers
+ignore them, pipeline.worker.quiet_worker), which kills every worker at once (stop_pools), so
+neither a worker nor multiprocessing's resource tracker outlives it; a worker whose driver died
+(kill -9) is killed by the kernel (PR_SET_PDEATHSIG). Cluster backends plug in here (`backends`).
 """
 from __future__ import annotations
 
 import multiprocessing
-import signal
+import os
+import sys
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
-from .worker import THREAD_VARS, run_one, single_threaded_children  # noqa: F401
+from .worker import THREAD_VARS, quiet_worker, run_one, single_threaded_children  # noqa: F401
+
+_POOLS: set = set()  # the pools of this process that are running
 
 
-def _ignore_sigint():
-    """Workers leave Ctrl-C to the parent, which stops them all at once."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+def stop_pools() -> None:
+    """Kill the workers of every running pool of this process and wait for them: what a stage
+    does when it is stopped (pipeline.cli.finish), wherever the signal found the driver."""
+    for pool in list(_POOLS):
+        _stop(pool)
+
+
+def _stop(pool) -> None:
+    for proc in list((getattr(pool, "_processes", None) or {}).values()):
+        proc.kill()  # workers ignore SIGTERM (quiet_worker): SIGKILL, they hold no files
+    pool.shutdown(wait=True, cancel_futures=True)
+    _POOLS.discard(pool)
+
+
+def cpus() -> int:
+    """The CPUs this process may run on (its affinity mask: a cluster job's share)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
+
+
+def capped(workers: int, trials: int) -> int:
+    """Local workers: at most one per trial and one per CPU (more would only share the CPUs and
+    cost each worker's memory); a note says so when the CPUs cap what was asked."""
+    n = max(1, min(workers, trials))
+    if n > cpus():
+        print(f"note: workers={workers}: this machine has {cpus()} CPUs; running {cpus()} "
+              "workers", file=sys.stderr)
+        n = cpus()
+    return n
 
 
 def in_launcher_worker() -> bool:
@@ -30,16 +63,18 @@ def in_launcher_worker() -> bool:
 
 
 def local(todo: list[dict], workers: int, fn=run_one):
-    """Yield (trial, fn(trial)) as trials finish, on `workers` spawned processes (in this
-    process when one worker suffices). `todo` is run in its order (longest first)."""
+    """Yield (trial, fn(trial)) as trials finish, on `workers` spawned processes (at most one per
+    CPU; in this process when one worker suffices). `todo` is run in its order (longest first)."""
+    workers = capped(workers, len(todo))
     if workers == 1 or len(todo) <= 1 or in_launcher_worker():
         for t in todo:
             yield t, fn(t)
         return
     with single_threaded_children():
-        pool = ProcessPoolExecutor(min(workers, len(todo)),
+        pool = ProcessPoolExecutor(workers,
                                    mp_context=multiprocessing.get_context("spawn"),
-                                   initializer=_ignore_sigint)
+                                   initializer=quiet_worker, initargs=(os.getpid(),))
+    _POOLS.add(pool)
     try:
         pending = {pool.submit(fn, t): t for t in todo}
         while pending:
@@ -47,10 +82,8 @@ def local(todo: list[dict], workers: int, fn=run_one):
             for fut in done:
                 yield pending.pop(fut), fut.result()
     finally:
-        # idle workers after the last result; on Ctrl-C, an error or a dropped generator: now
-        for proc in list(getattr(pool, "_processes", {}).values()):
-            proc.terminate()
-        pool.shutdown(wait=True, cancel_futures=True)
+        # idle workers after the last result; on a signal, an error or a dropped generator: now
+        _stop(pool)
 
 
 def results(todo: list[dict], workers: int, backend: str = "local", address=None, fn=run_one,

@@ -8,8 +8,12 @@ same content gives the same bytes.
 from __future__ import annotations
 
 import hashlib
+import itertools
 import json
 import os
+import re
+import shutil
+import socket
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -31,21 +35,114 @@ CURVE_COLUMNS = CURVE.names
 TRIAL_CURVE = pa.schema([f for f in CURVE if f.name not in LABELS.names])
 
 
+class BadInput(ValueError):
+    """A fault of the input that a stage reports in one line (pipeline.cli: exit 2)."""
+
+
+class DamagedFile(BadInput):
+    """A file the pipeline wrote is not what it should be (truncated, edited, of another
+    version): the message names it, and the stage that meets it replaces nothing."""
+
+
+class UnsafeName(BadInput):
+    """A name from the config or from a file on disk that cannot become one path component."""
+
+
+MAX_NAME = 200  # characters of one path component built from a name (file systems allow 255)
+
+
+def safe_name(key: str, value) -> str:
+    """`value` if it can name one file or folder inside an output folder, else UnsafeName naming
+    `key`: no path separator, NUL or control character, not `.`, `..` or hidden (a leading dot is
+    how temporary files are named), not empty, at most MAX_NAME characters. Call it on every name
+    from the config (figure, labels, posture panels) or from files on disk (plan records) before
+    it becomes part of a path, so that no write leaves paths.root."""
+    why = None
+    if not isinstance(value, str) or not value:
+        why = "must be a non-empty name"
+    elif "/" in value or "\\" in value:
+        why = "must not contain a path separator"
+    elif any(ord(c) < 32 or ord(c) == 127 for c in value):
+        why = "must not contain control characters"
+    elif value.startswith("."):
+        why = "must not start with a dot"
+    elif len(value) > MAX_NAME:
+        why = f"must be at most {MAX_NAME} characters"
+    if why:
+        raise UnsafeName(f"{key}={value!r}: {why} (it names a file or folder)")
+    return value
+
+
+def inside(root, path, key: str = "paths.root") -> Path:
+    """`path` resolved, if it lies under `root` (resolved), else UnsafeName naming `key`."""
+    root, path = Path(root).resolve(), Path(path).resolve()
+    if path != root and root not in path.parents:
+        raise UnsafeName(f"{key}: {path} is outside {root}")
+    return path
+
+
+# ---- temporary files: exclusive, never through a symlink, named by host and pid ----------------
+_HOST = re.sub(r"[^A-Za-z0-9.-]", "_", socket.gethostname()) or "host"
+_serial = itertools.count()
+
+
 def _tmp_name(path: Path) -> Path:
-    return path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    """`.<name>~<host>~<pid>~<n>.tmp` beside `path`: whose it is, so that a stale one can be told
+    from another host's live one (remove_stale_tmp)."""
+    return path.with_name(f".{path.name}~{_HOST}~{os.getpid()}~{next(_serial)}.tmp")
+
+
+def _exclusive(path: Path) -> tuple[Path, int]:
+    """A new temporary file beside `path`, created by this call (O_EXCL: never an existing file,
+    O_NOFOLLOW: never through a symlink): (its path, an open descriptor)."""
+    while True:
+        tmp = _tmp_name(path)
+        try:
+            return tmp, os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o644)
+        except FileExistsError:  # left by a dead process that had our pid: take the next name
+            continue
+
+
+def _named(err: OSError, path: Path) -> OSError:
+    """The error with the final file's name (not the temporary one's), for a one-line message."""
+    err.filename = str(path)
+    return err
+
+
+@contextmanager
+def _atomic(path):
+    """Yield (temporary path, open descriptor) of a new file beside `path`; rename it onto
+    `path` if the block succeeds, else delete it. OSError (a full disk, a read-only folder)
+    names `path`."""
+    path = Path(path)
+    tmp = None
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp, fd = _exclusive(path)
+        yield tmp, fd
+        os.replace(tmp, path)
+    except OSError as err:
+        raise _named(err, path) from None
+    finally:
+        if tmp is not None:
+            tmp.unlink(missing_ok=True)
+
+
+@contextmanager
+def atomic_file(path):
+    """Yield a binary file object on a new temporary file beside `path`, renamed onto `path` if
+    the block succeeds (else deleted)."""
+    with _atomic(path) as (_, fd), os.fdopen(fd, "wb") as fh:
+        yield fh
 
 
 @contextmanager
 def atomic_path(path):
-    """Yield a temporary path beside `path`; rename it onto `path` if the block succeeds."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = _tmp_name(path)
-    try:
+    """Yield the path of a new, empty temporary file beside `path` (created exclusively) for a
+    writer that wants a file name (matplotlib); renamed onto `path` if the block succeeds."""
+    with _atomic(path) as (tmp, fd):
+        os.close(fd)
         yield tmp
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
 
 
 @contextmanager
@@ -77,8 +174,8 @@ def new_dir(final):
 
 
 def write_text(path, text: str) -> None:
-    with atomic_path(path) as tmp:
-        tmp.write_text(text)
+    with atomic_file(path) as fh:
+        fh.write(text.encode())
 
 
 def dump_json(obj) -> str:
@@ -89,21 +186,46 @@ def write_json(path, obj) -> None:
     write_text(path, dump_json(obj))
 
 
-def read_json(path) -> dict:
-    """The JSON object in `path`; ValueError naming the file if it is not one."""
+def read_json(path, need: tuple = ()) -> dict:
+    """The JSON object in `path`, with the keys `need`; DamagedFile naming the file if it is not
+    one (FileNotFoundError if it is missing)."""
     try:
-        obj = json.loads(Path(path).read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as err:
-        raise ValueError(f"{path}: not valid JSON ({err})") from None
+        obj = json.loads(Path(path).read_bytes())
+    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as err:
+        raise DamagedFile(f"{path}: damaged, not valid JSON ({type(err).__name__}: "
+                          f"{str(err)[:80]})") from None
+    except IsADirectoryError:
+        raise DamagedFile(f"{path}: a folder, not a JSON file") from None
     if not isinstance(obj, dict):
-        raise ValueError(f"{path}: not a JSON object")
+        raise DamagedFile(f"{path}: damaged, not a JSON object")
+    missing = [k for k in need if k not in obj]
+    if missing:
+        raise DamagedFile(f"{path}: damaged, lacks {', '.join(map(repr, missing))}")
     return obj
 
 
 def write_table(path, table: pa.Table) -> None:
     """Parquet with fixed settings and no timestamps: the same table gives the same bytes."""
-    with atomic_path(path) as tmp:
-        pq.write_table(table, tmp, compression="zstd", compression_level=3)
+    with atomic_file(path) as fh:
+        pq.write_table(table, fh, compression="zstd", compression_level=3)
+
+
+def read_table(path, columns=None, schema: pa.Schema | None = None) -> pa.Table:
+    """The Parquet table in `path` (with `schema`'s columns, if given); DamagedFile naming the
+    file if it cannot be read (truncated, not Parquet, columns missing)."""
+    try:
+        table = pq.read_table(path, columns=columns)
+    except FileNotFoundError:
+        raise
+    except (pa.ArrowException, OSError) as err:
+        if isinstance(err, OSError) and err.errno is not None:
+            raise  # a fault of the place (permissions), not of the file
+        raise DamagedFile(f"{path}: damaged, not a readable Parquet file "
+                          f"({str(err).splitlines()[0][:80]})") from None
+    if schema is not None and not set(schema.names) <= set(table.column_names):
+        missing = sorted(set(schema.names) - set(table.column_names))
+        raise DamagedFile(f"{path}: damaged, lacks the columns {', '.join(missing)}")
+    return table
 
 
 def frame_to_table(df) -> pa.Table:
@@ -127,12 +249,25 @@ def sha256_file(path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-def remove_stale_tmp(folder) -> None:
-    """Delete temporary files left by a killed process (their pid no longer runs)."""
-    for tmp in Path(folder).glob(".*.tmp"):
-        pid = tmp.name.rsplit(".", 2)[-2]
-        if pid.isdigit() and not _alive(int(pid)):
-            tmp.unlink(missing_ok=True)
+def remove_stale_tmp(folder, recursive: bool = False) -> list[Path]:
+    """Delete the temporary files (and unfinished sets, new_set) that a killed process of this
+    host left in `folder`: its pid no longer runs. Another host's are never touched (its process
+    may be running: a shared cluster folder), nor names of another form. Returns what went."""
+    gone = []
+    folder = Path(folder)
+    if not folder.is_dir():
+        return gone
+    for tmp in (folder.rglob if recursive else folder.glob)(".*~*~*~*.tmp"):
+        parts = tmp.name[:-len(".tmp")].rsplit("~", 3)
+        if len(parts) != 4 or not parts[2].isdigit() or parts[1] != _HOST:
+            continue
+        if not _alive(int(parts[2])):
+            if tmp.is_dir() and not tmp.is_symlink():
+                shutil.rmtree(tmp, ignore_errors=True)
+            else:
+                tmp.unlink(missing_ok=True)
+            gone.append(tmp)
+    return gone
 
 
 def _alive(pid: int) -> bool:
@@ -143,3 +278,69 @@ def _alive(pid: int) -> bool:
     except PermissionError:
         return True
     return True
+
+
+# ---- a stage's outputs replaced as one set -------------------------------------------------------
+@contextmanager
+def new_set(folder):
+    """Yield a new, empty folder to write a stage's whole output set into; on success `folder`
+    becomes a symlink to it in one rename, so that a reader sees the old set or the new one,
+    never a mix (kill -9 between writes leaves the old set in place). The sets live in
+    `.<name>.sets/` beside it; the replaced one is removed afterwards. A reader that opens several
+    files of a set resolves `folder` once (set_of) and reads them all from there.
+
+    The first time, a `folder` that is a real directory (the old layout) is moved into the sets
+    folder first: the one moment `folder` is missing, once."""
+    folder = Path(folder)
+    sets = folder.parent / f".{folder.name}.sets"
+    sets.mkdir(parents=True, exist_ok=True)
+    fresh = _tmp_name(sets / "set")
+    fresh.mkdir()
+    try:
+        yield fresh
+        done = fresh.with_name(fresh.name[:-len(".tmp")].lstrip("."))  # finished: not a temp
+        os.rename(fresh, done)
+        old = set_of(folder) if folder.is_symlink() else None
+        if folder.is_dir() and not folder.is_symlink():  # the old layout: a plain folder
+            old = sets / f"legacy-{done.name}"
+            os.rename(folder, old)
+        link = _tmp_name(folder)
+        os.symlink(os.path.relpath(done, folder.parent), link)
+        os.replace(link, folder)  # the one step that switches sets
+    except BaseException:
+        shutil.rmtree(fresh, ignore_errors=True)
+        raise
+    if old is not None and old.parent.resolve() == sets.resolve():  # never a foreign folder
+        shutil.rmtree(old, ignore_errors=True)
+    remove_stale_tmp(sets)
+
+
+def set_of(folder) -> Path:
+    """The folder that holds the current set of `folder` (itself, in the old layout)."""
+    return Path(folder).resolve()
+
+
+# ---- a checksum over a whole record --------------------------------------------------------------
+SEAL = "seal"
+
+
+def _digest(record: dict) -> str:
+    body = {k: v for k, v in record.items() if k != SEAL}
+    text = json.dumps(body, sort_keys=True, separators=(",", ":"), allow_nan=True)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def seal(record: dict) -> dict:
+    """`record` with `seal`: the SHA-256 of everything else in it (canonical JSON), so that an
+    edit of any field (a sidecar's model M, snapshots, status, error) is caught by check_seal."""
+    return {**record, SEAL: _digest(record)}
+
+
+def check_seal(record: dict, path=None) -> dict:
+    """`record` if its seal matches its content, else DamagedFile naming `path`."""
+    where = f"{path}: " if path is not None else ""
+    if SEAL not in record:
+        raise DamagedFile(f"{where}damaged or of an older version: no seal")
+    if record[SEAL] != _digest(record):
+        raise DamagedFile(f"{where}damaged: its content does not match its seal")
+    return record

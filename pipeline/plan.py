@@ -13,18 +13,18 @@ where the growth differs, or a variant's own label.
 """
 from __future__ import annotations
 
-import ast
 import hashlib
 import json
 import os
-from functools import lru_cache
 from pathlib import Path
 
 import gbmodel
 from gbmodel.growth import check_int
 from omegaconf import DictConfig, OmegaConf
 
-from .config import ConfigError, check_backend
+from .config import (ConfigError, check_backend, check_limits, check_names, check_root,
+                     check_stamp)
+from .fingerprint import code_fingerprint, source_fingerprint  # noqa: F401  (the code as run)
 
 MAX_EPOCHS = 10**9  # a trial's memory does not grow with its epochs, but its time does
 
@@ -40,41 +40,6 @@ def _canonical(obj) -> str:
 def stable_hash32(obj) -> int:
     """A 32-bit integer from the canonical JSON of obj: the same on every machine and run."""
     return int.from_bytes(hashlib.sha256(_canonical(obj).encode()).digest()[:4], "big")
-
-
-def _code_of(source: str) -> str:
-    """The syntax tree of a module without its docstrings (comments are not in it anyway)."""
-    tree = ast.parse(source)
-    for node in ast.walk(tree):
-        body = getattr(node, "body", None)
-        if (isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef))
-                and body and isinstance(body[0], ast.Expr)
-                and isinstance(body[0].value, ast.Constant) and isinstance(body[0].value.value, str)):
-            node.body = body[1:] or [ast.Pass()]
-    return ast.dump(tree, annotate_fields=False, include_attributes=False)
-
-
-def source_fingerprint(sources) -> str:
-    """Hash of the code of `sources`, (name, source text) pairs (names + syntax trees): a change
-    of what the code computes changes it; comments, docstrings and layout do not."""
-    h = hashlib.sha256()
-    for name, text in sorted(sources):
-        h.update(name.encode() + b"\0")
-        h.update(_code_of(text).encode() + b"\0")
-    return h.hexdigest()[:16]
-
-
-@lru_cache(maxsize=None)
-def code_fingerprint(learner: str) -> str:
-    """The fingerprint of the code a trial of `learner` runs: gbmodel's shared core (every file
-    outside gbmodel/learners/, and the registry) plus that learner's own files. Changing one
-    learner recomputes its trials only; an edited comment recomputes none."""
-    root = Path(gbmodel.__file__).resolve().parent
-    shared = [p for p in root.rglob("*.py")
-              if "learners" not in p.relative_to(root).parts[:-1]]
-    shared.append(root / "learners" / "__init__.py")
-    own = [(p.relative_to(root.parent).as_posix(), p.read_text()) for p in shared]
-    return source_fingerprint(own + gbmodel.learners.sources(learner))
 
 
 def _sized(pattern, size):
@@ -220,8 +185,12 @@ def plan(cfg: DictConfig) -> list[dict]:
         check_backend(cfg.executor.backend)  # an unknown engine, or one whose package is missing
         if not cfg.figure or "/" in cfg.figure or cfg.figure.startswith("."):
             _bad("figure", cfg.figure, "must be a plain name (it names a folder)")
+        check_root(cfg)
+        check_names(cfg)
+        check_stamp(cfg)
         check_paths(cfg)
         for variant, vcfg in variants(cfg):
+            check_limits(vcfg)  # a variant's `set` may change what the command line did not
             for cond in conditions(vcfg):
                 spec = trial_spec(vcfg, cond["spec"]).to_dict()
                 # The random stream depends on the condition's body and growth only, so that the

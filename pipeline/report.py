@@ -30,7 +30,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from . import cli, io
 from .studies import baselines, choices, claims, conventions, explain, figures, readings
-from .config import ConfigError
+from .config import ConfigError, check_stamp
 
 log = logging.getLogger("pipeline.report")
 
@@ -125,6 +125,7 @@ def _posture_panels(aggs: dict, wanted) -> list:
 
 def report(cfg: DictConfig) -> list[Path]:
     """Write every report file; return their paths."""
+    check_stamp(cfg)  # report.stamp_findings: the publishing run only, before anything is written
     aggs = load_aggregates(Path(cfg.paths.aggregate)) if Path(cfg.paths.aggregate).exists() else {}
     if not aggs:
         raise FileNotFoundError(f"nothing aggregated under {cfg.paths.aggregate}: "

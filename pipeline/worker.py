@@ -3,7 +3,9 @@ with one BLAS/OpenMP/numba thread. The executor (pipeline.execute) and the clust
 (pipeline.backends) both import it; it imports neither."""
 from __future__ import annotations
 
+import ctypes
 import os
+import signal
 import time
 import traceback
 from contextlib import contextmanager
@@ -11,6 +13,8 @@ from contextlib import contextmanager
 import numpy as np
 
 import gbmodel
+
+from .warm import recovering
 
 THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
                "NUMBA_NUM_THREADS", "VECLIB_MAXIMUM_THREADS")
@@ -23,7 +27,7 @@ def run_one(trial: dict) -> dict:
     epoch), or failed (an exception; not cached, so the next run tries again)."""
     start = time.perf_counter()
     try:
-        from .plan import code_fingerprint
+        from .fingerprint import code_fingerprint
 
         mine = code_fingerprint(trial["spec"]["learner"]["name"])
         if trial.get("code", mine) != mine:  # code changed since the plan, or another node's
@@ -33,7 +37,8 @@ def run_one(trial: dict) -> dict:
         spec = gbmodel.TrialSpec.from_dict(trial["spec"])
         seed = np.random.SeedSequence(trial["seed"]["entropy"],
                                       spawn_key=tuple(trial["seed"]["spawn_key"]))
-        res = gbmodel.run_trial(spec, np.random.default_rng(seed))
+        # a damaged numba cache is removed and the trial run again, from the same seed
+        res = recovering(lambda: gbmodel.run_trial(spec, np.random.default_rng(seed)))
         out = dict(status="ok", epoch=res.epoch, samples=res.epoch * res.samples_per_epoch,
                    size=res.size, abs_error=res.abs_error, rel_error=res.rel_error, M=res.M,
                    snapshots=res.snapshots, largest_jump=res.largest_jump)
@@ -44,6 +49,24 @@ def run_one(trial: dict) -> dict:
                    traceback=traceback.format_exc())
     out["key"], out["seconds"] = trial["key"], time.perf_counter() - start
     return out
+
+
+PR_SET_PDEATHSIG = 1  # linux/prctl.h
+
+
+def quiet_worker(parent: int | None = None) -> None:
+    """A pool worker's start: Ctrl-C, SIGTERM and SIGHUP are left to the driver, which stops every
+    worker at once (pipeline.execute.stop_pools); and on Linux the kernel kills the worker if the
+    driver dies without doing so (kill -9), so no worker waits forever for work."""
+    for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(s, signal.SIG_IGN)
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+    except (OSError, AttributeError):  # not Linux: the driver's stop_pools still stops us
+        return
+    if parent is not None and os.getppid() != parent:  # it died before prctl took effect
+        os._exit(1)
 
 
 @contextmanager

@@ -18,7 +18,7 @@ import gbmodel
 import gbmodel.learners
 import pipeline.config
 from gbmodel.learners import goal_babbling
-from pipeline import aggregate, plan as plan_mod, report, simulate
+from pipeline import aggregate, fingerprint, report, simulate
 from pipeline.config import CONF_DIR, REPO_ROOT, ConfigError, compose
 from pipeline.plan import code_fingerprint, cost, plan
 from conftest import tiny_overrides
@@ -151,13 +151,13 @@ def test_a_learner_without_a_file_under_gbmodel_plans(tmp_path, registry, where)
 # ---- (b) the code fingerprint of one learner ---------------------------------------------------
 def test_the_fingerprint_hashes_the_shared_core_and_the_learners_own_files(monkeypatch):
     seen = {}
-    real = plan_mod.source_fingerprint
+    real = fingerprint.source_fingerprint
 
     def spy(sources):
         seen["sources"] = list(sources)
         return real(sources)
 
-    monkeypatch.setattr(plan_mod, "source_fingerprint", spy)
+    monkeypatch.setattr(fingerprint, "source_fingerprint", spy)
     code_fingerprint.cache_clear()
     try:
         fp = code_fingerprint("goal_babbling")

@@ -151,16 +151,22 @@ def test_damaged_cache_files_are_named_and_recomputed_to_the_same_bytes(tmp_path
     assert aggregate.aggregate(cfg) == []
 
 
-def test_a_damaged_plan_record_is_named_and_the_others_still_count(tmp_path, compose_tiny):
+def test_a_damaged_plan_record_is_named_and_never_replaces_a_good_aggregate(tmp_path,
+                                                                           compose_tiny):
     cfg = compose_tiny(tmp_path, "experiment=fig4")
     simulate.simulate(cfg)
+    assert aggregate.aggregate(cfg) == []
+    summary = Path(cfg.paths.aggregate) / "fig4" / "summary.parquet"
+    before = summary.read_bytes()
     group = json.loads((Path(cfg.paths.cache) / "plans/fig4/current.json").read_text())["group"]
-    bad = Path(cfg.paths.cache) / "plans/fig4" / group / "0000000000000000.json"
-    bad.write_bytes(b'{"figure": "fig4", "whole": tr')
-    problems = aggregate.aggregate(cfg)
-    assert len(problems) == 1 and "plan record ignored" in problems[0] and bad.name in problems[0]
-    summ = pd.read_parquet(Path(cfg.paths.aggregate) / "fig4" / "summary.parquet")
-    assert len(summ) == 6 and (summ["n_trials"] == 1).all()
+    for garbage in (b'{"figure": "fig4", "whole": tr', b'{"figure": "fig4", "conditions": [1]}'):
+        bad = Path(cfg.paths.cache) / "plans/fig4" / group / "0000000000000000.json"
+        bad.write_bytes(garbage)
+        problems = aggregate.aggregate(cfg)
+        assert len(problems) == 1 and bad.name in problems[0] and "left as it was" in problems[0]
+        assert summary.read_bytes() == before
+    bad.unlink()
+    assert aggregate.aggregate(cfg) == []
 
 
 # ---- 3. who writes the committed report --------------------------------------------------------

@@ -1,0 +1,124 @@
+"""The code fingerprint of a trial: a hash of the gbmodel code that computes it, taken from the
+code this process runs.
+
+The cache key holds it, so a trial is recomputed when its code changes and only then. The files
+are read once per learner and process (code_fingerprint is cached), and each file of a module
+this process has imported is checked against that module's code: a file edited between the
+import and the read (the driver imports gbmodel, someone saves a file, the fingerprint reads it)
+would otherwise key old-code results with the new code's fingerprint. Such a file raises
+CodeChanged, a one-line error: run the command again.
+"""
+from __future__ import annotations
+
+import ast
+import hashlib
+import inspect
+import sys
+from functools import lru_cache
+from pathlib import Path
+
+import gbmodel
+import gbmodel.learners
+
+
+class CodeChanged(RuntimeError):
+    """A gbmodel file differs from the code this process imported from it."""
+
+
+def _code_of(source: str) -> str:
+    """The syntax tree of a module without its docstrings (comments are not in it anyway)."""
+    tree = ast.parse(source)
+    for node in ast.walk(tree):
+        body = getattr(node, "body", None)
+        if (isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef))
+                and body and isinstance(body[0], ast.Expr)
+                and isinstance(body[0].value, ast.Constant) and isinstance(body[0].value.value, str)):
+            node.body = body[1:] or [ast.Pass()]
+    return ast.dump(tree, annotate_fields=False, include_attributes=False)
+
+
+def source_fingerprint(sources) -> str:
+    """Hash of the code of `sources`, (name, source text) pairs (names + syntax trees): a change
+    of what the code computes changes it; comments, docstrings and layout do not."""
+    h = hashlib.sha256()
+    for name, text in sorted(sources):
+        h.update(name.encode() + b"\0")
+        h.update(_code_of(text).encode() + b"\0")
+    return h.hexdigest()[:16]
+
+
+def _codes(code, out=None) -> dict:
+    """Every code object in `code` (a compiled module), by qualified name (several lambdas of
+    one scope share theirs)."""
+    out = {} if out is None else out
+    for const in code.co_consts:
+        if inspect.iscode(const):
+            out.setdefault(const.co_qualname, []).append(const)
+            _codes(const, out)
+    return out
+
+
+def _live_codes(module, path: Path):
+    """The code objects of the functions (plain, jitted, methods) that `module` got from `path`."""
+    seen, todo = set(), list(vars(module).values())
+    while todo:
+        obj = todo.pop()
+        if id(obj) in seen:
+            continue
+        seen.add(id(obj))
+        if inspect.isclass(obj) and obj.__module__ == module.__name__:
+            todo += list(vars(obj).values())
+            continue
+        if isinstance(obj, (staticmethod, classmethod)):
+            obj = obj.__func__
+        elif isinstance(obj, property):
+            todo += [f for f in (obj.fget, obj.fset, obj.fdel) if f is not None]
+            continue
+        obj = getattr(obj, "py_func", obj)  # a numba dispatcher: the Python function it compiles
+        try:
+            obj = inspect.unwrap(obj)
+        except ValueError:
+            continue
+        code = getattr(obj, "__code__", None)
+        if inspect.iscode(code) and Path(code.co_filename).resolve() == path:
+            yield code
+
+
+def _gbmodel_modules() -> dict:
+    """Resolved file -> module, for the imported modules of gbmodel."""
+    return {Path(m.__file__).resolve(): m for name, m in list(sys.modules.items())
+            if (name == "gbmodel" or name.startswith("gbmodel."))
+            and getattr(m, "__file__", None)}
+
+
+def as_imported(path: Path, text: str, modules: dict | None = None) -> str:
+    """`text` (the file `path` as read now) if it is the code this process imported from it (or
+    the file is not an imported module of gbmodel), else CodeChanged naming the file."""
+    path = Path(path).resolve()
+    module = (_gbmodel_modules() if modules is None else modules).get(path)
+    if module is None:
+        return text
+    compiled = _codes(compile(text, str(path), "exec"))
+    for code in _live_codes(module, path):
+        if code not in compiled.get(code.co_qualname, ()):
+            raise CodeChanged(f"{path}: changed since this process imported it ({code.co_qualname} "
+                              "differs); run the command again")
+    return text
+
+
+@lru_cache(maxsize=None)
+def code_fingerprint(learner: str) -> str:
+    """The fingerprint of the code a trial of `learner` runs: gbmodel's shared core (every file
+    outside gbmodel/learners/, and the registry) plus that learner's own files, each checked
+    against the code imported from it. Changing one learner recomputes its trials only; an
+    edited comment recomputes none."""
+    root = Path(gbmodel.__file__).resolve().parent
+    shared = [p for p in root.rglob("*.py")
+              if "learners" not in p.relative_to(root).parts[:-1]]
+    shared.append(root / "learners" / "__init__.py")
+    theirs = gbmodel.learners.sources(learner)  # imports the learner: its modules are checked
+    modules = _gbmodel_modules()
+    own = [(p.relative_to(root.parent).as_posix(), as_imported(p, p.read_text(), modules))
+           for p in shared]
+    theirs = [(label, as_imported(root.parent / label, text, modules)) for label, text in theirs]
+    return source_fingerprint(own + theirs)

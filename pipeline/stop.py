@@ -1,0 +1,71 @@
+"""Ctrl-C, SIGTERM and SIGHUP all stop a stage the same way: one line, exit 128 + the signal.
+
+A scheduler stops a job with SIGTERM (Slurm, `kill PID`), a closed terminal sends SIGHUP; by
+default either kills the driver at once and leaves the pool's workers and multiprocessing's
+resource tracker running forever. Here the three signals raise `Stopped` (a KeyboardInterrupt)
+in the driver while a stage runs (`armed()`), so the stage's `finally` blocks release their claims
+and stop the workers, and pipeline.cli prints one line and exits 130 (SIGINT), 143 (SIGTERM) or
+129 (SIGHUP), what a shell reports for a process killed by that signal.
+
+Before a stage runs (imports, checking the command line: nothing is written yet) a signal ends
+the process at once with the same one line instead of a traceback from inside an import. This
+module imports only the standard library, so that it can be installed before anything slow.
+"""
+from __future__ import annotations
+
+import os
+import signal
+import sys
+from contextlib import contextmanager
+
+SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+_state = {"armed": False, "stopping": None}
+
+
+class Stopped(KeyboardInterrupt):
+    """A stage was asked to stop by signal `signum`; handled exactly like Ctrl-C."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+    @property
+    def exit_status(self) -> int:
+        return 128 + self.signum
+
+
+def exit_status(err: KeyboardInterrupt) -> int:
+    """128 + the signal that stopped the stage (130 for a plain KeyboardInterrupt)."""
+    return getattr(err, "exit_status", 128 + signal.SIGINT)
+
+
+def _handler(signum, frame):
+    if not _state["armed"]:  # no stage is running: no claims, no pool, nothing to clean up
+        name = signal.Signals(signum).name
+        print(f"stopped by {name} (no stage was writing)", file=sys.stderr, flush=True)
+        os._exit(128 + signum)
+    if _state["stopping"] is not None:
+        return  # the first signal's clean-up is running: let it finish (kill -9 still works)
+    _state["stopping"] = signum
+    raise Stopped(signum)
+
+
+def install() -> None:
+    """Handle the three signals in this process (the main thread only can)."""
+    for s in SIGNALS:
+        signal.signal(s, _handler)
+
+
+@contextmanager
+def armed():
+    """While the block runs, a signal raises Stopped in it (once; repeats are ignored while the
+    clean-up runs); the previous handlers come back afterwards."""
+    old = {s: signal.getsignal(s) for s in SIGNALS}
+    install()
+    _state.update(armed=True, stopping=None)
+    try:
+        yield
+    finally:
+        _state.update(armed=False, stopping=None)
+        for s, h in old.items():
+            signal.signal(s, h)

@@ -1,0 +1,52 @@
+"""The code fingerprint is taken from the code the process runs: a gbmodel file edited after the
+process imported it is refused (CodeChanged, one line), not hashed as if it had run."""
+import os
+import shutil
+import subprocess
+import sys
+
+from pipeline.config import REPO_ROOT
+
+SCRIPT = """
+import sys
+from pathlib import Path
+import gbmodel
+from pipeline import fingerprint
+growth = Path(gbmodel.__file__).parent / "growth.py"
+assert str(growth).startswith(sys.argv[1]), growth
+text = growth.read_text()
+edit = sys.argv[2]
+if edit == "code":  # what progress() computes changes after the import
+    text = text.replace("    if schedule == \\"linear\\":\\n        return u", "    if schedule == \\"linear\\":\\n        return u * 1.0")
+elif edit == "comment":  # a comment at the end: no code moves
+    text += "# a comment\\n"
+assert edit == "none" or text != growth.read_text()
+growth.write_text(text)
+try:
+    print(fingerprint.code_fingerprint("goal_babbling"))
+except fingerprint.CodeChanged as err:
+    print("refused:", err)
+"""
+
+
+def _run(tmp_path, edit):
+    copy = tmp_path / edit
+    shutil.copytree(REPO_ROOT / "gbmodel", copy / "gbmodel",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    env = dict(os.environ, PYTHONPATH=f"{copy}{os.pathsep}{REPO_ROOT}", NUMBA_DISABLE_JIT="1")
+    r = subprocess.run([sys.executable, "-c", SCRIPT, str(copy), edit], capture_output=True,
+                       text=True, env=env, cwd=copy, timeout=120)
+    assert r.returncode == 0, r.stderr
+    return r.stdout.strip()
+
+
+def test_a_file_edited_after_the_import_is_refused(tmp_path):
+    out = _run(tmp_path, "code")
+    assert out.startswith("refused: ") and "growth.py: changed since this process imported it" \
+        in out and "progress differs" in out, out
+    assert "\n" not in out
+
+
+def test_unchanged_or_comment_edited_files_give_the_usual_fingerprint(tmp_path):
+    from pipeline.fingerprint import code_fingerprint
+    assert _run(tmp_path, "none") == _run(tmp_path, "comment") == code_fingerprint("goal_babbling")

@@ -1,0 +1,85 @@
+"""SIGTERM, SIGHUP and Ctrl-C stop a stage the same way: one line, exit 128 + the signal, and no
+worker or resource-tracker process outlives the driver (found by pid in /proc)."""
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from pipeline.config import REPO_ROOT
+from conftest import tiny_overrides
+
+ENV = dict(os.environ, PYTHONPATH=str(REPO_ROOT))
+
+
+def _children(pid: int) -> dict[int, str]:
+    """pid -> command line of every process whose parent is `pid` (from /proc)."""
+    out = {}
+    for p in Path("/proc").iterdir():
+        if not p.name.isdigit():
+            continue
+        try:
+            ppid = int((p / "stat").read_text().rsplit(")", 1)[1].split()[1])
+            if ppid == pid:
+                out[int(p.name)] = (p / "cmdline").read_bytes().replace(b"\0", b" ").decode()
+        except (OSError, IndexError, ValueError):
+            continue
+    return out
+
+
+def _running(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+def _start(tmp_path, *extra):
+    args = tiny_overrides(tmp_path, "learner.epochs=200000", "trials.count=2", "workers=2",
+                          "growth=none", *extra)
+    return subprocess.Popen([sys.executable, "-m", "pipeline.simulate", *args], cwd="/", env=ENV,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+
+
+@pytest.mark.parametrize("sig, status", [(signal.SIGTERM, 143), (signal.SIGHUP, 129)])
+def test_a_signal_to_the_driver_alone_stops_every_worker_and_the_tracker(tmp_path, sig, status):
+    proc = _start(tmp_path)
+    try:
+        deadline, kids = time.monotonic() + 120, {}
+        while time.monotonic() < deadline:  # two workers and the tracker, busy with the trials
+            kids = _children(proc.pid)
+            if sum("spawn_main" in c for c in kids.values()) >= 2 and proc.poll() is None:
+                break
+            time.sleep(0.2)
+        assert sum("spawn_main" in c for c in kids.values()) >= 2, kids
+        assert any("resource_tracker" in c for c in kids.values()), kids
+        time.sleep(1.0)
+        os.kill(proc.pid, sig)  # the driver alone, as `kill PID` or a scheduler does
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == status, err
+    assert err.strip().splitlines()[-1] == (f"stopped by {signal.Signals(sig).name}: finished "
+                                            "work is cached; run the same command again to resume")
+    assert "Traceback" not in err
+    deadline = time.monotonic() + 20
+    while any(map(_running, kids)) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not [kids[p] for p in kids if _running(p)]
+    assert not list(Path(tmp_path).rglob(".*.tmp"))
+
+
+def test_ctrl_c_in_the_first_second_is_one_line(tmp_path):
+    proc = _start(tmp_path)
+    time.sleep(0.6)  # in the middle of the imports
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert len(err.strip().splitlines()) == 1, err
+    assert "Traceback" not in err and "SIGINT" in err

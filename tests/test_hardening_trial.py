@@ -1,0 +1,57 @@
+"""A trial's memory does not grow with its epochs (sizes and scales are built per block of
+DRAW_BLOCK epochs), and building them per block gives the same bytes as for every epoch at once."""
+import tracemalloc
+
+import numpy as np
+import pytest
+
+import gbmodel
+import gbmodel.learners
+from gbmodel.trial import DRAW_BLOCK
+from test_architecture import stay_home_module
+
+
+@pytest.fixture
+def stay_home(monkeypatch):
+    """A learner that never learns, so that the trial loop's own memory is what is measured."""
+    monkeypatch.setattr(gbmodel.learners, "_REGISTERED", dict(gbmodel.learners._REGISTERED))
+    m = stay_home_module()
+    gbmodel.learners.register("stay_home", m)
+    return "stay_home"
+
+
+def _peak(learner: str, epochs: int) -> int:
+    spec = gbmodel.TrialSpec(learner={"name": learner}, epochs=epochs, evals_per_decade=2,
+                             growth=dict(pattern="proximal_first", period=epochs // 2))
+    tracemalloc.start()
+    try:
+        gbmodel.run_trial(spec, np.random.default_rng(0))
+        return tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
+def test_a_trials_memory_does_not_grow_with_its_epochs(stay_home):
+    small, large = _peak(stay_home, 20_000), _peak(stay_home, 400_000)
+    # for every epoch at once: 400k x (1 size + 5 scales + the epoch numbers) x 8 B = 22 MB more
+    assert large - small < 1_000_000, (small, large)
+
+
+@pytest.mark.parametrize("growth", [
+    dict(pattern="proportional", period=1500),
+    dict(pattern="proportional", period=1500, schedule="infant"),
+    dict(pattern="nonproportional", period=1700),
+    dict(pattern="proximal_first", period=2500, start_size=0.6),
+    dict(pattern="proportional", period=0, end_size=0.5),
+])
+def test_sizes_and_scales_per_block_are_the_bytes_of_the_whole_run(growth):
+    body = gbmodel.make_body("arm5")
+    g = gbmodel.Growth(**growth).validate(body)
+    epochs = 3 * DRAW_BLOCK + 17
+    whole = g.sizes(np.arange(1, epochs + 1))
+    whole_scales = g.scales(body, whole)
+    for start in range(0, epochs, DRAW_BLOCK):
+        stop = min(start + DRAW_BLOCK, epochs)
+        part = g.sizes(np.arange(start + 1, stop + 1))
+        assert part.tobytes() == whole[start:stop].tobytes()
+        assert g.scales(body, part).tobytes() == whole_scales[start:stop].tobytes()
