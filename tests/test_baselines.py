@@ -75,3 +75,95 @@ def test_memory_window_zero_is_accepted_and_negative_is_not():
     example_memory.Params(window=0).validate()
     with pytest.raises(ValueError, match="learner.window"):
         example_memory.Params(window=-1).validate()
+
+
+# ---- goals chosen by learning progress ----------------------------------------------------------
+from gbmodel.learners import online_goal_babbling  # noqa: E402
+from gbmodel.learners.goal_babbling import goals  # noqa: E402
+
+GROWING = {"pattern": "proportional", "period": 20, "start_size": 0.5}
+
+
+@pytest.mark.parametrize("body, digest", [("arm5", "294d8775bfc29d33"),
+                                          ("icub", "617190af3df0ee01")])
+def test_random_goal_selection_is_byte_identical_to_before(body, digest):
+    """goal_selection=random (the default) gives the bytes of the code before the option
+    existed (digest of the curve and M, computed on commit 7a54fd5)."""
+    import hashlib
+    for learner in ({"name": "goal_babbling"},
+                    {"name": "goal_babbling", "goal_selection": "random"}):
+        r = gbmodel.run_trial(gbmodel.TrialSpec(body={"name": body}, learner=learner, epochs=30,
+                                                growth=GROWING), np.random.default_rng(3))
+        assert hashlib.sha256(r.abs_error.tobytes() + r.M.tobytes()).hexdigest()[:16] == digest
+
+
+def test_progress_probabilities_follow_the_regions_change_of_error():
+    """Constructed errors: region 0 of 4 improves by 3 mm, region 2 by 1 mm, the others stay.
+    The chosen targets' frequencies match share / N + (1 - share) progress share / N_r."""
+    targets = gbmodel.make_body("arm5").targets
+    region = goals.regions(targets)
+    assert sorted(set(region)) == [0, 1, 2, 3]
+    tracker = goals.start(targets)
+    window = 2
+    for drop in (0.0, 0.0, 3e-3, 3e-3):  # the older window, then the newer one
+        errors = 0.01 - np.where(region == 0, drop, 0.0) - np.where(region == 2, drop / 3, 0.0)
+        tracker = tracker.measured(errors, region, window)
+    progress = tracker.progress(window)
+    np.testing.assert_allclose(progress, [3e-3, 0.0, 1e-3, 0.0], atol=1e-15)
+    p = goals.probabilities(progress, region, share=0.2)
+    N, n_r = len(targets), np.bincount(region)
+    want_region = 0.2 * n_r / N + 0.8 * np.array([0.75, 0.0, 0.25, 0.0])
+    np.testing.assert_allclose(np.bincount(region, weights=p), want_region, rtol=1e-12)
+    u = np.random.default_rng(0).uniform(size=200_000)
+    freq = np.bincount(region[goals.choose(u, p)], minlength=4) / len(u)
+    np.testing.assert_allclose(freq, want_region, atol=4e-3)
+    # no measurement window yet, or no progress anywhere: uniform
+    np.testing.assert_array_equal(goals.probabilities(None, region, 0.2), np.full(N, 1 / N))
+    np.testing.assert_array_equal(goals.probabilities(np.zeros(4), region, 0.2),
+                                  np.full(N, 1 / N))
+
+
+@pytest.mark.parametrize("name", ["goal_babbling", "online_goal_babbling"])
+def test_progress_selection_learns_and_does_not_depend_on_the_evaluation_cuts(name):
+    learner = {"name": name, "goal_selection": "progress", "progress_period": 3}
+    runs = [gbmodel.run_trial(gbmodel.TrialSpec(learner=learner, epochs=40, growth=GROWING,
+                                                evals_per_decade=k), np.random.default_rng(5))
+            for k in (2, 20)]
+    np.testing.assert_array_equal(runs[0].M, runs[1].M)
+    random = gbmodel.run_trial(gbmodel.TrialSpec(learner={"name": name}, epochs=40,
+                                                 growth=GROWING), np.random.default_rng(5))
+    assert not np.array_equal(random.M, runs[1].M)  # the choice acts
+    assert 0.5 < runs[1].rel_error[-1] / random.rel_error[-1] < 2  # and learns as well
+    assert runs[1].samples_per_epoch == random.samples_per_epoch + 22  # 66 targets / 3
+
+
+def test_progress_selection_online_paths_follow_the_chosen_targets():
+    """The chosen targets reach the online kernel as hops: with all progress in one region
+    (share 0), every target of the epoch lies in it; fast and reference paths agree."""
+    body = gbmodel.make_body("arm5")
+    p = online_goal_babbling.Params(goal_selection="progress", progress_period=1,
+                                    progress_window=1, progress_share=0.0)
+    rng = np.random.default_rng(2)
+    state = online_goal_babbling.init(p, body, 1.0, rng)
+    region = goals.regions(body.targets)
+    tracker = goals.start(body.targets).measured(np.full(len(region), 0.01), region, 1)
+    tracker = tracker.measured(np.where(region == 3, 0.05, 0.01), region, 1)  # only region 3
+    state = online_goal_babbling.replace(state, tracker=tracker)
+    draws = online_goal_babbling.draw(p, body, 1, rng)
+    probs = goals.probabilities(state.tracker.progress(1), region, 0.0)
+    chosen = goals.choose(draws[0][0], probs)
+    assert set(region[chosen]) == {3}
+    a = online_goal_babbling.train(state, p, body, np.ones(1), np.ones((1, 5)), draws, [1])
+    assert a.target == chosen[-1]
+    ref = online_goal_babbling.train(state, online_goal_babbling.replace(p, fast=False), body,
+                                     np.ones(1), np.ones((1, 5)), draws, [1])
+    np.testing.assert_allclose(a.M, ref.M, rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("field, value", [("goal_selection", "curious"),
+                                          ("progress_period", 0), ("progress_share", 1.5)])
+def test_bad_goal_selection_names_the_field(field, value):
+    from gbmodel.learners import goal_babbling
+    for module in (goal_babbling, online_goal_babbling):
+        with pytest.raises(ValueError, match=f"learner.{field}"):
+            module.Params(**{field: value}).validate()

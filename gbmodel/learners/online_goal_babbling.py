@@ -25,7 +25,9 @@ Chosen here:
 - the inverse estimate is Goal Babbling's polynomial (eq. 7), initialised the same way, and the
   step is plain per-sample gradient descent, M <- M - eta w_t (M Phi(x_t) - q_t) Phi(x_t)^T
   (2011 learns a local-linear map);
-- samples per epoch: K L plus the returns home, K home_probability in expectation.
+- samples per epoch: K L plus the returns home, K home_probability in expectation;
+- goal_selection: random (the above: each next target uniform over the others) or progress
+  (goal_babbling/goals.py: by the regions' recent change of error, not the 2011 paper's).
 
 Two paths compute the same thing with the same draws (all random numbers come from `draw`):
 `train_reference` below, plain numpy, is the readable statement; `_train_block`, the same
@@ -47,6 +49,7 @@ from numba.extending import intrinsic, models, register_model
 
 from ..features import exponents, features
 from ..growth import SpecError, check_int, check_number
+from .goal_babbling import goals
 from .goal_babbling.reference import (NO_MOVEMENT, init_inverse, predict as predict_inverse,
                                       sample_weights, scale_perturbations)
 
@@ -70,6 +73,11 @@ class Params:
     init_range: float = 0.1  # |g(x) - home| bound at initialisation (as Goal Babbling)
     degree: int = 3
     fast: bool = True  # the compiled per-sample loop (_train_block); False: the numpy reference
+    # which targets (goal_babbling/goals.py): random (the paper's) or progress, and its settings
+    goal_selection: str = "random"
+    progress_period: int = 10
+    progress_window: int = 3
+    progress_share: float = 0.2
 
     def validate(self) -> "Params":
         for name in ("targets_per_epoch", "steps", "degree"):
@@ -82,6 +90,7 @@ class Params:
             raise SpecError("learner.home_probability", self.home_probability, "must be <= 1")
         if not isinstance(self.fast, bool):
             raise SpecError("learner.fast", self.fast, "must be true or false")
+        goals.check(self)
         return self
 
 
@@ -92,6 +101,7 @@ class State:
     target: int  # index of the target last reached
     at_home: bool  # the last movement returned home: the next path starts at x_home
     last: tuple  # (x*, x, q) of the last sample, the predecessor of the next one's weight
+    tracker: goals.Tracker | None = None  # the regions' errors (goal_selection=progress)
 
 
 def _exps(params, body):
@@ -105,14 +115,24 @@ def init(params: Params, body, size: float, rng: np.random.Generator) -> State:
     P = rng.standard_normal((body.m, body.n + 1))
     q_home = body.saturate(body.home)
     x_home = body.forward(q_home, size=size)
-    return State(M, P, target=0, at_home=True, last=(x_home, x_home, q_home))
+    tracker = None
+    if params.goal_selection == "progress":
+        errors = goals.reaching_errors(lambda x: predict_inverse(M, x, _exps(params, body)),
+                                       body, size, np.ones(body.m))
+        tracker = goals.start(body.targets).measured(errors, goals.regions(body.targets),
+                                                     params.progress_window)
+    return State(M, P, target=0, at_home=True, last=(x_home, x_home, q_home), tracker=tracker)
 
 
 def draw(params: Params, body, B: int, rng: np.random.Generator) -> tuple:
     """Per epoch: hops to the next targets (B, K) in 1 ... N-1 (so each differs from the last),
-    home coins (B, K) in [0, 1), random-walk steps (B, K L, m, n+1)."""
+    home coins (B, K) in [0, 1), random-walk steps (B, K L, m, n+1). With goal_selection=progress
+    the first array holds uniform numbers (B, K) in [0, 1), turned into targets in train."""
     K = params.targets_per_epoch
-    hops = rng.integers(1, len(body.targets), size=(B, K))
+    if params.goal_selection == "progress":
+        hops = rng.uniform(0.0, 1.0, size=(B, K))
+    else:
+        hops = rng.integers(1, len(body.targets), size=(B, K))
     coins = rng.uniform(0.0, 1.0, size=(B, K))
     walk = rng.standard_normal((B, K * params.steps, body.m, body.n + 1))
     return hops, coins, walk
@@ -148,6 +168,26 @@ def perturbations(P, walk, params: Params, lo, hi):
 
 
 def train(state: State, params: Params, body, sizes, scales, draws, epochs=None) -> State:
+    if params.goal_selection == "random":
+        return _train(state, params, body, sizes, scales, draws)
+    region, N = goals.regions(body.targets), len(body.targets)
+    for lo, hi, measure in goals.chunks(epochs, params.progress_period):
+        p = goals.probabilities(state.tracker.progress(params.progress_window), region,
+                                params.progress_share)
+        chosen = goals.choose(draws[0][lo:hi], p)  # (C, K) the targets, as hops from the last
+        flat = np.concatenate([[state.target], chosen.ravel()])
+        hops = (np.diff(flat) % N).reshape(chosen.shape)
+        state = _train(state, params, body, sizes[lo:hi], scales[lo:hi],
+                       (hops,) + tuple(d[lo:hi] for d in draws[1:]))
+        if measure:
+            errors = goals.reaching_errors(lambda x: predict(state, params, body, x), body,
+                                           sizes[hi - 1], scales[hi - 1])
+            state = replace(state, tracker=state.tracker.measured(errors, region,
+                                                                  params.progress_window))
+    return state
+
+
+def _train(state: State, params: Params, body, sizes, scales, draws) -> State:
     if params.fast:
         return train_fast(state, params, body, sizes, scales, draws)
     return train_reference(state, params, body, sizes, scales, draws)
@@ -176,7 +216,7 @@ def train_reference(state: State, params: Params, body, sizes, scales, draws) ->
             phi = features(x, exps)
             M -= (params.learning_rate * w) * np.outer(M @ phi - q, phi)
             last = (xs, x, q)
-        state = State(M, P, target, at_home, last)
+        state = State(M, P, target, at_home, last, state.tracker)
     return replace(state, M=M.copy())
 
 
@@ -525,7 +565,8 @@ def train_fast(state: State, params: Params, body, sizes, scales, draws) -> Stat
         joints, parent, coord, int(params.steps), float(params.radius), float(params.drift),
         1.0 / np.sqrt(1.0 + params.drift ** 2), float(params.home_probability),
         float(params.learning_rate))
-    return State(np.ascontiguousarray(MT[:, :m].T), P, int(target), bool(at_home), (lxs, lx, lq))
+    return State(np.ascontiguousarray(MT[:, :m].T), P, int(target), bool(at_home), (lxs, lx, lq),
+                 state.tracker)
 
 
 def predict(state: State, params: Params, body, x) -> np.ndarray:
@@ -539,4 +580,6 @@ def model(state: State) -> np.ndarray:
 def samples_per_epoch(params: Params, body) -> int:
     """K L path samples plus the returns home, K home_probability in expectation (rounded)."""
     K = params.targets_per_epoch
-    return int(round(K * (params.steps + params.home_probability)))
+    extra = goals.samples(body, params.progress_period) if params.goal_selection == "progress" \
+        else 0
+    return int(round(K * (params.steps + params.home_probability))) + extra
