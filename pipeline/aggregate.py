@@ -29,7 +29,7 @@ from . import cache, cli, io
 log = logging.getLogger("pipeline.aggregate")
 
 GROUP = [c for c in io.LABEL_COLUMNS if c != "trial"]
-ERRORS = ("abs_error", "rel_error")
+ERRORS = ("abs_error", "rel_error", "heldout_abs_error")
 
 
 def condition_order(t: dict) -> tuple:

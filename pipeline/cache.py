@@ -65,7 +65,8 @@ def write_trial(cache_dir, trial: dict, result: dict) -> None:
         l = trial["labels"]
         io.write_table(curve, io.curve_table(l, result["epoch"], result["samples"],
                                              result["size"], result["abs_error"],
-                                             result["rel_error"]))
+                                             result["rel_error"],
+                                             result["heldout_abs_error"]))
         record["curve_sha256"] = io.sha256_file(curve)
         record["largest_jump"] = float(result["largest_jump"])
         M = result["M"]

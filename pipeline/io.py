@@ -23,7 +23,8 @@ LABELS = pa.schema([("figure", pa.string()), ("body", pa.string()), ("learner", 
                     ("condition", pa.string()), ("trial", pa.int64())])
 CURVE = pa.schema(list(LABELS) + [("epoch", pa.int64()), ("samples", pa.int64()),
                                   ("size", pa.float64()), ("abs_error", pa.float64()),
-                                  ("rel_error", pa.float64())])
+                                  ("rel_error", pa.float64()),
+                                  ("heldout_abs_error", pa.float64())])  # on the held-out set
 LABEL_COLUMNS = LABELS.names
 CURVE_COLUMNS = CURVE.names
 
@@ -79,12 +80,14 @@ def frame_to_table(df) -> pa.Table:
     return pa.Table.from_pandas(df, preserve_index=False)
 
 
-def curve_table(labels: dict, epoch, samples, size, abs_error, rel_error) -> pa.Table:
+def curve_table(labels: dict, epoch, samples, size, abs_error, rel_error,
+                heldout_abs_error) -> pa.Table:
     """One trial's learning curve in the CURVE schema."""
     n = len(epoch)
     cols = [pa.array([labels[f.name]] * n, type=f.type) for f in LABELS]
     cols += [pa.array(np.asarray(v, dtype=np.int64)) for v in (epoch, samples)]
-    cols += [pa.array(np.asarray(v, dtype=np.float64)) for v in (size, abs_error, rel_error)]
+    cols += [pa.array(np.asarray(v, dtype=np.float64))
+             for v in (size, abs_error, rel_error, heldout_abs_error)]
     return pa.Table.from_arrays(cols, schema=CURVE)
 
 

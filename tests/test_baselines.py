@@ -167,3 +167,31 @@ def test_bad_goal_selection_names_the_field(field, value):
     for module in (goal_babbling, online_goal_babbling):
         with pytest.raises(ValueError, match=f"learner.{field}"):
             module.Params(**{field: value}).validate()
+
+
+# ---- the held-out set -----------------------------------------------------------------------------
+from gbmodel import evaluation  # noqa: E402
+
+
+@pytest.mark.parametrize("name", ["arm5", "icub"])
+def test_heldout_points_are_fixed_inside_the_box_off_the_grid_and_scale_with_the_body(name):
+    body = gbmodel.make_body(name)
+    x = evaluation.heldout_points(body)
+    np.testing.assert_array_equal(x, evaluation.heldout_points(body))  # fixed
+    np.testing.assert_array_equal(evaluation.heldout_points(body, 0.6), 0.6 * x)
+    lo, hi = body.target_box()
+    assert (x >= lo).all() and (x <= hi).all()
+    assert len(x) == len(gbmodel.bodies.cell_centres(body.targets)) + evaluation.HELDOUT_UNIFORM
+    gap = np.linalg.norm(x[:, None] - body.targets[None], axis=-1).min(axis=1)
+    assert gap.min() > 1e-4  # no held-out point is a training target
+
+
+def test_every_trial_scores_the_heldout_set_beside_its_points():
+    spec = gbmodel.TrialSpec(learner={"name": "example_memory", "goals": 200}, epochs=5,
+                             growth=GROWING)
+    r = gbmodel.run_trial(spec, np.random.default_rng(0))
+    held = gbmodel.run_trial(gbmodel.TrialSpec(**{**spec.to_dict(), "snapshots": (),
+                                                  "evaluation": {"points": "heldout"}}),
+                             np.random.default_rng(0))
+    np.testing.assert_array_equal(r.heldout_abs_error, held.abs_error)
+    assert not np.array_equal(r.heldout_abs_error, r.abs_error)
