@@ -97,6 +97,7 @@ class TrialResult:
     snapshots: dict = field(default_factory=dict)  # epoch -> model after that epoch
     samples_per_epoch: int = 0  # forward-kinematics evaluations per epoch
     largest_jump: float = float("nan")  # the final inverse's redundancy measure (evaluation)
+    heldout_abs_error: np.ndarray | None = None  # (E,) abs_error on the held-out set (evaluation)
 
 
 def run_trial(spec: TrialSpec, rng: np.random.Generator) -> TrialResult:
@@ -112,7 +113,7 @@ def run_trial(spec: TrialSpec, rng: np.random.Generator) -> TrialResult:
 
     evals = evaluation.eval_epochs(spec.epochs, spec.evals_per_decade)
     cuts = set(evals.tolist()) | set(spec.snapshots)
-    abs_error, size = np.empty(len(evals)), np.empty(len(evals))
+    abs_error, heldout, size = (np.empty(len(evals)) for _ in range(3))
     k, snapshots = 0, {}
     for start in range(0, spec.epochs, DRAW_BLOCK):  # epochs start+1 ... stop
         stop = min(start + DRAW_BLOCK, spec.epochs)
@@ -132,10 +133,13 @@ def run_trial(spec: TrialSpec, rng: np.random.Generator) -> TrialResult:
                 if not np.isfinite(err):
                     raise Diverged(hi, err)
                 abs_error[k], size[k] = err, sizes[hi - 1 - start]
+                heldout[k] = evaluation.evaluate(learner, state, params, body,
+                                                 sizes[hi - 1 - start], scales[hi - 1 - start],
+                                                 **{**ev, "points": "heldout"})
                 k += 1
     jump = evaluation.largest_jump(lambda x: learner.predict(state, params, body, x), body,
                                    sizes[-1])
     return TrialResult(epoch=evals, size=size, abs_error=abs_error, rel_error=abs_error / size,
                        M=learner.model(state), snapshots=snapshots,
                        samples_per_epoch=learner.samples_per_epoch(params, body),
-                       largest_jump=jump)
+                       largest_jump=jump, heldout_abs_error=heldout)

@@ -35,7 +35,7 @@ from .plan import condition_labels, source_fingerprint
 log = logging.getLogger("pipeline.aggregate")
 
 GROUP = [c for c in io.LABEL_COLUMNS if c != "trial"]
-ERRORS = ("abs_error", "rel_error")
+ERRORS = ("abs_error", "rel_error", "heldout_abs_error")
 
 
 def condition_order(c: dict) -> tuple:

@@ -1,11 +1,14 @@
-"""Benchmark: microseconds per trial-epoch, fast path against the numpy reference path.
+"""Benchmark: microseconds per trial-epoch, fast path against the numpy reference path, and online
+Goal Babbling's epoch against a batch epoch.
 
     python -m pipeline.bench [bench.repeats=5] [bench.parallel=false]     (make bench)
 
 For arm5 and the iCub at the paper's settings (the configs `body=arm5` and `body=icub` compose)
 it times whole trials (draws, epochs and the evaluation schedule) on one core, divides by the
 number of epochs, and reports the median over repeats for both paths, measured in the same run,
-and their ratio. With bench.parallel, it also times the same batch of arm5 trials on one and on
+and their ratio. Then the same for online Goal Babbling's compiled path (its epoch: K L path
+samples and the returns home, its random walk drawn with it) and the ratio of its median to the
+batch fast path's median of the same run (the target: at most 2). With bench.parallel, it also times the same batch of arm5 trials on one and on
 two worker processes of the pipeline's executor. Writes paths.bench/bench.json.
 """
 from __future__ import annotations
@@ -26,12 +29,14 @@ from .config import compose
 from .plan import plan
 
 # epochs per timed trial: long enough to swamp timer noise, short enough for the reference path
-EPOCHS = {"fast": {"arm5": 5000, "icub": 1000}, "reference": {"arm5": 100, "icub": 20}}
+EPOCHS = {"fast": {"arm5": 5000, "icub": 1000}, "reference": {"arm5": 100, "icub": 20},
+          "online": {"arm5": 5000, "icub": 1000}}
 
 
-def paper_spec(body: str, epochs: int, fast: bool) -> dict:
-    """The TrialSpec (as data) of a full-size trial of `body` at the paper's settings."""
-    trial = plan(compose([f"body={body}", "growth=none", "trials.count=1",
+def paper_spec(body: str, epochs: int, fast: bool, learner: str = "goal_babbling") -> dict:
+    """The TrialSpec (as data) of a full-size trial of `body` at the paper's settings (online
+    Goal Babbling: conf/learner/online_goal_babbling.yaml with the body's settings)."""
+    trial = plan(compose([f"body={body}", f"learner={learner}", "growth=none", "trials.count=1",
                           f"learner.epochs={epochs}", f"learner.fast={str(fast).lower()}"]))[0]
     return trial["spec"]
 
@@ -41,6 +46,21 @@ def time_trial(spec: dict, seed: int = 0) -> float:
     t0 = time.perf_counter()
     gbmodel.run_trial(gbmodel.TrialSpec.from_dict(spec), np.random.default_rng(seed))
     return (time.perf_counter() - t0) / spec["epochs"]
+
+
+def draw_time(spec: dict, epochs: int = 200) -> float:
+    """Seconds per epoch of the learner's random draws alone (median of 3): the share of a
+    trial-epoch that no kernel can remove (online Goal Babbling draws m (n + 1) normals per
+    sample for its random walk)."""
+    trial = gbmodel.TrialSpec.from_dict(spec)
+    body, (learner, params) = trial.make_body(), trial.make_learner()
+    times = []
+    for seed in range(3):
+        rng = np.random.default_rng(seed)
+        t0 = time.perf_counter()
+        learner.draw(params, body, epochs, rng)
+        times.append((time.perf_counter() - t0) / epochs)
+    return float(np.median(times))
 
 
 def _arm5_trial(job: dict) -> float:
@@ -74,11 +94,20 @@ def bench(cfg: DictConfig) -> dict:
             row[f"{path}_us_per_trial_epoch"] = 1e6 * float(np.median(per_epoch))
             row[f"{path}_us_all"] = [round(1e6 * t, 2) for t in per_epoch]
         row["speedup"] = row["reference_us_per_trial_epoch"] / row["fast_us_per_trial_epoch"]
+        time_trial(paper_spec(body, 10, True, "online_goal_babbling"))
+        spec = paper_spec(body, EPOCHS["online"][body], True, "online_goal_babbling")
+        per_epoch = [time_trial(spec, seed) for seed in range(repeats)]
+        row["online_us_per_trial_epoch"] = 1e6 * float(np.median(per_epoch))
+        row["online_us_all"] = [round(1e6 * t, 2) for t in per_epoch]
+        row["online_over_batch"] = row["online_us_per_trial_epoch"] / row["fast_us_per_trial_epoch"]
+        row["online_draw_us_per_epoch"] = 1e6 * draw_time(spec)
         result[body] = row
         print(f"{body}: fast {row['fast_us_per_trial_epoch']:8.1f} us/trial-epoch   "
               f"reference {row['reference_us_per_trial_epoch']:9.1f} us/trial-epoch   "
-              f"ratio fast/reference {1 / row['speedup']:.4f} ({row['speedup']:.0f}x faster)",
-              flush=True)
+              f"ratio fast/reference {1 / row['speedup']:.4f} ({row['speedup']:.0f}x faster)   "
+              f"online {row['online_us_per_trial_epoch']:8.1f} us/trial-epoch, "
+              f"online/batch {row['online_over_batch']:.2f} (its draws alone "
+              f"{row['online_draw_us_per_epoch']:.1f} us/epoch)", flush=True)
     if cfg.bench.parallel:
         result["parallel"] = p = parallel_speedup()
         print(f"parallel: {p['trials']} arm5 trials, 1 worker {p['wall_s_1_worker']:.1f} s, "

@@ -27,7 +27,8 @@ LABELS = pa.schema([("figure", pa.string()), ("body", pa.string()), ("learner", 
                     ("condition", pa.string()), ("trial", pa.int64())])
 CURVE = pa.schema(list(LABELS) + [("epoch", pa.int64()), ("samples", pa.int64()),
                                   ("size", pa.float64()), ("abs_error", pa.float64()),
-                                  ("rel_error", pa.float64())])
+                                  ("rel_error", pa.float64()),
+                                  ("heldout_abs_error", pa.float64())])  # on the held-out set
 LABEL_COLUMNS = LABELS.names
 CURVE_COLUMNS = CURVE.names
 # One trial's curve as the cache keeps it: its content only (a cached trial may serve several

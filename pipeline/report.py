@@ -252,10 +252,11 @@ def report(cfg: DictConfig) -> list[Path]:
         png = study("baselines", rival_table, baselines.figure(
             rivals, "Goal Babbling and its alternatives: error against reaching movements"))
         md += ["## Beyond the paper: Goal Babbling against its alternatives under growth", "",
-               "Four learners (gbmodel/learners/) with the same budget of reaching movements, on "
+               "The learners (gbmodel/learners/) at budgets of reaching movements, on "
                "the 5-DOF arm and the iCub, without growth, with the paper's linear growth and "
                "with an infant-like schedule (conf/experiment/baselines_*.yaml, "
-               "pipeline/studies/baselines.py). Errors at the end of the budget; the largest jump is the "
+               "pipeline/studies/baselines.py, docs/baselines.md). Errors at the end of each "
+               "budget; the figure draws the held-out error; the largest jump is the "
                "final inverse's largest joint-space step between neighbouring points on lines "
                "through the target box (branch switching, lookup).", "",
                f"![baselines]({png})", "", baselines.markdown(rival_table, rival_claims)]

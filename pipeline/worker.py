@@ -41,6 +41,7 @@ def run_one(trial: dict) -> dict:
         res = recovering(lambda: gbmodel.run_trial(spec, np.random.default_rng(seed)))
         out = dict(status="ok", epoch=res.epoch, samples=res.epoch * res.samples_per_epoch,
                    size=res.size, abs_error=res.abs_error, rel_error=res.rel_error, M=res.M,
+                   heldout_abs_error=res.heldout_abs_error,
                    snapshots=res.snapshots, largest_jump=res.largest_jump)
     except gbmodel.Diverged as err:
         out = dict(status="diverged", error=str(err), epoch=err.epoch)

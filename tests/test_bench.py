@@ -15,3 +15,7 @@ def test_bench_writes_medians_and_the_fast_path_wins(tmp_path):
         row = saved[body]
         assert 0 < row["fast_us_per_trial_epoch"] < row["reference_us_per_trial_epoch"]
         assert row["speedup"] > 5
+        # online Goal Babbling, timed in the same run against the batch epoch
+        assert row["online_over_batch"] == (row["online_us_per_trial_epoch"]
+                                            / row["fast_us_per_trial_epoch"])
+        assert 0 < row["online_draw_us_per_epoch"] < row["online_us_per_trial_epoch"]

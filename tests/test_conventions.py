@@ -19,7 +19,8 @@ def _curves(figure, condition, finals, growth="none", period=0, epochs=(1, 2, 3,
             err = final * (len(epochs) - i)  # falling to `final` at the last epoch
             rows.append(dict(figure=figure, body="arm5", learner="goal_babbling", growth=growth,
                              growth_period=period, condition=condition, trial=trial, epoch=e,
-                             samples=10 * e, size=1.0, abs_error=err, rel_error=err))
+                             samples=10 * e, size=1.0, abs_error=err, rel_error=err,
+                             heldout_abs_error=err))
     return pd.DataFrame(rows)
 
 
@@ -81,7 +82,7 @@ def _growing(errors, period):
     trials = pd.DataFrame(dict(figure="fig4", body="arm5", learner="goal_babbling",
                                growth="proportional", growth_period=period, condition="TG",
                                trial=0, epoch=epochs, samples=10 * epochs, size=1.0,
-                               abs_error=errors, rel_error=errors))
+                               abs_error=errors, rel_error=errors, heldout_abs_error=errors))
     summary, curves = _summary(trials)
     return summary, curves
 

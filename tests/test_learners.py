@@ -59,7 +59,7 @@ def test_deterministic(name):
     ("motor_babbling", "window", -1), ("motor_babbling", "fit", "normal_equations"),
     ("motor_babbling", "ridge", -1e-3), ("motor_babbling", "learning_rate", 0.0),
     ("example_memory", "goals", 0), ("example_memory", "sigma", -0.1),
-    ("example_memory", "window", 0), ("example_memory", "window", 2.5),
+    ("example_memory", "window", -1), ("example_memory", "window", 2.5),
     ("online_goal_babbling", "steps", 0), ("online_goal_babbling", "radius", -0.2),
     ("online_goal_babbling", "drift", float("nan")),
     ("online_goal_babbling", "home_probability", 1.5),

@@ -8,6 +8,11 @@ units), saturated, and the example (x, q) it observes is stored. The memory star
 example and keeps the examples of the last `window` epochs (window >= 1): at most
 1 + window * goals examples, however long the trial. Outcomes are stored as observed, at the size
 the body had then; under growth the window is how fast stale outcomes are forgotten.
+
+window 0 keeps every example, the home example included: the memory the paper's "stored
+experience is void after growth" is about. Its nearest neighbours come from gbmodel.nearest (k-d
+trees merged like a binary counter, the same answers as one tree over everything, ties to the
+oldest example), so that an epoch costs O(goals log N), not a rebuild over all N examples.
 """
 from __future__ import annotations
 
@@ -17,6 +22,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..growth import check_int, check_number
+from ..nearest import Nearest
 
 
 @dataclass(frozen=True)
@@ -31,12 +37,12 @@ class Params:
     # epochs whose examples are kept (memory <= 1 + window * goals). Under growth (arm5, 0.5 ->
     # 1.0 over 100 epochs) the relative error at epoch 50 is 1.0 % (window 1), 1.9 % (10) and
     # 8.6 % (50): stale outcomes mislead. Without growth more memory is better (30 epochs:
-    # 1 -> 8.4, 10 -> 2.9, 50 -> 1.5 mm)
+    # 1 -> 8.4, 10 -> 2.9, 50 -> 1.5 mm). 0: keep every example (gbmodel.nearest)
     window: int = 10
 
     def validate(self) -> "Params":
-        for name in ("goals", "window"):
-            check_int(f"learner.{name}", getattr(self, name), 1)
+        check_int("learner.goals", self.goals, 1)
+        check_int("learner.window", self.window, 0)
         check_number("learner.sigma", self.sigma, 0.0)
         return self
 
@@ -49,15 +55,35 @@ class State:
     epochs: int = 0  # epochs trained so far
 
 
-def init(params: Params, body, size: float, rng: np.random.Generator) -> State:
+@dataclass(frozen=True)
+class Everything:
+    """The state of the memory that keeps everything (window 0): the examples in a growing
+    gbmodel.nearest.Nearest, of which this state owns the first `count` (a state trained on
+    again after the structure grew gets a copy of its own examples)."""
+    store: Nearest
+    count: int
+    epochs: int = 0
+
+    def own(self) -> Nearest:
+        return self.store if self.store.count == self.count else self.store.copy_first(self.count)
+
+
+def init(params: Params, body, size: float, rng: np.random.Generator):
     q_home = body.saturate(body.home)
     x_home = body.forward(q_home, size=size)
+    if params.window == 0:
+        store = Nearest(body.n, body.m)
+        store.add(x_home[None], q_home[None])
+        return Everything(store, store.count)
     return State(np.zeros((params.window, params.goals, body.n)),
                  np.zeros((params.window, params.goals, body.m)), (x_home, q_home))
 
 
-def memory(state: State) -> tuple[np.ndarray, np.ndarray]:
+def memory(state) -> tuple[np.ndarray, np.ndarray]:
     """Every stored example: outcomes (N, n), commands (N, m)."""
+    if isinstance(state, Everything):
+        store = state.own()
+        return store.points, store.values
     filled = min(state.epochs, len(state.outcomes))
     x = state.outcomes[:filled].reshape(-1, state.outcomes.shape[-1])
     q = state.commands[:filled].reshape(-1, state.commands.shape[-1])
@@ -72,8 +98,15 @@ def draw(params: Params, body, B: int, rng: np.random.Generator) -> tuple:
     return idx, rng.standard_normal((B, params.goals, body.m))
 
 
-def train(state: State, params: Params, body, sizes, scales, draws, epochs=None) -> State:
+def train(state, params: Params, body, sizes, scales, draws, epochs=None):
     idx, noise = draws
+    if isinstance(state, Everything):
+        store = state.own()
+        for e in range(len(sizes)):
+            goals = body.target_set(sizes[e])[idx[e]]
+            q = body.saturate(store.values[store.query(goals)] + params.sigma * noise[e])
+            store.add(body.forward(q, scale=scales[e]), q)
+        return Everything(store, store.count, state.epochs + len(sizes))
     outcomes, commands, done = state.outcomes.copy(), state.commands.copy(), state.epochs
     for e in range(len(sizes)):
         known_x, known_q = memory(State(outcomes, commands, state.home, done))
@@ -86,8 +119,11 @@ def train(state: State, params: Params, body, sizes, scales, draws, epochs=None)
     return State(outcomes, commands, state.home, done)
 
 
-def predict(state: State, params: Params, body, x) -> np.ndarray:
+def predict(state, params: Params, body, x) -> np.ndarray:
     """The command of the stored example whose outcome is nearest to each x (N, n)."""
+    if isinstance(state, Everything):
+        store = state.own()
+        return store.values[store.query(np.asarray(x, dtype=np.float64))]
     known_x, known_q = memory(state)
     _, nearest = cKDTree(known_x).query(np.asarray(x, dtype=np.float64))
     return known_q[nearest]

@@ -25,12 +25,16 @@ Chosen here:
 - the inverse estimate is Goal Babbling's polynomial (eq. 7), initialised the same way, and the
   step is plain per-sample gradient descent, M <- M - eta w_t (M Phi(x_t) - q_t) Phi(x_t)^T
   (2011 learns a local-linear map);
-- samples per epoch: K L plus the returns home, K home_probability in expectation.
+- samples per epoch: K L plus the returns home, K home_probability in expectation;
+- goal_selection: random (the above: each next target uniform over the others) or progress
+  (goal_babbling/goals.py: by the regions' recent change of error, not the 2011 paper's).
 
 Two paths compute the same thing with the same draws (all random numbers come from `draw`):
 `train_reference` below, plain numpy, is the readable statement; `_train_block`, the same
 per-sample loop compiled with numba in float64 (no fastmath: every sum in a fixed order, so the
-result does not depend on the CPU's vector width), is what runs by default. They agree to
+result does not depend on the CPU's vector width), is what runs by default. Its work on M runs on
+explicit 8-lane float64 vectors, one lane per row of M (M kept transposed and padded), and one
+pass over M per sample does the step and the next sample's prediction together. They agree to
 rounding (tests/test_learners.py). `Params.fast` picks the path.
 """
 from __future__ import annotations
@@ -38,10 +42,14 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
+from numba.core import cgutils
+from numba.extending import intrinsic, models, register_model
 
 from ..features import exponents, features
 from ..growth import SpecError, check_int, check_number
+from .goal_babbling import goals
 from .goal_babbling.reference import (NO_MOVEMENT, init_inverse, predict as predict_inverse,
                                       sample_weights, scale_perturbations)
 
@@ -65,6 +73,11 @@ class Params:
     init_range: float = 0.1  # |g(x) - home| bound at initialisation (as Goal Babbling)
     degree: int = 3
     fast: bool = True  # the compiled per-sample loop (_train_block); False: the numpy reference
+    # which targets (goal_babbling/goals.py): random (the paper's) or progress, and its settings
+    goal_selection: str = "random"
+    progress_period: int = 10
+    progress_window: int = 3
+    progress_share: float = 0.2
 
     def validate(self) -> "Params":
         for name in ("targets_per_epoch", "steps", "degree"):
@@ -77,6 +90,7 @@ class Params:
             raise SpecError("learner.home_probability", self.home_probability, "must be <= 1")
         if not isinstance(self.fast, bool):
             raise SpecError("learner.fast", self.fast, "must be true or false")
+        goals.check(self)
         return self
 
 
@@ -87,6 +101,7 @@ class State:
     target: int  # index of the target last reached
     at_home: bool  # the last movement returned home: the next path starts at x_home
     last: tuple  # (x*, x, q) of the last sample, the predecessor of the next one's weight
+    tracker: goals.Tracker | None = None  # the regions' errors (goal_selection=progress)
 
 
 def _exps(params, body):
@@ -100,14 +115,24 @@ def init(params: Params, body, size: float, rng: np.random.Generator) -> State:
     P = rng.standard_normal((body.m, body.n + 1))
     q_home = body.saturate(body.home)
     x_home = body.forward(q_home, size=size)
-    return State(M, P, target=0, at_home=True, last=(x_home, x_home, q_home))
+    tracker = None
+    if params.goal_selection == "progress":
+        errors = goals.reaching_errors(lambda x: predict_inverse(M, x, _exps(params, body)),
+                                       body, size, np.ones(body.m))
+        tracker = goals.start(body.targets).measured(errors, goals.regions(body.targets),
+                                                     params.progress_window)
+    return State(M, P, target=0, at_home=True, last=(x_home, x_home, q_home), tracker=tracker)
 
 
 def draw(params: Params, body, B: int, rng: np.random.Generator) -> tuple:
     """Per epoch: hops to the next targets (B, K) in 1 ... N-1 (so each differs from the last),
-    home coins (B, K) in [0, 1), random-walk steps (B, K L, m, n+1)."""
+    home coins (B, K) in [0, 1), random-walk steps (B, K L, m, n+1). With goal_selection=progress
+    the first array holds uniform numbers (B, K) in [0, 1), turned into targets in train."""
     K = params.targets_per_epoch
-    hops = rng.integers(1, len(body.targets), size=(B, K))
+    if params.goal_selection == "progress":
+        hops = rng.uniform(0.0, 1.0, size=(B, K))
+    else:
+        hops = rng.integers(1, len(body.targets), size=(B, K))
     coins = rng.uniform(0.0, 1.0, size=(B, K))
     walk = rng.standard_normal((B, K * params.steps, body.m, body.n + 1))
     return hops, coins, walk
@@ -143,6 +168,26 @@ def perturbations(P, walk, params: Params, lo, hi):
 
 
 def train(state: State, params: Params, body, sizes, scales, draws, epochs=None) -> State:
+    if params.goal_selection == "random":
+        return _train(state, params, body, sizes, scales, draws)
+    region, N = goals.regions(body.targets), len(body.targets)
+    for lo, hi, measure in goals.chunks(epochs, params.progress_period):
+        p = goals.probabilities(state.tracker.progress(params.progress_window), region,
+                                params.progress_share)
+        chosen = goals.choose(draws[0][lo:hi], p)  # (C, K) the targets, as hops from the last
+        flat = np.concatenate([[state.target], chosen.ravel()])
+        hops = (np.diff(flat) % N).reshape(chosen.shape)
+        state = _train(state, params, body, sizes[lo:hi], scales[lo:hi],
+                       (hops,) + tuple(d[lo:hi] for d in draws[1:]))
+        if measure:
+            errors = goals.reaching_errors(lambda x: predict(state, params, body, x), body,
+                                           sizes[hi - 1], scales[hi - 1])
+            state = replace(state, tracker=state.tracker.measured(errors, region,
+                                                                  params.progress_window))
+    return state
+
+
+def _train(state: State, params: Params, body, sizes, scales, draws) -> State:
     if params.fast:
         return train_fast(state, params, body, sizes, scales, draws)
     return train_reference(state, params, body, sizes, scales, draws)
@@ -171,7 +216,7 @@ def train_reference(state: State, params: Params, body, sizes, scales, draws) ->
             phi = features(x, exps)
             M -= (params.learning_rate * w) * np.outer(M @ phi - q, phi)
             last = (xs, x, q)
-        state = State(M, P, target, at_home, last)
+        state = State(M, P, target, at_home, last, state.tracker)
     return replace(state, M=M.copy())
 
 
@@ -229,18 +274,6 @@ def _forward(q, scale, chain, joints, out):
 
 
 @njit(cache=True)
-def _features(x, exps, phi):
-    """features(x, exps) into phi (p,): each monomial by repeated multiplication, coordinate by
-    coordinate (gbmodel.features._monomials' order)."""
-    for k in range(exps.shape[0]):
-        v = 1.0
-        for j in range(exps.shape[1]):
-            for _ in range(exps[k, j]):
-                v = v * x[j]
-        phi[k] = v
-
-
-@njit(cache=True)
 def _weight(lxs, lx, lq, xs, x, q):
     """sample_weights(...)[1]: w_dir * w_eff of sample (xs, x, q) against its predecessor."""
     sxs = sx = sq = dot = 0.0
@@ -264,37 +297,178 @@ def _weight(lxs, lx, lq, xs, x, q):
     return w_dir * w_eff
 
 
-@njit(cache=True)
-def _step(M, x, q, w, learning_rate, exps, phi, r):
-    """M <- M - (eta w) (M Phi(x) - q) Phi(x)^T, in place."""
-    _features(x, exps, phi)
-    m, p = M.shape
-    for i in range(m):
-        acc = 0.0
-        for k in range(p):
-            acc += M[i, k] * phi[k]
-        r[i] = acc - q[i]
-    s = learning_rate * w
-    for i in range(m):
-        for k in range(p):
-            M[i, k] -= s * (r[i] * phi[k])
+def _parents(exps) -> tuple:
+    """Per monomial k > 0 (rows of exps are ordered by total degree): a monomial of one degree
+    less (parent[k]) and the coordinate (coord[k]) that multiplies it to give k, so that
+    Phi_k = Phi_parent[k] * x_coord[k], one multiplication per feature."""
+    rows = {tuple(e): k for k, e in enumerate(exps.tolist())}
+    parent, coord = np.zeros(len(exps), np.int64), np.zeros(len(exps), np.int64)
+    for k, e in enumerate(exps.tolist()[1:], start=1):
+        j = max(i for i, v in enumerate(e) if v > 0)  # the last coordinate in it
+        parent[k], coord[k] = rows[tuple(v - (i == j) for i, v in enumerate(e))], j
+    return parent, coord
 
 
 @njit(cache=True)
-def _train_block(M, P, lxs, lx, lq, target, at_home, hops, coins, walk, sizes, scales, targets,
-                 q_home, chain, joints, exps, steps, radius, drift, keep, home_probability,
-                 learning_rate):
-    """train_reference's epochs: M, P and the last sample (lxs, lx, lq) updated in place;
-    returns the target last reached and whether the last movement returned home."""
-    m, p = M.shape
+def _features_tree(x, parent, coord, phi):
+    """Phi(x) into phi (p,): each monomial its parent times one coordinate (phi[0] = 1)."""
+    phi[0] = 1.0
+    for k in range(1, len(phi)):
+        phi[k] = phi[parent[k]] * x[coord[k]]
+
+
+# ---- float64 vectors over the entries of M -----------------------------------------------------
+# The per-sample work on M (the residual M Phi - q, the step, the next prediction) runs on
+# explicit 8-lane float64 vectors (LLVM <8 x double>: one zmm register, two ymm or four xmm
+# halves), one lane per row of M, columns of M^T padded to a multiple of 8 rows: every lane's sum
+# runs over k in order, with separate roundings of * and + (no fused multiply-add), so a lane
+# computes exactly what the scalar loop computes, whatever the CPU's vector width. These are the
+# float64 siblings of goal_babbling/fast.py's float32 primitives (vload, vstore, vsplat, vadd,
+# vsub, vmul), named with a trailing 8; they would move beside them (gbmodel/simd.py) unchanged.
+W8 = 8
+_VEC8 = ir.VectorType(ir.DoubleType(), W8)
+
+
+class F64x8Type(types.Type):
+    """LLVM <8 x double>."""
+
+    def __init__(self):
+        super().__init__(name="F64x8")
+
+
+F64x8 = F64x8Type()
+
+
+@register_model(F64x8Type)
+class _F64x8Model(models.PrimitiveModel):
+    def __init__(self, dmm, fe_type):
+        super().__init__(dmm, fe_type, _VEC8)
+
+
+def _pointer8(context, builder, sig, args, n):
+    """Address of element args[1:1 + n] of the float64 array args[0], as a vector pointer."""
+    aryty = sig.args[0]
+    inds = [context.cast(builder, v, t, types.intp) for v, t in zip(args[1:1 + n],
+                                                                    sig.args[1:1 + n])]
+    ptr = cgutils.get_item_pointer(context, builder, aryty,
+                                   context.make_array(aryty)(context, builder, args[0]), inds)
+    return builder.bitcast(ptr, _VEC8.as_pointer())
+
+
+@intrinsic
+def vload8(typingctx, a, k, i):
+    """a[k, i:i + 8] of a 2-d float64 array with contiguous rows (no bounds check)."""
+    def codegen(context, builder, sig, args):
+        return builder.load(_pointer8(context, builder, sig, args, 2), align=8)
+    return F64x8(a, k, i), codegen
+
+
+@intrinsic
+def vstore8(typingctx, a, k, i, v):
+    """a[k, i:i + 8] = v."""
+    def codegen(context, builder, sig, args):
+        builder.store(args[3], _pointer8(context, builder, sig, args, 2), align=8)
+        return context.get_dummy_value()
+    return types.none(a, k, i, v), codegen
+
+
+@intrinsic
+def vload18(typingctx, a, i):
+    """a[i:i + 8] of a contiguous 1-d float64 array (no bounds check)."""
+    def codegen(context, builder, sig, args):
+        return builder.load(_pointer8(context, builder, sig, args, 1), align=8)
+    return F64x8(a, i), codegen
+
+
+@intrinsic
+def vstore18(typingctx, a, i, v):
+    """a[i:i + 8] = v."""
+    def codegen(context, builder, sig, args):
+        builder.store(args[2], _pointer8(context, builder, sig, args, 1), align=8)
+        return context.get_dummy_value()
+    return types.none(a, i, v), codegen
+
+
+@intrinsic
+def vsplat8(typingctx, x):
+    """Every lane x (as float64)."""
+    def codegen(context, builder, sig, args):
+        x = context.cast(builder, args[0], sig.args[0], types.float64)
+        v = builder.insert_element(ir.Constant(_VEC8, ir.Undefined), x,
+                                   ir.Constant(ir.IntType(32), 0))
+        return builder.shuffle_vector(v, v, ir.Constant(ir.VectorType(ir.IntType(32), W8),
+                                                         [0] * W8))
+    return F64x8(x), codegen
+
+
+@intrinsic
+def vadd8(typingctx, a, b):
+    return F64x8(a, b), lambda context, builder, sig, args: builder.fadd(*args)
+
+
+@intrinsic
+def vsub8(typingctx, a, b):
+    return F64x8(a, b), lambda context, builder, sig, args: builder.fsub(*args)
+
+
+@intrinsic
+def vmul8(typingctx, a, b):
+    return F64x8(a, b), lambda context, builder, sig, args: builder.fmul(*args)
+
+
+@njit(cache=True)
+def _predict_rows(MT, phi, g):
+    """g = M Phi (g padded to MT's W columns), M stored transposed and padded, MT (p, W): lane i
+    of block j sums M[8 j + i, k] Phi_k over k in order."""
+    p, W = MT.shape
+    for j in range(0, W, W8):
+        acc = vsplat8(0.0)
+        for k in range(p):
+            acc = vadd8(acc, vmul8(vload8(MT, k, j), vsplat8(phi[k])))
+        vstore18(g, j, acc)
+
+
+@njit(cache=True)
+def _step_predict(MT, phi, sr, psi, g, predict):
+    """The step M <- M - (eta w r) Phi^T (sr = eta w r, padded with zeros), in place on M^T,
+    and, in the same pass over M, the next sample's prediction g = M_new Psi when `predict`
+    (Psi: its features): one pass over M per sample instead of two, every entry's update and
+    every sum in the order of a separate update followed by a separate prediction."""
+    p, W = MT.shape
+    for j in range(0, W, W8):
+        s = vload18(sr, j)
+        acc = vsplat8(0.0)
+        for k in range(p):
+            v = vsub8(vload8(MT, k, j), vmul8(s, vsplat8(phi[k])))
+            vstore8(MT, k, j, v)
+            if predict:
+                acc = vadd8(acc, vmul8(v, vsplat8(psi[k])))
+        if predict:
+            vstore18(g, j, acc)
+
+
+@njit(cache=True)
+def _train_block(MT, P, lxs, lx, lq, target, at_home, hops, coins, walk, sizes, scales, targets,
+                 q_home, chain, joints, parent, coord, steps, radius, drift, keep,
+                 home_probability, learning_rate):
+    """train_reference's epochs: M^T (p, W) (padded with zero columns), P and the last sample (lxs, lx, lq) updated in
+    place; returns the target last reached and whether the last movement returned home.
+
+    Per epoch, the intended positions x* and the returns home are laid out first (the reference's
+    `plan`), so that each sample's step can compute the next sample's prediction on its way."""
+    p, W = MT.shape
+    m = P.shape[0]
     n = targets.shape[1]
     N = targets.shape[0]
+    K = hops.shape[1]
     normalized, saturates = joints[0], joints[1]
-    phi, r = np.empty(p), np.empty(m)
-    x_home, start, goal = np.empty(n), np.empty(n), np.empty(n)
+    phi, psi, r, sr, g = np.empty(p), np.empty(p), np.empty(W), np.zeros(W), np.empty(W)
+    x_home, start = np.empty(n), np.empty(n)
     lo, hi, c, h = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     A, b = np.empty((m, n)), np.empty(m)
-    xs, x, q = np.empty(n), np.empty(n), np.empty(m)
+    x, q = np.empty(n), np.empty(m)
+    xstar = np.empty((K * (steps + 1), n))
+    home = np.zeros(K * (steps + 1), np.bool_)
     for e in range(len(sizes)):
         size, scale = sizes[e], scales[e]
         _forward(q_home, scale, chain, joints, x_home)
@@ -305,22 +479,38 @@ def _train_block(M, P, lxs, lx, lq, target, at_home, hops, coins, walk, sizes, s
                 lo[j] = min(lo[j], v)
                 hi[j] = max(hi[j], v)
             c[j], h[j] = 0.5 * (lo[j] + hi[j]), 0.5 * (hi[j] - lo[j])
-        s = 0  # the path sample: its step of the random walk
-        for kk in range(hops.shape[1]):
+        T = 0  # the epoch's plan: x* of every sample, and which are returns home
+        for kk in range(K):
             for j in range(n):
                 start[j] = x_home[j] if at_home else targets[target, j] * size
             target = (target + hops[e, kk]) % N
-            for j in range(n):
-                goal[j] = targets[target, j] * size
             for l in range(1, steps + 1):
                 frac = l / steps
                 for j in range(n):
-                    xs[j] = start[j] + frac * (goal[j] - start[j])
+                    xstar[T, j] = start[j] + frac * (targets[target, j] * size - start[j])
+                home[T] = False
+                T += 1
+            at_home = coins[e, kk] < home_probability
+            if at_home:
+                xstar[T] = x_home
+                home[T] = True
+                T += 1
+        s = 0  # the path sample: its step of the random walk
+        _features_tree(xstar[0], parent, coord, psi)  # the first sample is a path sample
+        _predict_rows(MT, psi, g)
+        for t in range(T):
+            if home[t]:  # the home example, weight 1 (eq. 5)
+                for j in range(n):
+                    x[j] = x_home[j]
+                for i in range(m):
+                    q[i] = q_home[i]
+                w = 1.0
+            else:
+                xs = xstar[t]
                 # the perturbation: a random-walk step of P, each row scaled to peak at R
                 for i in range(m):
                     for j in range(n + 1):
                         P[i, j] = keep * (P[i, j] + drift * walk[e, s, i, j])
-                for i in range(m):
                     Ac, Ah = 0.0, 0.0
                     for j in range(n):
                         Ac += P[i, j] * c[j]
@@ -329,25 +519,29 @@ def _train_block(M, P, lxs, lx, lq, target, at_home, hops, coins, walk, sizes, s
                     for j in range(n):
                         A[i, j] = P[i, j] * k
                     b[i] = P[i, n] * k
-                # the movement: q = saturate(g(x*) + A x* + b), x = f(q)
-                _features(xs, exps, phi)
+                # the movement: q = saturate(g(x*) + A x* + b), x = f(q); g(x*) came with the
+                # previous step (or before the first sample)
                 for i in range(m):
-                    g, Ax = 0.0, 0.0
-                    for kf in range(p):
-                        g += phi[kf] * M[i, kf]
+                    Ax = 0.0
                     for j in range(n):
                         Ax += A[i, j] * xs[j]
-                    q[i] = g + Ax + b[i]
+                    q[i] = g[i] + Ax + b[i]
                 _saturate(q, normalized, saturates)
                 _forward(q, scale, chain, joints, x)
                 w = _weight(lxs, lx, lq, xs, x, q)
-                _step(M, x, q, w, learning_rate, exps, phi, r)
-                lxs[:], lx[:], lq[:] = xs, x, q
                 s += 1
-            at_home = coins[e, kk] < home_probability
-            if at_home:  # the home example, weight 1 (eq. 5)
-                _step(M, x_home, q_home, 1.0, learning_rate, exps, phi, r)
-                lxs[:], lx[:], lq[:] = x_home, x_home, q_home
+            _features_tree(x, parent, coord, phi)
+            _predict_rows(MT, phi, r)  # the residual M Phi(x) - q, times eta w
+            for i in range(m):
+                sr[i] = (learning_rate * w) * (r[i] - q[i])
+            nxt = t + 1 < T and not home[t + 1]
+            if nxt:
+                _features_tree(xstar[t + 1], parent, coord, psi)
+            _step_predict(MT, phi, sr, psi, g, nxt)
+            for j in range(n):
+                lxs[j], lx[j] = xstar[t, j], x[j]
+            for i in range(m):
+                lq[i] = q[i]
     return target, at_home
 
 
@@ -355,19 +549,24 @@ def train_fast(state: State, params: Params, body, sizes, scales, draws) -> Stat
     """train on the compiled path: the same epochs, with the same draws, as train_reference."""
     hops, coins, walk = draws
     f8 = lambda x: np.array(x, dtype=np.float64, order="C")  # noqa: E731 (copies)
-    M, P = f8(state.M), f8(state.P)
+    m, p = state.M.shape
+    MT = np.zeros((p, -(-m // W8) * W8))  # M^T, padded to whole vectors with zeros
+    MT[:, :m] = state.M.T
+    P = f8(state.P)
     lxs, lx, lq = (f8(a) for a in state.last)
     chain, joints = _body_arrays(body)
+    parent, coord = _parents(_exps(params, body))
     target, at_home = _train_block(
-        M, P, lxs, lx, lq, int(state.target), bool(state.at_home),
+        MT, P, lxs, lx, lq, int(state.target), bool(state.at_home),
         np.ascontiguousarray(hops, np.int64), np.ascontiguousarray(coins, np.float64),
         np.ascontiguousarray(walk, np.float64), np.ascontiguousarray(sizes, np.float64),
         np.ascontiguousarray(scales, np.float64).reshape(len(sizes), body.m),
         np.ascontiguousarray(body.targets, np.float64), f8(body.saturate(body.home)), chain,
-        joints, np.ascontiguousarray(_exps(params, body), np.int64), int(params.steps),
-        float(params.radius), float(params.drift), 1.0 / np.sqrt(1.0 + params.drift ** 2),
-        float(params.home_probability), float(params.learning_rate))
-    return State(M, P, int(target), bool(at_home), (lxs, lx, lq))
+        joints, parent, coord, int(params.steps), float(params.radius), float(params.drift),
+        1.0 / np.sqrt(1.0 + params.drift ** 2), float(params.home_probability),
+        float(params.learning_rate))
+    return State(np.ascontiguousarray(MT[:, :m].T), P, int(target), bool(at_home), (lxs, lx, lq),
+                 state.tracker)
 
 
 def predict(state: State, params: Params, body, x) -> np.ndarray:
@@ -381,4 +580,6 @@ def model(state: State) -> np.ndarray:
 def samples_per_epoch(params: Params, body) -> int:
     """K L path samples plus the returns home, K home_probability in expectation (rounded)."""
     K = params.targets_per_epoch
-    return int(round(K * (params.steps + params.home_probability)))
+    extra = goals.samples(body, params.progress_period) if params.goal_selection == "progress" \
+        else 0
+    return int(round(K * (params.steps + params.home_probability))) + extra

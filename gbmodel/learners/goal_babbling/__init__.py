@@ -2,7 +2,8 @@
 
 `reference.py` states one epoch in plain numpy, step by step as the paper writes it; `fast.py`
 computes the same epoch in compiled float32 loops (numba) and is tested against it with the same
-random draws. `Params.fast` picks the path.
+random draws. `Params.fast` picks the path. `goals.py`: which targets it aims at (goal_selection:
+random, the paper's, or progress).
 """
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ import numpy as np
 from ... import evaluation
 from ...features import exponents
 from ...growth import SpecError, check_choice, check_int, check_number
-from . import reference
+from . import goals, reference
 
 
 @dataclass(frozen=True)
@@ -55,6 +56,12 @@ class Params:
     # successive path targets: distinct (each differs from the one before) or any (uniform
     # over all targets, repeats allowed: a repeat is a still segment whose samples weigh 0)
     targets: str = "distinct"
+    # goal_selection: random (the paper's: the path targets as above) or progress (goals.py:
+    # drawn by the regions' recent change of error; not the paper's)
+    goal_selection: str = "random"
+    progress_period: int = 10  # epochs between measurements of the error at every target
+    progress_window: int = 3  # measurements per half of the progress window
+    progress_share: float = 0.2  # the uniform part of the choice
 
     def validate(self) -> "Params":
         for name in ("variations", "targets_per_epoch", "steps", "degree"):
@@ -73,6 +80,7 @@ class Params:
         check_choice("learner.rate_schedule", self.rate_schedule, ("constant", "annealed"))
         check_number("learner.anneal_epochs", self.anneal_epochs, 0.0, strict=True)
         check_choice("learner.targets", self.targets, ("distinct", "any"))
+        goals.check(self)
         return self
 
     def rate(self) -> float:
@@ -97,10 +105,29 @@ def _exps(params, body):
     return exponents(body.n, params.degree)
 
 
-def init(params: Params, body, size: float, rng: np.random.Generator) -> np.ndarray:
-    """M: home plus a random polynomial within init_range of it over the target box."""
-    return reference.init_inverse(body.home, *body.target_box(size), _exps(params, body),
-                                  params.init_range, rng)
+@dataclass(frozen=True)
+class Progressive:
+    """The state under goal_selection=progress: M and the regions' error measurements."""
+    M: np.ndarray
+    tracker: goals.Tracker
+
+
+def _M(state) -> np.ndarray:
+    return state.M if isinstance(state, Progressive) else state
+
+
+def init(params: Params, body, size: float, rng: np.random.Generator):
+    """M: home plus a random polynomial within init_range of it over the target box (with
+    goal_selection=progress, and the error at every target measured once)."""
+    M = reference.init_inverse(body.home, *body.target_box(size), _exps(params, body),
+                               params.init_range, rng)
+    if params.goal_selection == "random":
+        return M
+    errors = goals.reaching_errors(lambda x: predict(M, params, body, x), body, size,
+                                   np.ones(body.m))
+    tracker = goals.start(body.targets)
+    return Progressive(M, tracker.measured(errors, goals.regions(body.targets),
+                                           params.progress_window))
 
 
 def draw(params: Params, body, B: int, rng: np.random.Generator) -> tuple:
@@ -109,9 +136,16 @@ def draw(params: Params, body, B: int, rng: np.random.Generator) -> tuple:
 
     With targets=distinct, successive targets of a path differ (the next is uniform over the
     other targets), so that every path step is a movement with a direction; with targets=any
-    the next is uniform over all targets.
+    the next is uniform over all targets. With goal_selection=progress the first array holds
+    uniform numbers (B, K+1) in [0, 1), turned into targets in train (goals.py).
     """
     n_targets, K = len(body.targets), params.targets_per_epoch
+    if params.goal_selection == "progress":
+        u = rng.uniform(0.0, 1.0, size=(B, K + 1))
+        raw = rng.uniform(-1.0, 1.0, size=(B, params.variations, body.m, body.n + 1))
+        if params.amplitude == "uniform":
+            return u, raw, rng.uniform(0.0, 1.0, size=(B, params.variations, body.m))
+        return u, raw
     first = rng.integers(0, n_targets, size=(B, 1))
     hops = rng.integers(1 if params.targets == "distinct" else 0, n_targets, size=(B, K))
     idx = np.cumsum(np.concatenate([first, hops], axis=1), axis=1) % n_targets
@@ -121,7 +155,24 @@ def draw(params: Params, body, B: int, rng: np.random.Generator) -> tuple:
     return idx, raw
 
 
-def train(M, params: Params, body, sizes, scales, draws, epochs) -> np.ndarray:
+def train(state, params: Params, body, sizes, scales, draws, epochs):
+    if params.goal_selection == "random":
+        return _train(state, params, body, sizes, scales, draws, epochs)
+    M, tracker = state.M, state.tracker
+    region = goals.regions(body.targets)
+    for lo, hi, measure in goals.chunks(epochs, params.progress_period):
+        p = goals.probabilities(tracker.progress(params.progress_window), region,
+                                params.progress_share)
+        part = (goals.choose(draws[0][lo:hi], p),) + tuple(d[lo:hi] for d in draws[1:])
+        M = _train(M, params, body, sizes[lo:hi], scales[lo:hi], part, epochs[lo:hi])
+        if measure:
+            errors = goals.reaching_errors(lambda x: predict(M, params, body, x), body,
+                                           sizes[hi - 1], scales[hi - 1])
+            tracker = tracker.measured(errors, region, params.progress_window)
+    return Progressive(M, tracker)
+
+
+def _train(M, params: Params, body, sizes, scales, draws, epochs) -> np.ndarray:
     idx, raw, *amp = draws
     exps = _exps(params, body)
     rates = params.rates(epochs)
@@ -136,12 +187,13 @@ def train(M, params: Params, body, sizes, scales, draws, epochs) -> np.ndarray:
 
 
 def predict(M, params: Params, body, x) -> np.ndarray:
-    return reference.predict(M, x, _exps(params, body))
+    return reference.predict(_M(M), x, _exps(params, body))
 
 
 def distances(M, params: Params, body, scale, xs) -> np.ndarray:
     """|f(g(x*)) - x*| per point: on the fast path computed by the kernel (its float32 rollout,
     bit-identical across CPUs), else by the shared numpy evaluation."""
+    M = _M(M)
     if params.fast:
         from . import fast
         return fast.distances(M, body, _exps(params, body), scale, xs)
@@ -149,12 +201,15 @@ def distances(M, params: Params, body, scale, xs) -> np.ndarray:
 
 
 def model(M) -> np.ndarray:
-    return np.array(M, copy=True)
+    return np.array(_M(M), copy=True)
 
 
 def samples_per_epoch(params: Params, body) -> int:
-    """V rollouts of K L path targets plus the home example each."""
-    return params.variations * (params.targets_per_epoch * params.steps + 1)
+    """V rollouts of K L path targets plus the home example each (with goal_selection=progress,
+    plus the measurements of the error at every target, goals.samples)."""
+    extra = goals.samples(body, params.progress_period) if params.goal_selection == "progress" \
+        else 0
+    return params.variations * (params.targets_per_epoch * params.steps + 1) + extra
 
 
 
