@@ -151,7 +151,7 @@ def apply_budget(cfg: DictConfig) -> None:
     name = learner.pop("name")
     module = gbmodel.learners.get(name)
     per_epoch = module.samples_per_epoch(module.Params(**learner), gbmodel.make_body(
-        **OmegaConf.to_container(cfg.body)))
+        OmegaConf.to_container(cfg.body)))
     epochs = max(1, round(c.budget * c.budget_scale / per_epoch))
     cfg.learner.epochs = epochs
     if cfg.growth.pattern != "none":

@@ -103,7 +103,7 @@ def learning_curves(curves, summary, title: str, log_y: bool = True, paper_abs=N
 def final_body(spec: dict) -> tuple:
     """(body, size, pattern, exps) of a trial's spec: the body (variant) at its final size and
     the feature exponents of its polynomial inverse."""
-    body = gbmodel.make_body(**spec["body"])
+    body = gbmodel.make_body(spec["body"])
     g = spec["growth"]
     return body, g["end_size"], g["pattern"], gbmodel.exponents(body.n, spec["learner"]["degree"])
 
