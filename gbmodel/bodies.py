@@ -81,28 +81,25 @@ class Body:
         size; 0.5: the half-size body is the common start), the growing ones change by the
         common factor that makes the total length size * full total.
         """
-        size = np.asarray(size, dtype=np.float64)[..., None]
-        if pattern == "proportional":
-            return np.broadcast_to(size, size.shape[:-1] + (self.m,)).copy()
-        if pattern != "nonproportional":
+        from .growth import segment_factors  # growth is data over the body (no import circle)
+
+        if pattern not in ("proportional", "nonproportional"):
             raise ValueError(f"unknown growth pattern {pattern!r}; choose proportional or "
-                             "nonproportional")
-        seg = np.hypot(self.a, self.d)
-        grow, held = seg[self.growing].sum(), fixed * seg[~self.growing].sum()
-        if grow <= 0:
-            raise ValueError(f"body {self.name!r} has no growing segment")
-        gamma = (size * seg.sum() - held) / grow
-        if np.any(gamma <= 0):
-            raise ValueError(
-                f"size {size.min()} is too small for non-proportional growth of {self.name!r}: "
-                f"the fixed segments alone are {held / seg.sum():.2f} of the full length"
-            )
-        return np.where(self.growing, gamma, fixed)
+                             "nonproportional (others: gbmodel.Growth.scales)")
+        grows = self.growing if pattern == "nonproportional" else np.ones(self.m, bool)
+        try:
+            return segment_factors(np.hypot(self.a, self.d), grows, np.zeros(self.m), size,
+                                   fixed=fixed)
+        except ValueError as err:
+            raise ValueError(f"body {self.name!r}: {err}") from None
 
     def chain(self, size: float = 1.0, pattern: str = "proportional", scale=None) -> dict:
         """Arrays describing the chain at a given size (or per-joint length factors `scale`):
         a, d, cos/sin alpha, base."""
-        k = self.segment_scale(size, pattern) if scale is None else np.asarray(scale, np.float64)
+        if scale is None:
+            scale = (pattern.scales(self, size) if hasattr(pattern, "scales")
+                     else self.segment_scale(size, pattern))
+        k = np.asarray(scale, np.float64)
         return dict(
             a=self.a * k, d=self.d * k, cos_alpha=self._cos_alpha, sin_alpha=self._sin_alpha,
             base=self.base,
@@ -111,7 +108,8 @@ class Body:
     def forward(self, q: np.ndarray, size: float = 1.0, pattern: str = "proportional",
                 scale=None) -> np.ndarray:
         """Hand position (n,) or (N, n) [m] for commands q of shape (m,) or (N, m), with the
-        body at `size` grown by `pattern`, or with per-joint length factors `scale` (m,)."""
+        body at `size` grown by `pattern` (proportional, nonproportional, or a gbmodel.Growth:
+        any of its patterns), or with per-joint length factors `scale` (m,)."""
         q = np.asarray(q, dtype=np.float64)
         if q.shape[-1] != self.m:
             raise ValueError(f"{self.name} takes {self.m} joint commands, got shape {q.shape}")
