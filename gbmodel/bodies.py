@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .kinematics import hand_position
+from .kinematics import chain_position, hand_position
 
 
 @dataclass(frozen=True)
@@ -38,6 +38,10 @@ class Body:
     q_max: np.ndarray | None = None
     saturates: bool = True  # normalised commands are clipped to [-1, 1] (False: limits ignored)
     description: str = ""
+    # a general serial chain (a URDF's, gbmodel/urdf.py) instead of the DH rows: per joint a
+    # fixed 3x4 transform, then a rotation about local z; the tool point in the last frame
+    frames: np.ndarray | None = None  # (m, 3, 4)
+    tool: np.ndarray | None = None  # (3,)
     _cos_alpha: np.ndarray = field(init=False, repr=False)
     _sin_alpha: np.ndarray = field(init=False, repr=False)
 
@@ -48,6 +52,20 @@ class Body:
     @property
     def m(self) -> int:
         return len(self.a)
+
+    @property
+    def general(self) -> bool:
+        """A chain of fixed transforms and rotations about z (a URDF's), not DH rows."""
+        return self.frames is not None
+
+    @property
+    def segment_lengths(self) -> np.ndarray:
+        """Full length of each segment (m,): what growth scales. DH: hypot(a_i, d_i); a general
+        chain: the translation after joint i (to the next joint, or to the tool)."""
+        if not self.general:
+            return np.hypot(self.a, self.d)
+        after = np.vstack([self.frames[1:, :, 3], self.tool[None]])
+        return np.linalg.norm(after, axis=1)
 
     @property
     def n(self) -> int:
@@ -88,18 +106,25 @@ class Body:
                              "nonproportional (others: gbmodel.Growth.scales)")
         grows = self.growing if pattern == "nonproportional" else np.ones(self.m, bool)
         try:
-            return segment_factors(np.hypot(self.a, self.d), grows, np.zeros(self.m), size,
+            return segment_factors(self.segment_lengths, grows, np.zeros(self.m), size,
                                    fixed=fixed)
         except ValueError as err:
             raise ValueError(f"body {self.name!r}: {err}") from None
 
-    def chain(self, size: float = 1.0, pattern: str = "proportional", scale=None) -> dict:
-        """Arrays describing the chain at a given size (or per-joint length factors `scale`):
-        a, d, cos/sin alpha, base."""
+    def _scale(self, size, pattern, scale) -> np.ndarray:
+        """Per-joint length factors: `scale`, or those of `pattern` (a name or a Growth)."""
         if scale is None:
             scale = (pattern.scales(self, size) if hasattr(pattern, "scales")
                      else self.segment_scale(size, pattern))
-        k = np.asarray(scale, np.float64)
+        return np.asarray(scale, np.float64)
+
+    def chain(self, size: float = 1.0, pattern: str = "proportional", scale=None) -> dict:
+        """Arrays describing the chain at a given size (or per-joint length factors `scale`):
+        a, d, cos/sin alpha, base. DH chains only."""
+        if self.general:
+            raise ValueError(f"body {self.name!r} is a general (URDF) chain, not DH rows: this "
+                             "learner or kernel takes DH chains only so far")
+        k = self._scale(size, pattern, scale)
         return dict(
             a=self.a * k, d=self.d * k, cos_alpha=self._cos_alpha, sin_alpha=self._sin_alpha,
             base=self.base,
@@ -113,6 +138,10 @@ class Body:
         q = np.asarray(q, dtype=np.float64)
         if q.shape[-1] != self.m:
             raise ValueError(f"{self.name} takes {self.m} joint commands, got shape {q.shape}")
+        if self.general:
+            p = chain_position(self.joint_angles(q), self.frames, self.tool,
+                               self._scale(size, pattern, scale))
+            return p[..., list(self.outputs)]
         p = hand_position(self.joint_angles(q), **self.chain(size, pattern, scale))
         return p[..., list(self.outputs)]
 
@@ -145,7 +174,7 @@ def cell_centres(targets: np.ndarray) -> np.ndarray:
     return _grid(*[0.5 * (a[1:] + a[:-1]) if len(a) > 1 else a for a in axes])
 
 
-FIELDS = ("name", "description", "units", "dh", "base", "hand", "outputs", "limits", "normalise",
+FIELDS = ("name", "description", "units", "dh", "urdf", "base", "hand", "outputs", "limits", "normalise",
           "saturate", "home", "grid", "grows")
 UNITS = {"rad": 1.0, "deg": None}  # deg: np.deg2rad (the same bits as the tables' conversion)
 SHIPPED = Path(__file__).resolve().parents[1] / "conf" / "body"  # the shipped descriptions
@@ -216,17 +245,24 @@ def body_from(desc: dict) -> Body:
     if units not in UNITS:
         raise _bad("units", units, f"choose one of {list(UNITS)}")
     angle = np.deg2rad if units == "deg" else (lambda x: x)
-    if desc.get("dh") is None:
-        raise _bad("dh", None, "a body needs its chain: dh rows (a, d, alpha, theta offset)")
-    dh = _matrix(desc, "dh", None, 4)
-    m = len(dh)
-    if m < 1:
-        raise _bad("dh", desc["dh"], "needs at least one joint")
     base = _matrix(desc, "base", 3, 4, np.hstack([np.eye(3), np.zeros((3, 1))]).tolist())
     hand = _matrix(desc, "hand", 3, None, [0.0, 0.0, 0.0])
-    if np.any(hand != 0):
-        raise _bad("hand", desc["hand"], "a DH body's hand is the last frame's origin: fold the "
-                   "offset into the last row's a (along x) and d (along z)")
+    if (desc.get("dh") is None) == (desc.get("urdf") is None):
+        raise _bad("dh", desc.get("dh"), "a body needs its chain, one of: dh rows (a, d, alpha, "
+                   "theta offset), or urdf: {file, root, tip}")
+    general = {}
+    if desc.get("urdf") is not None:
+        general, urdf_limits = _urdf_chain(desc["urdf"], base, hand)
+        m = len(general["frames"])
+        dh = np.zeros((m, 4))
+    else:
+        dh = _matrix(desc, "dh", None, 4)
+        m = len(dh)
+        if m < 1:
+            raise _bad("dh", desc["dh"], "needs at least one joint")
+        if np.any(hand != 0):
+            raise _bad("hand", desc["hand"], "a DH body's hand is the last frame's origin: fold "
+                       "the offset into the last row's a (along x) and d (along z)")
     outputs = desc.get("outputs")
     if (not isinstance(outputs, (list, tuple)) or not outputs or len(set(outputs)) != len(outputs)
             or any(isinstance(k, bool) or k not in (0, 1, 2) for k in outputs)):
@@ -236,12 +272,16 @@ def body_from(desc: dict) -> Body:
         raise _bad("normalise", normalise, "must be true or false")
     q_min = q_max = None
     if normalise:
-        if desc.get("limits") is None:
+        if desc.get("limits") is None and general and np.all(np.isfinite(urdf_limits)):
+            limits = urdf_limits  # the URDF's own [[lower, upper]] [rad]
+        elif desc.get("limits") is None:
             raise _bad("limits", None, "normalise: true maps commands onto the joint limits; "
-                       "give [min, max] per joint")
-        limits = angle(_matrix(desc, "limits", m, 2))
+                       "give [min, max] per joint" + (" (the URDF has none for some joints)"
+                                                      if general else ""))
+        else:
+            limits = angle(_matrix(desc, "limits", m, 2))
         if np.any(limits[:, 1] <= limits[:, 0]):
-            raise _bad("limits", desc["limits"], "need min < max per joint")
+            raise _bad("limits", desc.get("limits"), "need min < max per joint")
         q_min, q_max = limits[:, 0].copy(), limits[:, 1].copy()
     elif desc.get("limits") is not None:
         raise _bad("limits", desc["limits"], "only normalise: true uses joint limits; set it, or "
@@ -259,7 +299,8 @@ def body_from(desc: dict) -> Body:
         raise _bad("grid", grid, str(err)) from None
     if targets.shape[1] != len(outputs):
         raise _bad("grid", grid, f"{name} controls {len(outputs)} coordinate(s)")
-    grows = desc.get("grows", [True] * m)
+    grows = desc.get("grows")
+    grows = [True] * m if grows is None else grows  # default: every segment grows
     if (not isinstance(grows, (list, tuple)) or len(grows) != m
             or not all(isinstance(g, bool) for g in grows)):
         raise _bad("grows", grows, f"needs {m} values true/false, one per segment")
@@ -267,8 +308,23 @@ def body_from(desc: dict) -> Body:
         name=name, a=dh[:, 0].copy(), d=dh[:, 1].copy(), alpha=angle(dh[:, 2]),
         theta_offset=angle(dh[:, 3]), base=base, outputs=tuple(int(k) for k in outputs),
         home=home, targets=targets, growing=np.asarray(grows, bool), q_min=q_min, q_max=q_max,
-        saturates=saturate, description=str(desc.get("description", "")),
+        saturates=saturate, description=str(desc.get("description", "")), **general,
     )
+
+
+def _urdf_chain(urdf, base, hand) -> tuple[dict, np.ndarray]:
+    """(frames, tool) of the URDF chain with `base` before it and the hand point `hand` (in the
+    tip link's frame) as the tool, and the URDF's limits [rad]."""
+    from .urdf import read_chain
+
+    keys = ("file", "root", "tip", "joints", "hold")
+    if not isinstance(urdf, dict) or not {"file", "root", "tip"} <= set(urdf) <= set(keys):
+        raise _bad("urdf", urdf, "needs file, root, tip (and optionally joints, hold)")
+    chain = read_chain(**urdf)
+    frames = chain["frames"].copy()
+    frames[0] = base[:, :3] @ frames[0] + np.hstack([np.zeros((3, 3)), base[:, 3:]])
+    tool = chain["tool"] + chain["rest"] @ hand
+    return dict(frames=frames, tool=tool), chain["limits"]
 
 
 def make_body(description: str | dict | None = None, **fields) -> Body:
@@ -280,7 +336,7 @@ def make_body(description: str | dict | None = None, **fields) -> Body:
     Raises ValueError naming the bad field as `body.<field>`."""
     desc = {"name": description} if isinstance(description, str) else dict(description or {})
     desc.update(fields)
-    if "dh" not in desc:
+    if "dh" not in desc and "urdf" not in desc:
         given = {k: v for k, v in desc.items() if v is not None}
         desc = {**read_description(desc.get("name")), **given}
     return body_from(desc)

@@ -126,7 +126,7 @@ def proximal_leads(seg, lead: float = 1.0) -> np.ndarray:
 def proximal_first_scale(body: "Body", sizes, start_size: float, end_size: float,
                          lead: float = 1.0) -> np.ndarray:
     """Per-joint length factors (..., m) when proximal segments grow ahead of distal ones."""
-    seg = np.hypot(body.a, body.d)
+    seg = body.segment_lengths
     return segment_factors(seg, np.ones(body.m, bool), proximal_leads(seg, lead), sizes,
                            start_size, end_size)
 
@@ -183,7 +183,7 @@ class Growth:
                                 "in -1 ... 1, one per segment of " + body.name)
         elif self.leads is not None:
             raise SpecError("growth.leads", self.leads, "only growth=per_segment uses leads")
-        if self.pattern == "proximal_first" and np.count_nonzero(np.hypot(body.a, body.d)) < 2:
+        if self.pattern == "proximal_first" and np.count_nonzero(body.segment_lengths) < 2:
             raise SpecError("growth.pattern", self.pattern,
                             f"{body.name} has fewer than two segments of non-zero length")
         return self
@@ -198,7 +198,7 @@ class Growth:
 
     def segments(self, body: "Body") -> tuple[np.ndarray, np.ndarray]:
         """(grows, leads) per segment of `body`: the pattern as data for segment_factors."""
-        seg, every = np.hypot(body.a, body.d), np.ones(body.m, bool)
+        seg, every = body.segment_lengths, np.ones(body.m, bool)
         if self.pattern == "nonproportional":
             return body.growing, np.zeros(body.m)
         if self.pattern == "proximal_first":
@@ -210,7 +210,7 @@ class Growth:
     def scales(self, body: "Body", sizes) -> np.ndarray:
         """Per-joint length factors (..., m) of the body at `sizes` (any slice of epochs)."""
         grows, leads = self.segments(body)
-        return segment_factors(np.hypot(body.a, body.d), grows, leads, sizes, self.start_size,
+        return segment_factors(body.segment_lengths, grows, leads, sizes, self.start_size,
                                self.end_size, self.fixed_scale)
 
     def to_dict(self) -> dict:

@@ -71,6 +71,7 @@ class BodyConf:
     description: str = ""
     units: str = "rad"  # rad | deg: of alpha, theta offset and limits
     dh: Optional[list[Any]] = None  # per joint (a [m], d [m], alpha, theta offset)
+    urdf: Optional[dict[str, Any]] = None  # or a URDF's chain: {file, root, tip, joints, hold}
     base: list[Any] = field(default_factory=lambda: [[1.0, 0.0, 0.0, 0.0],
                                                              [0.0, 1.0, 0.0, 0.0],
                                                              [0.0, 0.0, 1.0, 0.0]])
