@@ -340,3 +340,25 @@ def make_body(description: str | dict | None = None, **fields) -> Body:
         given = {k: v for k, v in desc.items() if v is not None}
         desc = {**read_description(desc.get("name")), **given}
     return body_from(desc)
+
+
+def unreachable(body: Body, rng: np.random.Generator, size: float = 1.0, samples: int = 4000,
+                steps: int = 30, tol: float = 1e-3) -> np.ndarray:
+    """Indices of the targets (at `size`) that no posture within the limits reaches to `tol` m:
+    from the nearest of `samples` random postures, damped Gauss-Newton steps on the commands
+    (clipped to [-1, 1] where normalised, numerical Jacobian). A target it misses may still be
+    reachable in principle (a local search), so callers warn, never refuse."""
+    targets = body.target_set(size)
+    box = 1.0 if body.normalized else np.pi
+    Q = rng.uniform(-box, box, size=(samples, body.m))
+    X = body.forward(Q, size)
+    q = Q[np.argmin(((targets[:, None, :] - X[None]) ** 2).sum(-1), axis=1)]
+    eye, h = 1e-4 * np.eye(body.m), 1e-6
+    for _ in range(steps):
+        x = body.forward(q, size)
+        J = np.stack([(body.forward(q + h * e, size) - x) / h for e in np.eye(body.m)], axis=-1)
+        JT = J.transpose(0, 2, 1)
+        dq = np.linalg.solve(JT @ J + eye, JT @ (targets - x)[..., None])[..., 0]
+        q = np.clip(q + dq, -box, box) if body.normalized and body.saturates else q + dq
+    miss = np.linalg.norm(body.forward(q, size) - targets, axis=-1)
+    return np.flatnonzero(miss > tol)

@@ -149,3 +149,33 @@ def test_a_new_body_is_one_file(tmp_path):
     body = gbmodel.make_body(desc)
     assert body.m == 3 and body.n == 2
     np.testing.assert_allclose(body.forward(np.zeros(3)), [0.9, 0.0], atol=1e-15)
+
+
+@pytest.mark.parametrize("name", ["arm2", "arm5", "icub", "icub_urdf"])
+@pytest.mark.parametrize("size", [0.5, 1.0])
+def test_every_shipped_grid_is_reachable(name, size):
+    body = gbmodel.make_body(name)
+    assert gbmodel.bodies.unreachable(body, np.random.default_rng(0), size=size).size == 0
+
+
+def test_a_grid_out_of_reach_is_warned(caplog):
+    body = gbmodel.make_body("arm5", grid=dict(lo=[-0.5, 0.2], hi=[0.5, 1.2], num=[3, 3]))
+    assert gbmodel.bodies.unreachable(body, np.random.default_rng(0)).tolist() == [2, 5, 8]
+    with caplog.at_level("WARNING", logger="pipeline.plan"):
+        plan(compose(["profile=smoke", "trials.count=1",
+                      "body.grid={lo: [-0.5, 0.2], hi: [0.5, 1.25], num: [3, 3]}"]))
+    assert any(r.getMessage().startswith("warning: body.grid=") and "3 of 9 targets" in
+               r.getMessage() for r in caplog.records)
+
+
+def test_the_urdf_icub_runs_through_simulate(tmp_path):
+    """body=icub_urdf works from the command line (its learner settings pick the reference path)."""
+    import subprocess
+    import sys
+    cmd = [sys.executable, "-m", "pipeline.simulate", "body=icub_urdf", "profile=smoke",
+           "learner.epochs=12", "trials.count=1", "growth=none", f"paths.root={tmp_path}",
+           "workers=1"]
+    proc = subprocess.run(cmd, cwd=SHIPPED.parents[1], capture_output=True, text=True,
+                          timeout=300, env={"PYTHONPATH": str(SHIPPED.parents[1]),
+                                            "PATH": "/usr/bin:/bin"})
+    assert proc.returncode == 0 and "1 run, 0 failed" in proc.stdout + proc.stderr, proc.stderr
