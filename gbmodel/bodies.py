@@ -1,5 +1,6 @@
-"""Bodies as data: a body is a description (conf/body/<name>.yaml, docs/bodies.md) over the
-shared DH kinematics; this module holds the generic code and no body's numbers.
+"""Bodies as data: a body is a description (conf/body/<name>.yaml, docs/bodies.md) over shared
+kinematics, DH rows or a URDF's chain (gbmodel/urdf.py); this module holds the generic code and
+no body's numbers.
 
 A body knows its full-size chain, its joint limits, its home posture, its target set and which
 segments grow. Growth is a new description (scaled lengths), never new kinematics code.

@@ -151,7 +151,7 @@ def test_a_new_body_is_one_file(tmp_path):
     np.testing.assert_allclose(body.forward(np.zeros(3)), [0.9, 0.0], atol=1e-15)
 
 
-@pytest.mark.parametrize("name", ["arm2", "arm5", "icub", "icub_urdf"])
+@pytest.mark.parametrize("name", ["arm2", "arm5", "icub", "icub_urdf", "ergo_jr"])
 @pytest.mark.parametrize("size", [0.5, 1.0])
 def test_every_shipped_grid_is_reachable(name, size):
     body = gbmodel.make_body(name)
