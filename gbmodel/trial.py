@@ -66,10 +66,7 @@ class TrialSpec:
         """Raise SpecError (a ValueError) naming the first bad value as `<section>.<field>`."""
         body = self.make_body()
         self.make_growth().validate(body)
-        _, params = self.make_learner()
-        if body.general and getattr(params, "fast", False):
-            raise SpecError("learner.fast", True, f"body {body.name!r} is a general (URDF) chain; "
-                            "the compiled kernel takes DH chains only so far: learner.fast=false")
+        self.make_learner()
         check_int("learner.epochs", self.epochs, 1)
         check_int("learner.evals_per_decade", self.evals_per_decade, 1)
         ev = {**evaluation.DEFAULTS, **self.evaluation}

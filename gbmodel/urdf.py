@@ -121,7 +121,8 @@ def read_chain(file, root: str, tip: str, joints=None, hold=None) -> dict:
     if unknown or len(set(joints)) != len(joints) or not joints:
         raise _bad("joints", joints, f"choose distinct revolute joints of the chain, {movable}")
     if [n for n in movable if n in joints] != joints:
-        raise _bad("joints", joints, f"name them in chain order, {[n for n in movable if n in joints]}")
+        order = [n for n in movable if n in joints]
+        raise _bad("joints", joints, f"name them in chain order, {order}")
     hold = dict(hold or {})
     extra = sorted(set(hold) - (set(movable) - set(joints)))
     if extra:

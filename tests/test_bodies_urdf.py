@@ -145,10 +145,31 @@ def test_no_limits_with_normalise(tmp_path):
     assert body_from(_desc(path, normalise=False)).m == 4
 
 
-def test_the_fast_kernel_refuses_a_urdf_body_by_name(urdf_file):
-    spec = gbmodel.TrialSpec(body=_desc(urdf_file), epochs=3)
-    with pytest.raises(gbmodel.SpecError, match=r"^learner.fast=True: "):
-        spec.validate()
+@pytest.mark.parametrize("pattern", ["proportional", "proximal_first"])
+def test_the_fast_kernel_computes_the_urdf_chain(urdf_file, pattern):
+    """The compiled kernel (float32) learns the URDF body as the numpy reference (float64)
+    does, with the same draws: the same curve and M up to float32 rounding."""
+    def trial(fast):
+        spec = gbmodel.TrialSpec(body=_desc(urdf_file), epochs=20, evals_per_decade=5,
+                                 learner={"name": "goal_babbling", "fast": fast},
+                                 growth={"pattern": pattern, "start_size": 0.5, "period": 10})
+        return gbmodel.run_trial(spec, np.random.default_rng(3))
+    fast, ref = trial(True), trial(False)
+    np.testing.assert_allclose(fast.abs_error, ref.abs_error, rtol=1e-4, atol=1e-7)
+    np.testing.assert_allclose(fast.M, ref.M, rtol=0, atol=1e-5)
+    assert not np.array_equal(fast.M, ref.M)  # two paths indeed
+
+
+def test_fast_distances_of_a_urdf_body(urdf_file):
+    """The fast path's evaluation (its own kinematics) against Body.forward."""
+    from gbmodel.learners.goal_babbling import fast
+    body = body_from(_desc(urdf_file))
+    exps = gbmodel.exponents(3)
+    M = np.random.default_rng(0).normal(0, 0.3, size=(4, len(exps)))
+    xs = body.targets
+    scale = np.array([0.9, 0.8, 0.7, 0.6])
+    want = np.linalg.norm(body.forward(gbmodel.predict(M, xs, exps), scale=scale) - xs, axis=-1)
+    np.testing.assert_allclose(fast.distances(M, body, exps, scale, xs), want, atol=2e-6)
 
 
 def test_a_urdf_body_learns_through_simulate(urdf_file, tmp_path):
@@ -163,7 +184,7 @@ def test_a_urdf_body_learns_through_simulate(urdf_file, tmp_path):
         **{f"hi{i}": round(float(v), 3) for i, v in enumerate(hi)}))
     root = tmp_path / "out"
     cmd = [sys.executable, "-m", "pipeline.simulate", f"hydra.searchpath=[file://{conf.parent}]",
-           "body=skew", "learner.fast=false", "profile=smoke", "learner.epochs=60",
+           "body=skew", "profile=smoke", "learner.epochs=60",
            "trials.count=1", "growth=none", f"paths.root={root}", "workers=1"]
     proc = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=300,
                           env={"PYTHONPATH": str(REPO), "PATH": "/usr/bin:/bin"})

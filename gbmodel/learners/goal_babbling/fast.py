@@ -14,8 +14,9 @@ float32 vector loops over the samples of an epoch:
   updates=steps repeats the gradient pass, updates=online goes sample by sample in float64
   scalars). Positions agree with the float64 reference to ~2e-7 m (tests/test_fast.py states the
   tolerances);
-- the hand is carried backwards through the DH chain, one rotation about z per joint, in
-  registers, LANES samples at a time;
+- the hand is carried backwards through the chain, one rotation about z per joint, in
+  registers, LANES samples at a time: DH rows, or a general (URDF) chain's fixed rotation and
+  translation per joint (`_chain`);
 - sin and cos are a branch-free polynomial (Cephes' kernels after a Cody-Waite reduction);
 - features are built monomial by monomial, each a parent monomial times one coordinate;
 - the gradient sum_t w (M Phi - q) Phi^T: the weighted residuals (rows in register tiles of 5),
@@ -70,7 +71,7 @@ def _kinematics(Q, X, C, joints, body):
     +-90 degrees (every joint of our bodies) without the products by 0 and +-1 (the same
     values, up to the sign of a zero)."""
     normalized, saturates, q_lo, q_span, offset = joints
-    a, d, ca, sa, base, outputs = body
+    a, d, ca, sa, base, outputs, ty, R, general = body
     m = Q.shape[0]
     for c in range(0, C, LANES):
         px = py = pz = vsplat(0)
@@ -86,6 +87,16 @@ def _kinematics(Q, X, C, joints, body):
             else:
                 theta = vadd(q, vsplat(offset[i]))
             s, co = sincos(theta)
+            if general:  # a URDF's chain: p <- Rz(theta) (R_i p + (a, ty, d)_i)
+                u = vfma(vsplat(R[i, 0, 0]), px, vfma(vsplat(R[i, 0, 1]), py, vfma(
+                    vsplat(R[i, 0, 2]), pz, vsplat(a[i]))))
+                v = vfma(vsplat(R[i, 1, 0]), px, vfma(vsplat(R[i, 1, 1]), py, vfma(
+                    vsplat(R[i, 1, 2]), pz, vsplat(ty[i]))))
+                pz = vfma(vsplat(R[i, 2, 0]), px, vfma(vsplat(R[i, 2, 1]), py, vfma(
+                    vsplat(R[i, 2, 2]), pz, vsplat(d[i]))))
+                px = vfma(co, u, vmul(vneg(s), v))
+                py = vfma(s, u, vmul(co, v))
+                continue
             u = vadd(px, vsplat(a[i]))
             if sa[i] == 0 and ca[i] == 1:
                 v = py
@@ -483,18 +494,20 @@ def _box(targets):
 def _block(M, idx, raw, amp, sizes, scales, rates, chain, targets, home, parent, var, joints,
            radius, steps, plain, updates, update_steps):
     """Epochs e = 0 ... B-1 with sizes[e], per-joint length factors scales[e] and rates[e]."""
-    a, d, ca, sa, base, outputs = chain
+    a, d, ca, sa, base, outputs, ty, R, general = chain
     m, p = M.shape
     n = targets.shape[1]
     work = _work(m, n, p, raw.shape[1], (idx.shape[1] - 1) * steps)
     box = _box(targets)
     ae = np.empty(m, np.float32)
     de = np.empty(m, np.float32)
+    ye = np.empty(m, np.float32)
     for e in range(idx.shape[0]):
         for i in range(m):
             ae[i] = a[i] * scales[e, i]
             de[i] = d[i] * scales[e, i]
-        body = (ae, de, ca, sa, base, outputs)
+            ye[i] = ty[i] * scales[e, i]
+        body = (ae, de, ca, sa, base, outputs, ye, R, general)
         _epoch(M, idx[e], raw[e], amp[e], sizes[e], body, targets, home, parent, var, joints,
                radius, steps, rates[e], plain, updates, update_steps, box, work)
 
@@ -502,13 +515,13 @@ def _block(M, idx, raw, amp, sizes, scales, rates, chain, targets, home, parent,
 @njit(cache=True)
 def _distances(M, scale, chain, xs, parent, var, joints, out):
     """out[t] = |f(g(xs_t)) - xs_t| (float64) with the chain's lengths times scale."""
-    a, d, ca, sa, base, outputs = chain
+    a, d, ca, sa, base, outputs, ty, R, general = chain
     m, p = M.shape
     NT, n = xs.shape
-    ae, de = np.empty(m, np.float32), np.empty(m, np.float32)
+    ae, de, ye = np.empty(m, np.float32), np.empty(m, np.float32), np.empty(m, np.float32)
     for i in range(m):
-        ae[i], de[i] = a[i] * scale[i], d[i] * scale[i]
-    body = (ae, de, ca, sa, base, outputs)
+        ae[i], de[i], ye[i] = a[i] * scale[i], d[i] * scale[i], ty[i] * scale[i]
+    body = (ae, de, ca, sa, base, outputs, ye, R, general)
     M32 = np.empty((m, p), np.float32)
     for i in range(m):
         for k in range(p):
@@ -543,6 +556,21 @@ def monomial_tree(exps: np.ndarray):
     return parent, var
 
 
+def _chain(body) -> dict:
+    """The chain at full size as the kernel steps through it, p <- Rz(theta_i) (R_i p + t_i),
+    t_i = (a_i, ty_i, d_i) scaled by segment i's growth, then the base. DH rows: R_i = Rx(alpha_i)
+    (cos/sin alpha, the rows' own branch), ty = 0. A general chain (a URDF's: hand =
+    F_0 Rz(q_0) F_1 ... Rz(q_{m-1}) tool): the base is F_0, (R_i | t_i) is F_{i+1}, and the tool
+    the last joint's translation (R = I)."""
+    m = body.m
+    if not body.general:
+        ch = body.chain(1.0)
+        return dict(ch, ty=np.zeros(m), R=np.zeros((m, 3, 3)), general=False)
+    after = np.concatenate([body.frames[1:], np.hstack([np.eye(3), body.tool[:, None]])[None]])
+    return dict(a=after[:, 0, 3], d=after[:, 2, 3], ty=after[:, 1, 3], R=after[:, :, :3],
+                cos_alpha=np.ones(m), sin_alpha=np.zeros(m), base=body.frames[0], general=True)
+
+
 _ARRAYS: dict = {}  # (id(body), exps) -> (body, arrays); the body is kept so its id stays its own
 
 
@@ -555,7 +583,7 @@ def _arrays(body, exps):
     if hit is not None and hit[0] is body:
         return hit[1]
     f4 = lambda x: np.ascontiguousarray(x, np.float32)  # noqa: E731
-    chain = body.chain(1.0)
+    chain = _chain(body)
     normalized = body.normalized
     joints = (normalized, body.saturates,
               f4(body.q_min if normalized else np.zeros(body.m)),
@@ -564,7 +592,8 @@ def _arrays(body, exps):
     parent, var = monomial_tree(exps)
     arr = dict(
         chain=(f4(chain["a"]), f4(chain["d"]), f4(chain["cos_alpha"]), f4(chain["sin_alpha"]),
-               f4(body.base), np.array(body.outputs, np.int64)),
+               f4(chain["base"]), np.array(body.outputs, np.int64), f4(chain["ty"]),
+               f4(chain["R"]), chain["general"]),
         targets=f4(body.targets), home=f4(body.saturate(body.home)), parent=parent, var=var,
         joints=joints,
     )
@@ -617,9 +646,9 @@ def epoch_samples(M, body, params, exps, size, scale, idx, raw, amp=None, rate=N
     out as (V, T + 1, ...) like reference.epoch's (rate: eta, params.learning_rate if None)."""
     M = np.array(M, dtype=np.float64, order="C")
     arr = _arrays(body, exps)
-    a, d, ca, sa, base, outputs = arr["chain"]
+    a, d, ca, sa, base, outputs, ty, R, general = arr["chain"]
     k = np.asarray(scale, np.float32)
-    chain = (a * k, d * k, ca, sa, base, outputs)
+    chain = (a * k, d * k, ca, sa, base, outputs, ty * k, R, general)
     T = (len(idx) - 1) * params.steps
     V = raw.shape[0]
     work = _work(body.m, body.n, len(exps), V, T)
