@@ -10,7 +10,9 @@ printing. Every random draw comes from a numpy.random.Generator passed in.
     True
 """
 from . import learners
-from .bodies import BODIES, Body, make_body
+from .bodies import Body, make_body, shipped
+
+BODIES = shipped()  # the names of the shipped bodies (conf/body/*.yaml)
 from .evaluation import eval_epochs
 from .features import exponents, feature_bounds, features
 from .growth import PATTERNS as GROWTH_PATTERNS, Growth, SpecError

@@ -1,4 +1,6 @@
-"""The bodies of the paper, each a short description over the shared DH kinematics.
+"""Bodies as data: a body is a description (conf/body/<name>.yaml, docs/bodies.md) over shared
+kinematics, DH rows or a URDF's chain (gbmodel/urdf.py); this module holds the generic code and
+no body's numbers.
 
 A body knows its full-size chain, its joint limits, its home posture, its target set and which
 segments grow. Growth is a new description (scaled lengths), never new kinematics code.
@@ -11,13 +13,14 @@ taken (the saturated one): that is the only posture whose outcome was observed.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
+import yaml
 
-from .kinematics import hand_position
-
-GROWTH_PATTERNS = ("proportional", "nonproportional")
+from .kinematics import chain_position, hand_position
 
 
 @dataclass(frozen=True)
@@ -36,6 +39,10 @@ class Body:
     q_max: np.ndarray | None = None
     saturates: bool = True  # normalised commands are clipped to [-1, 1] (False: limits ignored)
     description: str = ""
+    # a general serial chain (a URDF's, gbmodel/urdf.py) instead of the DH rows: per joint a
+    # fixed 3x4 transform, then a rotation about local z; the tool point in the last frame
+    frames: np.ndarray | None = None  # (m, 3, 4)
+    tool: np.ndarray | None = None  # (3,)
     _cos_alpha: np.ndarray = field(init=False, repr=False)
     _sin_alpha: np.ndarray = field(init=False, repr=False)
 
@@ -46,6 +53,20 @@ class Body:
     @property
     def m(self) -> int:
         return len(self.a)
+
+    @property
+    def general(self) -> bool:
+        """A chain of fixed transforms and rotations about z (a URDF's), not DH rows."""
+        return self.frames is not None
+
+    @property
+    def segment_lengths(self) -> np.ndarray:
+        """Full length of each segment (m,): what growth scales. DH: hypot(a_i, d_i); a general
+        chain: the translation after joint i (to the next joint, or to the tool)."""
+        if not self.general:
+            return np.hypot(self.a, self.d)
+        after = np.vstack([self.frames[1:, :, 3], self.tool[None]])
+        return np.linalg.norm(after, axis=1)
 
     @property
     def n(self) -> int:
@@ -79,28 +100,32 @@ class Body:
         size; 0.5: the half-size body is the common start), the growing ones change by the
         common factor that makes the total length size * full total.
         """
-        size = np.asarray(size, dtype=np.float64)[..., None]
-        if pattern == "proportional":
-            return np.broadcast_to(size, size.shape[:-1] + (self.m,)).copy()
-        if pattern != "nonproportional":
+        from .growth import segment_factors  # growth is data over the body (no import circle)
+
+        if pattern not in ("proportional", "nonproportional"):
             raise ValueError(f"unknown growth pattern {pattern!r}; choose proportional or "
-                             "nonproportional")
-        seg = np.hypot(self.a, self.d)
-        grow, held = seg[self.growing].sum(), fixed * seg[~self.growing].sum()
-        if grow <= 0:
-            raise ValueError(f"body {self.name!r} has no growing segment")
-        gamma = (size * seg.sum() - held) / grow
-        if np.any(gamma <= 0):
-            raise ValueError(
-                f"size {size.min()} is too small for non-proportional growth of {self.name!r}: "
-                f"the fixed segments alone are {held / seg.sum():.2f} of the full length"
-            )
-        return np.where(self.growing, gamma, fixed)
+                             "nonproportional (others: gbmodel.Growth.scales)")
+        grows = self.growing if pattern == "nonproportional" else np.ones(self.m, bool)
+        try:
+            return segment_factors(self.segment_lengths, grows, np.zeros(self.m), size,
+                                   fixed=fixed)
+        except ValueError as err:
+            raise ValueError(f"body {self.name!r}: {err}") from None
+
+    def _scale(self, size, pattern, scale) -> np.ndarray:
+        """Per-joint length factors: `scale`, or those of `pattern` (a name or a Growth)."""
+        if scale is None:
+            scale = (pattern.scales(self, size) if hasattr(pattern, "scales")
+                     else self.segment_scale(size, pattern))
+        return np.asarray(scale, np.float64)
 
     def chain(self, size: float = 1.0, pattern: str = "proportional", scale=None) -> dict:
         """Arrays describing the chain at a given size (or per-joint length factors `scale`):
-        a, d, cos/sin alpha, base."""
-        k = self.segment_scale(size, pattern) if scale is None else np.asarray(scale, np.float64)
+        a, d, cos/sin alpha, base. DH chains only."""
+        if self.general:
+            raise ValueError(f"body {self.name!r} is a general (URDF) chain, not DH rows: this "
+                             "learner or kernel takes DH chains only so far")
+        k = self._scale(size, pattern, scale)
         return dict(
             a=self.a * k, d=self.d * k, cos_alpha=self._cos_alpha, sin_alpha=self._sin_alpha,
             base=self.base,
@@ -109,10 +134,15 @@ class Body:
     def forward(self, q: np.ndarray, size: float = 1.0, pattern: str = "proportional",
                 scale=None) -> np.ndarray:
         """Hand position (n,) or (N, n) [m] for commands q of shape (m,) or (N, m), with the
-        body at `size` grown by `pattern`, or with per-joint length factors `scale` (m,)."""
+        body at `size` grown by `pattern` (proportional, nonproportional, or a gbmodel.Growth:
+        any of its patterns), or with per-joint length factors `scale` (m,)."""
         q = np.asarray(q, dtype=np.float64)
         if q.shape[-1] != self.m:
             raise ValueError(f"{self.name} takes {self.m} joint commands, got shape {q.shape}")
+        if self.general:
+            p = chain_position(self.joint_angles(q), self.frames, self.tool,
+                               self._scale(size, pattern, scale))
+            return p[..., list(self.outputs)]
         p = hand_position(self.joint_angles(q), **self.chain(size, pattern, scale))
         return p[..., list(self.outputs)]
 
@@ -145,123 +175,191 @@ def cell_centres(targets: np.ndarray) -> np.ndarray:
     return _grid(*[0.5 * (a[1:] + a[:-1]) if len(a) > 1 else a for a in axes])
 
 
-def _planar(name, lengths, home, targets, outputs, growing, description) -> Body:
-    m = len(lengths)
-    z = np.zeros(m)
-    return Body(
-        name=name, a=np.asarray(lengths, float), d=z.copy(), alpha=z.copy(), theta_offset=z.copy(),
-        base=np.hstack([np.eye(3), np.zeros((3, 1))]), outputs=tuple(outputs),
-        home=np.asarray(home, float), targets=np.asarray(targets, float),
-        growing=np.asarray(growing, bool), description=description,
-    )
+FIELDS = ("name", "description", "units", "dh", "urdf", "base", "hand", "outputs", "limits", "normalise",
+          "saturate", "home", "grid", "grows")
+UNITS = {"rad": 1.0, "deg": None}  # deg: np.deg2rad (the same bits as the tables' conversion)
+SHIPPED = Path(__file__).resolve().parents[1] / "conf" / "body"  # the shipped descriptions
 
 
-ARM2_GRID = dict(lo=[-1.0], hi=[1.0], num=[21])
-ARM5_GRID = dict(lo=[-0.5, 0.2], hi=[0.5, 0.7], num=[11, 6])
-ICUB_GRID = dict(lo=[-0.36, 0.06, -0.06], hi=[-0.18, 0.30, 0.18], num=[4, 4, 4])
+class _Loader(yaml.SafeLoader):
+    """YAML 1.2 floats (1e-3 without a dot), as Hydra reads the same files."""
 
 
-def arm2() -> Body:
-    """Fig. 1-2: two joints, 2 x 0.5 m, only the hand's height is controlled (n = 1).
-
-    Joint 1 turns the arm up from the horizontal; home (0, 0) is the stretched horizontal arm.
-    Targets: heights -1.0 ... 1.0 m in 0.1 m steps (the paper's full range).
-    """
-    return _planar(
-        "arm2", [0.5, 0.5], home=[0.0, 0.0],
-        targets=grid_points(**ARM2_GRID), outputs=(1,), growing=[True, True],
-        description="2-DOF arm, 1 m, hand height",
-    )
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+                   |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+                   |\.[0-9_]+(?:[eE][-+][0-9]+)?
+                   |[-+]?\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))$""", re.X),
+    list("-+0123456789."))
 
 
-# Home posture of the 5-DOF arm: "slightly curved" (sec. 3.1), bent by the same angle at each of
-# joints 2-5 and turned so that the hand is straight above the base, at (0, 0.77) m at full size,
-# just above the middle of the target grid.
-ARM5_BEND = 0.5
+def shipped() -> tuple:
+    """The names of the bodies shipped as conf/body/<name>.yaml."""
+    return tuple(sorted(p.stem for p in SHIPPED.glob("*.yaml")))
 
 
-def arm5() -> Body:
-    """Sec. 3.1: planar arm, five 0.2 m segments (1 m at full size), hand position (n = 2).
-
-    Target grid (Fig. 3b, our choice): x in -0.5 ... 0.5 m, y in 0.2 ... 0.7 m, 0.1 m apart
-    (66 targets), all within 0.86 of the arm's length from the base, so reachable at every size
-    and by both growth patterns. Non-proportional growth: segments 1, 3, 5 grow (sec. 3.2).
-    """
-    home = [np.pi / 2 - 2 * ARM5_BEND] + [ARM5_BEND] * 4
-    return _planar(
-        "arm5", [0.2] * 5, home=home,
-        targets=grid_points(**ARM5_GRID), outputs=(0, 1),
-        growing=[True, False, True, False, True],
-        description="5-DOF planar arm, 1 m, hand position",
-    )
-
-
-# iCub torso + right arm, DH "right arm v1" (../shared/reference/icub-right-arm.md).
-_ICUB = np.array([
-    # a [m],     d [m],    alpha,  offset [deg], min [deg], max [deg]
-    [0.032, 0.0, 1, 0, -22.0, 84.0],  # torso_pitch
-    [0.0, -0.0055, 1, -90, -39.0, 39.0],  # torso_roll
-    [-0.0233647, -0.1433, 1, -105, -59.0, 59.0],  # torso_yaw
-    [0.0, -0.10774, 1, -90, -95.5, 5.0],  # r_shoulder_pitch
-    [0.0, 0.0, -1, -90, 0.0, 160.8],  # r_shoulder_roll
-    [-0.015, -0.15228, -1, -105, -37.0, 100.0],  # r_shoulder_yaw
-    [0.015, 0.0, 1, 0, 5.5, 106.0],  # r_elbow
-    [0.0, -0.1373, 1, -90, -50.0, 50.0],  # r_wrist_prosup
-    [0.0, 0.0, 1, 90, -65.0, 10.0],  # r_wrist_pitch
-    [0.0625, 0.016, 0, 180, -25.0, 25.0],  # r_wrist_yaw
-])
-# The robot's start-up posture: torso 0, shoulder (-30, 30, 0), elbow 45, wrist 0 [deg].
-ICUB_HOME_DEG = np.array([0, 0, 0, -30, 30, 0, 45, 0, 0, 0], float)
-
-
-def icub() -> Body:
-    """Sec. 3.3: iCub hip (3) + right arm (7), 10 DOF, 3-D palm position.
-
-    Target set (our choice): a 4 x 4 x 4 grid in front of the right shoulder,
-    x in -0.36 ... -0.18 m (x points backwards), y in 0.06 ... 0.30 m, z in -0.06 ... 0.18 m,
-    around the palm's start-up position (-0.30, 0.21, 0.03) m; checked reachable in the tests.
-    """
-    q_min, q_max = np.deg2rad(_ICUB[:, 4]), np.deg2rad(_ICUB[:, 5])
-    home_rad = np.deg2rad(ICUB_HOME_DEG)
-    return Body(
-        name="icub", a=_ICUB[:, 0].copy(), d=_ICUB[:, 1].copy(), alpha=_ICUB[:, 2] * np.pi / 2,
-        theta_offset=np.deg2rad(_ICUB[:, 3]),
-        base=np.array([[0, -1, 0, 0], [0, 0, -1, 0], [1, 0, 0, 0]], float), outputs=(0, 1, 2),
-        home=2 * (home_rad - q_min) / (q_max - q_min) - 1,
-        targets=grid_points(**ICUB_GRID),
-        growing=np.ones(10, bool), q_min=q_min, q_max=q_max,
-        description="iCub torso + right arm (DH v1), 10 DOF, palm position",
-    )
-
-
-BODIES = {"arm2": arm2, "arm5": arm5, "icub": icub}
-
-
-def make_body(name: str, grid: dict | None = None, home=None, saturate: bool | None = None) -> Body:
-    """The full-size body `name` (one of arm2, arm5, icub), or a variant of it.
-
-    grid: dict(lo, hi, num) replaces the target grid; home: a posture (command units) replaces
-    the home posture; saturate: False lets normalised commands run past the joint limits.
-    None keeps the body's own. Raises ValueError naming the bad field as `body.<field>`.
-    """
+def read_description(name: str) -> dict:
+    """The shipped description conf/body/<name>.yaml as a plain dict (the one file gbmodel reads:
+    a body's description)."""
+    path = SHIPPED / f"{name}.yaml"
+    if not isinstance(name, str) or "/" in name or not path.is_file():
+        raise ValueError(f"body.name={name!r}: unknown body; choose one of {list(shipped())} "
+                         "or give the whole description (docs/bodies.md)")
     try:
-        body = BODIES[name]()
-    except KeyError:
-        raise ValueError(f"body.name={name!r}: unknown body; choose one of {sorted(BODIES)}") from None
-    changes = {}
-    if grid is not None:
-        try:
-            targets = grid_points(**grid)
-        except (TypeError, ValueError) as err:
-            raise ValueError(f"body.grid={grid!r}: {err}") from None
-        if targets.shape[1] != body.n:
-            raise ValueError(f"body.grid={grid!r}: {name} controls {body.n} coordinate(s)")
-        changes["targets"] = targets
-    if home is not None:
-        home = np.asarray(home, dtype=np.float64)
-        if home.shape != (body.m,) or not np.all(np.isfinite(home)):
-            raise ValueError(f"body.home={home.tolist()!r}: {name} needs {body.m} finite values")
-        changes["home"] = home
-    if saturate is not None:
-        changes["saturates"] = bool(saturate)
-    return replace(body, **changes) if changes else body
+        data = yaml.load(path.read_text(), Loader=_Loader)
+    except (OSError, yaml.YAMLError) as err:
+        raise ValueError(f"body.name={name!r}: cannot read {path}: {err}".splitlines()[0]) from None
+    if not isinstance(data, dict):
+        raise ValueError(f"body.name={name!r}: {path} does not hold a mapping")
+    return data
+
+
+def _bad(key, value, why):
+    return ValueError(f"body.{key}={value!r}: {why}")
+
+
+def _matrix(desc, key, rows, cols, default=None):
+    """desc[key] as a float array (rows, cols) (rows None: any number of rows)."""
+    value = desc.get(key, default)
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise _bad(key, value, "must be a list of numbers") from None
+    if arr.ndim != (1 if cols is None else 2) or (rows is not None and len(arr) != rows) or (
+            cols is not None and arr.shape[1] != cols) or not np.all(np.isfinite(arr)):
+        shape = f"{rows if rows is not None else 'm'} rows of {cols}" if cols else f"{rows} values"
+        raise _bad(key, value, f"needs {shape} finite numbers")
+    return arr
+
+
+def body_from(desc: dict) -> Body:
+    """A Body from a whole description (the fields of conf/body/*.yaml; docs/bodies.md).
+    Raises ValueError naming the bad key as `body.<key>`."""
+    unknown = sorted(set(desc) - set(FIELDS))
+    if unknown:
+        raise _bad(unknown[0], desc[unknown[0]], f"unknown key; a body has {list(FIELDS)}")
+    name = desc.get("name")
+    if not isinstance(name, str) or not name:
+        raise _bad("name", name, "must be a non-empty string")
+    units = desc.get("units", "rad")
+    if units not in UNITS:
+        raise _bad("units", units, f"choose one of {list(UNITS)}")
+    angle = np.deg2rad if units == "deg" else (lambda x: x)
+    base = _matrix(desc, "base", 3, 4, np.hstack([np.eye(3), np.zeros((3, 1))]).tolist())
+    hand = _matrix(desc, "hand", 3, None, [0.0, 0.0, 0.0])
+    if (desc.get("dh") is None) == (desc.get("urdf") is None):
+        raise _bad("dh", desc.get("dh"), "a body needs its chain, one of: dh rows (a, d, alpha, "
+                   "theta offset), or urdf: {file, root, tip}")
+    general = {}
+    if desc.get("urdf") is not None:
+        general, urdf_limits = _urdf_chain(desc["urdf"], base, hand)
+        m = len(general["frames"])
+        dh = np.zeros((m, 4))
+    else:
+        dh = _matrix(desc, "dh", None, 4)
+        m = len(dh)
+        if m < 1:
+            raise _bad("dh", desc["dh"], "needs at least one joint")
+        if np.any(hand != 0):
+            raise _bad("hand", desc["hand"], "a DH body's hand is the last frame's origin: fold "
+                       "the offset into the last row's a (along x) and d (along z)")
+    outputs = desc.get("outputs")
+    if (not isinstance(outputs, (list, tuple)) or not outputs or len(set(outputs)) != len(outputs)
+            or any(isinstance(k, bool) or k not in (0, 1, 2) for k in outputs)):
+        raise _bad("outputs", outputs, "a list of distinct hand coordinates out of 0, 1, 2")
+    normalise = desc.get("normalise", False)
+    if not isinstance(normalise, bool):
+        raise _bad("normalise", normalise, "must be true or false")
+    q_min = q_max = None
+    if normalise:
+        if desc.get("limits") is None and general and np.all(np.isfinite(urdf_limits)):
+            limits = urdf_limits  # the URDF's own [[lower, upper]] [rad]
+        elif desc.get("limits") is None:
+            raise _bad("limits", None, "normalise: true maps commands onto the joint limits; "
+                       "give [min, max] per joint" + (" (the URDF has none for some joints)"
+                                                      if general else ""))
+        else:
+            limits = angle(_matrix(desc, "limits", m, 2))
+        if np.any(limits[:, 1] <= limits[:, 0]):
+            raise _bad("limits", desc.get("limits"), "need min < max per joint")
+        q_min, q_max = limits[:, 0].copy(), limits[:, 1].copy()
+    elif desc.get("limits") is not None:
+        raise _bad("limits", desc["limits"], "only normalise: true uses joint limits; set it, or "
+                   "limits: null")
+    saturate = desc.get("saturate", True)
+    if not isinstance(saturate, bool):
+        raise _bad("saturate", saturate, "must be true or false")
+    home = _matrix(desc, "home", m, None)
+    grid = desc.get("grid")
+    if not isinstance(grid, dict) or set(grid) != {"lo", "hi", "num"}:
+        raise _bad("grid", grid, "needs {lo, hi, num}, one entry per controlled coordinate")
+    try:
+        targets = grid_points(**grid)
+    except (TypeError, ValueError) as err:
+        raise _bad("grid", grid, str(err)) from None
+    if targets.shape[1] != len(outputs):
+        raise _bad("grid", grid, f"{name} controls {len(outputs)} coordinate(s)")
+    grows = desc.get("grows")
+    grows = [True] * m if grows is None else grows  # default: every segment grows
+    if (not isinstance(grows, (list, tuple)) or len(grows) != m
+            or not all(isinstance(g, bool) for g in grows)):
+        raise _bad("grows", grows, f"needs {m} values true/false, one per segment")
+    return Body(
+        name=name, a=dh[:, 0].copy(), d=dh[:, 1].copy(), alpha=angle(dh[:, 2]),
+        theta_offset=angle(dh[:, 3]), base=base, outputs=tuple(int(k) for k in outputs),
+        home=home, targets=targets, growing=np.asarray(grows, bool), q_min=q_min, q_max=q_max,
+        saturates=saturate, description=str(desc.get("description", "")), **general,
+    )
+
+
+def _urdf_chain(urdf, base, hand) -> tuple[dict, np.ndarray]:
+    """(frames, tool) of the URDF chain with `base` before it and the hand point `hand` (in the
+    tip link's frame) as the tool, and the URDF's limits [rad]."""
+    from .urdf import read_chain
+
+    keys = ("file", "root", "tip", "joints", "hold")
+    if not isinstance(urdf, dict) or not {"file", "root", "tip"} <= set(urdf) <= set(keys):
+        raise _bad("urdf", urdf, "needs file, root, tip (and optionally joints, hold)")
+    chain = read_chain(**urdf)
+    frames = chain["frames"].copy()
+    frames[0] = base[:, :3] @ frames[0] + np.hstack([np.zeros((3, 3)), base[:, 3:]])
+    tool = chain["tool"] + chain["rest"] @ hand
+    return dict(frames=frames, tool=tool), chain["limits"]
+
+
+def make_body(description: str | dict | None = None, **fields) -> Body:
+    """The body a description gives: a dict of conf/body/*.yaml's fields (what the config holds),
+    or the name of a shipped body; `fields` replace single fields (e.g. home=..., saturate=False,
+    grid=dict(lo, hi, num)). A description without a chain (no `dh`) starts from the shipped body
+    of its name, so make_body("arm5"), make_body({"name": "arm5"}) and
+    make_body("icub", saturate=False) all work. Fields given as None keep the description's.
+    Raises ValueError naming the bad field as `body.<field>`."""
+    desc = {"name": description} if isinstance(description, str) else dict(description or {})
+    desc.update(fields)
+    if "dh" not in desc and "urdf" not in desc:
+        given = {k: v for k, v in desc.items() if v is not None}
+        desc = {**read_description(desc.get("name")), **given}
+    return body_from(desc)
+
+
+def unreachable(body: Body, rng: np.random.Generator, size: float = 1.0, samples: int = 4000,
+                steps: int = 30, tol: float = 1e-3) -> np.ndarray:
+    """Indices of the targets (at `size`) that no posture within the limits reaches to `tol` m:
+    from the nearest of `samples` random postures, damped Gauss-Newton steps on the commands
+    (clipped to [-1, 1] where normalised, numerical Jacobian). A target it misses may still be
+    reachable in principle (a local search), so callers warn, never refuse."""
+    targets = body.target_set(size)
+    box = 1.0 if body.normalized else np.pi
+    Q = rng.uniform(-box, box, size=(samples, body.m))
+    X = body.forward(Q, size)
+    q = Q[np.argmin(((targets[:, None, :] - X[None]) ** 2).sum(-1), axis=1)]
+    eye, h = 1e-4 * np.eye(body.m), 1e-6
+    for _ in range(steps):
+        x = body.forward(q, size)
+        J = np.stack([(body.forward(q + h * e, size) - x) / h for e in np.eye(body.m)], axis=-1)
+        JT = J.transpose(0, 2, 1)
+        dq = np.linalg.solve(JT @ J + eye, JT @ (targets - x)[..., None])[..., 0]
+        q = np.clip(q + dq, -box, box) if body.normalized and body.saturates else q + dq
+    miss = np.linalg.norm(body.forward(q, size) - targets, axis=-1)
+    return np.flatnonzero(miss > tol)

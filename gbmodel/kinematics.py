@@ -34,3 +34,25 @@ def hand_position(
         px, py, pz = c * u - s * v, s * u + c * v, w
     p = np.stack([px, py, pz], axis=-1)
     return p @ base[:, :3].T + base[:, 3]
+
+
+def chain_position(theta: np.ndarray, frames: np.ndarray, tool: np.ndarray,
+                   scale=None) -> np.ndarray:
+    """Hand position (..., 3) of a general serial chain (a URDF's; gbmodel/urdf.py): per joint a
+    fixed 3x4 transform F_i, then a rotation about the local z axis by theta_i, then the tool
+    point: hand = F_0 Rz(theta_0) ... F_{m-1} Rz(theta_{m-1}) tool, carried backwards.
+
+    scale (m,): per-segment length factors; segment i is the translation after joint i (the next
+    transform's, or the tool's for the last joint), so growth lengthens the links and never
+    changes the base's placement or any angle."""
+    theta = np.asarray(theta, dtype=np.float64)
+    m = theta.shape[-1]
+    k = np.ones(m) if scale is None else np.asarray(scale, np.float64)
+    p = np.broadcast_to(tool * k[m - 1], theta.shape[:-1] + (3,))
+    for i in range(m - 1, -1, -1):
+        c, s = np.cos(theta[..., i]), np.sin(theta[..., i])
+        x, y, z = c * p[..., 0] - s * p[..., 1], s * p[..., 0] + c * p[..., 1], p[..., 2]
+        t = frames[i][:, 3] * (k[i - 1] if i > 0 else 1.0)
+        R = frames[i][:, :3]
+        p = np.stack([R[r, 0] * x + R[r, 1] * y + R[r, 2] * z + t[r] for r in range(3)], axis=-1)
+    return p

@@ -32,7 +32,8 @@ class Diverged(ArithmeticError):
 class TrialSpec:
     """Everything one trial depends on, as plain data mirroring the config's sections.
 
-    body: dict(name, grid, home, saturate) (gbmodel.make_body); growth: gbmodel.Growth's fields;
+    body: the body's description (conf/body/*.yaml's fields; gbmodel.make_body), or
+    dict(name) of a shipped body with single fields replaced; growth: gbmodel.Growth's fields;
     learner: dict(name, **the learner's Params); evaluation: dict(points, formula).
     Defaults: the 5-DOF arm with Goal Babbling at the paper's settings, no growth.
     """
@@ -46,7 +47,7 @@ class TrialSpec:
     snapshots: tuple = ()  # epochs after which a copy of the learned model is kept
 
     def make_body(self) -> Body:
-        return make_body(**self.body)
+        return make_body(self.body)
 
     def make_growth(self) -> Growth:
         return Growth(**self.growth)

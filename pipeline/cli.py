@@ -77,6 +77,8 @@ def check(argv: list[str]) -> str | None:
     choices = []
     for o in parsed:
         if o.is_hydra_override():
+            if o.get_key_element() == "hydra.searchpath":  # where config groups (a body) live
+                choices.append([o.input_line])
             continue  # hydra/launcher=... and hydra.*: Hydra's own settings, checked by Hydra
         if o.is_sweep_override():
             if not multirun:

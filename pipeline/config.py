@@ -63,10 +63,26 @@ class GridConf:
 
 @dataclass
 class BodyConf:
-    name: str = MISSING  # arm2 | arm5 | icub (gbmodel.BODIES)
-    grid: Optional[GridConf] = None  # the target grid; null: the body's own (gbmodel/bodies.py)
-    home: Optional[list[float]] = None  # the home posture; null: the body's own
-    saturate: Optional[bool] = None  # commands clipped at the joint limits; null: the body's own
+    """A body's whole description (conf/body/<name>.yaml; gbmodel.bodies.body_from checks the
+    values; docs/bodies.md). It goes into every trial's spec, so editing one body's file
+    recomputes that body's trials only."""
+
+    name: str = MISSING  # what the trials are labelled with
+    description: str = ""
+    units: str = "rad"  # rad | deg: of alpha, theta offset and limits
+    dh: Optional[list[Any]] = None  # per joint (a [m], d [m], alpha, theta offset)
+    urdf: Optional[dict[str, Any]] = None  # or a URDF's chain: {file, root, tip, joints, hold}
+    base: list[Any] = field(default_factory=lambda: [[1.0, 0.0, 0.0, 0.0],
+                                                             [0.0, 1.0, 0.0, 0.0],
+                                                             [0.0, 0.0, 1.0, 0.0]])
+    hand: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    outputs: list[int] = MISSING  # controlled hand coordinates (0 x, 1 y, 2 z)
+    limits: Optional[list[Any]] = None  # per joint [min, max]
+    normalise: bool = False  # commands in [-1, 1] onto the limits (true) or radians (false)
+    saturate: bool = True  # normalised commands clipped at the limits
+    home: list[float] = MISSING  # the home posture, command units
+    grid: GridConf = field(default_factory=GridConf)  # the target grid at full size
+    grows: Optional[list[bool]] = None  # per segment: grows under non-proportional growth
 
 
 # growth: gbmodel.Growth's fields; pattern `none` is a body of constant size end_size

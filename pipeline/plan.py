@@ -15,10 +15,14 @@ from __future__ import annotations
 
 import hashlib
 import json
+import logging
 import os
 from pathlib import Path
 
+import numpy as np
+
 import gbmodel
+import gbmodel.bodies
 from gbmodel.growth import check_int
 from omegaconf import DictConfig, OmegaConf
 
@@ -26,6 +30,7 @@ from .config import (ConfigError, check_backend, check_limits, check_names, chec
                      check_stamp)
 from .fingerprint import code_fingerprint, source_fingerprint  # noqa: F401  (the code as run)
 
+log = logging.getLogger(__name__)
 MAX_EPOCHS = 10**9  # a trial's memory does not grow with its epochs, but its time does
 
 
@@ -118,7 +123,7 @@ def apply_budget(cfg: DictConfig) -> None:
     name = learner.pop("name")
     module = gbmodel.learners.get(name)
     per_epoch = module.samples_per_epoch(module.Params(**learner), gbmodel.make_body(
-        **OmegaConf.to_container(cfg.body)))
+        OmegaConf.to_container(cfg.body)))
     epochs = max(1, round(c.budget * c.budget_scale / per_epoch))
     cfg.learner.epochs = epochs
     if cfg.growth.pattern != "none":
@@ -140,9 +145,23 @@ def trial_spec(cfg: DictConfig, growth: dict) -> gbmodel.TrialSpec:
         evaluation=OmegaConf.to_container(cfg.evaluation), epochs=epochs,
         evals_per_decade=per_decade, snapshots=snaps)
     try:
-        return spec.validate()
+        spec.validate()
     except ValueError as err:
         raise ConfigError(str(err)) from None
+    check_reach(_canonical(spec.body))
+    return spec
+
+
+@lru_cache(maxsize=64)
+def check_reach(body_json: str) -> None:
+    """Warn (once per body description and process) when some targets of the body's grid are
+    reached by no posture within its limits (gbmodel.bodies.unreachable, at full size)."""
+    body = gbmodel.make_body(json.loads(body_json))
+    missed = gbmodel.bodies.unreachable(body, np.random.default_rng(0))
+    if len(missed):
+        log.warning("warning: body.grid=%s: %d of %d targets of %s are reached by no posture within 1 mm "
+                    "(e.g. %s)", json.loads(body_json)["grid"], len(missed), len(body.targets),
+                    body.name, np.round(body.targets[missed[0]], 3).tolist())
 
 
 def check_paths(cfg: DictConfig) -> None:

@@ -122,7 +122,7 @@ def test_wrong_key_or_type_fails_at_compose_time(override):
 @pytest.mark.parametrize("override, key", [
     ("growth.period=-1", "growth.period"), ("learner.epochs=0", "learner.epochs"),
     ("learner.radius=-0.1", "learner.radius"),
-    ("body.name=leg", "body.name"), ("growth.pattern=sideways", "growth.pattern"),
+    ("body.units=grad", "body.units"), ("growth.pattern=sideways", "growth.pattern"),
     ("conditions.periods=[10,-5]", "conditions.periods"),
     ("learner.learning_rate=0", "learner.learning_rate"), ("learner.name=nope", "learner.name"),
     ("evaluation.points=nowhere", "evaluation.points"), ("figure=a/b", "figure"),

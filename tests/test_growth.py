@@ -92,3 +92,66 @@ def test_growth_validation_names_the_field():
         with pytest.raises(SpecError, match=f"^{key}=") as err:
             Growth(**kwargs).validate(arm5)
         assert err.value.key == key
+
+
+# ---- growth as data (issue 22): every pattern is per-segment data for one mechanism ----------
+
+def test_per_segment_leads_are_the_one_mechanism_behind_proximal_first():
+    """proximal_first is per_segment with its computed leads, to the bit."""
+    body = gbmodel.make_body("icub")
+    pf = Growth(pattern="proximal_first", period=200, proximal_lead=0.6)
+    _, leads = pf.segments(body)
+    ps = Growth(pattern="per_segment", period=200, proximal_lead=0.6, leads=leads.tolist())
+    sizes = pf.sizes(EPOCHS)
+    np.testing.assert_array_equal(ps.validate(body).scales(body, sizes), pf.scales(body, sizes))
+
+
+def test_stated_rates_grow_the_upper_arm_ahead():
+    """"The upper arm grows faster than the forearm" at stated rates is a config."""
+    body = gbmodel.make_body("arm5")
+    g = Growth(pattern="per_segment", period=100, leads=[0.8, 0.4, 0.0, -0.4, -0.8])
+    k = g.validate(body).scales(body, g.sizes(EPOCHS))
+    np.testing.assert_allclose(k[50], [0.85, 0.8, 0.75, 0.7, 0.65])  # p = 1/2: 0.75 +- 0.5 c / 4
+    assert k[0].tolist() == [0.5] * 5 and k[100].tolist() == [1.0] * 5
+    assert (np.diff(k[:101], axis=0) >= 0).all()
+
+
+def test_the_patterns_as_data():
+    """Each named pattern is (grows, leads) per segment: no code of its own."""
+    body = gbmodel.make_body("arm5")
+    grows, leads = Growth(pattern="nonproportional").segments(body)
+    assert grows.tolist() == [True, False, True, False, True] and not leads.any()
+    grows, leads = Growth(pattern="proportional").segments(body)
+    assert grows.all() and not leads.any()
+    # the body's file says which segments grow
+    body3 = gbmodel.make_body("arm5", grows=[True, True, False, False, False])
+    k = Growth(pattern="nonproportional").scales(body3, 0.8)
+    assert k[2:].tolist() == [1.0] * 3 and k[0] == k[1] == pytest.approx(0.5)
+
+
+@pytest.mark.parametrize("kwargs", [dict(pattern="per_segment"),
+                                    dict(pattern="per_segment", leads=[0.5] * 4),
+                                    dict(pattern="per_segment", leads=[1.5, 0, 0, 0, 0]),
+                                    dict(pattern="proportional", leads=[0.0] * 5)])
+def test_leads_are_checked(kwargs):
+    with pytest.raises(SpecError, match="^growth.leads="):
+        Growth(**kwargs).validate(gbmodel.make_body("arm5"))
+
+
+@pytest.mark.parametrize("growth", [
+    dict(pattern="proportional"), dict(pattern="nonproportional"),
+    dict(pattern="nonproportional", fixed_scale=0.5, start_size=0.5, end_size=0.6),
+    dict(pattern="proximal_first"), dict(pattern="per_segment", leads=[0.5, 0.2, 0, -0.2, -0.5])])
+def test_every_pattern_draws_its_postures(growth):
+    """The posture figures (Fig. 3) take every pattern (proximal_first crashed them before)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    from pipeline.studies import figures
+    spec = gbmodel.TrialSpec(growth={**growth, "period": 10}, epochs=5,
+                             learner={"name": "goal_babbling", "fast": False, "degree": 3}).to_dict()
+    M = gbmodel.run_trial(gbmodel.TrialSpec.from_dict(spec), np.random.default_rng(0)).M
+    fig = figures.postures([("a", spec, M)], "test")
+    body, size, g, _ = figures.final_body(spec)
+    np.testing.assert_allclose(figures.link_points(body, body.home, size, g)[-1, :2],
+                               body.forward(body.home, scale=g.scales(body, size)), atol=1e-15)
+    assert fig.axes

@@ -123,3 +123,20 @@ def test_startup_posture():
         f"start-up palm at {np.round(palm, 4).tolist()} m, expected near {expected.tolist()} m "
         f"(off by {np.linalg.norm(palm - expected) * 1e3:.2f} mm)"
     )
+
+
+# ---- the iCub built from its URDF (conf/body/icub_urdf.yaml, issue 22) -------------------------
+
+def test_the_urdf_icub_is_the_urdf(urdf):
+    """make_body("icub_urdf") computes the URDF's palm exactly (the compiled chain)."""
+    q = np.random.default_rng(SEED).uniform(-1.0, 1.0, size=(50, len(JOINTS)))
+    expected = np.array([urdf_palm(urdf, a) for a in to_radians(q)])
+    np.testing.assert_allclose(make_body("icub_urdf").forward(q), expected, rtol=0, atol=1e-9)
+
+
+def test_the_urdf_icub_beside_the_dh_icub():
+    """The two iCubs differ by the URDF's rounding only: 0.16 mm over random postures."""
+    q = np.random.default_rng(SEED).uniform(-1.0, 1.0, size=(N_RANDOM, len(JOINTS)))
+    dev = np.linalg.norm(make_body("icub_urdf").forward(q) - make_body("icub").forward(q), axis=1)
+    assert 0.10e-3 < dev.max() < 0.20e-3, dev.max()
+    np.testing.assert_array_equal(make_body("icub_urdf").home, make_body("icub").home)

@@ -43,6 +43,12 @@ if "icub" in sys.argv:
         learner={"name": "goal_babbling", "radius": 0.1, "targets_per_epoch": 30, "steps": 10},
         growth={"pattern": "proportional", "period": 60, "start_size": 0.5})
     out["icub"] = digest(gbmodel.run_trial(spec, np.random.default_rng(2)))
+if "urdf" in sys.argv:  # a general (URDF) chain: the iCub from icub-models' URDF
+    spec = gbmodel.TrialSpec(
+        body={"name": "icub_urdf"}, epochs=60,
+        learner={"name": "goal_babbling", "radius": 0.1, "targets_per_epoch": 30, "steps": 10},
+        growth={"pattern": "proximal_first", "period": 40, "start_size": 0.5})
+    out["icub_urdf"] = digest(gbmodel.run_trial(spec, np.random.default_rng(3)))
 codegen = cpu_target.target_context.codegen()
 out["cpu"] = codegen._get_host_cpu_name()
 out["features"] = codegen._tm_features
@@ -94,16 +100,18 @@ def check_registers(name, report, expected):
 
 
 def test_arm5_same_bits_on_haswell_and_host(tmp_path):
-    """AVX2 + FMA without AVX-512 (haswell) against whatever this CPU is."""
-    reports = {name: run_child(tmp_path, name, TARGETS[name][0])
+    """AVX2 + FMA without AVX-512 (haswell) against whatever this CPU is: a DH and a URDF
+    chain."""
+    reports = {name: run_child(tmp_path, name, TARGETS[name][0], "urdf")
                for name in ("host", "haswell")}
     check_registers("haswell", reports["haswell"], "ymm")
     assert reports["haswell"]["arm5"] == reports["host"]["arm5"], reports
+    assert reports["haswell"]["icub_urdf"] == reports["host"]["icub_urdf"], reports
 
 
 @pytest.mark.slow
 def test_same_bits_on_every_target(tmp_path):
-    """arm5 and iCub on every target this CPU can run, and on the host with its features given
+    """arm5, the iCub and the URDF iCub on every target this CPU can run, and on the host with its features given
     explicitly, as they are and with LLVM's preference for 256-bit vectors forced."""
     import llvmlite.binding as ll
 
@@ -119,8 +127,8 @@ def test_same_bits_on_every_target(tmp_path):
         pytest.skip("this CPU has no AVX2 + FMA")
     reports = {}
     for name, (env, expected) in targets.items():
-        reports[name] = run_child(tmp_path, name, env, "icub")
+        reports[name] = run_child(tmp_path, name, env, "icub", "urdf")
         check_registers(name, reports[name], expected)
-    digests = {name: (r["arm5"], r["icub"]) for name, r in reports.items()}
+    digests = {name: (r["arm5"], r["icub"], r["icub_urdf"]) for name, r in reports.items()}
     assert len(set(digests.values())) == 1, json.dumps(digests, indent=1)
 

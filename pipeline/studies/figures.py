@@ -101,11 +101,11 @@ def learning_curves(curves, summary, title: str, log_y: bool = True, paper_abs=N
 
 
 def final_body(spec: dict) -> tuple:
-    """(body, size, pattern, exps) of a trial's spec: the body (variant) at its final size and
+    """(body, size, growth, exps) of a trial's spec: the body (variant) at its final size, its
+    gbmodel.Growth (which Body.forward and link_points take as the pattern: every pattern) and
     the feature exponents of its polynomial inverse."""
-    body = gbmodel.make_body(**spec["body"])
-    g = spec["growth"]
-    return body, g["end_size"], g["pattern"], gbmodel.exponents(body.n, spec["learner"]["degree"])
+    body, growth = gbmodel.make_body(spec["body"]), gbmodel.Growth(**spec["growth"])
+    return body, growth.end_size, growth, gbmodel.exponents(body.n, spec["learner"]["degree"])
 
 
 def joint_space_stages(spec: dict, stages: list[tuple[str, list]], title: str):
@@ -141,7 +141,8 @@ def joint_space_stages(spec: dict, stages: list[tuple[str, list]], title: str):
 
 
 def link_points(body, q, size, pattern) -> np.ndarray:
-    """Root-frame points (m + 1, 3) of the chain's frames, base to hand, for command q (m,)."""
+    """Root-frame points (m + 1, 3) of the chain's frames, base to hand, for command q (m,);
+    pattern: a growth pattern's name or a gbmodel.Growth."""
     theta = body.joint_angles(np.asarray(q, float))
     ch = body.chain(size, pattern)
     return np.stack([hand_position(theta[:k], ch["a"][:k], ch["d"][:k], ch["cos_alpha"][:k],

@@ -14,8 +14,9 @@ float32 vector loops over the samples of an epoch:
   updates=steps repeats the gradient pass, updates=online goes sample by sample in float64
   scalars). Positions agree with the float64 reference to ~2e-7 m (tests/test_fast.py states the
   tolerances);
-- the hand is carried backwards through the DH chain, one rotation about z per joint, in
-  registers, LANES samples at a time;
+- the hand is carried backwards through the chain, one rotation about z per joint, in
+  registers, LANES samples at a time: DH rows, or a general (URDF) chain's fixed rotation and
+  translation per joint (`_chain`);
 - sin and cos are a branch-free polynomial (Cephes' kernels after a Cody-Waite reduction);
 - features are built monomial by monomial, each a parent monomial times one coordinate;
 - the gradient sum_t w (M Phi - q) Phi^T: the weighted residuals (rows in register tiles of 5),
@@ -24,8 +25,8 @@ float32 vector loops over the samples of an epoch:
 
 Bit-identical results on every x86-64 CPU, with or without AVX-512, whatever vector width LLVM
 prefers (tests/test_kernel_targets.py: AVX2 + FMA, AVX-512, and the SSE2 baseline without FMA):
-- every loop over samples is written on explicit LANES-wide vectors (`F32x16` below: LLVM
-  <16 x float>, one zmm register, or two ymm halves without AVX-512, with the same result lane
+- every loop over samples is written on explicit LANES-wide vectors (`F32x16`, gbmodel/simd.py:
+  LLVM <16 x float>, one zmm register, or two ymm halves without AVX-512, with the same result lane
   by lane), so the compiler never chooses how to split a sum: every sum over samples (the
   gradient, sum w) has one partial sum per lane, added up lane by lane in a fixed order at the
   end;
@@ -39,223 +40,18 @@ prefers (tests/test_kernel_targets.py: AVX2 + FMA, AVX-512, and the SSE2 baselin
 from __future__ import annotations
 
 import numpy as np
-from llvmlite import ir
-from numba import njit, types
-from numba.core import cgutils
-from numba.extending import intrinsic, models, register_model
+from numba import njit
 
+from ...simd import (  # noqa: F401 (sincos_array: the tests reach it through this module)
+    F4, LANES, _1, _HALF, sincos, sincos_array, vadd, vdiv, vfma, vload, vload1, vmul,
+    vneg, vsplat, vsqrt, vstore, vstore1, vsub, vsum, vwhere,
+)
 from .reference import NO_MOVEMENT
 
-
-F4 = np.float32
-LANES = 16  # width of the explicit vectors (F32x16)
 _BLOCK = 512  # columns per block of features, residuals and gradient (multiple of LANES)
 _TILE = 5  # rows of a register tile of M Phi and of the gradient (m = 5, 10; p = 10, 20)
 
-# ---- explicit float32 vectors of LANES lanes -----------------------------------------------------
-_VEC = ir.VectorType(ir.FloatType(), LANES)
-
-
-class F32x16Type(types.Type):
-    """LLVM <16 x float>: a value in vector registers (one zmm, or two ymm without AVX-512)."""
-
-    def __init__(self):
-        super().__init__(name="F32x16")
-
-
-F32x16 = F32x16Type()
-
-
-@register_model(F32x16Type)
-class _F32x16Model(models.PrimitiveModel):
-    def __init__(self, dmm, fe_type):
-        super().__init__(dmm, fe_type, _VEC)
-
-
-def _vector_pointer(context, builder, sig, args, n):
-    """Address of element args[1:1 + n] of the array args[0], as a pointer to a vector."""
-    aryty = sig.args[0]
-    inds = [context.cast(builder, v, t, types.intp) for v, t in zip(args[1:1 + n],
-                                                                    sig.args[1:1 + n])]
-    ptr = cgutils.get_item_pointer(context, builder, aryty,
-                                   context.make_array(aryty)(context, builder, args[0]), inds)
-    return builder.bitcast(ptr, _VEC.as_pointer())
-
-
-@intrinsic
-def vload(typingctx, a, k, i):
-    """a[k, i:i + LANES] of a 2-d float32 array with contiguous rows (no bounds check)."""
-    def codegen(context, builder, sig, args):
-        return builder.load(_vector_pointer(context, builder, sig, args, 2), align=4)
-    return F32x16(a, k, i), codegen
-
-
-@intrinsic
-def vload1(typingctx, a, i):
-    """a[i:i + LANES] of a contiguous 1-d float32 array (no bounds check)."""
-    def codegen(context, builder, sig, args):
-        return builder.load(_vector_pointer(context, builder, sig, args, 1), align=4)
-    return F32x16(a, i), codegen
-
-
-@intrinsic
-def vstore(typingctx, a, k, i, v):
-    """a[k, i:i + LANES] = v."""
-    def codegen(context, builder, sig, args):
-        builder.store(args[3], _vector_pointer(context, builder, sig, args, 2), align=4)
-        return context.get_dummy_value()
-    return types.none(a, k, i, v), codegen
-
-
-@intrinsic
-def vstore1(typingctx, a, i, v):
-    """a[i:i + LANES] = v."""
-    def codegen(context, builder, sig, args):
-        builder.store(args[2], _vector_pointer(context, builder, sig, args, 1), align=4)
-        return context.get_dummy_value()
-    return types.none(a, i, v), codegen
-
-
-@intrinsic
-def vsplat(typingctx, x):
-    """Every lane x (cast to float32)."""
-    def codegen(context, builder, sig, args):
-        x = context.cast(builder, args[0], sig.args[0], types.float32)
-        v = builder.insert_element(ir.Constant(_VEC, ir.Undefined), x,
-                                   ir.Constant(ir.IntType(32), 0))
-        return builder.shuffle_vector(v, v, ir.Constant(ir.VectorType(ir.IntType(32), LANES),
-                                                         [0] * LANES))
-    return F32x16(x), codegen
-
-
-def _llvm(builder, name, args):
-    """A call of the LLVM intrinsic `name` on vectors."""
-    fn = cgutils.get_or_insert_function(
-        builder.module, ir.FunctionType(_VEC, [_VEC] * len(args)), f"{name}.v{LANES}f32")
-    return builder.call(fn, args)
-
-
-@intrinsic
-def vadd(typingctx, a, b):
-    return F32x16(a, b), lambda context, builder, sig, args: builder.fadd(*args)
-
-
-@intrinsic
-def vsub(typingctx, a, b):
-    return F32x16(a, b), lambda context, builder, sig, args: builder.fsub(*args)
-
-
-@intrinsic
-def vmul(typingctx, a, b):
-    return F32x16(a, b), lambda context, builder, sig, args: builder.fmul(*args)
-
-
-@intrinsic
-def vdiv(typingctx, a, b):
-    """a / b, correctly rounded (IEEE)."""
-    return F32x16(a, b), lambda context, builder, sig, args: builder.fdiv(*args)
-
-
-@intrinsic
-def vneg(typingctx, a):
-    return F32x16(a), lambda context, builder, sig, args: builder.fneg(args[0])
-
-
-@intrinsic
-def vsqrt(typingctx, a):
-    """sqrt(a), correctly rounded (IEEE)."""
-    return F32x16(a), lambda context, builder, sig, args: _llvm(builder, "llvm.sqrt", args)
-
-
-@intrinsic
-def vfma(typingctx, a, b, c):
-    """a * b + c, rounded once."""
-    return F32x16(a, b, c), lambda context, builder, sig, args: _llvm(builder, "llvm.fma", args)
-
-
-@intrinsic
-def vwhere(typingctx, a, b, x, y):
-    """x where a > b, else y, lane by lane (a NaN compares false)."""
-    def codegen(context, builder, sig, args):
-        return builder.select(builder.fcmp_ordered(">", args[0], args[1]), args[2], args[3])
-    return F32x16(a, b, x, y), codegen
-
-
-@intrinsic
-def vsum(typingctx, v):
-    """The lanes' sum in float64, in a fixed tree: lanes l and l + 8 first, then l and l + 4,
-    and so on."""
-    def codegen(context, builder, sig, args):
-        x = builder.fpext(args[0], ir.VectorType(ir.DoubleType(), LANES))
-        width = LANES
-        while width > 1:
-            width //= 2
-            lo, hi = (ir.Constant(ir.VectorType(ir.IntType(32), width),
-                                  list(range(start, start + width))) for start in (0, width))
-            x = builder.fadd(builder.shuffle_vector(x, x, lo), builder.shuffle_vector(x, x, hi))
-        return builder.extract_element(x, ir.Constant(ir.IntType(32), 0))
-    return types.float64(v), codegen
-
-
 # ---- kinematics ----------------------------------------------------------------------------------
-_HALF, _1 = F4(0.5), F4(1.0)
-# Cephes' single-precision minimax kernels for sin and cos on [-pi/4, pi/4] (error ~3e-8)
-_S0, _S1, _S2 = F4(-1.9515295891e-4), F4(8.3321608736e-3), F4(-1.6666654611e-1)
-_C0, _C1, _C2 = F4(2.443315711809948e-5), F4(-1.388731625493765e-3), F4(4.166664568298827e-2)
-_TWO_OVER_PI = F4(6.36619772367581382433e-01)
-_PIO2_HI, _PIO2_LO = F4(1.5707963705062866), F4(-4.371139000186243e-08)  # pi/2 = HI + LO
-_ROUND = F4(1.5 * 2 ** 23)  # y + _ROUND - _ROUND rounds |y| < 2^22 to an integer (to even)
-
-
-@intrinsic
-def _quadrant(typingctx, kf, s, c):
-    """(sin x, cos x) from s = sin r, c = cos r for x = k pi/2 + r, with k in the low bits of
-    kf = k + _ROUND: odd k swaps s and c, then bit 1 of k (of k + 1) is the sign of the sine
-    (of the cosine). Exact: a select and a flip of the sign bit."""
-    def codegen(context, builder, sig, args):
-        i32 = ir.VectorType(ir.IntType(32), LANES)
-
-        def const(x):
-            return ir.Constant(i32, [x] * LANES)
-        k = builder.bitcast(args[0], i32)
-        odd = builder.icmp_unsigned("!=", builder.and_(k, const(1)), const(0))
-        sn, cs = builder.select(odd, args[2], args[1]), builder.select(odd, args[1], args[2])
-        sign_s = builder.shl(builder.and_(k, const(2)), const(30))
-        sign_c = builder.shl(builder.and_(builder.add(k, const(1)), const(2)), const(30))
-        sn = builder.bitcast(builder.xor(builder.bitcast(sn, i32), sign_s), _VEC)
-        cs = builder.bitcast(builder.xor(builder.bitcast(cs, i32), sign_c), _VEC)
-        return context.make_tuple(builder, sig.return_type, [sn, cs])
-    return types.UniTuple(F32x16, 2)(kf, s, c), codegen
-
-
-@njit(inline="always")
-def sincos(x):
-    """(sin x, cos x) lane by lane, within 1e-7 for |x| < 10 (joint angles), branch-free:
-    x = k pi/2 + r with |r| <= pi/4 (Cody-Waite, two parts of pi/2), the kernels on r, then the
-    quadrant k mod 4 swaps and negates them."""
-    kf = vfma(x, vsplat(_TWO_OVER_PI), vsplat(_ROUND))
-    k = vsub(kf, vsplat(_ROUND))
-    r = vfma(k, vsplat(-_PIO2_HI), x)
-    r = vfma(k, vsplat(-_PIO2_LO), r)
-    z = vmul(r, r)
-    s = vfma(vmul(r, z), vfma(vfma(vsplat(_S0), z, vsplat(_S1)), z, vsplat(_S2)), r)
-    c = vfma(vfma(vfma(vfma(vsplat(_C0), z, vsplat(_C1)), z, vsplat(_C2)), z, vsplat(-_HALF)),
-             z, vsplat(_1))
-    return _quadrant(kf, s, c)
-
-
-@njit(cache=True)
-def sincos_array(x):
-    """sincos of a float32 array (for tests)."""
-    n = len(x)
-    pad = np.zeros(n + LANES, np.float32)
-    pad[:n] = x
-    s, c = np.empty_like(pad), np.empty_like(pad)
-    for i in range(0, n, LANES):
-        si, ci = sincos(vload1(pad, i))
-        vstore1(s, i, si)
-        vstore1(c, i, ci)
-    return s[:n], c[:n]
 
 
 @njit(inline="always")
@@ -275,7 +71,7 @@ def _kinematics(Q, X, C, joints, body):
     +-90 degrees (every joint of our bodies) without the products by 0 and +-1 (the same
     values, up to the sign of a zero)."""
     normalized, saturates, q_lo, q_span, offset = joints
-    a, d, ca, sa, base, outputs = body
+    a, d, ca, sa, base, outputs, ty, R, general = body
     m = Q.shape[0]
     for c in range(0, C, LANES):
         px = py = pz = vsplat(0)
@@ -291,6 +87,16 @@ def _kinematics(Q, X, C, joints, body):
             else:
                 theta = vadd(q, vsplat(offset[i]))
             s, co = sincos(theta)
+            if general:  # a URDF's chain: p <- Rz(theta) (R_i p + (a, ty, d)_i)
+                u = vfma(vsplat(R[i, 0, 0]), px, vfma(vsplat(R[i, 0, 1]), py, vfma(
+                    vsplat(R[i, 0, 2]), pz, vsplat(a[i]))))
+                v = vfma(vsplat(R[i, 1, 0]), px, vfma(vsplat(R[i, 1, 1]), py, vfma(
+                    vsplat(R[i, 1, 2]), pz, vsplat(ty[i]))))
+                pz = vfma(vsplat(R[i, 2, 0]), px, vfma(vsplat(R[i, 2, 1]), py, vfma(
+                    vsplat(R[i, 2, 2]), pz, vsplat(d[i]))))
+                px = vfma(co, u, vmul(vneg(s), v))
+                py = vfma(s, u, vmul(co, v))
+                continue
             u = vadd(px, vsplat(a[i]))
             if sa[i] == 0 and ca[i] == 1:
                 v = py
@@ -688,18 +494,20 @@ def _box(targets):
 def _block(M, idx, raw, amp, sizes, scales, rates, chain, targets, home, parent, var, joints,
            radius, steps, plain, updates, update_steps):
     """Epochs e = 0 ... B-1 with sizes[e], per-joint length factors scales[e] and rates[e]."""
-    a, d, ca, sa, base, outputs = chain
+    a, d, ca, sa, base, outputs, ty, R, general = chain
     m, p = M.shape
     n = targets.shape[1]
     work = _work(m, n, p, raw.shape[1], (idx.shape[1] - 1) * steps)
     box = _box(targets)
     ae = np.empty(m, np.float32)
     de = np.empty(m, np.float32)
+    ye = np.empty(m, np.float32)
     for e in range(idx.shape[0]):
         for i in range(m):
             ae[i] = a[i] * scales[e, i]
             de[i] = d[i] * scales[e, i]
-        body = (ae, de, ca, sa, base, outputs)
+            ye[i] = ty[i] * scales[e, i]
+        body = (ae, de, ca, sa, base, outputs, ye, R, general)
         _epoch(M, idx[e], raw[e], amp[e], sizes[e], body, targets, home, parent, var, joints,
                radius, steps, rates[e], plain, updates, update_steps, box, work)
 
@@ -707,13 +515,13 @@ def _block(M, idx, raw, amp, sizes, scales, rates, chain, targets, home, parent,
 @njit(cache=True)
 def _distances(M, scale, chain, xs, parent, var, joints, out):
     """out[t] = |f(g(xs_t)) - xs_t| (float64) with the chain's lengths times scale."""
-    a, d, ca, sa, base, outputs = chain
+    a, d, ca, sa, base, outputs, ty, R, general = chain
     m, p = M.shape
     NT, n = xs.shape
-    ae, de = np.empty(m, np.float32), np.empty(m, np.float32)
+    ae, de, ye = np.empty(m, np.float32), np.empty(m, np.float32), np.empty(m, np.float32)
     for i in range(m):
-        ae[i], de[i] = a[i] * scale[i], d[i] * scale[i]
-    body = (ae, de, ca, sa, base, outputs)
+        ae[i], de[i], ye[i] = a[i] * scale[i], d[i] * scale[i], ty[i] * scale[i]
+    body = (ae, de, ca, sa, base, outputs, ye, R, general)
     M32 = np.empty((m, p), np.float32)
     for i in range(m):
         for k in range(p):
@@ -748,6 +556,21 @@ def monomial_tree(exps: np.ndarray):
     return parent, var
 
 
+def _chain(body) -> dict:
+    """The chain at full size as the kernel steps through it, p <- Rz(theta_i) (R_i p + t_i),
+    t_i = (a_i, ty_i, d_i) scaled by segment i's growth, then the base. DH rows: R_i = Rx(alpha_i)
+    (cos/sin alpha, the rows' own branch), ty = 0. A general chain (a URDF's: hand =
+    F_0 Rz(q_0) F_1 ... Rz(q_{m-1}) tool): the base is F_0, (R_i | t_i) is F_{i+1}, and the tool
+    the last joint's translation (R = I)."""
+    m = body.m
+    if not body.general:
+        ch = body.chain(1.0)
+        return dict(ch, ty=np.zeros(m), R=np.zeros((m, 3, 3)), general=False)
+    after = np.concatenate([body.frames[1:], np.hstack([np.eye(3), body.tool[:, None]])[None]])
+    return dict(a=after[:, 0, 3], d=after[:, 2, 3], ty=after[:, 1, 3], R=after[:, :, :3],
+                cos_alpha=np.ones(m), sin_alpha=np.zeros(m), base=body.frames[0], general=True)
+
+
 _ARRAYS: dict = {}  # (id(body), exps) -> (body, arrays); the body is kept so its id stays its own
 
 
@@ -760,7 +583,7 @@ def _arrays(body, exps):
     if hit is not None and hit[0] is body:
         return hit[1]
     f4 = lambda x: np.ascontiguousarray(x, np.float32)  # noqa: E731
-    chain = body.chain(1.0)
+    chain = _chain(body)
     normalized = body.normalized
     joints = (normalized, body.saturates,
               f4(body.q_min if normalized else np.zeros(body.m)),
@@ -769,7 +592,8 @@ def _arrays(body, exps):
     parent, var = monomial_tree(exps)
     arr = dict(
         chain=(f4(chain["a"]), f4(chain["d"]), f4(chain["cos_alpha"]), f4(chain["sin_alpha"]),
-               f4(body.base), np.array(body.outputs, np.int64)),
+               f4(chain["base"]), np.array(body.outputs, np.int64), f4(chain["ty"]),
+               f4(chain["R"]), chain["general"]),
         targets=f4(body.targets), home=f4(body.saturate(body.home)), parent=parent, var=var,
         joints=joints,
     )
@@ -822,9 +646,9 @@ def epoch_samples(M, body, params, exps, size, scale, idx, raw, amp=None, rate=N
     out as (V, T + 1, ...) like reference.epoch's (rate: eta, params.learning_rate if None)."""
     M = np.array(M, dtype=np.float64, order="C")
     arr = _arrays(body, exps)
-    a, d, ca, sa, base, outputs = arr["chain"]
+    a, d, ca, sa, base, outputs, ty, R, general = arr["chain"]
     k = np.asarray(scale, np.float32)
-    chain = (a * k, d * k, ca, sa, base, outputs)
+    chain = (a * k, d * k, ca, sa, base, outputs, ty * k, R, general)
     T = (len(idx) - 1) * params.steps
     V = raw.shape[0]
     work = _work(body.m, body.n, len(exps), V, T)

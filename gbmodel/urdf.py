@@ -1,0 +1,163 @@
+"""A serial chain out of a URDF file, compiled into the exact form the kinematics evaluate.
+
+Walking from link `root` to link `tip`, every fixed joint's origin (and every revolute joint that
+is held at a stated angle) is folded into a running 3x4 transform; at each commanded revolute
+joint the transform gets the rotation that takes z onto the joint's axis, and its transpose is
+carried into the next one. The chain is then, per commanded joint i, a fixed transform F_i
+followed by a rotation about the local z axis by the joint's angle, and a tool point at the end:
+
+    hand = F_0 Rz(q_0) F_1 Rz(q_1) ... F_{m-1} Rz(q_{m-1}) tool
+
+exact for every serial chain (no DH conversion, no tolerances; ../shared/reference/bodies-urdf.md).
+Only the URDF's kinematic elements are read (joint type, parent, child, origin, axis, limit),
+with the standard library's XML parser; reading a body's description is the one file I/O gbmodel
+does. Prismatic, planar and floating joints are refused.
+"""
+from __future__ import annotations
+
+import importlib.metadata
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+
+REVOLUTE = ("revolute", "continuous")
+
+
+def _bad(key, value, why):
+    return ValueError(f"body.urdf.{key}={value!r}: {why}")
+
+
+def resolve(file) -> Path:
+    """The URDF's path: a path, or {package: <distribution>, path: <end of a file's path in it>}
+    for a file that an installed package holds (e.g. icub-models' robots)."""
+    if isinstance(file, dict):
+        package, tail = file.get("package"), file.get("path")
+        if set(file) != {"package", "path"} or not isinstance(tail, str):
+            raise _bad("file", file, "give a path, or {package, path}")
+        try:
+            dist = importlib.metadata.distribution(package)
+        except (importlib.metadata.PackageNotFoundError, ValueError, TypeError):
+            raise _bad("file", file, f"package {package!r} is not installed") from None
+        hits = [f for f in dist.files or () if f.as_posix().endswith(tail.lstrip("/"))]
+        if len(hits) != 1:
+            raise _bad("file", file, f"{len(hits)} files of {package} end with {tail!r}")
+        return Path(dist.locate_file(hits[0])).resolve()
+    if not isinstance(file, str) or not file:
+        raise _bad("file", file, "give a path, or {package, path}")
+    return Path(file).expanduser()
+
+
+def _floats(text, n, what):
+    vals = [float(x) for x in (text or "").split()]
+    if len(vals) != n:
+        raise ValueError(what)
+    return np.array(vals)
+
+
+def _rpy(r, p, y) -> np.ndarray:
+    """URDF's fixed-axis roll, pitch, yaw: R = Rz(y) Ry(p) Rx(r)."""
+    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                     [-sp, cp * sr, cp * cr]])
+
+
+def _z_onto(axis) -> np.ndarray:
+    """A rotation R with R e_z = axis (unit): Rodrigues' formula about e_z x axis."""
+    z = np.array([0.0, 0.0, 1.0])
+    c = float(axis @ z)
+    if c > 1.0 - 1e-15:
+        return np.eye(3)
+    if c < -1.0 + 1e-15:
+        return np.diag([1.0, -1.0, -1.0])  # half a turn about x
+    v = np.cross(z, axis)
+    K = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    return np.eye(3) + K + K @ K / (1.0 + c)
+
+
+def _rot_axis(axis, angle) -> np.ndarray:
+    R = _z_onto(axis)
+    c, s = np.cos(angle), np.sin(angle)
+    return R @ np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]]) @ R.T
+
+
+def read_chain(file, root: str, tip: str, joints=None, hold=None) -> dict:
+    """The chain from link `root` to link `tip` of a URDF: dict(frames (m, 3, 4), tool (3,),
+    names (m,), limits (m, 2) [rad], NaN where the URDF gives none). joints: the commanded
+    joints (default: every revolute joint on the path); hold: {joint: angle [rad]} for the other
+    revolute joints on the path (default 0). Raises ValueError naming `body.urdf.<key>`."""
+    path = resolve(file)
+    try:
+        tree = ET.parse(path).getroot()
+    except (OSError, ET.ParseError) as err:
+        raise _bad("file", str(file), f"cannot read the URDF: {err}".splitlines()[0]) from None
+    links = {l.get("name") for l in tree.findall("link")}
+    for key, name in (("root", root), ("tip", tip)):
+        if name not in links:
+            raise _bad(key, name, f"no link of that name in {path.name}")
+    by_child = {}
+    for j in tree.findall("joint"):
+        child = j.find("child").get("link")
+        if child in by_child:
+            raise _bad("file", str(file), f"link {child!r} has two parent joints: not a tree")
+        by_child[child] = j
+    chain, link = [], tip
+    while link != root:
+        j = by_child.get(link)
+        if j is None:
+            raise _bad("tip", tip, f"link {root!r} is not on the path from {tip!r} to the "
+                       "URDF's root: root -> tip is not a serial chain")
+        chain.append(j)
+        link = j.find("parent").get("link")
+    chain.reverse()
+    movable = [j.get("name") for j in chain if j.get("type") in REVOLUTE]
+    for j in chain:
+        if j.get("type") not in REVOLUTE + ("fixed",):
+            raise _bad("root", root, f"joint {j.get('name')!r} on the chain is "
+                       f"{j.get('type')}: only revolute, continuous and fixed joints are taken")
+    joints = list(movable if joints is None else joints)
+    unknown = [n for n in joints if n not in movable]
+    if unknown or len(set(joints)) != len(joints) or not joints:
+        raise _bad("joints", joints, f"choose distinct revolute joints of the chain, {movable}")
+    if [n for n in movable if n in joints] != joints:
+        order = [n for n in movable if n in joints]
+        raise _bad("joints", joints, f"name them in chain order, {order}")
+    hold = dict(hold or {})
+    extra = sorted(set(hold) - (set(movable) - set(joints)))
+    if extra:
+        raise _bad("hold", hold, f"{extra} are not held joints of the chain")
+    T = np.eye(4)
+    frames, limits = [], []
+    for j in chain:
+        o = j.find("origin")
+        try:
+            xyz = _floats(o.get("xyz", "0 0 0") if o is not None else "0 0 0", 3, "xyz")
+            rpy = _floats(o.get("rpy", "0 0 0") if o is not None else "0 0 0", 3, "rpy")
+            ax = j.find("axis")
+            axis = _floats(ax.get("xyz") if ax is not None else "1 0 0", 3, "axis")
+        except ValueError as err:
+            raise _bad("file", str(file), f"joint {j.get('name')!r}: bad {err}") from None
+        step = np.eye(4)
+        step[:3, :3], step[:3, 3] = _rpy(*rpy), xyz
+        T = T @ step
+        if j.get("type") == "fixed":
+            continue
+        axis = axis / np.linalg.norm(axis)
+        if j.get("name") not in joints:  # held at a stated angle
+            R = np.eye(4)
+            R[:3, :3] = _rot_axis(axis, float(hold.get(j.get("name"), 0.0)))
+            T = T @ R
+            continue
+        Rz = np.eye(4)
+        Rz[:3, :3] = _z_onto(axis)
+        frames.append((T @ Rz)[:3].copy())
+        T = np.eye(4)
+        T[:3, :3] = Rz[:3, :3].T
+        lim = j.find("limit")
+        lo = lim.get("lower") if lim is not None and j.get("type") == "revolute" else None
+        hi = lim.get("upper") if lim is not None and j.get("type") == "revolute" else None
+        limits.append([float(lo) if lo is not None else np.nan,
+                       float(hi) if hi is not None else np.nan])
+    return dict(frames=np.array(frames), tool=T[:3, 3].copy(), rest=T[:3, :3].copy(),
+                names=joints, limits=np.array(limits, float))
