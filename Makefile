@@ -29,6 +29,9 @@ $(STAMP): pyproject.toml requirements.lock
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -c requirements.lock -e '.[test]'
+	# the Poppy Ergo Jr body reads only the URDF file of this package: without its dependencies
+	# (pypot would pull in a robot driver stack the body never uses)
+	$(PY) -m pip install --quiet --no-deps poppy-ergo-jr==4.0.2
 	$(PY) -m pipeline.warm
 	@touch $@
 
