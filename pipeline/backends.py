@@ -32,8 +32,11 @@ result computed by code the key does not name.
 """
 from __future__ import annotations
 
+import getpass
 import os
+import pickle
 import shutil
+import subprocess
 import time
 import traceback
 from pathlib import Path
@@ -79,10 +82,62 @@ def call(fn, trial: dict) -> dict:
     return fn(trial)
 
 
-def run_shard(fn, trials: list[dict]) -> list[dict]:
-    """A submitit job: the trials of one shard, one after the other."""
-    os.environ.update({k: "1" for k in THREAD_VARS})  # for anything started from here on
-    return [call(fn, t) for t in trials]
+class Shard:
+    """A submitit job: the trials of one shard, one after the other.
+
+    Each finished result (ok or diverged) is also put into `spool` (one file per trial key, by
+    an atomic rename) the moment it is there. So the driver sees trials finish one by one rather
+    than a whole shard at its end; a job that is killed or lost still hands over what it
+    finished; and a job that is requeued (preempted: SIGTERM, then requeue; or timed out:
+    SIGUSR2, checkpoint() below) skips those trials and loses only the one in flight. A spooled
+    result is named by the trial's key, which holds its inputs and code fingerprint, so it is
+    the result whichever job computed it."""
+
+    def __init__(self, fn, spool: str):
+        self.fn, self.spool = fn, spool
+
+    def __call__(self, trials: list[dict]) -> list[dict]:
+        os.environ.update({k: "1" for k in THREAD_VARS})  # for anything started from here on
+        out = []
+        for t in trials:
+            result = spooled(self.spool, t["key"])
+            if result is None:
+                result = call(self.fn, t)
+                if result.get("status") in ("ok", "diverged"):
+                    spool(self.spool, t["key"], result)
+            out.append(result)
+        return out
+
+    def checkpoint(self, trials: list[dict]):
+        """submitit calls this on SIGUSR2 (time limit near): requeue the same shard; the trials
+        already in the spool are not computed again."""
+        from submitit.helpers import DelayedSubmission
+
+        return DelayedSubmission(self, trials)
+
+
+def spool_path(folder, key: str) -> Path:
+    return Path(folder) / f"{key}.pkl"
+
+
+def spool(folder, key: str, result: dict) -> None:
+    path = spool_path(folder, key)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    with open(tmp, "wb") as fh:
+        pickle.dump(result, fh, protocol=pickle.HIGHEST_PROTOCOL)
+        fh.flush()
+        os.fsync(fh.fileno())
+    os.replace(tmp, path)
+
+
+def spooled(folder, key: str) -> dict | None:
+    """The spooled result of trial `key`, or None (none yet, or unreadable)."""
+    try:
+        with open(spool_path(folder, key), "rb") as fh:
+            return pickle.load(fh)
+    except (OSError, EOFError, pickle.UnpicklingError):
+        return None
 
 
 def failed(trial: dict, error: str, seconds: float = 0.0, tb: str | None = None) -> dict:
@@ -160,10 +215,44 @@ def ray_results(todo: list[dict], workers: int, fn, address=None):
 
 # --- submitit (SLURM, or local processes) ------------------------------------------------------
 
+def signal_delay(opts: dict) -> int:
+    """Seconds before --time at which SLURM sends SIGUSR2 (executor.slurm.signal_delay_s).
+
+    submitit asks for 90 s, and SLURM may send the signal up to 60 s before that; with
+    timeout_min=2 a healthy shard was cut at ~38 s. The default is therefore at most a tenth of
+    the time limit (12 s for 2 minutes, 90 s from 15 minutes on)."""
+    if opts.get("signal_delay_s") is not None:
+        return int(opts["signal_delay_s"])
+    return max(1, min(90, int(opts["timeout_min"]) * 6))
+
+
+def job_parameters(opts: dict, workers: int, cluster: str, figure: str) -> dict:
+    """What the driver passes to submitit's executor.update_parameters."""
+    setup = [f"export {k}=1" for k in THREAD_VARS] + list(opts["setup"])
+    params = dict(name=f"gbgrowth-{figure}", timeout_min=int(opts["timeout_min"]),
+                  cpus_per_task=1, tasks_per_node=1, nodes=1)
+    params[f"{cluster}_setup"] = setup
+    if cluster == "slurm":
+        params.update(mem_gb=opts["mem_gb"], slurm_partition=opts["partition"],
+                      slurm_array_parallelism=workers, slurm_signal_delay_s=signal_delay(opts))
+    return params
+
+
+def queued_jobs() -> set[str] | None:
+    """The ids of this user's jobs SLURM still lists (pending, running, completing; array tasks
+    one by one), or None when squeue does not answer. Unlike sacct it needs no accounting."""
+    try:
+        out = subprocess.run(["squeue", "-h", "-r", "-o", "%i", "-u", getpass.getuser()],
+                             capture_output=True, text=True, timeout=60, check=True).stdout
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return set(out.split())
+
+
 def submitit_results(todo: list[dict], workers: int, fn, cluster: str = "slurm", options=None,
                      logs=None):
-    """The trials in shards, one array job each, `workers` at a time; yield each job's results
-    when it ends (a failed job: its trials as failed results)."""
+    """The trials in shards, one array job each, `workers` at a time; yield each trial's result
+    as its job spools it, and a failed or lost job's unfinished trials as failed results."""
     import submitit
 
     opts = dict(SLURM_DEFAULTS)
@@ -182,38 +271,80 @@ def submitit_results(todo: list[dict], workers: int, fn, cluster: str = "slurm",
     folder = Path(logs) if logs else REPO_ROOT / "outputs" / "logs" / "submitit"
     folder.mkdir(parents=True, exist_ok=True)
     executor = submitit.AutoExecutor(folder=str(folder / "%j"), cluster=cluster)
-    setup = [f"export {k}=1" for k in THREAD_VARS] + list(opts["setup"])
-    params = dict(name=f"gbgrowth-{todo[0]['labels']['figure']}", timeout_min=int(opts["timeout_min"]),
-                  cpus_per_task=1, tasks_per_node=1, nodes=1)
-    params[f"{cluster}_setup"] = setup
-    if cluster == "slurm":
-        params.update(mem_gb=opts["mem_gb"], slurm_partition=opts["partition"],
-                      slurm_array_parallelism=workers)
-    executor.update_parameters(**params)
-    jobs = executor.map_array(run_shard, [fn] * len(parts), parts)
-    pending = dict(zip(jobs, parts))
+    executor.update_parameters(**job_parameters(opts, workers, cluster,
+                                                todo[0]["labels"]["figure"]))
+    jobs = executor.map_array(Shard(fn, str(folder / "spool")), parts)
     poll = LOCAL_POLL_S if cluster == "local" else float(opts["poll_s"])
+    yield from watch(jobs, parts, folder / "spool", poll=poll, lost_s=float(opts["lost_s"]),
+                     queued=queued_jobs if cluster == "slurm" else None)
+
+
+def watch(jobs, parts, spool_dir, poll: float, lost_s: float, queued=None):
+    """Yield (trial, result) for the trials of submitit `jobs` (one per part) until every job
+    has ended, been lost, or handed over all its trials.
+
+    Every `poll` seconds: one sacct for all jobs (submitit's own watcher waits up to 10 minutes
+    between calls), the spooled results, and, with `queued` (squeue), the jobs SLURM no longer
+    lists. A job not listed for `lost_s` seconds that left no result is lost: without
+    accounting submitit never calls it done, and the driver would wait forever."""
+    pending = {job: {t["key"]: t for t in part} for job, part in zip(jobs, parts)}
+    keys = {job: list(left) for job, left in pending.items()}
+    gone_since: dict = {}
     try:
         while pending:
-            finished = [j for j in pending if j.done()]
-            if not finished:
+            if jobs and hasattr(jobs[0], "watcher"):
+                jobs[0].watcher.update()  # the driver's poll_s, not submitit's back-off
+            listed = queued() if queued else None
+            now = time.monotonic()
+            for job, left in list(pending.items()):
+                for key in list(left):  # kept in the spool while the job lives (a requeue)
+                    result = spooled(spool_dir, key)
+                    if result is not None:
+                        yield left.pop(key), result
+                if left and listed is not None and job.job_id not in listed and not job.done():
+                    gone_since.setdefault(job, now)
+                    if now - gone_since[job] < lost_s:
+                        continue
+                    job.cancel(check=False)
+                    yield from lost(job, left, spool_dir,
+                                    f"job {job.job_id} ended without a result (not in squeue "
+                                    f"for {lost_s:.0f} s, state {job.state})")
+                elif left and not job.done():
+                    gone_since.pop(job, None)
+                    continue
+                elif left:
+                    yield from ended(job, left, spool_dir)
+                del pending[job]
+                for key in keys[job]:
+                    spool_path(spool_dir, key).unlink(missing_ok=True)
+            if pending:
                 time.sleep(poll)
-                continue
-            for job in finished:
-                part = pending.pop(job)
-                try:
-                    results = job.result()
-                    if len(results) != len(part):
-                        raise RuntimeError(f"job {job.job_id} returned {len(results)} results "
-                                           f"for {len(part)} trials")
-                except Exception as err:  # noqa: BLE001 - failed, timed out, cancelled, lost
-                    tb = traceback.format_exc()
-                    results = [failed(t, f"job {job.job_id} {job.state}: "
-                                      f"{type(err).__name__}: {err}", tb=tb) for t in part]
-                yield from zip(part, results)
     finally:
         for job in pending:  # Ctrl-C, an error or a dropped generator: cancel the rest
             try:
                 job.cancel(check=False)
             except Exception:  # noqa: BLE001 - already finished or gone
                 pass
+
+
+def ended(job, left: dict, spool_dir):
+    """The results of a job that ended, for its trials not yet handed over (`left`)."""
+    try:
+        results = job.result()
+        by_key = {r["key"]: r for r in results}
+        missing = set(left) - set(by_key)
+        if missing:
+            raise RuntimeError(f"job {job.job_id} returned no result for {len(missing)} trials")
+    except Exception as err:  # noqa: BLE001 - failed, timed out, cancelled, lost
+        yield from lost(job, left, spool_dir, f"job {job.job_id} {job.state}: "
+                        f"{type(err).__name__}: {err}", traceback.format_exc())
+        return
+    for key, trial in left.items():
+        yield trial, by_key[key]
+
+
+def lost(job, left: dict, spool_dir, error: str, tb: str | None = None):
+    """A job that failed or was lost: what it spooled, and its other trials as failed."""
+    for key, trial in left.items():
+        result = spooled(spool_dir, key)
+        yield trial, result if result is not None else failed(trial, error, tb=tb)
