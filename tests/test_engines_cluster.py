@@ -131,7 +131,8 @@ def slurm(tmp_path_factory):
         yield cluster
     finally:
         cluster.stop()
-        shutil.rmtree(folder, ignore_errors=True)
+        if not os.environ.get("GBGROWTH_KEEP_SLURM"):  # to read its logs after a failure
+            shutil.rmtree(folder, ignore_errors=True)
         if before is None:
             os.environ.pop("SLURM_CONF", None)
         else:
@@ -166,12 +167,19 @@ def test_slurm_jobs_cancelled_or_killed_lose_only_their_trials_without_accountin
     with_fn(monkeypatch, Slow(marks, sleep=20))
     th, box = in_thread(lambda: simulate(cfg))
     until("two jobs running", lambda: sum(s == "RUNNING" for s in slurm.jobs().values()) >= 2)
-    until("first trials started", lambda: len(started(marks)) >= 2)
-    cancelled, killed = sorted(j for j in slurm.jobs() if j.endswith(("_0", "_1")))
+
+    def running_trials():  # a trial of shard 0 and one of shard 1 started (their mark files)
+        found = [next((m for m in marks.glob("*.*") if m.name.split(".")[0] in parts[i]), None)
+                 for i in (0, 1)]
+        return found if all(found) else None
+
+    marked = until("a trial of shards 0 and 1 started", running_trials)
+    job_of = {}  # the job running shard i: SLURM_ARRAY_TASK_ID i (map_array keeps the order)
+    for j in slurm.jobs():
+        job_of[int(j.split("_")[1])] = j
     t_kill = time.monotonic()
-    slurm.run("scancel", cancelled)
-    for pid in slurm.job_pids(killed):
-        os.kill(pid, signal.SIGKILL)
+    slurm.run("scancel", job_of[0])
+    os.kill(int(marked[1].name.split(".")[1]), signal.SIGKILL)  # the python running shard 1
     th.join(300)
     assert not th.is_alive(), "the driver waits for a lost job"
     seen_s = time.monotonic() - t_kill
