@@ -265,7 +265,8 @@ def test_ray_worker_node_removed_loses_only_its_trial(ray_cluster, tmp_path, loc
     with_fn(monkeypatch, Slow(marks, sleep=4))
     th, box = in_thread(lambda: simulate(cfg))
     until("a trial on each node", lambda: len({v[0] for v in started(marks).values()}) >= 2, 180)
-    victim = ray_cluster.worker_nodes[-1]
+    victim = next(n for n in ray_cluster.worker_nodes
+                  if any(n.node_id in v for v in started(marks).values()))
     on_victim = {k for k, v in started(marks).items() if victim.node_id in v}
     t_kill = time.monotonic()
     ray_cluster.remove_node(victim, allow_graceful=False)
