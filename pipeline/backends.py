@@ -275,25 +275,27 @@ def submitit_results(todo: list[dict], workers: int, fn, cluster: str = "slurm",
                                                 todo[0]["labels"]["figure"]))
     jobs = executor.map_array(Shard(fn, str(folder / "spool")), parts)
     poll = LOCAL_POLL_S if cluster == "local" else float(opts["poll_s"])
+    slurm = cluster == "slurm"  # a local job's watcher asks no one (its update() raises)
     yield from watch(jobs, parts, folder / "spool", poll=poll, lost_s=float(opts["lost_s"]),
-                     queued=queued_jobs if cluster == "slurm" else None)
+                     queued=queued_jobs if slurm else None,
+                     refresh=jobs[0].watcher.update if slurm else None)
 
 
-def watch(jobs, parts, spool_dir, poll: float, lost_s: float, queued=None):
+def watch(jobs, parts, spool_dir, poll: float, lost_s: float, queued=None, refresh=None):
     """Yield (trial, result) for the trials of submitit `jobs` (one per part) until every job
     has ended, been lost, or handed over all its trials.
 
-    Every `poll` seconds: one sacct for all jobs (submitit's own watcher waits up to 10 minutes
-    between calls), the spooled results, and, with `queued` (squeue), the jobs SLURM no longer
-    lists. A job not listed for `lost_s` seconds that left no result is lost: without
+    Every `poll` seconds: `refresh` (one sacct for all jobs; submitit's own watcher waits up to
+    10 minutes between calls), the spooled results, and, with `queued` (squeue), the jobs SLURM no
+    longer lists. A job not listed for `lost_s` seconds that left no result is lost: without
     accounting submitit never calls it done, and the driver would wait forever."""
     pending = {job: {t["key"]: t for t in part} for job, part in zip(jobs, parts)}
     keys = {job: list(left) for job, left in pending.items()}
     gone_since: dict = {}
     try:
         while pending:
-            if jobs and hasattr(jobs[0], "watcher"):
-                jobs[0].watcher.update()  # the driver's poll_s, not submitit's back-off
+            if refresh is not None:
+                refresh()  # the driver's poll_s, not submitit's back-off
             listed = queued() if queued else None
             now = time.monotonic()
             for job, left in list(pending.items()):

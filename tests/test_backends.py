@@ -153,7 +153,7 @@ def test_a_job_slurm_no_longer_lists_is_lost_after_lost_s_not_waited_for(tmp_pat
     parts = [[dict(key="a")], [dict(key="b")]]
     t0 = time.monotonic()
     out = list(backends.watch([dead, fine], parts, tmp_path, poll=0.05, lost_s=0.3,
-                              queued=lambda: set()))
+                              queued=lambda: set(), refresh=FakeJob.watcher.update))
     assert time.monotonic() - t0 < 5
     got = {t["key"]: r for t, r in out}
     assert got["b"]["status"] == "ok" and got["a"]["status"] == "failed"
