@@ -49,6 +49,9 @@ from .worker import THREAD_VARS
 
 SLURM_DEFAULTS = asdict(SlurmConf())  # executor.slurm.* (pipeline/config.py SlurmConf)
 LOCAL_POLL_S = 0.5
+# a job that ended without its result file: how long to look for the file before calling the
+# job's trials failed (the job writes it before it exits; this covers a shared file system's lag)
+RESULT_GRACE_S = 5.0
 RAY_OBJECT_STORE_BYTES = 100 * 1000**2  # a result is a few hundred kB at most
 
 
@@ -292,6 +295,7 @@ def watch(jobs, parts, spool_dir, poll: float, lost_s: float, queued=None, refre
     pending = {job: {t["key"]: t for t in part} for job, part in zip(jobs, parts)}
     keys = {job: list(left) for job, left in pending.items()}
     gone_since: dict = {}
+    no_result: dict = {}
     try:
         while pending:
             if refresh is not None:
@@ -314,6 +318,15 @@ def watch(jobs, parts, spool_dir, poll: float, lost_s: float, queued=None, refre
                 elif left and not job.done():
                     gone_since.pop(job, None)
                     continue
+                elif left and not job.paths.result_pickle.exists():
+                    # ended (sacct: FAILED, CANCELLED...) without a result: wait RESULT_GRACE_S for
+                    # a slow shared file system, without holding up the other jobs (submitit's
+                    # result() would block 15 s)
+                    since = no_result.setdefault(job, now)
+                    if now - since < RESULT_GRACE_S:
+                        continue
+                    yield from lost(job, left, spool_dir, f"job {job.job_id} {job.state} without "
+                                    f"a result (its log: {job.paths.stderr})")
                 elif left:
                     yield from ended(job, left, spool_dir)
                 del pending[job]

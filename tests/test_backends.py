@@ -4,6 +4,9 @@ The engines themselves run end to end in test_backends_slow.py (-m slow).
 """
 import importlib.util
 import random
+import tempfile
+from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
@@ -131,9 +134,14 @@ class FakeJob:
     sacct fails, its state stays UNKNOWN, it leaves no result)."""
     watcher = None
 
-    def __init__(self, job_id, results=None):
+    def __init__(self, job_id, results=None, folder=None):
         self.job_id, self.results, self.cancelled = job_id, results, False
         self.state = "UNKNOWN"
+        folder = Path(folder or tempfile.mkdtemp())
+        self.paths = SimpleNamespace(result_pickle=folder / f"{job_id}_result.pkl",
+                                     stderr=folder / f"{job_id}.err")
+        if results is not None:
+            self.paths.result_pickle.touch()
 
     def done(self):
         return self.results is not None
@@ -188,6 +196,25 @@ def test_a_lost_job_hands_over_what_it_spooled(tmp_path):
     out = list(backends.watch([job], [[dict(key="a"), dict(key="b")]], tmp_path / "s",
                               poll=0.01, lost_s=0.0, queued=lambda: set()))
     assert {t["key"]: r["status"] for t, r in out} == {"a": "ok", "b": "failed"}
+
+
+def test_a_job_that_ended_without_a_result_fails_after_the_grace_without_blocking(tmp_path,
+                                                                                  monkeypatch):
+    import time
+
+    monkeypatch.setattr(backends, "RESULT_GRACE_S", 0.3)
+    dead = FakeJob("5_0", folder=tmp_path)
+    dead.done, dead.state = (lambda: True), "FAILED"  # sacct says FAILED, no result file
+    other = FakeJob("5_1", folder=tmp_path)
+    gen = backends.watch([dead, other], [[dict(key="a")], [dict(key="b")]], tmp_path / "s",
+                         poll=0.05, lost_s=60, queued=lambda: {"5_0", "5_1"})
+    backends.spool(tmp_path / "s", "b", dict(key="b", status="ok"))
+    t0 = time.monotonic()
+    first = next(gen)  # the other job's trial is not held up by the failed one
+    assert first[0]["key"] == "b" and time.monotonic() - t0 < 0.2
+    trial, result = next(gen)
+    assert trial["key"] == "a" and result["error"].startswith("job 5_0 FAILED without a result")
+    assert 0.25 < time.monotonic() - t0 < 3
 
 
 def test_a_requeued_shard_skips_the_trials_it_spooled(tmp_path):

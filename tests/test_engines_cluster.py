@@ -197,6 +197,26 @@ def test_slurm_jobs_cancelled_or_killed_lose_only_their_trials_without_accountin
     assert trial_files(tmp_path) == local_files
 
 
+def test_slurm_killed_job_is_seen_within_seconds_with_accounting(slurm, tmp_path, monkeypatch):
+    """SIGKILL a shard's python: sacct says FAILED after a few seconds, and the driver asks
+    every poll_s (1 s here), not at submitit's back-off (up to 10 minutes). lost_s is long,
+    so the job must be seen through accounting, not through its absence from squeue."""
+    cfg = cfg_of(tmp_path, *SLURM_FAST, "executor.slurm.lost_s=300", "workers=1",
+                 "trials.count=1", "conditions.periods=[10]", "conditions.references=[1.0]")
+    marks = tmp_path / "marks"
+    with_fn(monkeypatch, Slow(marks, sleep=60))
+    th, box = in_thread(lambda: simulate(cfg))
+    (mark,) = until("the trial started", lambda: list(marks.glob("*.*")), 120)
+    t_kill = time.monotonic()
+    os.kill(int(mark.name.split(".")[1]), signal.SIGKILL)
+    th.join(120)
+    seen_s = time.monotonic() - t_kill
+    assert not th.is_alive()
+    failed = box["out"].failed
+    print(f"SIGKILLed job seen {seen_s:.1f} s later: {failed}")
+    assert len(failed) == 2 and all("FAILED" in e for e in failed.values()) and seen_s < 15
+
+
 def test_slurm_preempted_job_requeued_loses_only_its_trial_in_flight(
         slurm, tmp_path, local_files, monkeypatch):
     """`scontrol requeue` (SIGTERM, then the job is queued again) once a shard has finished one
@@ -224,14 +244,15 @@ def test_slurm_preempted_job_requeued_loses_only_its_trial_in_flight(
 
 
 def test_slurm_short_time_limit_does_not_fail_a_healthy_shard(slurm, tmp_path, monkeypatch):
-    """timeout_min=2 and a shard of ~45 s: with submitit's USR2@90 SLURM signals at 0-30 s."""
+    """timeout_min=2 and a shard of ~65 s (two trials): with submitit's USR2@90 SLURM signals at
+    0-30 s and the shard fails "timed-out and not checkpointable"."""
     cfg = cfg_of(tmp_path, *SLURM_FAST, "executor.slurm.timeout_min=2", "workers=1",
                  "trials.count=1", "conditions.periods=[10]", "conditions.references=[1.0]")
     with_fn(monkeypatch, Slow(tmp_path / "marks", sleep=25))
     t0 = time.monotonic()
     summary = simulate(cfg)
-    print(f"one ~45 s shard under --time=2: {time.monotonic() - t0:.1f} s, {summary.lines()}")
-    assert summary.ran == 1 and not summary.failed, summary.lines()
+    print(f"one ~65 s shard under --time=2: {time.monotonic() - t0:.1f} s, {summary.lines()}")
+    assert summary.ran == 2 and not summary.failed, summary.lines()
 
 
 # --- Ray ---------------------------------------------------------------------------------------
