@@ -53,6 +53,8 @@ LOCAL_POLL_S = 0.5
 # job's trials failed (the job writes it before it exits; this covers a shared file system's lag)
 RESULT_GRACE_S = 5.0
 RAY_OBJECT_STORE_BYTES = 100 * 1000**2  # a result is a few hundred kB at most
+RAY_POLL_S = 5.0  # how often the driver looks at the cluster while no trial finishes
+RAY_LOST_S = 60.0  # no node with a CPU for this long: the trials left fail (a node may rejoin)
 
 
 def run(backend: str, todo: list[dict], workers: int, fn=None, address=None, options=None,
@@ -198,8 +200,25 @@ def ray_results(todo: list[dict], workers: int, fn, address=None):
     try:
         fn_ref = ray.put(fn)
         pending = {task.remote(fn_ref, t): t for t in todo}
+        no_cpu_since = None
         while pending:
-            (ref,), _ = ray.wait(list(pending), num_returns=1)
+            ready, _ = ray.wait(list(pending), num_returns=1, timeout=RAY_POLL_S)
+            if not ready:
+                if ray.cluster_resources().get("CPU", 0) >= 1:
+                    no_cpu_since = None
+                    continue
+                # every node that could run a trial is gone: the tasks left can never be
+                # scheduled, and ray.wait would wait for them forever
+                no_cpu_since = no_cpu_since or time.monotonic()
+                if time.monotonic() - no_cpu_since < RAY_LOST_S:
+                    continue
+                for ref, trial in list(pending.items()):
+                    del pending[ref]
+                    ray.cancel(ref, force=True)
+                    yield trial, failed(trial, f"no Ray node with a CPU left for "
+                                        f"{RAY_LOST_S:.0f} s: the trial cannot be scheduled")
+                break
+            (ref,) = ready
             trial = pending.pop(ref)
             try:
                 result = ray.get(ref)

@@ -302,3 +302,27 @@ def test_ray_worker_node_removed_loses_only_its_trial(ray_cluster, tmp_path, loc
     again = simulate(cfg)  # on the node that is left
     assert again.ran == len(summary.failed) and not again.failed
     assert trial_files(tmp_path) == local_files
+
+
+def test_ray_trials_that_can_never_be_scheduled_fail_instead_of_waiting(ray_cluster, tmp_path,
+                                                                        monkeypatch):
+    """Every worker node removed (the head has no CPU): the trials left can never run; the
+    driver fails them after RAY_LOST_S instead of waiting forever. Runs last: it empties the
+    cluster."""
+    monkeypatch.setattr(backends, "RAY_POLL_S", 0.5)
+    monkeypatch.setattr(backends, "RAY_LOST_S", 2.0)
+    cfg = cfg_of(tmp_path, "executor=ray", f"executor.address={ray_cluster.address}",
+                 "workers=2")
+    marks = tmp_path / "marks"
+    with_fn(monkeypatch, Slow(marks, sleep=30))
+    th, box = in_thread(lambda: simulate(cfg))
+    until("a trial started", lambda: started(marks), 180)
+    for node in list(ray_cluster.worker_nodes):
+        ray_cluster.remove_node(node, allow_graceful=False)
+    t_gone = time.monotonic()
+    th.join(120)
+    assert not th.is_alive(), "the driver waits for trials no node can run"
+    summary = box["out"]
+    print(f"no CPU left: run over {time.monotonic() - t_gone:.1f} s later; {summary.lines()[0]}")
+    assert len(summary.failed) == 6
+    assert sum("cannot be scheduled" in e for e in summary.failed.values()) >= 4
