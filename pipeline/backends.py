@@ -19,12 +19,17 @@ write into one cache. Driver-side engines keep one writer and schedule trials lo
 - Ray (`executor=ray`): one Ray task per trial (num_cpus=1, one BLAS/numba thread), all submitted
   longest first, collected with ray.wait as they finish. Without an address a local Ray instance
   of `workers` CPUs is started for the run and shut down after it. A task whose worker died
-  (killed, out of memory, node lost) is not retried by Ray: it comes back as a failed result,
-  which the driver records and the next run of the same command computes again.
+  (killed, out of memory, node lost) is not retried by Ray (max_retries=0, never pinned to a
+  node, so nothing waits for a node that is gone): it comes back as a failed result, which the
+  driver records and the next run of the same command computes again. When no node with a CPU
+  is left for RAY_LOST_S, the trials left fail instead of waiting forever.
 - submitit (`executor=slurm`, `executor=submitit_local`): trials are packed into shards (one
   array job each, `shards`), balanced by their estimated cost; `workers` jobs run at once. A job
-  returns the results of its whole shard; a job that failed, timed out or was cancelled returns
-  its trials as failed results. Job files and logs go under <paths.out>/logs/submitit/.
+  spools each finished trial (Shard), so results arrive one by one, a requeued job (preempted or
+  timed out) skips what it finished, and a lost job still hands over its finished trials. The
+  driver asks sacct every `poll_s` and squeue too: a job that ended without a result, or that
+  SLURM no longer lists for `lost_s` (a cluster without accounting), fails its unfinished trials
+  instead of hanging the run. Job files, logs and the spool: <paths.out>/logs/submitit/.
 
 Every worker checks that its gbmodel code has the fingerprint the driver put into the trial's key
 (pipeline.plan.code_fingerprint), so a node with other code fails the trial instead of caching a
