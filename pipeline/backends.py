@@ -38,6 +38,7 @@ result computed by code the key does not name.
 from __future__ import annotations
 
 import getpass
+import logging
 import os
 import pickle
 import shutil
@@ -186,8 +187,6 @@ def shards(todo: list[dict], n: int, cost=None) -> list[list[dict]]:
 
 def ray_results(todo: list[dict], workers: int, fn, address=None):
     """One Ray task per trial, submitted in the order of `todo`, yielded as they finish."""
-    import logging
-
     import ray
     from ray.exceptions import RayError
 
@@ -303,9 +302,28 @@ def submitit_results(todo: list[dict], workers: int, fn, cluster: str = "slurm",
     jobs = executor.map_array(Shard(fn, str(folder / "spool")), parts)
     poll = LOCAL_POLL_S if cluster == "local" else float(opts["poll_s"])
     slurm = cluster == "slurm"  # a local job's watcher asks no one (its update() raises)
-    yield from watch(jobs, parts, folder / "spool", poll=poll, lost_s=float(opts["lost_s"]),
-                     queued=queued_jobs if slurm else None,
-                     refresh=jobs[0].watcher.update if slurm else None)
+    once = OnceFilter("Bypassing sacct error")  # no accounting: say so once, not every poll
+    logging.getLogger("submitit").addFilter(once)
+    try:
+        yield from watch(jobs, parts, folder / "spool", poll=poll, lost_s=float(opts["lost_s"]),
+                         queued=queued_jobs if slurm else None,
+                         refresh=jobs[0].watcher.update if slurm else None)
+    finally:
+        logging.getLogger("submitit").removeFilter(once)
+
+
+class OnceFilter(logging.Filter):
+    """Lets the first log record containing `text` through, drops the ones after it."""
+
+    def __init__(self, text: str):
+        super().__init__()
+        self.text, self.seen = text, False
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if self.text not in record.getMessage():
+            return True
+        seen, self.seen = self.seen, True
+        return not seen
 
 
 def watch(jobs, parts, spool_dir, poll: float, lost_s: float, queued=None, refresh=None):

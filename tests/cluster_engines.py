@@ -121,6 +121,7 @@ JobAcctGatherType=jobacct_gather/linux
 JobAcctGatherFrequency=5
 AccountingStorageType=accounting_storage/slurmdbd
 AccountingStorageHost=localhost
+AccountingStoragePort=16819
 JobCompType=jobcomp/none
 ReturnToService=2
 SlurmctldPort=16817
@@ -151,8 +152,6 @@ StorageUser=root
 StorageLoc=slurm_gbtest
 """)
         dbd.chmod(0o600)
-        with open(d / "slurm.conf", "a") as fh:
-            fh.write("AccountingStoragePort=16819\n")
 
     # --- start / stop ---
     def _spawn(self, name: str, argv: list[str], **kw) -> subprocess.Popen:
@@ -212,16 +211,6 @@ StorageLoc=slurm_gbtest
         out = self.run("squeue", "-h", "-r", "-o", "%i %T", "-u", pwd.getpwuid(os.getuid())[0],
                        check=False).stdout
         return dict(line.split()[:2] for line in out.splitlines() if line.strip())
-
-    def job_pids(self, job_id: str) -> list[int]:
-        """Process ids of a job's steps on this host (scontrol listpids)."""
-        out = self.run("scontrol", "listpids", job_id, check=False).stdout
-        pids = []
-        for line in out.splitlines()[1:]:
-            first = line.split()[0] if line.split() else ""
-            if first.isdigit():
-                pids.append(int(first))
-        return pids
 
 
 def _port_open(port: int) -> bool:

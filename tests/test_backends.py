@@ -243,3 +243,12 @@ def test_the_signal_delay_leaves_a_short_time_limit_room():
                    "executor.slurm.lost_s=5"])
     assert cfg.executor.slurm.signal_delay_s == 30 and cfg.executor.slurm.lost_s == 5
     assert "slurm_signal_delay_s" not in backends.job_parameters(opts, 2, "local", "fig4")
+
+
+def test_a_failing_sacct_is_reported_once_not_every_poll():
+    import logging
+
+    f = backends.OnceFilter("Bypassing sacct error")
+    rec = lambda msg: logging.LogRecord("submitit", logging.WARNING, "", 0, msg, None, None)  # noqa: E731
+    assert [f.filter(rec(m)) for m in ("Call #1 - Bypassing sacct error x", "other",
+                                       "Call #2 - Bypassing sacct error x")] == [True, True, False]
