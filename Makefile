@@ -12,7 +12,7 @@ PROFILE ?= full
 ARGS    ?=
 
 .DEFAULT_GOAL := help
-.PHONY: help setup reproduce smoke simulate aggregate choices report pipeline bench test test-slow clean
+.PHONY: help setup reproduce smoke simulate aggregate choices report pipeline bench test test-slow test-cluster clean
 
 help: ## list the targets
 	@awk 'BEGIN {FS = ":.*## "} /^[a-z-]+:.*## / {printf "  make %-10s %s\n", $$1, $$2}' $(MAKEFILE_LIST)
@@ -68,6 +68,13 @@ test: $(STAMP) ## run the test suite (slow tests excluded)
 test-slow: $(STAMP) ## install the cluster extras (Ray, submitit), then run the slow tests only
 	$(PY) -m pip install --quiet -c requirements.lock -e '.[test,ray,slurm]'
 	$(PY) -m pytest -m slow
+
+test-cluster: $(STAMP) ## start a one-host SLURM (as root: apt-get installs it) and a two-node Ray, run the cluster tests
+	@if [ "$$(id -u)" = 0 ] && ! command -v slurmctld >/dev/null; then apt-get update -q; \
+	  apt-get install -y -q --no-install-recommends slurmctld slurmd slurm-client slurmdbd mariadb-server \
+	  || echo "SLURM not installed: its tests will skip"; fi
+	$(PY) -m pip install --quiet -c requirements.lock -e '.[test,ray,slurm]'
+	$(PY) -m pytest -m cluster
 
 clean: ## remove generated outputs (asks first; YES=1 to skip the question); keeps the committed report and bench
 	@if [ "$(YES)" != 1 ]; then \

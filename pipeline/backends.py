@@ -19,12 +19,17 @@ write into one cache. Driver-side engines keep one writer and schedule trials lo
 - Ray (`executor=ray`): one Ray task per trial (num_cpus=1, one BLAS/numba thread), all submitted
   longest first, collected with ray.wait as they finish. Without an address a local Ray instance
   of `workers` CPUs is started for the run and shut down after it. A task whose worker died
-  (killed, out of memory, node lost) is not retried by Ray: it comes back as a failed result,
-  which the driver records and the next run of the same command computes again.
+  (killed, out of memory, node lost) is not retried by Ray (max_retries=0, never pinned to a
+  node, so nothing waits for a node that is gone): it comes back as a failed result, which the
+  driver records and the next run of the same command computes again. When no node with a CPU
+  is left for RAY_LOST_S, the trials left fail instead of waiting forever.
 - submitit (`executor=slurm`, `executor=submitit_local`): trials are packed into shards (one
   array job each, `shards`), balanced by their estimated cost; `workers` jobs run at once. A job
-  returns the results of its whole shard; a job that failed, timed out or was cancelled returns
-  its trials as failed results. Job files and logs go under <paths.out>/logs/submitit/.
+  spools each finished trial (Shard), so results arrive one by one, a requeued job (preempted or
+  timed out) skips what it finished, and a lost job still hands over its finished trials. The
+  driver asks sacct every `poll_s` and squeue too: a job that ended without a result, or that
+  SLURM no longer lists for `lost_s` (a cluster without accounting), fails its unfinished trials
+  instead of hanging the run. Job files, logs and the spool: <paths.out>/logs/submitit/.
 
 Every worker checks that its gbmodel code has the fingerprint the driver put into the trial's key
 (pipeline.plan.code_fingerprint), so a node with other code fails the trial instead of caching a
@@ -32,8 +37,12 @@ result computed by code the key does not name.
 """
 from __future__ import annotations
 
+import getpass
+import logging
 import os
+import pickle
 import shutil
+import subprocess
 import time
 import traceback
 from pathlib import Path
@@ -46,7 +55,12 @@ from .worker import THREAD_VARS
 
 SLURM_DEFAULTS = asdict(SlurmConf())  # executor.slurm.* (pipeline/config.py SlurmConf)
 LOCAL_POLL_S = 0.5
+# a job that ended without its result file: how long to look for the file before calling the
+# job's trials failed (the job writes it before it exits; this covers a shared file system's lag)
+RESULT_GRACE_S = 5.0
 RAY_OBJECT_STORE_BYTES = 100 * 1000**2  # a result is a few hundred kB at most
+RAY_POLL_S = 5.0  # how often the driver looks at the cluster while no trial finishes
+RAY_LOST_S = 60.0  # no node with a CPU for this long: the trials left fail (a node may rejoin)
 
 
 def run(backend: str, todo: list[dict], workers: int, fn=None, address=None, options=None,
@@ -79,10 +93,62 @@ def call(fn, trial: dict) -> dict:
     return fn(trial)
 
 
-def run_shard(fn, trials: list[dict]) -> list[dict]:
-    """A submitit job: the trials of one shard, one after the other."""
-    os.environ.update({k: "1" for k in THREAD_VARS})  # for anything started from here on
-    return [call(fn, t) for t in trials]
+class Shard:
+    """A submitit job: the trials of one shard, one after the other.
+
+    Each finished result (ok or diverged) is also put into `spool` (one file per trial key, by
+    an atomic rename) the moment it is there. So the driver sees trials finish one by one rather
+    than a whole shard at its end; a job that is killed or lost still hands over what it
+    finished; and a job that is requeued (preempted: SIGTERM, then requeue; or timed out:
+    SIGUSR2, checkpoint() below) skips those trials and loses only the one in flight. A spooled
+    result is named by the trial's key, which holds its inputs and code fingerprint, so it is
+    the result whichever job computed it."""
+
+    def __init__(self, fn, spool: str):
+        self.fn, self.spool = fn, spool
+
+    def __call__(self, trials: list[dict]) -> list[dict]:
+        os.environ.update({k: "1" for k in THREAD_VARS})  # for anything started from here on
+        out = []
+        for t in trials:
+            result = spooled(self.spool, t["key"])
+            if result is None:
+                result = call(self.fn, t)
+                if result.get("status") in ("ok", "diverged"):
+                    spool(self.spool, t["key"], result)
+            out.append(result)
+        return out
+
+    def checkpoint(self, trials: list[dict]):
+        """submitit calls this on SIGUSR2 (time limit near): requeue the same shard; the trials
+        already in the spool are not computed again."""
+        from submitit.helpers import DelayedSubmission
+
+        return DelayedSubmission(self, trials)
+
+
+def spool_path(folder, key: str) -> Path:
+    return Path(folder) / f"{key}.pkl"
+
+
+def spool(folder, key: str, result: dict) -> None:
+    path = spool_path(folder, key)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    with open(tmp, "wb") as fh:
+        pickle.dump(result, fh, protocol=pickle.HIGHEST_PROTOCOL)
+        fh.flush()
+        os.fsync(fh.fileno())
+    os.replace(tmp, path)
+
+
+def spooled(folder, key: str) -> dict | None:
+    """The spooled result of trial `key`, or None (none yet, or unreadable)."""
+    try:
+        with open(spool_path(folder, key), "rb") as fh:
+            return pickle.load(fh)
+    except (OSError, EOFError, pickle.UnpicklingError):
+        return None
 
 
 def failed(trial: dict, error: str, seconds: float = 0.0, tb: str | None = None) -> dict:
@@ -121,8 +187,6 @@ def shards(todo: list[dict], n: int, cost=None) -> list[list[dict]]:
 
 def ray_results(todo: list[dict], workers: int, fn, address=None):
     """One Ray task per trial, submitted in the order of `todo`, yielded as they finish."""
-    import logging
-
     import ray
     from ray.exceptions import RayError
 
@@ -140,8 +204,25 @@ def ray_results(todo: list[dict], workers: int, fn, address=None):
     try:
         fn_ref = ray.put(fn)
         pending = {task.remote(fn_ref, t): t for t in todo}
+        no_cpu_since = None
         while pending:
-            (ref,), _ = ray.wait(list(pending), num_returns=1)
+            ready, _ = ray.wait(list(pending), num_returns=1, timeout=RAY_POLL_S)
+            if not ready:
+                if ray.cluster_resources().get("CPU", 0) >= 1:
+                    no_cpu_since = None
+                    continue
+                # every node that could run a trial is gone: the tasks left can never be
+                # scheduled, and ray.wait would wait for them forever
+                no_cpu_since = no_cpu_since or time.monotonic()
+                if time.monotonic() - no_cpu_since < RAY_LOST_S:
+                    continue
+                for ref, trial in list(pending.items()):
+                    del pending[ref]
+                    ray.cancel(ref, force=True)
+                    yield trial, failed(trial, f"no Ray node with a CPU left for "
+                                        f"{RAY_LOST_S:.0f} s: the trial cannot be scheduled")
+                break
+            (ref,) = ready
             trial = pending.pop(ref)
             try:
                 result = ray.get(ref)
@@ -160,10 +241,44 @@ def ray_results(todo: list[dict], workers: int, fn, address=None):
 
 # --- submitit (SLURM, or local processes) ------------------------------------------------------
 
+def signal_delay(opts: dict) -> int:
+    """Seconds before --time at which SLURM sends SIGUSR2 (executor.slurm.signal_delay_s).
+
+    submitit asks for 90 s, and SLURM may send the signal up to 60 s before that; with
+    timeout_min=2 a healthy shard was cut at ~38 s. The default is therefore at most a tenth of
+    the time limit (12 s for 2 minutes, 90 s from 15 minutes on)."""
+    if opts.get("signal_delay_s") is not None:
+        return int(opts["signal_delay_s"])
+    return max(1, min(90, int(opts["timeout_min"]) * 6))
+
+
+def job_parameters(opts: dict, workers: int, cluster: str, figure: str) -> dict:
+    """What the driver passes to submitit's executor.update_parameters."""
+    setup = [f"export {k}=1" for k in THREAD_VARS] + list(opts["setup"])
+    params = dict(name=f"gbgrowth-{figure}", timeout_min=int(opts["timeout_min"]),
+                  cpus_per_task=1, tasks_per_node=1, nodes=1)
+    params[f"{cluster}_setup"] = setup
+    if cluster == "slurm":
+        params.update(mem_gb=opts["mem_gb"], slurm_partition=opts["partition"],
+                      slurm_array_parallelism=workers, slurm_signal_delay_s=signal_delay(opts))
+    return params
+
+
+def queued_jobs() -> set[str] | None:
+    """The ids of this user's jobs SLURM still lists (pending, running, completing; array tasks
+    one by one), or None when squeue does not answer. Unlike sacct it needs no accounting."""
+    try:
+        out = subprocess.run(["squeue", "-h", "-r", "-o", "%i", "-u", getpass.getuser()],
+                             capture_output=True, text=True, timeout=60, check=True).stdout
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return set(out.split())
+
+
 def submitit_results(todo: list[dict], workers: int, fn, cluster: str = "slurm", options=None,
                      logs=None):
-    """The trials in shards, one array job each, `workers` at a time; yield each job's results
-    when it ends (a failed job: its trials as failed results)."""
+    """The trials in shards, one array job each, `workers` at a time; yield each trial's result
+    as its job spools it, and a failed or lost job's unfinished trials as failed results."""
     import submitit
 
     opts = dict(SLURM_DEFAULTS)
@@ -182,38 +297,111 @@ def submitit_results(todo: list[dict], workers: int, fn, cluster: str = "slurm",
     folder = Path(logs) if logs else REPO_ROOT / "outputs" / "logs" / "submitit"
     folder.mkdir(parents=True, exist_ok=True)
     executor = submitit.AutoExecutor(folder=str(folder / "%j"), cluster=cluster)
-    setup = [f"export {k}=1" for k in THREAD_VARS] + list(opts["setup"])
-    params = dict(name=f"gbgrowth-{todo[0]['figure']}", timeout_min=int(opts["timeout_min"]),
-                  cpus_per_task=1, tasks_per_node=1, nodes=1)
-    params[f"{cluster}_setup"] = setup
-    if cluster == "slurm":
-        params.update(mem_gb=opts["mem_gb"], slurm_partition=opts["partition"],
-                      slurm_array_parallelism=workers)
-    executor.update_parameters(**params)
-    jobs = executor.map_array(run_shard, [fn] * len(parts), parts)
-    pending = dict(zip(jobs, parts))
+    executor.update_parameters(**job_parameters(opts, workers, cluster,
+                                                todo[0]["figure"]))
+    jobs = executor.map_array(Shard(fn, str(folder / "spool")), parts)
     poll = LOCAL_POLL_S if cluster == "local" else float(opts["poll_s"])
+    slurm = cluster == "slurm"  # a local job's watcher asks no one (its update() raises)
+    once = OnceFilter("Bypassing sacct error")  # no accounting: say so once, not every poll
+    logging.getLogger("submitit").addFilter(once)
+    try:
+        yield from watch(jobs, parts, folder / "spool", poll=poll, lost_s=float(opts["lost_s"]),
+                         queued=queued_jobs if slurm else None,
+                         refresh=jobs[0].watcher.update if slurm else None)
+    finally:
+        logging.getLogger("submitit").removeFilter(once)
+
+
+class OnceFilter(logging.Filter):
+    """Lets the first log record containing `text` through, drops the ones after it."""
+
+    def __init__(self, text: str):
+        super().__init__()
+        self.text, self.seen = text, False
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if self.text not in record.getMessage():
+            return True
+        seen, self.seen = self.seen, True
+        return not seen
+
+
+def watch(jobs, parts, spool_dir, poll: float, lost_s: float, queued=None, refresh=None):
+    """Yield (trial, result) for the trials of submitit `jobs` (one per part) until every job
+    has ended, been lost, or handed over all its trials.
+
+    Every `poll` seconds: `refresh` (one sacct for all jobs; submitit's own watcher waits up to
+    10 minutes between calls), the spooled results, and, with `queued` (squeue), the jobs SLURM no
+    longer lists. A job not listed for `lost_s` seconds that left no result is lost: without
+    accounting submitit never calls it done, and the driver would wait forever."""
+    pending = {job: {t["key"]: t for t in part} for job, part in zip(jobs, parts)}
+    keys = {job: list(left) for job, left in pending.items()}
+    gone_since: dict = {}
+    no_result: dict = {}
     try:
         while pending:
-            finished = [j for j in pending if j.done()]
-            if not finished:
+            if refresh is not None:
+                refresh()  # the driver's poll_s, not submitit's back-off
+            listed = queued() if queued else None
+            now = time.monotonic()
+            for job, left in list(pending.items()):
+                for key in list(left):  # kept in the spool while the job lives (a requeue)
+                    result = spooled(spool_dir, key)
+                    if result is not None:
+                        yield left.pop(key), result
+                if left and listed is not None and job.job_id not in listed and not job.done():
+                    gone_since.setdefault(job, now)
+                    if now - gone_since[job] < lost_s:
+                        continue
+                    job.cancel(check=False)
+                    yield from lost(job, left, spool_dir,
+                                    f"job {job.job_id} ended without a result (not in squeue "
+                                    f"for {lost_s:.0f} s, state {job.state})")
+                elif left and not job.done():
+                    gone_since.pop(job, None)
+                    continue
+                elif left and not job.paths.result_pickle.exists():
+                    # ended (sacct: FAILED, CANCELLED...) without a result: wait RESULT_GRACE_S for
+                    # a slow shared file system, without holding up the other jobs (submitit's
+                    # result() would block 15 s)
+                    since = no_result.setdefault(job, now)
+                    if now - since < RESULT_GRACE_S:
+                        continue
+                    yield from lost(job, left, spool_dir, f"job {job.job_id} {job.state} without "
+                                    f"a result (its log: {job.paths.stderr})")
+                elif left:
+                    yield from ended(job, left, spool_dir)
+                del pending[job]
+                for key in keys[job]:
+                    spool_path(spool_dir, key).unlink(missing_ok=True)
+            if pending:
                 time.sleep(poll)
-                continue
-            for job in finished:
-                part = pending.pop(job)
-                try:
-                    results = job.result()
-                    if len(results) != len(part):
-                        raise RuntimeError(f"job {job.job_id} returned {len(results)} results "
-                                           f"for {len(part)} trials")
-                except Exception as err:  # noqa: BLE001 - failed, timed out, cancelled, lost
-                    tb = traceback.format_exc()
-                    results = [failed(t, f"job {job.job_id} {job.state}: "
-                                      f"{type(err).__name__}: {err}", tb=tb) for t in part]
-                yield from zip(part, results)
     finally:
         for job in pending:  # Ctrl-C, an error or a dropped generator: cancel the rest
             try:
                 job.cancel(check=False)
             except Exception:  # noqa: BLE001 - already finished or gone
                 pass
+
+
+def ended(job, left: dict, spool_dir):
+    """The results of a job that ended, for its trials not yet handed over (`left`)."""
+    try:
+        results = job.result()
+        by_key = {r["key"]: r for r in results}
+        missing = set(left) - set(by_key)
+        if missing:
+            raise RuntimeError(f"job {job.job_id} returned no result for {len(missing)} trials")
+    except Exception as err:  # noqa: BLE001 - failed, timed out, cancelled, lost
+        yield from lost(job, left, spool_dir, f"job {job.job_id} {job.state}: "
+                        f"{type(err).__name__}: {err}", traceback.format_exc())
+        return
+    for key, trial in left.items():
+        yield trial, by_key[key]
+
+
+def lost(job, left: dict, spool_dir, error: str, tb: str | None = None):
+    """A job that failed or was lost: what it spooled, and its other trials as failed."""
+    for key, trial in left.items():
+        result = spooled(spool_dir, key)
+        yield trial, result if result is not None else failed(trial, error, tb=tb)

@@ -167,7 +167,14 @@ class SlurmConf:
     mem_gb: float = 2.0  # --mem per job
     shards: Optional[int] = None  # array jobs; null: `workers`
     setup: list[str] = field(default_factory=list)  # shell lines before each job
-    poll_s: float = 10.0  # how often the driver asks SLURM about its jobs
+    poll_s: float = 10.0  # how often the driver asks SLURM (sacct, squeue) about its jobs
+    # SIGUSR2 this many seconds before --time (submitit's --signal=USR2@N). SLURM may send it up
+    # to 60 s earlier; a shard that gets it is requeued, keeping its finished trials. null:
+    # submitit's 90 s, but at most a tenth of timeout_min (so timeout_min=2 is not cut at ~30 s)
+    signal_delay_s: Optional[int] = None
+    # a job SLURM no longer lists (squeue) that left no result is lost after this many seconds:
+    # its unfinished trials fail and the run goes on (with or without accounting, no hang)
+    lost_s: float = 60.0
 
 
 @dataclass

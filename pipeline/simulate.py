@@ -22,15 +22,10 @@ from omegaconf import DictConfig, OmegaConf
 
 from . import cache, cli, execute, io
 from .plan import cost, plan, plan_conditions
+from .progress import Progress, fmt_duration  # noqa: F401 - fmt_duration: was here
 
 log = logging.getLogger("pipeline.simulate")
 WAIT_POLL_S = 2.0
-
-
-def fmt_duration(seconds: float) -> str:
-    seconds = int(round(seconds))
-    h, rest = divmod(seconds, 3600)
-    return f"{h}h{rest // 60:02d}m{rest % 60:02d}s" if h else f"{rest // 60}m{rest % 60:02d}s"
 
 
 @dataclass
@@ -46,25 +41,6 @@ class Summary:
         head = (f"[{self.figure}] {self.total} trials: {self.cached} cached, {self.ran} run, "
                 f"{len(self.failed)} failed or diverged")
         return [head] + [f"  FAILED {self.labels[k]}: {e}" for k, e in self.failed.items()]
-
-
-class Progress:
-    """done/total, elapsed and ETA (by the trials' estimated cost), one line per finished trial."""
-
-    def __init__(self, summary: Summary, todo: list[dict]):
-        self.s, self.start = summary, time.perf_counter()
-        self.total_cost, self.done_cost = sum(map(cost, todo)), 0.0
-
-    def update(self, trial: dict, result: dict) -> None:
-        s = self.s
-        self.done_cost += cost(trial)
-        elapsed = time.perf_counter() - self.start
-        eta = elapsed * (self.total_cost - self.done_cost) / self.done_cost if self.done_cost else 0
-        print(f"[{s.figure}] {s.cached + s.ran}/{s.total} trials done"
-              f"{f', {len(s.failed)} failed' if s.failed else ''}"
-              f" | elapsed {fmt_duration(elapsed)} | ETA {fmt_duration(eta)}"
-              f" | {s.labels[trial['key']]} {result['status']} in {result['seconds']:.1f} s",
-              file=sys.stderr, flush=True)
 
 
 def record(cache_dir, trial: dict, result: dict, summary: Summary) -> None:
@@ -167,7 +143,7 @@ def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = Non
     log.info("[%s] %d trials: %d cached, %d to run on %d worker(s)%s", figure, len(trials),
              summary.cached, len(mine), workers,
              f", {len(elsewhere)} being computed by another run" if elsewhere else "")
-    progress = Progress(summary, todo)
+    progress = Progress(summary, todo)  # a heartbeat line when nothing finishes for a while
     try:
         if mine:
             execute.warm_up(mine)
@@ -195,6 +171,7 @@ def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = Non
                 elsewhere.append(trial)
                 time.sleep(WAIT_POLL_S)
     finally:
+        progress.close()
         for c in claims.values():
             c.release()
     for j in jobs:

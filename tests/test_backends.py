@@ -4,6 +4,9 @@ The engines themselves run end to end in test_backends_slow.py (-m slow).
 """
 import importlib.util
 import random
+import tempfile
+from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
@@ -114,3 +117,138 @@ def test_unknown_backend_on_the_command_line_exits_2_with_one_line(tmp_path):
     assert lines[-1] == ("error: executor.backend='dask': choose one of local, ray, slurm, "
                          "submitit_local"), r.stderr
     assert len(lines) == 1 and not any(tmp_path.iterdir()), "refused before anything is written"
+
+
+# --- waiting for submitit jobs (what the real SLURM cluster showed; tests/test_engines_cluster.py)
+
+class FakeWatcher:
+    def __init__(self):
+        self.calls = 0
+
+    def update(self):
+        self.calls += 1
+
+
+class FakeJob:
+    """A submitit job that never ends by itself (a job killed on a cluster without accounting:
+    sacct fails, its state stays UNKNOWN, it leaves no result)."""
+    watcher = None
+
+    def __init__(self, job_id, results=None, folder=None):
+        self.job_id, self.results, self.cancelled = job_id, results, False
+        self.state = "UNKNOWN"
+        folder = Path(folder or tempfile.mkdtemp())
+        self.paths = SimpleNamespace(result_pickle=folder / f"{job_id}_result.pkl",
+                                     stderr=folder / f"{job_id}.err")
+        if results is not None:
+            self.paths.result_pickle.touch()
+
+    def done(self):
+        return self.results is not None
+
+    def result(self):
+        return self.results
+
+    def cancel(self, check=True):
+        self.cancelled = True
+
+
+def test_a_job_slurm_no_longer_lists_is_lost_after_lost_s_not_waited_for(tmp_path):
+    import time
+
+    FakeJob.watcher = FakeWatcher()
+    dead, fine = FakeJob("7_0"), FakeJob("7_1", results=[dict(key="b", status="ok")])
+    parts = [[dict(key="a")], [dict(key="b")]]
+    t0 = time.monotonic()
+    out = list(backends.watch([dead, fine], parts, tmp_path, poll=0.05, lost_s=0.3,
+                              queued=lambda: set(), refresh=FakeJob.watcher.update))
+    assert time.monotonic() - t0 < 5
+    got = {t["key"]: r for t, r in out}
+    assert got["b"]["status"] == "ok" and got["a"]["status"] == "failed"
+    assert got["a"]["error"].startswith("job 7_0 ended without a result") and dead.cancelled
+    assert FakeJob.watcher.calls >= 2  # sacct once per poll_s, not submitit's back-off
+
+
+def test_a_listed_job_is_waited_for_and_squeue_failing_loses_nothing(tmp_path):
+    FakeJob.watcher = FakeWatcher()
+    job = FakeJob("8_0")
+    gen = backends.watch([job], [[dict(key="a")]], tmp_path, poll=0.01, lost_s=0.0,
+                         queued=lambda: {"8_0"})
+    import threading
+    box = []
+    th = threading.Thread(target=lambda: box.append(next(gen)), daemon=True)
+    th.start()
+    th.join(0.5)
+    assert th.is_alive() and not box  # still waiting: the job is queued or running
+    backends.spool(tmp_path, "a", dict(key="a", status="ok"))  # its shard finishes the trial
+    th.join(5)
+    assert box and box[0][1]["status"] == "ok"
+    assert list(gen) == [] and not backends.spool_path(tmp_path, "a").exists()  # handed over
+    assert list(backends.watch([FakeJob("9_0", results=[dict(key="c", status="ok")])],
+                               [[dict(key="c")]], tmp_path, poll=0.01, lost_s=0.0,
+                               queued=lambda: None))[0][1]["status"] == "ok"
+
+
+def test_a_lost_job_hands_over_what_it_spooled(tmp_path):
+    FakeJob.watcher = FakeWatcher()
+    backends.spool(tmp_path / "s", "a", dict(key="a", status="ok", seconds=1.0))
+    job = FakeJob("3_0")
+    out = list(backends.watch([job], [[dict(key="a"), dict(key="b")]], tmp_path / "s",
+                              poll=0.01, lost_s=0.0, queued=lambda: set()))
+    assert {t["key"]: r["status"] for t, r in out} == {"a": "ok", "b": "failed"}
+
+
+def test_a_job_that_ended_without_a_result_fails_after_the_grace_without_blocking(tmp_path,
+                                                                                  monkeypatch):
+    import time
+
+    monkeypatch.setattr(backends, "RESULT_GRACE_S", 0.3)
+    dead = FakeJob("5_0", folder=tmp_path)
+    dead.done, dead.state = (lambda: True), "FAILED"  # sacct says FAILED, no result file
+    other = FakeJob("5_1", folder=tmp_path)
+    gen = backends.watch([dead, other], [[dict(key="a")], [dict(key="b")]], tmp_path / "s",
+                         poll=0.05, lost_s=60, queued=lambda: {"5_0", "5_1"})
+    backends.spool(tmp_path / "s", "b", dict(key="b", status="ok"))
+    t0 = time.monotonic()
+    first = next(gen)  # the other job's trial is not held up by the failed one
+    assert first[0]["key"] == "b" and time.monotonic() - t0 < 0.2
+    trial, result = next(gen)
+    assert trial["key"] == "a" and result["error"].startswith("job 5_0 FAILED without a result")
+    assert 0.25 < time.monotonic() - t0 < 3
+
+
+def test_a_requeued_shard_skips_the_trials_it_spooled(tmp_path):
+    calls = []
+
+    def fn(t):
+        calls.append(t["key"])
+        return dict(key=t["key"], status="ok" if t["key"] != "x" else "failed", seconds=0.0)
+
+    shard = backends.Shard(fn, str(tmp_path))
+    trials = [dict(key="a"), dict(key="x"), dict(key="b")]
+    assert [r["key"] for r in shard(trials)] == ["a", "x", "b"]
+    assert shard(trials)[0]["status"] == "ok"  # the same job again after a requeue
+    assert calls == ["a", "x", "b", "x"]  # a failed trial is not spooled: computed again
+    again = shard.checkpoint(trials)  # on SIGUSR2: the same shard, requeued
+    assert again.function is shard and again.args == (trials,)
+
+
+def test_the_signal_delay_leaves_a_short_time_limit_room():
+    opts = dict(backends.SLURM_DEFAULTS, timeout_min=2)
+    params = backends.job_parameters(opts, 2, "slurm", "fig4")
+    assert params["slurm_signal_delay_s"] == 12 and params["timeout_min"] == 2
+    assert backends.signal_delay(dict(opts, timeout_min=1440)) == 90  # submitit's default
+    assert backends.signal_delay(dict(opts, signal_delay_s=30)) == 30
+    cfg = compose(["executor=slurm", "executor.slurm.signal_delay_s=30",
+                   "executor.slurm.lost_s=5"])
+    assert cfg.executor.slurm.signal_delay_s == 30 and cfg.executor.slurm.lost_s == 5
+    assert "slurm_signal_delay_s" not in backends.job_parameters(opts, 2, "local", "fig4")
+
+
+def test_a_failing_sacct_is_reported_once_not_every_poll():
+    import logging
+
+    f = backends.OnceFilter("Bypassing sacct error")
+    rec = lambda msg: logging.LogRecord("submitit", logging.WARNING, "", 0, msg, None, None)  # noqa: E731
+    assert [f.filter(rec(m)) for m in ("Call #1 - Bypassing sacct error x", "other",
+                                       "Call #2 - Bypassing sacct error x")] == [True, True, False]

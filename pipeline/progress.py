@@ -1,0 +1,90 @@
+"""The simulate driver's progress lines: done/total, elapsed, ETA, and a heartbeat on a cluster.
+
+One line per finished trial, as locally. On a cluster trials finish in bursts (a SLURM shard's
+job spends ~15 s importing before its first trial; a queue can hold a job for hours), so when
+nothing has finished for `heartbeat_s` a thread adds a line saying the driver is alive, how long
+it has waited and how many trials are still out. Lines are plain text ending in a newline either
+way: a SLURM log or `tee` gets readable lines; on a terminal the heartbeat overwrites itself
+(carriage return) instead of filling the screen.
+"""
+from __future__ import annotations
+
+import sys
+import threading
+import time
+
+HEARTBEAT_S = 60.0
+
+
+def fmt_duration(seconds: float) -> str:
+    seconds = int(round(seconds))
+    h, rest = divmod(seconds, 3600)
+    return f"{h}h{rest // 60:02d}m{rest % 60:02d}s" if h else f"{rest // 60}m{rest % 60:02d}s"
+
+
+class Progress:
+    """done/total, elapsed and ETA (by the trials' estimated cost), one line per finished trial,
+    and a heartbeat line after `heartbeat_s` without one. `summary` is pipeline.simulate's
+    Summary (figure, total, cached, ran, failed, labels); close() stops the heartbeat."""
+
+    def __init__(self, summary, todo: list[dict], heartbeat_s: float = HEARTBEAT_S,
+                 stream=None, cost=None):
+        if cost is None:
+            from .plan import cost
+        self.s, self.cost, self.stream = summary, cost, stream or sys.stderr
+        self.start = self.last = time.perf_counter()
+        self.total_cost, self.done_cost = sum(map(cost, todo)), 0.0
+        self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
+        self.lock, self.stop = threading.Lock(), threading.Event()
+        self.beat, self.open_line = None, False
+        if heartbeat_s and todo:
+            self.beat = threading.Thread(target=self._heartbeat, args=(heartbeat_s,),
+                                         daemon=True, name="progress-heartbeat")
+            self.beat.start()
+
+    def head(self, elapsed: float) -> str:
+        s = self.s
+        eta = (elapsed * (self.total_cost - self.done_cost) / self.done_cost
+               if self.done_cost else None)
+        return (f"[{s.figure}] {s.cached + s.ran}/{s.total} trials done"
+                f"{f', {len(s.failed)} failed' if s.failed else ''}"
+                f" | elapsed {fmt_duration(elapsed)} | ETA "
+                f"{fmt_duration(eta) if eta is not None else '?'}")
+
+    def update(self, trial: dict, result: dict) -> None:
+        with self.lock:
+            self.done_cost += self.cost(trial)
+            now = time.perf_counter()
+            self.last = now
+            self._write(f"{self.head(now - self.start)} | {self.s.labels[trial['key']]} "
+                        f"{result['status']} in {result['seconds']:.1f} s")
+
+    def _heartbeat(self, every: float) -> None:
+        while not self.stop.wait(min(every, 5.0)):
+            with self.lock:
+                now = time.perf_counter()
+                if now - self.last < every:
+                    continue
+                left = self.s.total - self.s.cached - self.s.ran
+                self._write(f"{self.head(now - self.start)} | waiting: nothing finished for "
+                            f"{fmt_duration(now - self.last)}, {left} trial(s) running or "
+                            "queued", beat=True)
+                if not self.tty:
+                    self.last = now  # the next plain line after another `every` seconds
+
+    def _write(self, line: str, beat: bool = False) -> None:
+        if self.tty:  # a heartbeat rewrites itself; a trial's line replaces it
+            line = f"\r\x1b[K{line}" + ("" if beat else "\n")
+        else:
+            line += "\n"
+        self.open_line = self.tty and beat
+        self.stream.write(line)
+        self.stream.flush()
+
+    def close(self) -> None:
+        self.stop.set()
+        if self.beat is not None:
+            self.beat.join()
+        if self.open_line:  # a heartbeat on a terminal ends without a newline
+            self.stream.write("\n")
+            self.stream.flush()
