@@ -8,12 +8,17 @@ Writes under paths.report (all bytes reproducible, no timestamps, only relative 
     fig3_postures.png/.pdf     target grid vs reached grid with postures, 5-DOF arm (Fig. 3)
     fig6_postures.png/.pdf     the same for the iCub (Fig. 6)
     summary.csv, summary.md    per condition: final errors, peak during growth, failures, paper
+    scorecard.png, scorecard.csv  each claim of the paper on each figure: the verdict of its 95 %
+                               interval over trials (pipeline/studies/scorecard.py)
     claims.csv                 each claim of the paper, what was measured, and the verdict
     choices.csv, choices.md    the open choices (experiments choices_*): each variant's effect
     conventions.csv            the reporting conventions: each alternative's effect, measured
     curves.parquet             the aggregated learning curves of every figure, in one table
     report.md                  the above, and the list of every file this stage writes
-It reads only the aggregate stage's output, never the cache. It writes into paths.report; only
+The paper's claims are checked only on the experiments that declare them (`paper.claims: true`
+in conf/experiment/*.yaml); any other figure is reported by its curves, summary and postures, under
+a title that names it. It reads only the aggregate stage's output, never the cache, and runs no
+trial. It writes into paths.report; only
 `report.publish=true` (make reproduce) writes the committed report, paths.published, and only
 when every paper experiment is aggregated at its full scale.
 """
@@ -29,22 +34,30 @@ import pandas as pd
 from omegaconf import DictConfig, OmegaConf
 
 from . import cli, io
-from .studies import baselines, choices, claims, conventions, explain, figures, readings
+from .studies import (baselines, choices, claims, conventions, explain, figures, readings,
+                      scorecard)
 from .config import ConfigError
 
 log = logging.getLogger("pipeline.report")
 
 
 def load_aggregates(folder: Path) -> dict:
-    """figure -> dict(curves, summary, models) for every aggregated figure, sorted by name."""
+    """figure -> dict(curves, summary, trials, models) for every aggregated figure, sorted by
+    name (trials: every trial's curve, for the scorecard's intervals)."""
     out = {}
     for fig_dir in sorted(p for p in Path(folder).iterdir() if (p / "summary.parquet").exists()):
         out[fig_dir.name] = dict(
             curves=pd.read_parquet(fig_dir / "curves.parquet"),
             summary=pd.read_parquet(fig_dir / "summary.parquet"),
+            trials=pd.read_parquet(fig_dir / "trials.parquet"),
             models=json.loads((fig_dir / "models.json").read_text()),
         )
     return out
+
+
+def declares_claims(agg: dict) -> bool:
+    """Whether the figure's experiment declares the paper's claims (paper.claims: true)."""
+    return bool(agg["models"].get("paper", {}).get("claims", False))
 
 
 def check_published_scale(cfg: DictConfig, aggs: dict) -> None:
@@ -94,6 +107,19 @@ def summary_markdown(summary: pd.DataFrame) -> str:
     return "\n".join(lines) + "\n"
 
 
+def report_title(cfg: DictConfig, aggs: dict) -> str:
+    """The committed report is the reproduction; any other report is titled by its experiments
+    and, at a reduced scale (report.scale, set by a profile), says so."""
+    if cfg.report.publish:
+        return "Reproduction of Rolf, Steil & Gienger (2010): Goal Babbling on growing bodies"
+    names = ", ".join(aggs)
+    if cfg.report.scale:
+        return f"{cfg.report.scale.capitalize()} run (not the paper's scale): {names}"
+    if not any(declares_claims(a) for a in aggs.values()):
+        return f"Experiment {names}"
+    return f"Paper experiments at a custom scale: {names}"
+
+
 def _title(figure: str, agg: dict) -> str:
     return agg["models"].get("paper", {}).get("title") or f"{figure}"
 
@@ -111,6 +137,21 @@ def _stages_figure(agg: dict) -> tuple | None:
         stages = [(f"({chr(97 + i)}) {label}", M) for i, (label, M) in enumerate(stages)]
         return cond["spec"], stages
     return None
+
+
+def _trial_stages(agg: dict) -> list[list]:
+    """Each trial's M at every stage of _stages_figure (snapshots, then the final M), for the
+    scorecard's interval over Fig. 2's trials."""
+    for cond in agg["models"]["conditions"].values():
+        out = []
+        for _, trial in sorted(cond["trials"].items(), key=lambda kv: int(kv[0])):
+            ms = [M for _, M in sorted(trial["snapshots"].items(), key=lambda kv: int(kv[0]))]
+            if str(cond["spec"]["epochs"]) not in trial["snapshots"]:
+                ms.append(trial["M"])
+            out.append(ms)
+        if out:
+            return out
+    return []
 
 
 def _posture_panels(aggs: dict, wanted) -> list:
@@ -132,6 +173,7 @@ def report(cfg: DictConfig) -> list[Path]:
     if cfg.report.publish:
         check_published_scale(cfg, aggs)
     out = Path(cfg.paths.published if cfg.report.publish else cfg.paths.report)
+    title = report_title(cfg, aggs)
     studies = {k: a for k, a in aggs.items() if k in readings.STUDIES}
     rivals = {k: a for k, a in aggs.items() if k in baselines.STUDIES}
     chosen = {k: a for k, a in aggs.items() if k not in studies and k not in rivals
@@ -177,14 +219,28 @@ def report(cfg: DictConfig) -> list[Path]:
     io.write_text(out / "summary.md", table_md)
     written += [out / "summary.csv", out / "summary.md"]
 
+    declared = {k: a for k, a in aggs.items() if declares_claims(a)}
     claim_rows = []
-    for name, agg in aggs.items():
+    for name, agg in declared.items():
         if (agg["summary"]["growth"] != "none").any():
             claim_rows += claims.growth_claims(name, agg["curves"], agg["summary"])
-    if stages is not None:
+    judge_stages = stages is not None and js in declared
+    if judge_stages:
         claim_rows += claims.stage_claims(js, *stages)
-    io.write_text(out / "claims.csv", pd.DataFrame(claim_rows).to_csv(index=False))
-    written.append(out / "claims.csv")
+    card_md = ""
+    if claim_rows:
+        io.write_text(out / "claims.csv", pd.DataFrame(claim_rows).to_csv(index=False))
+        written.append(out / "claims.csv")
+        measures = scorecard.results(declared, dict(
+            figure=js, spec=stages[0], trials=_trial_stages(aggs[js])) if judge_stages else None)
+        cards = scorecard.cells(measures)
+        io.write_text(out / "scorecard.csv", pd.DataFrame(measures).to_csv(
+            index=False, float_format="%.6g"))
+        with figures.plt.rc_context(rc):
+            written += [out / "scorecard.csv"] + figures.save(scorecard.figure(
+                cards, f"{title}: the paper's claims, 95 % intervals over trials"),
+                out / "scorecard", dpi)
+        card_md = scorecard.markdown(cards, measures)
     if aggs:
         curves = pd.concat([a["curves"] for a in aggs.values()], ignore_index=True)
         io.write_table(out / "curves.parquet", io.frame_to_table(curves))
@@ -195,14 +251,21 @@ def report(cfg: DictConfig) -> list[Path]:
         io.write_text(out / "choices.md", choices.markdown(choice_table, chosen))
         written += [out / "choices.csv", out / "choices.md"]
 
-    md = ["# Reproduction of Rolf, Steil & Gienger (2010): Goal Babbling on growing bodies", "",
-          "Generated by `python -m pipeline.report` from `pipeline.aggregate`'s tables; "
-          "`make reproduce` regenerates everything. Errors: mean over trials (± standard "
+    md = [f"# {title}", "",
+          "Generated by `python -m pipeline.report` from `pipeline.aggregate`'s tables"
+          + ("; `make reproduce` regenerates everything" if cfg.report.publish else "")
+          + ". Errors: mean over trials (± standard "
           "deviation); curves: mean with the inter-quartile band. A trial *failed to bootstrap* "
           f"when its final relative error exceeds {cfg.aggregate.fail_factor:g} times the median "
           "of its condition.", ""]
-    md += ["## The paper's claims, measured", "",
-           claims.CRITERIA, "", claims.markdown(claim_rows)]
+    if claim_rows:
+        md += ["## Scorecard: the paper's claims, with their uncertainty", "",
+               "![scorecard](scorecard.png)", "", card_md,
+               "Each cell: the verdict of the measure that decides it, its value on the mean over "
+               "trials and its 95 % interval (`scorecard.csv` holds every measure); "
+               "pipeline/studies/scorecard.py says how.", ""]
+        md += ["## The paper's claims, measured on the mean (the pre-set criteria)", "",
+               claims.CRITERIA, "", claims.markdown(claim_rows)]
     if cfg.report.stamp_findings:
         stamp_findings(summary, claim_rows)
     if cfg.report.explain:
@@ -236,7 +299,7 @@ def report(cfg: DictConfig) -> list[Path]:
         written.extend([out / f"{name}.csv"] + paths)
         return paths[0].name
 
-    reading_table = readings.table(studies)
+    reading_table = readings.table({k: a for k, a in studies.items() if declares_claims(a)})
     if len(reading_table):
         png = study("readings", reading_table, readings.figure(
             studies, "Readings of the paper: absolute error of every condition (mean over "
