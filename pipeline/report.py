@@ -39,6 +39,7 @@ from .studies import (baselines, choices, claims, conventions, explain, figures,
 from .config import ConfigError
 
 log = logging.getLogger("pipeline.report")
+MAX_PANELS = 4  # posture panels of a figure that report.postures does not name
 
 
 def load_aggregates(folder: Path) -> dict:
@@ -180,6 +181,7 @@ def report(cfg: DictConfig) -> list[Path]:
               and a["summary"]["choice"].astype(bool).any()}
     aggs = {k: a for k, a in aggs.items()
             if k not in chosen and k not in studies and k not in rivals}
+    declared = {k: a for k, a in aggs.items() if declares_claims(a)}
     rc, dpi = figures.RC, cfg.report.dpi
     written, sections = [], []
     js = cfg.report.joint_space_figure  # Fig. 2: stages in a joint space over one target axis
@@ -202,11 +204,19 @@ def report(cfg: DictConfig) -> list[Path]:
                 "(contours: equal hand height)")
             extra.append(("Fig. 2: stages of learning (joint space)",
                           figures.save(fig, out / f"{js}_stages", dpi)))
-        for name, wanted in OmegaConf.to_container(cfg.report.postures).items():
+        posture_sets = OmegaConf.to_container(cfg.report.postures)
+        posture_sets = {name: wanted for name, wanted in posture_sets.items()
+                        if any(f in declared for f, _ in wanted)}
+        drawn = {f for wanted in posture_sets.values() for f, _ in wanted if f in aggs}
+        for name in aggs:  # every other figure: trial 0 of each of its first conditions
+            if name not in drawn and name != js:
+                posture_sets[name] = [[name, c] for c in
+                                      list(aggs[name]["models"]["conditions"])[:MAX_PANELS]]
+        for name, wanted in posture_sets.items():
             panels = _posture_panels(aggs, wanted)
             if panels:
-                fig = figures.postures(panels, f"{name}: target grid (grey), reached grid "
-                                       "(black), postures")
+                fig = figures.postures(panels, f"{name}: targets, reached positions and "
+                                       "postures at the final size")
                 extra.append((f"{name}: targets, reached positions and postures",
                               figures.save(fig, out / f"{name}_postures", dpi)))
     for _, paths in extra:
@@ -219,7 +229,6 @@ def report(cfg: DictConfig) -> list[Path]:
     io.write_text(out / "summary.md", table_md)
     written += [out / "summary.csv", out / "summary.md"]
 
-    declared = {k: a for k, a in aggs.items() if declares_claims(a)}
     claim_rows = []
     for name, agg in declared.items():
         if (agg["summary"]["growth"] != "none").any():
