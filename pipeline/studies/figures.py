@@ -82,6 +82,7 @@ def learning_curves(curves, summary, title: str, log_y: bool = True, paper_abs=N
             ax.fill_between(cu["epoch"], cu[f"{col}_q25"], cu[f"{col}_q75"], color=st["color"],
                             alpha=0.15, lw=0)
             ax.plot(cu["epoch"], cu[f"{col}_mean"], label=condition_label(row), lw=1.3, **st)
+        mark_growth_end(ax, summary, styles)
         ax.set_xscale("log")
         if log_y:
             ax.set_yscale("log")
@@ -93,11 +94,29 @@ def learning_curves(curves, summary, title: str, log_y: bool = True, paper_abs=N
         axes[0].legend(handles=[line], loc="lower left", frameon=False)
     axes[0].set_title("(a) absolute error")
     axes[1].set_title("(b) relative error")
-    axes[1].legend(loc="best", frameon=False)
+    handles = axes[1].get_legend_handles_labels()[0]
+    if (summary["growth"] != "none").any():
+        handles.append(growth_end_handle())
+    axes[1].legend(handles=handles, loc="best", frameon=False)
     n = int(summary["n_trials"].max()) if len(summary) else 0
     fig.suptitle(f"{title} (mean and quartiles over {n} trials)")
     fig.tight_layout()
     return fig
+
+
+def mark_growth_end(ax, summary, styles) -> None:
+    """The end of growth (epoch T_G) of every growing condition, a thin vertical line in its
+    colour, so that "during growth" can be read off the curves."""
+    for _, row in summary[summary["growth"] != "none"].iterrows():
+        if 0 < row["growth_period"] <= row.get("epochs", np.inf):  # growth that ends in the run
+            ax.axvline(row["growth_period"], color=styles[row["condition"]]["color"], lw=0.7,
+                       ls=(0, (1, 2)), alpha=0.8)
+
+
+def growth_end_handle():
+    """The legend entry of mark_growth_end's lines."""
+    return plt.Line2D([], [], color="0.3", lw=0.7, ls=(0, (1, 2)),
+                      label="end of growth (T_G)")
 
 
 def final_body(spec: dict) -> tuple:

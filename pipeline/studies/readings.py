@@ -107,13 +107,16 @@ def markdown(t: pd.DataFrame) -> str:
 
 def figure(aggs: dict, title: str):
     """The key curves side by side: absolute error of every condition, one panel per figure and
-    reading (rows: figures, columns: readings)."""
+    reading (rows: figures, columns: readings), the end of growth marked, one legend below."""
+    import textwrap
+
     studies = [s for s in STUDIES if s in aggs]
     per = {s: split(aggs[s]) for s in studies}
     readings = list(dict.fromkeys(r for s in studies for r in per[s]))
     fig, axes = figures.plt.subplots(len(studies), len(readings), squeeze=False,
-                                     figsize=(2.5 * len(readings), 2.3 * len(studies)),
+                                     figsize=(2.7 * len(readings), 2.5 * len(studies) + 1.4),
                                      sharex=True)
+    handles = {}
     for i, s in enumerate(studies):
         for j, reading in enumerate(readings):
             ax = axes[i, j]
@@ -124,12 +127,20 @@ def figure(aggs: dict, title: str):
             styles = figures.condition_styles(sv)
             for row in sv.itertuples():
                 cu = cv[cv["condition"] == row.condition].sort_values("epoch")
-                ax.plot(cu["epoch"], cu["abs_error_mean"], lw=1.0, **styles[row.condition])
+                label = figures.condition_label(row._asdict())
+                (line,) = ax.plot(cu["epoch"], cu["abs_error_mean"], lw=1.0, label=label,
+                                  **styles[row.condition])
+                handles.setdefault(label, line)
+            figures.mark_growth_end(ax, sv, styles)
             ax.set(xscale="log", yscale="log")
-            if i == 0:
-                ax.set_title(reading if len(reading) < 34 else reading[:31] + "...", fontsize=7)
+            ax.set_title(textwrap.fill(f"{STUDIES[s]}: {reading}", 30), fontsize=8)
             if j == 0:
-                ax.set_ylabel(f"{STUDIES[s]}: abs. error [m]")
+                ax.set_ylabel("absolute error [m]")
+            if i == len(studies) - 1:
+                ax.set_xlabel("epoch")
+    handles["end of growth (T_G)"] = figures.growth_end_handle()
+    fig.legend(handles=list(handles.values()), labels=list(handles), loc="lower center",
+               ncol=min(len(handles), 7), frameon=False)
     fig.suptitle(title)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.6 / (2.5 * len(studies) + 1.4), 1, 1))
     return fig
