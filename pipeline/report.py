@@ -177,10 +177,11 @@ def report(cfg: DictConfig) -> list[Path]:
     title = report_title(cfg, aggs)
     studies = {k: a for k, a in aggs.items() if k in readings.STUDIES}
     rivals = {k: a for k, a in aggs.items() if k in baselines.STUDIES}
+    explained = {k: a for k, a in aggs.items() if k in explain.STUDIES}
     chosen = {k: a for k, a in aggs.items() if k not in studies and k not in rivals
-              and a["summary"]["choice"].astype(bool).any()}
+              and k not in explained and a["summary"]["choice"].astype(bool).any()}
     aggs = {k: a for k, a in aggs.items()
-            if k not in chosen and k not in studies and k not in rivals}
+            if k not in chosen and k not in studies and k not in rivals and k not in explained}
     declared = {k: a for k, a in aggs.items() if declares_claims(a)}
     rc, dpi = figures.RC, cfg.report.dpi
     written, sections = [], []
@@ -278,15 +279,15 @@ def report(cfg: DictConfig) -> list[Path]:
     if cfg.report.stamp_findings:
         stamp_findings(summary, claim_rows)
     if cfg.report.explain:
-        rows = explain.rows(aggs)
+        rows = explain.rows({**aggs, **explained})
         if rows:
             io.write_text(out / "explanations.csv", pd.DataFrame(rows).to_csv(index=False))
             written.append(out / "explanations.csv")
             md += ["## Decisive experiments behind the explanations", "",
-                   "Computed by the report stage from the final models (pipeline/studies/explain.py): "
-                   "what a cubic can reach when fitted directly (the capacity bound), the 2-DOF "
-                   "arm learned with its extremes away from the stretched arm, and the iCub's "
-                   "models continued at a smaller learning rate.", "",
+                   "Read from the aggregated experiments explain_* (conf/experiment/, "
+                   "pipeline/studies/explain.py): what a cubic can reach when fitted directly "
+                   "(the capacity bound), the 2-DOF arm learned with its extremes away from the "
+                   "stretched arm, and the iCub continued at a smaller learning rate.", "",
                    "| figure | experiment | measured |", "|---|---|---|"]
             md += [f"| {r['figure']} | {r['experiment']} | {r['measured']} |" for r in rows]
             md += [""]
