@@ -61,22 +61,32 @@ def declares_claims(agg: dict) -> bool:
     return bool(agg["models"].get("paper", {}).get("claims", False))
 
 
-def check_published_scale(cfg: DictConfig, aggs: dict) -> None:
-    """report.publish=true: every experiment of report.paper_experiments must be aggregated with
-    exactly the trials its full-scale plan lists; otherwise ConfigError (nothing is written)."""
+def scale_mismatches(cfg: DictConfig, aggs: dict, experiments) -> list[str]:
+    """For each of `experiments` whose figure is not aggregated with exactly the trials of its
+    full-scale plan, one line saying so (an empty list: all at the paper's scale)."""
     from .config import compose
     from .plan import plan
 
-    for exp in cfg.report.paper_experiments:
+    out = []
+    for exp in experiments:
         want = {t["key"] for t in plan(compose([f"experiment={exp}", "profile=full"]))}
         fig = compose([f"experiment={exp}"]).figure
         have = {t["key"] for c in aggs.get(fig, {}).get("models", {}).get("conditions", {}).values()
                 for t in c["trials"].values()}
         if want != have:
-            raise ConfigError(
-                f"report.publish=true: {fig} holds {len(want & have)} of the {len(want)} trials of "
-                f"experiment={exp} at full scale (and {len(have - want)} others); the committed "
-                "report is written only by make reproduce at the paper's scale")
+            out.append(f"{fig} holds {len(want & have)} of the {len(want)} trials of "
+                       f"experiment={exp} at full scale (and {len(have - want)} others)")
+    return out
+
+
+def check_published_scale(cfg: DictConfig, aggs: dict) -> None:
+    """report.publish=true: every experiment of report.paper_experiments must be aggregated with
+    exactly the trials its full-scale plan lists; otherwise ConfigError (nothing is written)."""
+    bad = scale_mismatches(cfg, aggs, cfg.report.paper_experiments)
+    if bad:
+        raise ConfigError(
+            f"report.publish=true: {bad[0]}; the committed report is written only by make "
+            "reproduce at the paper's scale")
 
 
 def _mm(v) -> str:
@@ -109,16 +119,20 @@ def summary_markdown(summary: pd.DataFrame) -> str:
 
 
 def report_title(cfg: DictConfig, aggs: dict) -> str:
-    """The committed report is the reproduction; any other report is titled by its experiments
-    and, at a reduced scale (report.scale, set by a profile), says so."""
-    if cfg.report.publish:
-        return "Reproduction of Rolf, Steil & Gienger (2010): Goal Babbling on growing bodies"
+    """A report is "Reproduction of ..." only when every figure that declares the paper's claims
+    holds its experiment's full-scale trials; any other report is titled by its experiments and
+    says what it is: a reduced scale (report.scale, set by a profile), a custom scale, or an
+    experiment of one's own (no paper claims)."""
     names = ", ".join(aggs)
     if cfg.report.scale:
         return f"{cfg.report.scale.capitalize()} run (not the paper's scale): {names}"
-    if not any(declares_claims(a) for a in aggs.values()):
+    declared = [k for k, a in aggs.items() if declares_claims(a)]
+    if not declared:
         return f"Experiment {names}"
-    return f"Paper experiments at a custom scale: {names}"
+    experiments = [e for e in cfg.report.paper_experiments if e in declared]
+    if len(experiments) == len(declared) and not scale_mismatches(cfg, aggs, experiments):
+        return "Reproduction of Rolf, Steil & Gienger (2010): Goal Babbling on growing bodies"
+    return f"Paper experiments at a custom scale (not the paper's): {names}"
 
 
 def _title(figure: str, agg: dict) -> str:

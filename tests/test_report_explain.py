@@ -43,3 +43,6 @@ def test_the_report_stage_starts_no_trial(tmp_path, monkeypatch):
     text = (tmp_path / "outputs" / "latest" / "report.md").read_text()
     assert "boundary (explain_fig2_boundary)" in text
     assert "continuation (explain_fig7_continuation)" in text
+    # Fig. 2 at 20 epochs declares the paper's claims, but is not the paper's scale: it says so
+    assert text.startswith("# Paper experiments at a custom scale (not the paper's): ")
+    assert "Reproduction" not in text.splitlines()[0]
