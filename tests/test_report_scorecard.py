@@ -99,3 +99,23 @@ def test_the_scorecard_figure_draws_every_cell(tmp_path):
     fig = sc.figure(cards, "scorecard")
     assert len(fig.axes[0].patches) == len(cards["claim"].unique()) * 2
     fig.savefig(tmp_path / "s.png")
+
+
+def test_each_reading_of_the_readings_study_gets_its_own_intervals():
+    from pipeline.studies import readings
+    parts = {"tight": _figure(6, 0.01), "noisy": _figure(3, 0.8)}
+    trials, summaries = [], []
+    for label, f in parts.items():
+        t, s = f["trials"].copy(), f["summary"].copy()
+        t["condition"] = label + " | " + t["condition"]
+        s["condition"] = label + " | " + s["condition"]
+        s["variant"] = label
+        trials.append(t)
+        summaries.append(s)
+    agg = dict(trials=pd.concat(trials), summary=pd.concat(summaries))
+    t = readings.intervals({"readings_fig4": agg}).set_index(["reading", "claim"])
+    assert t.loc[("tight", "rise"), "verdict"] == sc.REPRODUCED
+    assert t.loc[("tight", "rise"), "trials"] == 6
+    assert t.loc[("noisy", "rise"), "verdict"] != sc.REPRODUCED  # the spread hides the rise
+    md = readings.intervals_markdown(readings.intervals({"readings_fig4": agg}))
+    assert "(6 trials per condition and reading)" in md and "| noisy |" in md

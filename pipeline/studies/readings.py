@@ -15,7 +15,7 @@ import gbmodel
 from gbmodel.learners import goal_babbling as gb
 from gbmodel.learners.goal_babbling import reference
 
-from . import claims, figures
+from . import claims, figures, scorecard
 from .choices import escape
 
 STUDIES = {"readings_fig4": "fig4", "readings_fig5": "fig5", "readings_fig7": "fig7"}
@@ -57,6 +57,48 @@ def split(agg: dict) -> dict:
         cv["condition"] = cv["condition"].map(rename)
         out[label] = (cv, sv)
     return out
+
+
+def _rename(frame: pd.DataFrame, names: list) -> pd.DataFrame:
+    f = frame[frame["condition"].isin(names)].copy()
+    f["condition"] = f["condition"].map({n: n.split(" | ", 1)[-1] for n in names})
+    return f
+
+
+def intervals(aggs: dict) -> pd.DataFrame:
+    """One row per (figure, reading, claim): the scorecard's verdict with its 95 % interval over
+    the reading's trials (pipeline/studies/scorecard.py), the measure that decides it."""
+    rows = []
+    for study, fig in STUDIES.items():
+        if study not in aggs or "trials" not in aggs[study]:
+            continue
+        s = aggs[study]["summary"]
+        for label in s["variant"].drop_duplicates():
+            names = s[s["variant"] == label]["condition"].tolist()
+            tests = scorecard.growth_tests(fig, _rename(aggs[study]["trials"], names),
+                                           _rename(s, names))
+            cards = scorecard.cells([scorecard.run_test(t) for t in tests])
+            rows += [dict(c, reading=label) for c in cards.to_dict("records")]
+    return pd.DataFrame(rows)
+
+
+def intervals_markdown(t: pd.DataFrame) -> str:
+    """Per figure: rows = readings, columns = claims, cells = verdict, value and interval."""
+    lines = []
+    for fig, tf in t.groupby("figure", sort=False):
+        cl = [c for c, _, _ in scorecard.CLAIMS if c in set(tf["claim"])]
+        lines += [f"### {fig}: verdicts with their 95 % intervals "
+                  f"({int(tf[tf['claim'] != 'bootstrap']['trials'].max())} trials per condition "
+                  "and reading)", "",
+                  "| reading | " + " | ".join(escape(scorecard.TITLES[c]) for c in cl) + " |",
+                  "|---|" + "---|" * len(cl)]
+        for reading, tr in tf.groupby("reading", sort=False):
+            cells = {r["claim"]: escape(scorecard.cell_text(r, "<br>"))
+                     for r in tr.to_dict("records")}
+            lines.append(f"| {escape(reading)} | " + " | ".join(cells.get(c, "")
+                                                                for c in cl) + " |")
+        lines.append("")
+    return "\n".join(lines)
 
 
 def table(aggs: dict) -> pd.DataFrame:
