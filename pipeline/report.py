@@ -10,7 +10,10 @@ Writes under paths.report (all bytes reproducible, no timestamps, only relative 
     summary.csv, summary.md    per condition: final errors, peak during growth, failures, paper
     scorecard.png, scorecard.csv  each claim of the paper on each figure: the verdict of its 95 %
                                interval over trials (pipeline/studies/scorecard.py)
-    claims.csv                 each claim of the paper, what was measured, and the verdict
+    claims.csv                 each claim of the paper, what was measured, and the verdict on the
+                               mean (the pre-set criteria)
+    readings.csv, readings_scorecard.csv, readings_curves.png   the readings x claims study
+    explanations.csv           the decisive experiments explain_*, read from their aggregates
     choices.csv, choices.md    the open choices (experiments choices_*): each variant's effect
     conventions.csv            the reporting conventions: each alternative's effect, measured
     curves.parquet             the aggregated learning curves of every figure, in one table

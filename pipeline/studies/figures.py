@@ -231,7 +231,7 @@ def postures(panels: list[tuple[str, dict, list]], title: str, n_postures: int =
                                    label=f"{n_postures} postures (links, base to hand)")],
                loc="lower center", ncol=3, frameon=False)
     fig.suptitle(title)
-    fig.tight_layout(rect=(0, 0.07, 1, 1))
+    fig.tight_layout(rect=(0, 0.07, 1, 0.93))  # room for the legend below, the title above
     return fig
 
 
