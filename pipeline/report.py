@@ -265,7 +265,7 @@ def report(cfg: DictConfig) -> list[Path]:
             index=False, float_format="%.6g"))
         with figures.plt.rc_context(rc):
             written += [out / "scorecard.csv"] + figures.save(scorecard.figure(
-                cards, f"{title}: the paper's claims, 95 % intervals over trials"),
+                cards, title.split(":")[0] + ": the paper's claims, 95 % intervals over trials"),
                 out / "scorecard", dpi)
         card_md = scorecard.markdown(cards, measures)
     if aggs:
