@@ -176,7 +176,8 @@ def _posture_panels(aggs: dict, wanted) -> list:
     panels = []
     for figure, condition in wanted:
         cond = aggs.get(figure, {}).get("models", {}).get("conditions", {}).get(condition)
-        if cond and "0" in cond["trials"]:
+        # a posture needs a polynomial inverse M (Goal Babbling's); other learners have none
+        if cond and "0" in cond["trials"] and "degree" in cond["spec"]["learner"]:
             label = f"{figure} {condition}, trial 0"
             panels.append((label, cond["spec"], cond["trials"]["0"]["M"]))
     return panels

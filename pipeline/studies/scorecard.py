@@ -152,6 +152,16 @@ def _per_trial(trials: pd.DataFrame, condition: str, column: str) -> tuple[np.nd
     return p.columns.to_numpy(), p.to_numpy()
 
 
+def _at(epochs: np.ndarray, ref: tuple) -> np.ndarray:
+    """A reference's values (trial, epoch) at `epochs`; every epoch must be among its own (the
+    conditions of a figure are evaluated at the same epochs)."""
+    idx = np.searchsorted(ref[0], epochs)
+    if np.any(idx >= len(ref[0])) or not np.array_equal(ref[0][np.minimum(idx, len(ref[0]) - 1)],
+                                                          epochs):
+        raise ValueError("a reference condition lacks some epochs of the growing one")
+    return ref[1][:, idx]
+
+
 def _rebound(v):
     """The largest rise above the running minimum, relative to it, along the last axis."""
     return (v / np.minimum.accumulate(v, axis=-1) - 1).max(axis=-1)
@@ -193,16 +203,14 @@ def growth_tests(figure: str, trials: pd.DataFrame, summary: pd.DataFrame) -> li
         if required:
             tests.append(Test(figure, "rise", where, [g[:, during]], _rise, RISE, np.inf))
         if two_refs and required:
-            at = [np.searchsorted(abs_[c][0], ep[during]) for c in (short, long_)]
-            s_, l_ = abs_[short][1][:, at[0]], abs_[long_][1][:, at[1]]
+            s_, l_ = _at(ep[during], abs_[short]), _at(ep[during], abs_[long_])
             tests.append(Test(figure, "above_refs", where, [g[:, during], s_, l_],
                               lambda m, s, l: (m / np.maximum(s, l) - 1).max(axis=-1),
                               RISE, np.inf))
             tests.append(Test(figure, "above_start", where, [g[:, during], s_],
                               lambda m, s: (m / s - 1).max(axis=-1), RISE, np.inf))
         if two_refs:
-            at = [np.searchsorted(rel[c][0], ep) for c in (short, long_)]
-            s_, l_ = rel[short][1][:, at[0]], rel[long_][1][:, at[1]]
+            s_, l_ = _at(ep, rel[short]), _at(ep, rel[long_])
 
             def blend(m, s, l):
                 up = np.maximum(s, l)
