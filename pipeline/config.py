@@ -139,6 +139,9 @@ class ConditionsConf:
 class PaperConf:
     title: str = ""
     final_abs_error: Optional[float] = None  # the paper's stated final accuracy [m], if any
+    # whether the report checks the paper's claims on this experiment: its figures and studies
+    # declare it; a custom experiment does not, and is reported by its curves alone
+    claims: bool = False
 
 
 @dataclass
@@ -155,7 +158,8 @@ class ReportConf:
     publish: bool = False  # write the committed report (paths.published): make reproduce only
     paper_experiments: list[str] = MISSING  # what the committed report must hold, at full scale
     stamp_findings: bool = False  # record these numbers as the ones findings.md discusses
-    explain: bool = True  # run the explanation experiments (pipeline/studies/explain.py, ~10 s)
+    explain: bool = True  # the explanation rows, read from the explain_* aggregates (explain.py)
+    scale: str = ""  # a reduced scale the title names ("smoke"; set by the profile), "" = as set
 
 
 @dataclass

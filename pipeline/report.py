@@ -8,12 +8,20 @@ Writes under paths.report (all bytes reproducible, no timestamps, only relative 
     fig3_postures.png/.pdf     target grid vs reached grid with postures, 5-DOF arm (Fig. 3)
     fig6_postures.png/.pdf     the same for the iCub (Fig. 6)
     summary.csv, summary.md    per condition: final errors, peak during growth, failures, paper
-    claims.csv                 each claim of the paper, what was measured, and the verdict
+    scorecard.png, scorecard.csv  each claim of the paper on each figure: the verdict of its 95 %
+                               interval over trials (pipeline/studies/scorecard.py)
+    claims.csv                 each claim of the paper, what was measured, and the verdict on the
+                               mean (the pre-set criteria)
+    readings.csv, readings_scorecard.csv, readings_curves.png   the readings x claims study
+    explanations.csv           the decisive experiments explain_*, read from their aggregates
     choices.csv, choices.md    the open choices (experiments choices_*): each variant's effect
     conventions.csv            the reporting conventions: each alternative's effect, measured
     curves.parquet             the aggregated learning curves of every figure, in one table
     report.md                  the above, and the list of every file this stage writes
-It reads only the aggregate stage's output, never the cache. It writes into paths.report; only
+The paper's claims are checked only on the experiments that declare them (`paper.claims: true`
+in conf/experiment/*.yaml); any other figure is reported by its curves, summary and postures, under
+a title that names it. It reads only the aggregate stage's output, never the cache, and runs no
+trial. It writes into paths.report; only
 `report.publish=true` (make reproduce) writes the committed report, paths.published, and only
 when every paper experiment is aggregated at its full scale.
 """
@@ -29,40 +37,59 @@ import pandas as pd
 from omegaconf import DictConfig, OmegaConf
 
 from . import cli, io
-from .studies import baselines, choices, claims, conventions, explain, figures, readings
+from .studies import (baselines, choices, claims, conventions, explain, figures, readings,
+                      scorecard)
 from .config import ConfigError, check_stamp
 
 log = logging.getLogger("pipeline.report")
+MAX_PANELS = 4  # posture panels of a figure that report.postures does not name
 
 
 def load_aggregates(folder: Path) -> dict:
-    """figure -> dict(curves, summary, models) for every aggregated figure, sorted by name."""
+    """figure -> dict(curves, summary, trials, models) for every aggregated figure, sorted by
+    name (trials: every trial's curve, for the scorecard's intervals)."""
     out = {}
     for fig_dir in sorted(p for p in Path(folder).iterdir() if (p / "summary.parquet").exists()):
         out[fig_dir.name] = dict(
             curves=pd.read_parquet(fig_dir / "curves.parquet"),
             summary=pd.read_parquet(fig_dir / "summary.parquet"),
+            trials=pd.read_parquet(fig_dir / "trials.parquet"),
             models=json.loads((fig_dir / "models.json").read_text()),
         )
+    return out
+
+
+def declares_claims(agg: dict) -> bool:
+    """Whether the figure's experiment declares the paper's claims (paper.claims: true)."""
+    return bool(agg["models"].get("paper", {}).get("claims", False))
+
+
+def scale_mismatches(cfg: DictConfig, aggs: dict, experiments) -> list[str]:
+    """For each of `experiments` whose figure is not aggregated with exactly the trials of its
+    full-scale plan, one line saying so (an empty list: all at the paper's scale)."""
+    from .config import compose
+    from .plan import plan
+
+    out = []
+    for exp in experiments:
+        want = {t["key"] for t in plan(compose([f"experiment={exp}", "profile=full"]))}
+        fig = compose([f"experiment={exp}"]).figure
+        have = {t["key"] for c in aggs.get(fig, {}).get("models", {}).get("conditions", {}).values()
+                for t in c["trials"].values()}
+        if want != have:
+            out.append(f"{fig} holds {len(want & have)} of the {len(want)} trials of "
+                       f"experiment={exp} at full scale (and {len(have - want)} others)")
     return out
 
 
 def check_published_scale(cfg: DictConfig, aggs: dict) -> None:
     """report.publish=true: every experiment of report.paper_experiments must be aggregated with
     exactly the trials its full-scale plan lists; otherwise ConfigError (nothing is written)."""
-    from .config import compose
-    from .plan import plan
-
-    for exp in cfg.report.paper_experiments:
-        want = {t["key"] for t in plan(compose([f"experiment={exp}", "profile=full"]))}
-        fig = compose([f"experiment={exp}"]).figure
-        have = {t["key"] for c in aggs.get(fig, {}).get("models", {}).get("conditions", {}).values()
-                for t in c["trials"].values()}
-        if want != have:
-            raise ConfigError(
-                f"report.publish=true: {fig} holds {len(want & have)} of the {len(want)} trials of "
-                f"experiment={exp} at full scale (and {len(have - want)} others); the committed "
-                "report is written only by make reproduce at the paper's scale")
+    bad = scale_mismatches(cfg, aggs, cfg.report.paper_experiments)
+    if bad:
+        raise ConfigError(
+            f"report.publish=true: {bad[0]}; the committed report is written only by make "
+            "reproduce at the paper's scale")
 
 
 def _mm(v) -> str:
@@ -94,6 +121,23 @@ def summary_markdown(summary: pd.DataFrame) -> str:
     return "\n".join(lines) + "\n"
 
 
+def report_title(cfg: DictConfig, aggs: dict) -> str:
+    """A report is "Reproduction of ..." only when every figure that declares the paper's claims
+    holds its experiment's full-scale trials; any other report is titled by its experiments and
+    says what it is: a reduced scale (report.scale, set by a profile), a custom scale, or an
+    experiment of one's own (no paper claims)."""
+    names = ", ".join(aggs)
+    if cfg.report.scale:
+        return f"{cfg.report.scale.capitalize()} run (not the paper's scale): {names}"
+    declared = [k for k, a in aggs.items() if declares_claims(a)]
+    if not declared:
+        return f"Experiment {names}"
+    experiments = [e for e in cfg.report.paper_experiments if e in declared]
+    if len(experiments) == len(declared) and not scale_mismatches(cfg, aggs, experiments):
+        return "Reproduction of Rolf, Steil & Gienger (2010): Goal Babbling on growing bodies"
+    return f"Paper experiments at a custom scale (not the paper's): {names}"
+
+
 def _title(figure: str, agg: dict) -> str:
     return agg["models"].get("paper", {}).get("title") or f"{figure}"
 
@@ -113,11 +157,27 @@ def _stages_figure(agg: dict) -> tuple | None:
     return None
 
 
+def _trial_stages(agg: dict) -> list[list]:
+    """Each trial's M at every stage of _stages_figure (snapshots, then the final M), for the
+    scorecard's interval over Fig. 2's trials."""
+    for cond in agg["models"]["conditions"].values():
+        out = []
+        for _, trial in sorted(cond["trials"].items(), key=lambda kv: int(kv[0])):
+            ms = [M for _, M in sorted(trial["snapshots"].items(), key=lambda kv: int(kv[0]))]
+            if str(cond["spec"]["epochs"]) not in trial["snapshots"]:
+                ms.append(trial["M"])
+            out.append(ms)
+        if out:
+            return out
+    return []
+
+
 def _posture_panels(aggs: dict, wanted) -> list:
     panels = []
     for figure, condition in wanted:
         cond = aggs.get(figure, {}).get("models", {}).get("conditions", {}).get(condition)
-        if cond and "0" in cond["trials"]:
+        # a posture needs a polynomial inverse M (Goal Babbling's); other learners have none
+        if cond and "0" in cond["trials"] and "degree" in cond["spec"]["learner"]:
             label = f"{figure} {condition}, trial 0"
             panels.append((label, cond["spec"], cond["trials"]["0"]["M"]))
     return panels
@@ -133,12 +193,15 @@ def report(cfg: DictConfig) -> list[Path]:
     if cfg.report.publish:
         check_published_scale(cfg, aggs)
     out = Path(cfg.paths.published if cfg.report.publish else cfg.paths.report)
+    title = report_title(cfg, aggs)
     studies = {k: a for k, a in aggs.items() if k in readings.STUDIES}
     rivals = {k: a for k, a in aggs.items() if k in baselines.STUDIES}
+    explained = {k: a for k, a in aggs.items() if k in explain.STUDIES}
     chosen = {k: a for k, a in aggs.items() if k not in studies and k not in rivals
-              and a["summary"]["choice"].astype(bool).any()}
+              and k not in explained and a["summary"]["choice"].astype(bool).any()}
     aggs = {k: a for k, a in aggs.items()
-            if k not in chosen and k not in studies and k not in rivals}
+            if k not in chosen and k not in studies and k not in rivals and k not in explained}
+    declared = {k: a for k, a in aggs.items() if declares_claims(a)}
     rc, dpi = figures.RC, cfg.report.dpi
     written, sections = [], []
     js = cfg.report.joint_space_figure  # Fig. 2: stages in a joint space over one target axis
@@ -161,11 +224,19 @@ def report(cfg: DictConfig) -> list[Path]:
                 "(contours: equal hand height)")
             extra.append(("Fig. 2: stages of learning (joint space)",
                           figures.save(fig, out / f"{js}_stages", dpi)))
-        for name, wanted in OmegaConf.to_container(cfg.report.postures).items():
+        posture_sets = OmegaConf.to_container(cfg.report.postures)
+        posture_sets = {name: wanted for name, wanted in posture_sets.items()
+                        if any(f in declared for f, _ in wanted)}
+        drawn = {f for wanted in posture_sets.values() for f, _ in wanted if f in aggs}
+        for name in aggs:  # every other figure: trial 0 of each of its first conditions
+            if name not in drawn and name != js:
+                posture_sets[name] = [[name, c] for c in
+                                      list(aggs[name]["models"]["conditions"])[:MAX_PANELS]]
+        for name, wanted in posture_sets.items():
             panels = _posture_panels(aggs, wanted)
             if panels:
-                fig = figures.postures(panels, f"{name}: target grid (grey), reached grid "
-                                       "(black), postures")
+                fig = figures.postures(panels, f"{name}: targets, reached positions and "
+                                       "postures at the final size")
                 extra.append((f"{name}: targets, reached positions and postures",
                               figures.save(fig, out / f"{name}_postures", dpi)))
     for _, paths in extra:
@@ -179,13 +250,26 @@ def report(cfg: DictConfig) -> list[Path]:
     written += [out / "summary.csv", out / "summary.md"]
 
     claim_rows = []
-    for name, agg in aggs.items():
+    for name, agg in declared.items():
         if (agg["summary"]["growth"] != "none").any():
             claim_rows += claims.growth_claims(name, agg["curves"], agg["summary"])
-    if stages is not None:
+    judge_stages = stages is not None and js in declared
+    if judge_stages:
         claim_rows += claims.stage_claims(js, *stages)
-    io.write_text(out / "claims.csv", pd.DataFrame(claim_rows).to_csv(index=False))
-    written.append(out / "claims.csv")
+    card_md = ""
+    if claim_rows:
+        io.write_text(out / "claims.csv", pd.DataFrame(claim_rows).to_csv(index=False))
+        written.append(out / "claims.csv")
+        measures = scorecard.results(declared, dict(
+            figure=js, spec=stages[0], trials=_trial_stages(aggs[js])) if judge_stages else None)
+        cards = scorecard.cells(measures)
+        io.write_text(out / "scorecard.csv", pd.DataFrame(measures).to_csv(
+            index=False, float_format="%.6g"))
+        with figures.plt.rc_context(rc):
+            written += [out / "scorecard.csv"] + figures.save(scorecard.figure(
+                cards, title.split(":")[0] + ": the paper's claims, 95 % intervals over trials"),
+                out / "scorecard", dpi)
+        card_md = scorecard.markdown(cards, measures)
     if aggs:
         curves = pd.concat([a["curves"] for a in aggs.values()], ignore_index=True)
         io.write_table(out / "curves.parquet", io.frame_to_table(curves))
@@ -196,26 +280,32 @@ def report(cfg: DictConfig) -> list[Path]:
         io.write_text(out / "choices.md", choices.markdown(choice_table, chosen))
         written += [out / "choices.csv", out / "choices.md"]
 
-    md = ["# Reproduction of Rolf, Steil & Gienger (2010): Goal Babbling on growing bodies", "",
+    md = [f"# {title}", "",
           "Generated by `python -m pipeline.report` from `pipeline.aggregate`'s tables; "
-          "`make reproduce` regenerates everything. Errors: mean over trials (± standard "
+          "`make reproduce` regenerates the committed report. Errors: mean over trials (± standard "
           "deviation); curves: mean with the inter-quartile band. A trial *failed to bootstrap* "
           f"when its final relative error exceeds {cfg.aggregate.fail_factor:g} times the median "
           "of its condition.", ""]
-    md += ["## The paper's claims, measured", "",
-           claims.CRITERIA, "", claims.markdown(claim_rows)]
+    if claim_rows:
+        md += ["## Scorecard: the paper's claims, with their uncertainty", "",
+               "![scorecard](scorecard.png)", "", card_md,
+               "Each cell: the verdict of the measure that decides it, its value on the mean over "
+               "trials and its 95 % interval (`scorecard.csv` holds every measure); "
+               "pipeline/studies/scorecard.py says how.", ""]
+        md += ["## The paper's claims, measured on the mean (the pre-set criteria)", "",
+               claims.CRITERIA, "", claims.markdown(claim_rows)]
     if cfg.report.stamp_findings:
         stamp_findings(summary, claim_rows)
     if cfg.report.explain:
-        rows = explain.rows(aggs)
+        rows = explain.rows({**aggs, **explained})
         if rows:
             io.write_text(out / "explanations.csv", pd.DataFrame(rows).to_csv(index=False))
             written.append(out / "explanations.csv")
             md += ["## Decisive experiments behind the explanations", "",
-                   "Computed by the report stage from the final models (pipeline/studies/explain.py): "
-                   "what a cubic can reach when fitted directly (the capacity bound), the 2-DOF "
-                   "arm learned with its extremes away from the stretched arm, and the iCub's "
-                   "models continued at a smaller learning rate.", "",
+                   "Read from the aggregated experiments explain_* (conf/experiment/, "
+                   "pipeline/studies/explain.py): what a cubic can reach when fitted directly "
+                   "(the capacity bound), the 2-DOF arm learned with its extremes away from the "
+                   "stretched arm, and the iCub continued at a smaller learning rate.", "",
                    "| figure | experiment | measured |", "|---|---|---|"]
             md += [f"| {r['figure']} | {r['experiment']} | {r['measured']} |" for r in rows]
             md += [""]
@@ -237,15 +327,22 @@ def report(cfg: DictConfig) -> list[Path]:
         written.extend([out / f"{name}.csv"] + paths)
         return paths[0].name
 
-    reading_table = readings.table(studies)
+    read = {k: a for k, a in studies.items() if declares_claims(a)}
+    reading_table = readings.table(read)
     if len(reading_table):
+        reading_cards = readings.intervals(read)
+        io.write_text(out / "readings_scorecard.csv", reading_cards.to_csv(
+            index=False, float_format="%.6g"))
+        written.append(out / "readings_scorecard.csv")
         png = study("readings", reading_table, readings.figure(
             studies, "Readings of the paper: absolute error of every condition (mean over "
             "trials)"))
         md += ["## Every reading of the paper against every claim", "",
                "Each row is a reading of the text (conf/experiment/readings_*.yaml, "
                "pipeline/studies/readings.py); each column a claim, checked as above.", "",
-               f"![readings]({png})", "", readings.markdown(reading_table)]
+               f"![readings]({png})", "", readings.intervals_markdown(reading_cards),
+               "The same, each verdict on the mean over trials (the pre-set criteria):", "",
+               readings.markdown(reading_table)]
     rival_table = baselines.table(rivals)
     if len(rival_table):
         rival_claims = baselines.claims(rival_table)

@@ -1,14 +1,17 @@
-"""Decisive experiments behind the report's explanations, run by the report stage.
+"""Decisive experiments behind the report's explanations, read from their aggregates.
 
-Each function takes aggregated results (final models of the paper's figures) and returns rows
-(what, measured) that report.md prints; nothing here is prose about a particular run:
+The experiments are experiments of the plan (conf/experiment/explain_*.yaml), simulated and
+cached like any other; this module only reads their final models and curves (and fits a cubic,
+which trains nothing), so the report stage starts no trial:
 - capacity: the best degree-3 polynomial inverse for a body's target grid, fitted directly to
   the forward kinematics (least squares on the reaching errors, started from a learned M): the
   error a cubic *can* reach, against what Goal Babbling reaches;
-- boundary (Fig. 2): the 2-DOF arm learned on heights +-1 m (the stretched arm, where w_eff -> 0
-  and disturbed examples only land inside) against the same arm learned on +-0.9 m;
-- continuation (iCub): the learned models continued for 1,000 epochs at the learning rate and
-  at a tenth of it: a model still improving at a smaller rate is limited by the rate's noise.
+- boundary (Fig. 2, explain_fig2_boundary): the 2-DOF arm learned on heights +-1 m (the
+  stretched arm, where w_eff -> 0 and disturbed examples only land inside) against the same arm
+  learned on +-0.9 and +-0.8 m;
+- continuation (iCub, explain_fig7_continuation): 100,000 epochs at the rate, then 1,000 more at
+  the rate and at a tenth of it: a model still improving at a smaller rate is limited by the
+  rate's noise.
 """
 from __future__ import annotations
 
@@ -16,7 +19,6 @@ import numpy as np
 from scipy.optimize import least_squares
 
 import gbmodel
-from gbmodel.learners import goal_babbling as gb
 
 from .figures import final_body
 
@@ -49,55 +51,55 @@ def _extremes(spec, M) -> float:
     return 1e3 * float(max(d[0], d[-1]))
 
 
-def boundary(spec: dict, limits=(1.0, 0.9, 0.8), seeds=(0, 1, 2)) -> list[dict]:
-    """Fig. 2's arm learned on heights -lim ... +lim (21 targets) for each limit: the error at
-    the two extreme targets, of Goal Babbling and of the best cubic for that grid (mean over
-    seeds). If the learner's excess over the best cubic vanishes away from the stretched arm, the
-    miss is Goal Babbling at the workspace boundary, not what a cubic can represent."""
+STUDIES = ("explain_fig2_boundary", "explain_fig7_continuation")
+
+
+def _variants(agg: dict):
+    """(variant label, condition's models entry, its curve) for each condition of an aggregate."""
+    conds = agg["models"]["conditions"]
+    for r in agg["summary"].itertuples():
+        cu = agg["curves"][agg["curves"]["condition"] == r.condition].sort_values("epoch")
+        yield r.variant or r.condition, conds[r.condition], cu
+
+
+def boundary(agg: dict) -> list[dict]:
+    """explain_fig2_boundary: for each target range, the error at the two extreme targets of
+    Goal Babbling and of the best cubic for that range, mean over the trials."""
     out = []
-    for lim in limits:
-        s = dict(spec, body=dict(spec["body"], grid=dict(lo=[-lim], hi=[lim], num=[21])),
-                 snapshots=[])
-        learned, best = [], []
-        for seed in seeds:
-            M = gbmodel.run_trial(gbmodel.TrialSpec.from_dict(s), np.random.default_rng(seed)).M
-            learned.append(_extremes(s, M))
-            best.append(_extremes(s, best_cubic(s, M)["M"]))
-        out.append(dict(limit_m=lim, learned_mm=float(np.mean(learned)),
-                        best_cubic_mm=float(np.mean(best))))
+    for label, cond, _ in _variants(agg):
+        spec = cond["spec"]
+        ms = [t["M"] for _, t in sorted(cond["trials"].items(), key=lambda kv: int(kv[0]))]
+        if not ms:
+            continue
+        out.append(dict(label=label, trials=len(ms),
+                        learned_mm=float(np.mean([_extremes(spec, M) for M in ms])),
+                        best_cubic_mm=float(np.mean([_extremes(spec, best_cubic(spec, M)["M"])
+                                                     for M in ms]))))
     return out
 
 
-def continuation(spec: dict, models: list, epochs: int = 1000, factor: float = 0.1,
-                 seed: int = 0) -> dict:
-    """Continue each learned model for `epochs` epochs at full size, at its learning rate and
-    at `factor` times it (the same draws); mean error before and after."""
-    s = gbmodel.TrialSpec.from_dict(spec)
-    body, growth = s.make_body(), s.make_growth()
-    learner, params = s.make_learner()
-    size = growth.end_size
-    sizes = np.full(epochs, size)
-    later = np.arange(1, epochs + 1)  # the epochs after the trial's last
-    scales = growth.scales(body, sizes)
-    out = {"before_mm": [], "same_mm": [], "smaller_mm": []}
-    for i, M in enumerate(models):
-        M = np.asarray(M, float)
-        rng = np.random.default_rng([seed, i])
-        draws = learner.draw(params, body, epochs, rng)
-        for key, p in (("same_mm", params),
-                       ("smaller_mm", gb.Params(**{**params.__dict__,
-                                                   "learning_rate": params.learning_rate * factor}))):
-            M1 = learner.train(M, p, body, sizes, scales, draws, s.epochs + later)
-            out[key].append(1e3 * gbmodel.evaluation.evaluate(learner, M1, p, body, size,
-                                                              scales[-1]))
-        out["before_mm"].append(1e3 * gbmodel.evaluation.evaluate(learner, M, params, body, size,
-                                                                   scales[-1]))
-    return {k: float(np.mean(v)) for k, v in out.items()} | {"factor": factor, "epochs": epochs,
-                                                             "trials": len(models)}
+def continuation(agg: dict) -> dict | None:
+    """explain_fig7_continuation: the mean absolute error over trials before the rate step (the
+    last evaluation at or before it) and at the end, at the same rate and at the smaller one."""
+    parts = {label: (cond, cu) for label, cond, cu in _variants(agg)}
+    step = next(((c["spec"]["learner"], cu) for c, cu in parts.values()
+                 if c["spec"]["learner"].get("rate_schedule") == "step"), None)
+    same = next((cu for c, cu in parts.values()
+                 if c["spec"]["learner"].get("rate_schedule") == "constant"), None)
+    if step is None or same is None or not len(same):
+        return None
+    learner, smaller = step
+    at = learner["rate_step_epoch"]
+    before = same[same["epoch"] <= at]
+    return dict(epoch=at, later=int(same["epoch"].iloc[-1]) - at,
+                factor=learner["rate_step_factor"], trials=int(same["n_trials"].iloc[-1]),
+                before_mm=1e3 * float(before["abs_error_mean"].iloc[-1]) if len(before) else np.nan,
+                same_mm=1e3 * float(same["abs_error_mean"].iloc[-1]),
+                smaller_mm=1e3 * float(smaller["abs_error_mean"].iloc[-1]))
 
 
 def rows(aggs: dict) -> list[dict]:
-    """The explanation experiments that the aggregated figures allow."""
+    """The explanation experiments that the aggregated figures allow (reads only)."""
     out = []
     fig2 = aggs.get("fig2", {}).get("models", {}).get("conditions", {})
     for cond in fig2.values():
@@ -109,13 +111,15 @@ def rows(aggs: dict) -> list[dict]:
                         measured=f"mean {c['best_mean_mm']:.1f} mm, worst {c['best_worst_mm']:.1f} mm"
                                  f" (Goal Babbling, trial 0: mean {c['learned_mean_mm']:.1f} mm, "
                                  f"worst {c['learned_worst_mm']:.1f} mm)"))
-        b = boundary(cond["spec"])
-        out.append(dict(figure="fig2", experiment="boundary: learned on heights +-lim "
-                                                  "(21 targets, 3 seeds), error at +-lim",
-                        measured="; ".join(f"+-{r['limit_m']:g} m: Goal Babbling "
-                                           f"{r['learned_mm']:.1f} mm, best cubic "
-                                           f"{r['best_cubic_mm']:.1f} mm" for r in b)))
         break
+    if "explain_fig2_boundary" in aggs:
+        b = boundary(aggs["explain_fig2_boundary"])
+        if b:
+            out.append(dict(figure="fig2", experiment="boundary (explain_fig2_boundary): learned "
+                            f"on heights +-lim (21 targets, {b[0]['trials']} trials), error at "
+                            "+-lim", measured="; ".join(
+                                f"{r['label']}: Goal Babbling {r['learned_mm']:.1f} mm, best "
+                                f"cubic {r['best_cubic_mm']:.1f} mm" for r in b)))
     fig7 = aggs.get("fig7", {}).get("models", {}).get("conditions", {})
     full = next((c for name, c in fig7.items() if name == "const1.0"), None)
     if full and full["trials"]:
@@ -125,9 +129,15 @@ def rows(aggs: dict) -> list[dict]:
                         measured=f"mean {c['best_mean_mm']:.2f} mm, worst {c['best_worst_mm']:.1f} mm"
                                  f" (Goal Babbling, const1.0 trial 0: mean "
                                  f"{c['learned_mean_mm']:.1f} mm, worst {c['learned_worst_mm']:.1f} mm)"))
-        k = continuation(full["spec"], models)
-        out.append(dict(figure="fig7", experiment=f"continuation: the const1.0 models, "
-                                                  f"{k['epochs']:,} more epochs",
+    k = continuation(aggs["explain_fig7_continuation"]) if "explain_fig7_continuation" in aggs \
+        else None
+    if k and k["later"] <= 0:
+        out.append(dict(figure="fig7", experiment="continuation (explain_fig7_continuation)",
+                        measured=f"the rate step at epoch {k['epoch']:,} lies beyond this run "
+                                 f"({k['epoch'] + k['later']:,} epochs): nothing to compare"))
+    elif k:
+        out.append(dict(figure="fig7", experiment="continuation (explain_fig7_continuation): "
+                        f"{k['later']:,} more epochs after epoch {k['epoch']:,}",
                         measured=f"{k['before_mm']:.2f} mm -> {k['same_mm']:.2f} mm at the same "
                                  f"rate, {k['smaller_mm']:.2f} mm at {k['factor']:g} x the rate "
                                  f"(mean over {k['trials']} trials)"))

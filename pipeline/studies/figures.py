@@ -82,6 +82,7 @@ def learning_curves(curves, summary, title: str, log_y: bool = True, paper_abs=N
             ax.fill_between(cu["epoch"], cu[f"{col}_q25"], cu[f"{col}_q75"], color=st["color"],
                             alpha=0.15, lw=0)
             ax.plot(cu["epoch"], cu[f"{col}_mean"], label=condition_label(row), lw=1.3, **st)
+        mark_growth_end(ax, summary, styles)
         ax.set_xscale("log")
         if log_y:
             ax.set_yscale("log")
@@ -93,11 +94,29 @@ def learning_curves(curves, summary, title: str, log_y: bool = True, paper_abs=N
         axes[0].legend(handles=[line], loc="lower left", frameon=False)
     axes[0].set_title("(a) absolute error")
     axes[1].set_title("(b) relative error")
-    axes[1].legend(loc="best", frameon=False)
+    handles = axes[1].get_legend_handles_labels()[0]
+    if (summary["growth"] != "none").any():
+        handles.append(growth_end_handle())
+    axes[1].legend(handles=handles, loc="best", frameon=False)
     n = int(summary["n_trials"].max()) if len(summary) else 0
     fig.suptitle(f"{title} (mean and quartiles over {n} trials)")
     fig.tight_layout()
     return fig
+
+
+def mark_growth_end(ax, summary, styles) -> None:
+    """The end of growth (epoch T_G) of every growing condition, a thin vertical line in its
+    colour, so that "during growth" can be read off the curves."""
+    for _, row in summary[summary["growth"] != "none"].iterrows():
+        if 0 < row["growth_period"] <= row.get("epochs", np.inf):  # growth that ends in the run
+            ax.axvline(row["growth_period"], color=styles[row["condition"]]["color"], lw=0.7,
+                       ls=(0, (1, 2)), alpha=0.8)
+
+
+def growth_end_handle():
+    """The legend entry of mark_growth_end's lines."""
+    return plt.Line2D([], [], color="0.3", lw=0.7, ls=(0, (1, 2)),
+                      label="end of growth (T_G)")
 
 
 def final_body(spec: dict) -> tuple:
@@ -175,7 +194,7 @@ def postures(panels: list[tuple[str, dict, list]], title: str, n_postures: int =
     panels: (label, spec, M); each panel shows the body at its final size.
     """
     three_d = any(final_body(spec)[0].n == 3 for _, spec, _ in panels)
-    fig = plt.figure(figsize=(3.6 * len(panels), 3.6))
+    fig = plt.figure(figsize=(max(3.6 * len(panels), 6.0), 4.0))
     for k, (label, spec, M) in enumerate(panels):
         body, size, pattern, exps = final_body(spec)
         M = np.asarray(M, dtype=float)
@@ -184,23 +203,45 @@ def postures(panels: list[tuple[str, dict, list]], title: str, n_postures: int =
         reached = body.forward(q, size, pattern)
         shape = _grid_shape(targets)
         ax = fig.add_subplot(1, len(panels), k + 1, projection="3d" if three_d else None)
-        _draw_grid(ax, targets, shape, color="0.7", lw=0.8)
-        _draw_grid(ax, reached, shape, color="black", lw=0.8)
         picks = np.linspace(0, len(targets) - 1, n_postures).round().astype(int)
         cols = plt.get_cmap("tab10")(np.arange(n_postures))
-        for c, i in zip(cols, picks):
-            pts = link_points(body, q[i], size, pattern)[:, list(body.outputs)]
-            ax.plot(*pts.T, color=c, lw=1.6, marker="o", ms=2.5)
+        if body.n == 1:  # one target coordinate (a height): draw the arm in its plane of motion
+            _height_postures(ax, body, q, targets, reached, size, pattern, picks, cols)
+        else:
+            _draw_grid(ax, targets, shape, color="0.7", lw=0.8)
+            _draw_grid(ax, reached, shape, color="black", lw=0.8)
+            for c, i in zip(cols, picks):
+                pts = link_points(body, q[i], size, pattern)[:, list(body.outputs)]
+                ax.plot(*pts.T, color=c, lw=1.6, marker="o", ms=2.5)
         err = np.linalg.norm(reached - targets, axis=-1).mean()
-        ax.set_title(f"{label}\nsize {size:g}, mean error {1000 * err:.1f} mm")
+        ax.set_title(f"{label}\nsize {size:g}, mean error {1000 * err:.1f} mm", fontsize=8)
         if three_d:
             spans = [np.ptp(lim) for lim in (ax.get_xlim3d(), ax.get_ylim3d(), ax.get_zlim3d())]
             ax.set_box_aspect(spans, zoom=0.85)  # the same scale on all three axes
             ax.grid(False)  # the target grid is the only grey grid
             ax.set(xlabel="x [m]", ylabel="y [m]", zlabel="z [m]")
             ax.view_init(elev=20, azim=-60)
-        else:
+        elif body.n != 1:
             ax.set(aspect="equal", xlabel="x [m]", ylabel="y [m]")
+    fig.legend(handles=[plt.Line2D([], [], color="0.7", lw=0.8, label="targets"),
+                        plt.Line2D([], [], color="black", lw=0.8, label="reached"),
+                        plt.Line2D([], [], color="tab:blue", lw=1.6, marker="o", ms=2.5,
+                                   label=f"{n_postures} postures (links, base to hand)")],
+               loc="lower center", ncol=3, frameon=False)
     fig.suptitle(title)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.07, 1, 0.93))  # room for the legend below, the title above
     return fig
+
+
+def _height_postures(ax, body, q, targets, reached, size, pattern, picks, cols):
+    """A body with one target coordinate: the postures in the plane of the output axis and the
+    root axis along which the arm extends most; targets and reached heights beside the hand."""
+    out = body.outputs[0]
+    pts = np.stack([link_points(body, q[i], size, pattern) for i in range(len(q))])
+    other = max((j for j in range(3) if j != out), key=lambda j: np.ptp(pts[..., j]))
+    hand = pts[:, -1, other]
+    ax.scatter(hand, targets[:, 0], s=10, color="0.7", zorder=2)
+    ax.scatter(hand, reached[:, 0], s=4, color="black", zorder=3)
+    for c, i in zip(cols, picks):
+        ax.plot(pts[i, :, other], pts[i, :, out], color=c, lw=1.6, marker="o", ms=2.5)
+    ax.set(aspect="equal", xlabel=f"{'xyz'[other]} [m]", ylabel=f"{'xyz'[out]} [m] (target)")

@@ -15,7 +15,7 @@ import gbmodel
 from gbmodel.learners import goal_babbling as gb
 from gbmodel.learners.goal_babbling import reference
 
-from . import claims, figures
+from . import claims, figures, scorecard
 from .choices import escape
 
 STUDIES = {"readings_fig4": "fig4", "readings_fig5": "fig5", "readings_fig7": "fig7"}
@@ -41,6 +41,48 @@ def split(agg: dict) -> dict:
         cv["condition"] = cv["condition"].map(rename)
         out[label] = (cv, sv)
     return out
+
+
+def _rename(frame: pd.DataFrame, names: list) -> pd.DataFrame:
+    f = frame[frame["condition"].isin(names)].copy()
+    f["condition"] = f["condition"].map({n: n.split(" | ", 1)[-1] for n in names})
+    return f
+
+
+def intervals(aggs: dict) -> pd.DataFrame:
+    """One row per (figure, reading, claim): the scorecard's verdict with its 95 % interval over
+    the reading's trials (pipeline/studies/scorecard.py), the measure that decides it."""
+    rows = []
+    for study, fig in STUDIES.items():
+        if study not in aggs or "trials" not in aggs[study]:
+            continue
+        s = aggs[study]["summary"]
+        for label in s["variant"].drop_duplicates():
+            names = s[s["variant"] == label]["condition"].tolist()
+            tests = scorecard.growth_tests(fig, _rename(aggs[study]["trials"], names),
+                                           _rename(s, names))
+            cards = scorecard.cells([scorecard.run_test(t) for t in tests])
+            rows += [dict(c, reading=label) for c in cards.to_dict("records")]
+    return pd.DataFrame(rows)
+
+
+def intervals_markdown(t: pd.DataFrame) -> str:
+    """Per figure: rows = readings, columns = claims, cells = verdict, value and interval."""
+    lines = []
+    for fig, tf in t.groupby("figure", sort=False):
+        cl = [c for c, _, _ in scorecard.CLAIMS if c in set(tf["claim"])]
+        lines += [f"### {fig}: verdicts with their 95 % intervals "
+                  f"({int(tf[tf['claim'] != 'bootstrap']['trials'].max())} trials per condition "
+                  "and reading)", "",
+                  "| reading | " + " | ".join(escape(scorecard.TITLES[c]) for c in cl) + " |",
+                  "|---|" + "---|" * len(cl)]
+        for reading, tr in tf.groupby("reading", sort=False):
+            cells = {r["claim"]: escape(scorecard.cell_text(r, "<br>"))
+                     for r in tr.to_dict("records")}
+            lines.append(f"| {escape(reading)} | " + " | ".join(cells.get(c, "")
+                                                                for c in cl) + " |")
+        lines.append("")
+    return "\n".join(lines)
 
 
 def table(aggs: dict) -> pd.DataFrame:
@@ -91,13 +133,16 @@ def markdown(t: pd.DataFrame) -> str:
 
 def figure(aggs: dict, title: str):
     """The key curves side by side: absolute error of every condition, one panel per figure and
-    reading (rows: figures, columns: readings)."""
+    reading (rows: figures, columns: readings), the end of growth marked, one legend below."""
+    import textwrap
+
     studies = [s for s in STUDIES if s in aggs]
     per = {s: split(aggs[s]) for s in studies}
     readings = list(dict.fromkeys(r for s in studies for r in per[s]))
     fig, axes = figures.plt.subplots(len(studies), len(readings), squeeze=False,
-                                     figsize=(2.5 * len(readings), 2.3 * len(studies)),
+                                     figsize=(2.7 * len(readings), 2.5 * len(studies) + 1.4),
                                      sharex=True)
+    handles = {}
     for i, s in enumerate(studies):
         for j, reading in enumerate(readings):
             ax = axes[i, j]
@@ -108,12 +153,20 @@ def figure(aggs: dict, title: str):
             styles = figures.condition_styles(sv)
             for row in sv.itertuples():
                 cu = cv[cv["condition"] == row.condition].sort_values("epoch")
-                ax.plot(cu["epoch"], cu["abs_error_mean"], lw=1.0, **styles[row.condition])
+                label = figures.condition_label(row._asdict())
+                (line,) = ax.plot(cu["epoch"], cu["abs_error_mean"], lw=1.0, label=label,
+                                  **styles[row.condition])
+                handles.setdefault(label, line)
+            figures.mark_growth_end(ax, sv, styles)
             ax.set(xscale="log", yscale="log")
-            if i == 0:
-                ax.set_title(reading if len(reading) < 34 else reading[:31] + "...", fontsize=7)
+            ax.set_title(textwrap.fill(f"{STUDIES[s]}: {reading}", 30), fontsize=8)
             if j == 0:
-                ax.set_ylabel(f"{STUDIES[s]}: abs. error [m]")
+                ax.set_ylabel("absolute error [m]")
+            if i == len(studies) - 1:
+                ax.set_xlabel("epoch")
+    handles["end of growth (T_G)"] = figures.growth_end_handle()
+    fig.legend(handles=list(handles.values()), labels=list(handles), loc="lower center",
+               ncol=min(len(handles), 7), frameon=False)
     fig.suptitle(title)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.6 / (2.5 * len(studies) + 1.4), 1, 1))
     return fig

@@ -53,6 +53,10 @@ class Params:
     # (pipeline/studies/explain.py: continuation)
     rate_schedule: str = "constant"
     anneal_epochs: float = 10000.0
+    # rate_schedule=step: eta up to epoch rate_step_epoch, rate_step_factor x eta after it (a
+    # trained model continued at a smaller rate, as one trial: conf/experiment/explain_fig7_*)
+    rate_step_epoch: int = 0
+    rate_step_factor: float = 1.0
     # successive path targets: distinct (each differs from the one before) or any (uniform
     # over all targets, repeats allowed: a repeat is a still segment whose samples weigh 0)
     targets: str = "distinct"
@@ -77,7 +81,9 @@ class Params:
         check_choice("learner.amplitude", self.amplitude, ("exact", "uniform"))
         check_choice("learner.updates", self.updates, ("batch", "steps", "online"))
         check_int("learner.update_steps", self.update_steps, 1)
-        check_choice("learner.rate_schedule", self.rate_schedule, ("constant", "annealed"))
+        check_choice("learner.rate_schedule", self.rate_schedule, ("constant", "annealed", "step"))
+        check_int("learner.rate_step_epoch", self.rate_step_epoch, 0)
+        check_number("learner.rate_step_factor", self.rate_step_factor, 0.0, strict=True)
         check_number("learner.anneal_epochs", self.anneal_epochs, 0.0, strict=True)
         check_choice("learner.targets", self.targets, ("distinct", "any"))
         goals.check(self)
@@ -97,6 +103,8 @@ class Params:
         e = np.asarray(epochs, dtype=np.float64)
         if self.rate_schedule == "constant":
             return np.full(e.shape, self.rate())
+        if self.rate_schedule == "step":
+            return np.where(e > self.rate_step_epoch, self.rate_step_factor, 1.0) * self.rate()
         tau = self.anneal_epochs
         return self.rate() * tau / (tau + e - 1.0)
 
