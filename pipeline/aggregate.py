@@ -58,8 +58,9 @@ def figure_conditions(cache_dir, figure: str) -> tuple[list[dict], dict, list[st
     return conds, paper, problems
 
 
-def load_trials(cache_dir, figure: str) -> tuple[pd.DataFrame, dict, dict, list[str]]:
-    """(curves of the figure's finished trials, conditions by label, paper, problems found)."""
+def load_trials(cache_dir, figure: str, curves: bool = True):
+    """(curves of the figure's finished trials, conditions by label, paper, problems found).
+    curves=False: the sidecars only (enough for the inputs' digest); the curves are then None."""
     conditions, paper, problems = figure_conditions(cache_dir, figure)
     frames, conds = [], {}
     for cond in conditions:
@@ -80,13 +81,16 @@ def load_trials(cache_dir, figure: str) -> tuple[pd.DataFrame, dict, dict, list[
             if side["status"] == "diverged":
                 c["diverged"][i] = side["epoch"]
                 continue
-            curve = cache.read_curve(cache_dir, t)
-            for col, value in labels.items():
-                curve[col] = value
-            curve["trial"] = t["trial"]
-            frames.append(curve[io.CURVE_COLUMNS])
             c["trials"][i] = {"key": t["key"], "M": side["M"], "snapshots": side["snapshots"],
                               "largest_jump": side["largest_jump"]}
+            if curves:
+                curve = cache.read_curve(cache_dir, t)
+                for col, value in labels.items():
+                    curve[col] = value
+                curve["trial"] = t["trial"]
+                frames.append(curve[io.CURVE_COLUMNS])
+    if not curves:
+        return None, conds, paper, problems
     empty = io.CURVE.empty_table().to_pandas()
     df = pd.concat(frames, ignore_index=True) if frames else empty
     return df, conds, paper, problems
@@ -185,19 +189,20 @@ def aggregate_figure(cfg: DictConfig, fig: str) -> tuple[list[str], bool]:
     damaged plan record, or no trial at all where the aggregate had some, leaves it as it was."""
     folder = Path(cfg.paths.aggregate) / io.safe_name("figure", fig)
     try:
-        trials, conds, paper, problems = load_trials(cfg.paths.cache, fig)
+        _, conds, paper, problems = load_trials(cfg.paths.cache, fig, curves=False)
     except io.DamagedFile as err:
         return [f"{err}; the figure's aggregate is left as it was"], False
     digest = inputs_digest(fig, conds, cfg.aggregate.fail_factor)
     try:
         old = io.read_json(folder / "manifest.json")
-        if old.get("inputs") == digest:
-            return problems, False
-        if not len(trials) and old.get("trials"):
-            return problems + ["no trial of the figure is readable; its aggregate is left as it "
-                               "was"], False
     except (OSError, ValueError):
-        pass
+        old = {}
+    if old.get("inputs") == digest:
+        return problems, False
+    if not any(c["trials"] for c in conds.values()) and old.get("trials"):
+        return problems + ["no trial of the figure is readable; its aggregate is left as it "
+                           "was"], False
+    trials, conds, paper, problems = load_trials(cfg.paths.cache, fig)
     curves = curve_stats(trials)
     summary = summarize(trials, curves, conds, paper, cfg.aggregate.fail_factor)
     with io.new_set(folder) as tmp:
@@ -221,9 +226,7 @@ def selected_figures(cfg: DictConfig, explicit: bool) -> list[str]:
     experiments= on the command line) those named; an unknown one is a FileNotFoundError."""
     known = cache.figures(cfg.paths.cache)
     if cfg.get("experiments"):
-        from .config import compose
-
-        wanted = [compose([f"experiment={e}"]).figure for e in cfg.experiments]
+        wanted = list(cfg.experiments)  # an experiment's figure is its name (tested)
     elif explicit:
         wanted = [cfg.figure]
     else:

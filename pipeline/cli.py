@@ -124,7 +124,8 @@ def keeps_experiment(overrides: list[str], trials: list[dict]) -> None:
     if "experiment" not in keys or "figure" in keys or not trials:
         return
     own = [o for k, o in keys.items() if k == "experiment" or k.startswith(_KEEPS_CONDITIONS)]
-    if {t["condition"] for t in plan(compose(own))} == {t["condition"] for t in trials}:
+    if len(own) == len(keys) or {t["condition"] for t in plan(compose(own))} == {
+            t["condition"] for t in trials}:
         return
     changed = " ".join(o for k, o in keys.items() if o not in own)
     figure = trials[0]["figure"]

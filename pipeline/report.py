@@ -27,6 +27,7 @@ when every paper experiment is aggregated at its full scale.
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import logging
 from pathlib import Path
@@ -37,26 +38,86 @@ import pandas as pd
 from omegaconf import DictConfig, OmegaConf
 
 from . import cli, io
-from .studies import (baselines, choices, claims, conventions, explain, figures, readings,
-                      scorecard)
 from .config import ConfigError, check_stamp
 
 log = logging.getLogger("pipeline.report")
 MAX_PANELS = 4  # posture panels of a figure that report.postures does not name
 
 
-def load_aggregates(folder: Path) -> dict:
-    """figure -> dict(curves, summary, trials, models) for every aggregated figure, sorted by
-    name (trials: every trial's curve, for the scorecard's intervals)."""
+def load_aggregates(folder: Path, names=None) -> dict:
+    """figure -> dict(curves, summary, trials, models, inputs) for the aggregated figures `names`
+    (None: every one), sorted by name (trials: every trial's curve, for the scorecard's
+    intervals; inputs: the digest aggregate made it of). Each figure's set is resolved once
+    (pipeline.io.set_of), so its files come from one set even while aggregate replaces it; a
+    damaged file is an io.DamagedFile naming it."""
     out = {}
-    for fig_dir in sorted(p for p in Path(folder).iterdir() if (p / "summary.parquet").exists()):
-        out[fig_dir.name] = dict(
-            curves=pd.read_parquet(fig_dir / "curves.parquet"),
-            summary=pd.read_parquet(fig_dir / "summary.parquet"),
-            trials=pd.read_parquet(fig_dir / "trials.parquet"),
-            models=json.loads((fig_dir / "models.json").read_text()),
-        )
+    folder = Path(folder)
+    for name in sorted(names if names is not None else aggregated(folder)):
+        d = io.set_of(folder / io.safe_name("figure", name))
+        models = io.read_json(d / "models.json", need=("figure", "conditions"))
+        out[name] = dict(
+            curves=io.read_table(d / "curves.parquet").to_pandas(),
+            summary=io.read_table(d / "summary.parquet").to_pandas(),
+            trials=io.read_table(d / "trials.parquet").to_pandas(),
+            models=models, inputs=io.read_json(d / "manifest.json").get("inputs"))
+        if "choice" not in out[name]["summary"]:
+            raise io.DamagedFile(f"{d / 'summary.parquet'}: not an aggregate summary (no choice)")
     return out
+
+
+def aggregated(folder: Path) -> list[str]:
+    folder = Path(folder)
+    return sorted(p.name for p in folder.iterdir() if (p / "summary.parquet").exists()) \
+        if folder.exists() else []
+
+
+def selected(cfg: DictConfig, explicit: bool) -> list[str] | None:
+    """The figures to report: those of `experiments=[...]`, or the one figure= / experiment=
+    names, or None (every aggregated figure). An unknown one is a FileNotFoundError (one line)."""
+    folder = Path(cfg.paths.aggregate)
+    known = aggregated(folder)
+    if cfg.get("experiments"):
+        wanted = list(cfg.experiments)  # an experiment's figure is its name (tested)
+    elif explicit:
+        wanted = [cfg.figure]
+    else:
+        return None
+    missing = [f for f in wanted if f not in known]
+    if missing:
+        raise FileNotFoundError(f"figure={missing[0]}: not aggregated under {folder} "
+                                f"(aggregated: {', '.join(known) or 'none'})")
+    return wanted
+
+
+def inputs_digest(cfg: DictConfig, inputs: dict) -> str:
+    """What a report is made of: each figure's aggregate digest (`inputs`: figure -> the digest
+    in its manifest), the report's settings, the
+    failure factor, whether it publishes, and the code that draws it (studies included, with the
+    discussion and its numbers). The same digest, the same files: nothing to redo."""
+    here = Path(__file__).parent
+    files = [here / "report.py", here / "io.py",
+             *sorted(p for p in (here / "studies").iterdir() if p.suffix in (".py", ".md", ".csv"))]
+    code = hashlib.sha256()
+    for f in files:
+        code.update(f.name.encode() + b"\0" + f.read_bytes() + b"\0")
+    body = dict(figures=inputs, code=code.hexdigest(),
+                report=OmegaConf.to_container(cfg.report), fail_factor=cfg.aggregate.fail_factor)
+    return hashlib.sha256(io.dump_json(body).encode()).hexdigest()[:20]
+
+
+def _record_of(out: Path) -> Path:
+    """Where a report folder's input digest is kept: beside it, not in it (the folder holds
+    exactly the files its report.md lists)."""
+    return out.parent / f".{out.name}.inputs.json"
+
+
+def up_to_date(out: Path, digest: str) -> bool:
+    try:
+        if io.read_json(_record_of(out)).get("inputs") != digest:
+            return False
+        return all((out / f).exists() for f in listed_files(out / "report.md"))
+    except (OSError, ValueError):
+        return False
 
 
 def declares_claims(agg: dict) -> bool:
@@ -183,16 +244,38 @@ def _posture_panels(aggs: dict, wanted) -> list:
     return panels
 
 
-def report(cfg: DictConfig) -> list[Path]:
-    """Write every report file; return their paths."""
+def report(cfg: DictConfig, explicit: bool = False) -> list[Path]:
+    """Write every report file, unless the report is already made of the same inputs; return
+    the paths written. explicit: the command line named a figure (figure= / experiment=)."""
     check_stamp(cfg)  # report.stamp_findings: the publishing run only, before anything is written
-    aggs = load_aggregates(Path(cfg.paths.aggregate)) if Path(cfg.paths.aggregate).exists() else {}
-    if not aggs:
+    names, folder = selected(cfg, explicit), Path(cfg.paths.aggregate)
+    names = names if names is not None else aggregated(folder)
+    if not names:
         raise FileNotFoundError(f"nothing aggregated under {cfg.paths.aggregate}: "
                                 "run pipeline.simulate and pipeline.aggregate first")
+    out = Path(cfg.paths.published if cfg.report.publish else cfg.paths.report)
+    digest = inputs_digest(cfg, {n: io.read_json(io.set_of(folder / io.safe_name("figure", n))
+                                                 / "manifest.json").get("inputs") for n in names})
+    if up_to_date(out, digest) and not cfg.report.stamp_findings:
+        log.info("report: up to date (the same aggregates, settings and code) -> %s", out)
+        return []
+    aggs = load_aggregates(folder, names)
     if cfg.report.publish:
         check_published_scale(cfg, aggs)
-    out = Path(cfg.paths.published if cfg.report.publish else cfg.paths.report)
+    _record_of(out).unlink(missing_ok=True)
+    with io.new_dir(out) as tmp:  # the folder is replaced as one set: no file of an older report
+        written = [out / p.relative_to(tmp) for p in write_report(cfg, aggs, tmp)]
+    io.write_json(_record_of(out), dict(inputs=digest))  # last: the files are all there
+    log.info("report: %d files -> %s", len(written), out)
+    return written
+
+
+def write_report(cfg: DictConfig, aggs: dict, out: Path) -> list[Path]:
+    """Write every report file of `aggs` into `out`; return their paths."""
+    # the studies (matplotlib, scipy.stats) are imported only when there is something to draw
+    from .studies import (baselines, choices, claims, conventions, explain, figures, readings,
+                          scorecard)
+
     title = report_title(cfg, aggs)
     studies = {k: a for k, a in aggs.items() if k in readings.STUDIES}
     rivals = {k: a for k, a in aggs.items() if k in baselines.STUDIES}
@@ -373,7 +456,6 @@ def report(cfg: DictConfig) -> list[Path]:
            ""] + [f"- `{f}`" for f in files]
     io.write_text(out / "report.md", "\n".join(md) + "\n")
     written.append(out / "report.md")
-    log.info("report: %d files -> %s", len(written), out)
     return written
 
 
@@ -423,7 +505,9 @@ def listed_files(report_md: Path) -> list[str]:
 
 
 def run(cfg: DictConfig) -> int:
-    report(cfg)
+    from .aggregate import names_a_figure
+
+    report(cfg, names_a_figure(cli.hydra_run()[0]))
     return 0
 
 

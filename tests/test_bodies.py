@@ -12,7 +12,8 @@ import yaml
 import gbmodel
 from gbmodel.bodies import SHIPPED, body_from, read_description
 from pipeline.config import ConfigError, compose
-from pipeline.plan import _code_of, plan
+from pipeline.fingerprint import _code_of
+from pipeline.plan import plan
 
 # sha256[:16] of a 30-epoch trial's final M and curve, recorded with the code before the bodies
 # moved to YAML (commit 7a54fd5: the tables in gbmodel/bodies.py), rng seed 7.
