@@ -108,7 +108,8 @@ def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = Non
               f" = 1 / W fixed for arm5); `python -m pipeline.rate body={body}` prints its own",
               file=sys.stderr)
     cache_dir = Path(cfg.paths.cache)
-    figure = ", ".join(dict.fromkeys(j.cfg.figure for j in jobs))
+    names = list(dict.fromkeys(j.cfg.figure for j in jobs))
+    figure = ", ".join(names) if len(names) <= 3 else f"{len(names)} figures"
     unique = {}
     for j in jobs:
         for t in j.trials:
