@@ -158,3 +158,17 @@ def test_aggregate_rebuilds_only_the_figures_whose_inputs_changed(tmp_path, comp
     assert (folder / "a/summary.parquet").stat().st_mtime_ns == stamp["a"]
     assert _summary(tmp_path, "b")["n_trials"].tolist() == [2]
     assert not list(folder.glob(".*.dir"))  # no half-written set left behind
+
+
+def test_legends_name_what_varied_not_the_growth_they_share():
+    from pipeline.studies import figures
+
+    sweep = pd.DataFrame(dict(condition=["V=10", "V=20", "V=40"], growth=["proportional"] * 3,
+                              growth_period=[1000] * 3, end_size=[1.0] * 3))
+    assert [figures.condition_label(r) for _, r in sweep.iterrows()] == ["V=10", "V=20", "V=40"]
+    styles = figures.condition_styles(sweep)
+    assert len({str(s["color"]) for s in styles.values()}) == 3
+    paper = pd.DataFrame(dict(condition=["TG100", "const0.5"], growth=["proportional", "none"],
+                              growth_period=[100, 0], end_size=[1.0, 0.5]))
+    assert [figures.condition_label(r) for _, r in paper.iterrows()] == [
+        "T_G = 100", "constant size 0.5"]

@@ -5,6 +5,8 @@ no timestamps or software versions in the metadata, a fixed SVG hash salt.
 """
 from __future__ import annotations
 
+import re
+
 from pathlib import Path
 
 import matplotlib
@@ -48,14 +50,30 @@ def save(fig, stem: Path, dpi: int) -> list[Path]:
     return paths
 
 
+GROWTH_LABEL = re.compile(r"(TG\d+|const[\d.]+)")  # a condition named by its growth alone
+
+
+def by_growth(summary) -> bool:
+    """Whether the figure's conditions differ by their growth only (the paper's figures)."""
+    return all(GROWTH_LABEL.fullmatch(c) for c in summary["condition"])
+
+
 def condition_label(row) -> str:
+    """The legend entry: the paper's wording for a growth label, else the condition's own label
+    (what differs between the figure's conditions: `V=10`, `R=0.1, L=5`, a variant's name)."""
+    if not GROWTH_LABEL.fullmatch(row["condition"]):
+        return row["condition"]
     if row["growth"] == "none":
         return f"constant size {row['end_size']:g}"
     return f"T_G = {row['growth_period']}"
 
 
 def condition_styles(summary) -> dict:
-    """Colour per growing condition (by period), grey/black dashes for the references."""
+    """Colour per growing condition (by period), grey/black dashes for the references; a colour
+    per condition where they differ by more than their growth (a sweep of your own)."""
+    if not by_growth(summary):
+        colors = plt.get_cmap("viridis")(np.linspace(0.0, 0.85, max(len(summary), 1)))
+        return {c: dict(color=col, ls="-") for c, col in zip(summary["condition"], colors)}
     growing = summary[summary["growth"] != "none"]
     colors = plt.get_cmap("viridis")(np.linspace(0.0, 0.85, max(len(growing), 1)))
     styles = {c: dict(color=col, ls="-") for c, col in zip(growing["condition"], colors)}
