@@ -301,3 +301,29 @@ def test_make_refuses_a_python_older_than_311_and_says_which(tmp_path):
                        cwd=REPO_ROOT, capture_output=True, text=True, timeout=60)
     assert r.returncode != 0
     assert f"{fake} is Python 3.9.0; need >= 3.11" in r.stdout + r.stderr
+
+
+def test_an_edited_model_in_a_sidecar_is_caught_by_its_seal_and_recomputed(tmp_path,
+                                                                           compose_tiny):
+    cfg = compose_tiny(tmp_path, "growth=none")
+    simulate.simulate(cfg)
+    side = next((Path(cfg.paths.cache) / "trials").rglob("*.json"))
+    record = json.loads(side.read_text())
+    record["M"][0][0] += 1e-3  # a plausible model, silently changed
+    side.write_text(json.dumps(record))
+    trial = plan(cfg)[0]
+    done, why = cache.check(cfg.paths.cache, trial)
+    assert done is None and "seal" in why
+    again = simulate.simulate(cfg)
+    assert again.ran == 1 and cache.check(cfg.paths.cache, trial)[0] is not None
+
+
+def test_a_damaged_aggregate_file_is_one_line_and_exit_2(tmp_path, compose_tiny):
+    cfg = compose_tiny(tmp_path, "growth=none")
+    simulate.simulate(cfg)
+    aggregate.aggregate(cfg)
+    models = Path(cfg.paths.aggregate) / "custom" / "models.json"
+    models.resolve().write_text('{"figure": "custom", "condi')
+    r = run_cli("pipeline.report", *tiny_overrides(tmp_path))
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1 and "models.json" in lines[0], r.stderr
