@@ -21,6 +21,7 @@ from __future__ import annotations
 import hashlib
 import logging
 import sys
+from functools import lru_cache
 from pathlib import Path
 
 import hydra
@@ -172,12 +173,17 @@ def summarize(trials: pd.DataFrame, curves: pd.DataFrame, conds: dict, paper: di
 CODE = ("aggregate.py", "cache.py", "io.py", "plan.py")  # what an aggregate's bytes depend on
 
 
+@lru_cache(maxsize=1)
+def code_of_stage() -> str:
+    """The fingerprint of this stage's code: read once per process, not once per figure."""
+    here = Path(__file__).parent
+    return source_fingerprint((n, (here / n).read_text()) for n in CODE)
+
+
 def inputs_digest(figure: str, conds: dict, fail_factor: float) -> str:
     """What one figure's aggregate is made of: its conditions (label, settings, trials' seals),
     the failure factor and the code of this stage. The same digest, the same files."""
-    here = Path(__file__).parent
-    code = source_fingerprint((n, (here / n).read_text()) for n in CODE)
-    body = dict(figure=figure, fail_factor=fail_factor, code=code,
+    body = dict(figure=figure, fail_factor=fail_factor, code=code_of_stage(),
                 conditions=[[k, c["id"], c["variant"], sorted(c["trials"]), c["missing"],
                              c["seals"]] for k, c in conds.items()])
     return hashlib.sha256(io.dump_json(body).encode()).hexdigest()[:20]

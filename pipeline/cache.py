@@ -158,10 +158,7 @@ def read_current(folder: Path) -> str | None:
     path = Path(folder) / "current.json"
     if not path.exists():
         return None
-    group = io.read_json(path).get("group")
-    if not isinstance(group, str) or not io.is_plain_name(group):
-        raise ValueError(f"{path}: names no valid group")
-    return group
+    return io.safe_name(f"{path}: group", io.read_json(path).get("group"))
 
 
 def _group_experiment(folder: Path, group: str) -> str | None:

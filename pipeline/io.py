@@ -240,12 +240,6 @@ def trial_curve_table(result: dict) -> pa.Table:
         schema=TRIAL_CURVE)
 
 
-def is_plain_name(name) -> bool:
-    """A name that can become one path component: no separator, not hidden, not empty."""
-    return (isinstance(name, str) and bool(name) and "/" not in name and "\\" not in name
-            and not name.startswith(".") and "\0" not in name)
-
-
 def sha256_file(path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
