@@ -8,7 +8,9 @@ it times whole trials (draws, epochs and the evaluation schedule) on one core, d
 number of epochs, and reports the median over repeats for both paths, measured in the same run,
 and their ratio. Then the same for online Goal Babbling's compiled path (its epoch: K L path
 samples and the returns home, its random walk drawn with it) and the ratio of its median to the
-batch fast path's median of the same run (the target: at most 2). With bench.parallel, it also times the same batch of arm5 trials on one and on
+batch fast path's median of the same run (the target: at most 2), in wall-clock and in CPU
+time. The three paths' trials are interleaved (pipeline.bench.paired), so that a shared
+machine's drifting speed moves them alike. With bench.parallel, it also times the same batch of arm5 trials on one and on
 two worker processes of the pipeline's executor. Writes paths.bench/bench.json.
 """
 from __future__ import annotations
@@ -43,9 +45,28 @@ def paper_spec(body: str, epochs: int, fast: bool, learner: str = "goal_babbling
 
 def time_trial(spec: dict, seed: int = 0) -> float:
     """Seconds per epoch of one trial."""
-    t0 = time.perf_counter()
+    return time_trial_both(spec, seed)[0]
+
+
+def time_trial_both(spec: dict, seed: int = 0) -> tuple[float, float]:
+    """Seconds per epoch of one trial: wall clock and this process's CPU time (less sensitive to
+    a shared machine)."""
+    t0, c0 = time.perf_counter(), time.process_time()
     gbmodel.run_trial(gbmodel.TrialSpec.from_dict(spec), np.random.default_rng(seed))
-    return (time.perf_counter() - t0) / spec["epochs"]
+    return ((time.perf_counter() - t0) / spec["epochs"],
+            (time.process_time() - c0) / spec["epochs"])
+
+
+def paired(specs: dict, repeats: int) -> dict:
+    """Whole trials of every spec in `specs` (name -> spec), interleaved: repeat r runs them in
+    turn, in reversed order every other repeat, all with seed r, so that a machine that speeds up
+    or slows down during the run shifts them alike. name -> (wall, cpu) seconds per epoch, one
+    per repeat."""
+    out = {name: [] for name in specs}
+    for r in range(repeats):
+        for name in (list(specs) if r % 2 == 0 else list(reversed(specs))):
+            out[name].append(time_trial_both(specs[name], r))
+    return out
 
 
 def draw_time(spec: dict, epochs: int = 200) -> float:
@@ -86,27 +107,29 @@ def bench(cfg: DictConfig) -> dict:
     result = {"machine": platform.processor() or platform.machine(), "cpus": os.cpu_count(),
               "repeats": repeats}
     for body in ("arm5", "icub"):
-        time_trial(paper_spec(body, 10, True))  # compile or load the kernels outside the timing
-        row = {}
-        for path, fast in (("fast", True), ("reference", False)):
-            spec = paper_spec(body, EPOCHS[path][body], fast)
-            per_epoch = [time_trial(spec, seed) for seed in range(repeats)]
-            row[f"{path}_us_per_trial_epoch"] = 1e6 * float(np.median(per_epoch))
-            row[f"{path}_us_all"] = [round(1e6 * t, 2) for t in per_epoch]
+        for learner in ("goal_babbling", "online_goal_babbling"):  # compile or load the kernels
+            time_trial(paper_spec(body, 10, True, learner))       # outside the timing
+        specs = {"fast": paper_spec(body, EPOCHS["fast"][body], True),
+                 "online": paper_spec(body, EPOCHS["online"][body], True, "online_goal_babbling"),
+                 "reference": paper_spec(body, EPOCHS["reference"][body], False)}
+        times, row = paired(specs, repeats), {}
+        for path in specs:
+            wall, cpu = (np.array(t) for t in zip(*times[path]))
+            row[f"{path}_us_per_trial_epoch"] = 1e6 * float(np.median(wall))
+            row[f"{path}_us_all"] = [round(1e6 * t, 2) for t in wall]
+            row[f"{path}_cpu_us_per_trial_epoch"] = 1e6 * float(np.median(cpu))
         row["speedup"] = row["reference_us_per_trial_epoch"] / row["fast_us_per_trial_epoch"]
-        time_trial(paper_spec(body, 10, True, "online_goal_babbling"))
-        spec = paper_spec(body, EPOCHS["online"][body], True, "online_goal_babbling")
-        per_epoch = [time_trial(spec, seed) for seed in range(repeats)]
-        row["online_us_per_trial_epoch"] = 1e6 * float(np.median(per_epoch))
-        row["online_us_all"] = [round(1e6 * t, 2) for t in per_epoch]
         row["online_over_batch"] = row["online_us_per_trial_epoch"] / row["fast_us_per_trial_epoch"]
-        row["online_draw_us_per_epoch"] = 1e6 * draw_time(spec)
+        row["online_over_batch_cpu"] = (row["online_cpu_us_per_trial_epoch"]
+                                        / row["fast_cpu_us_per_trial_epoch"])
+        row["online_draw_us_per_epoch"] = 1e6 * draw_time(specs["online"])
         result[body] = row
         print(f"{body}: fast {row['fast_us_per_trial_epoch']:8.1f} us/trial-epoch   "
               f"reference {row['reference_us_per_trial_epoch']:9.1f} us/trial-epoch   "
               f"ratio fast/reference {1 / row['speedup']:.4f} ({row['speedup']:.0f}x faster)   "
               f"online {row['online_us_per_trial_epoch']:8.1f} us/trial-epoch, "
-              f"online/batch {row['online_over_batch']:.2f} (its draws alone "
+              f"online/batch {row['online_over_batch']:.2f} (CPU time "
+              f"{row['online_over_batch_cpu']:.2f}; its draws alone "
               f"{row['online_draw_us_per_epoch']:.1f} us/epoch)", flush=True)
     if cfg.bench.parallel:
         result["parallel"] = p = parallel_speedup()

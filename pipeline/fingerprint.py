@@ -106,17 +106,58 @@ def as_imported(path: Path, text: str, modules: dict | None = None) -> str:
     return text
 
 
+def imported_learners(sources, name: str) -> set[str]:
+    """The other learners whose code the files `sources` ((label, text) pairs, labels as
+    gbmodel/learners/...py) import, found in their import statements (relative ones resolved):
+    online Goal Babbling and motor babbling run goal_babbling's reference code."""
+    found = set()
+    for label, text in sources:
+        parts = label[:-3].split("/") if label.endswith(".py") else []
+        if parts[:2] != ["gbmodel", "learners"]:
+            continue  # a learner registered from elsewhere: its source is hashed as it is
+        package = parts[:-1]  # of a module, and of a package's __init__ alike
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, ast.ImportFrom):
+                base = package[:len(package) - node.level + 1] if node.level else []
+                stem = base + (node.module.split(".") if node.module else [])
+                targets = [stem + a.name.split(".") for a in node.names] if not node.module \
+                    else [stem]
+            elif isinstance(node, ast.Import):
+                targets = [a.name.split(".") for a in node.names]
+            else:
+                continue
+            found |= {t[2] for t in targets
+                      if t[:2] == ["gbmodel", "learners"] and len(t) > 2 and t[2] != name}
+    return found
+
+
+def learner_sources(learner: str) -> list[tuple[str, str]]:
+    """(label, text) of the learner's own files and of every learner's whose code it imports,
+    transitively (gbmodel.learners.sources of each)."""
+    done, todo, out = set(), [learner], {}
+    while todo:
+        name = todo.pop()
+        if name in done:
+            continue
+        done.add(name)
+        theirs = gbmodel.learners.sources(name)
+        out.update(theirs)
+        todo += sorted(imported_learners(theirs, name) - done)
+    return sorted(out.items())
+
+
 @lru_cache(maxsize=None)
 def code_fingerprint(learner: str) -> str:
     """The fingerprint of the code a trial of `learner` runs: gbmodel's shared core (every file
-    outside gbmodel/learners/, and the registry) plus that learner's own files, each checked
-    against the code imported from it. Changing one learner recomputes its trials only; an
-    edited comment recomputes none."""
+    outside gbmodel/learners/, and the registry) plus that learner's own files and those of the
+    learners it imports code from (learner_sources), each checked against the code imported
+    from it. Changing one learner recomputes its trials and those of the learners using its
+    code only; an edited comment recomputes none."""
     root = Path(gbmodel.__file__).resolve().parent
     shared = [p for p in root.rglob("*.py")
               if "learners" not in p.relative_to(root).parts[:-1]]
     shared.append(root / "learners" / "__init__.py")
-    theirs = gbmodel.learners.sources(learner)  # imports the learner: its modules are checked
+    theirs = learner_sources(learner)  # imports the learners: their modules are checked
     modules = _gbmodel_modules()
     own = [(p.relative_to(root.parent).as_posix(), as_imported(p, p.read_text(), modules))
            for p in shared]

@@ -175,6 +175,25 @@ def test_the_fingerprint_hashes_the_shared_core_and_the_learners_own_files(monke
     assert files == shared | own | {"learners/__init__.py"}
 
 
+def test_a_learner_that_imports_another_learners_code_hashes_its_files():
+    """Online Goal Babbling and motor babbling import goal_babbling's reference code (init,
+    weights, perturbations): that code is in their fingerprints; the example memory imports
+    none."""
+    labels = lambda name: {label for label, _ in fingerprint.learner_sources(name)}  # noqa: E731
+    gb = labels("goal_babbling")
+    assert "gbmodel/learners/goal_babbling/reference.py" in gb
+    for name in ("online_goal_babbling", "motor_babbling"):
+        assert labels(name) == gb | {f"gbmodel/learners/{name}.py"}
+    assert labels("example_memory") == {"gbmodel/learners/example_memory.py"}
+    # relative and absolute imports, resolved from the importing file's package
+    text = ("from .goal_babbling import goals\nfrom ..features import x\n"
+            "import gbmodel.learners.example_memory\nfrom . import motor_babbling\n")
+    assert fingerprint.imported_learners([("gbmodel/learners/new.py", text)], "new") == {
+        "goal_babbling", "example_memory", "motor_babbling"}
+    assert fingerprint.imported_learners([("gbmodel/learners/new/fast.py",
+                                           "from .reference import f\n")], "new") == set()
+
+
 def test_the_fingerprint_of_one_learner_ignores_another_learners_files(tmp_path, monkeypatch):
     """On a copy of gbmodel: editing another learner changes its fingerprint only; editing a
     comment changes none; editing the shared core changes every learner's."""
@@ -204,8 +223,11 @@ def test_the_fingerprint_of_one_learner_ignores_another_learners_files(tmp_path,
         ref = copy / "learners" / "goal_babbling" / "reference.py"
         ref.write_text(ref.read_text() + "\n# a comment\n")
         assert fp("goal_babbling") == gb
+        online = fp("online_goal_babbling")
         ref.write_text(ref.read_text() + "\nEXTRA = 1\n")
         assert fp("goal_babbling") != gb and fp("zz_other") == zz
+        # online Goal Babbling runs goal_babbling's reference code: its trials follow it too
+        assert fp("online_goal_babbling") != online
         gb = fp("goal_babbling")
         core = copy / "bodies.py"
         core.write_text(core.read_text() + "\nEXTRA = 1\n")

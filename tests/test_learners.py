@@ -1,6 +1,8 @@
 """The learners beside Goal Babbling: motor babbling (direct inverse learning), an example memory
 (nearest neighbour) and online Goal Babbling, each through the plug-in protocol and the one trial
 loop. Learning thresholds come from measured runs (numbers in the comments), with margin."""
+import math
+
 import numpy as np
 import pytest
 
@@ -202,6 +204,51 @@ def test_online_fast_path_matches_the_reference(body, growth):
         np.testing.assert_allclose(v, u, rtol=1e-12, atol=1e-14)
     np.testing.assert_array_equal(state.M, before[0])  # neither path changes its input state
     np.testing.assert_array_equal(state.P, before[1])
+
+
+def test_online_draws_are_numpys_normals():
+    """The random walk comes from numba's Generator: numpy's numbers, and numpy's state after."""
+    shape = (3, 7, 5, 3)
+    for bits in (np.random.PCG64, np.random.Philox):
+        ours, theirs = np.random.Generator(bits(11)), np.random.Generator(bits(11))
+        walk = online_goal_babbling._normals(ours, int(np.prod(shape))).reshape(shape)
+        np.testing.assert_array_equal(walk, theirs.standard_normal(shape))
+        np.testing.assert_array_equal(ours.random(9), theirs.random(9))  # the state after
+
+
+def test_online_sincos_is_the_c_librarys_within_two_ulp():
+    """The kernel's own sin and cos: within 2 ulp of the C library's (math.sin) over joint
+    angles and far beyond them, exact multiples of pi/4 included; NaN and inf give NaN."""
+    rng = np.random.default_rng(3)
+    x = np.concatenate([np.linspace(-40, 40, 20001), rng.uniform(-1e4, 1e4, 20000),
+                        np.arange(-64, 65) * np.pi / 4, [0.0, 1e-300, -1e-12]])
+    got = np.array([online_goal_babbling._sincos(v) for v in x])
+    want = np.array([(math.sin(v), math.cos(v)) for v in x])
+    ulp = np.spacing(np.maximum(np.abs(want), 1e-3))  # absolute near the zeros
+    assert (np.abs(got - want) <= 2 * ulp).all(), np.abs(got - want).max()
+    for bad in (np.nan, np.inf, -np.inf):
+        assert np.isnan(online_goal_babbling._sincos(bad)).all()
+
+
+@pytest.mark.parametrize("body", ["arm5", "icub"])
+def test_online_distances_match_the_numpy_evaluation(body):
+    """The fast path's evaluation (its compiled distances) and the shared numpy one agree to
+    rounding, on the grid and the held-out set of a grown body with a learned M."""
+    body = gbmodel.make_body(body)
+    p = online_goal_babbling.Params(**(ICUB["online_goal_babbling"] if body.name == "icub"
+                                       else {}))
+    rng = np.random.default_rng(4)
+    state = online_goal_babbling.init(p, body, 0.7, rng)
+    scales = gbmodel.Growth(pattern="nonproportional").scales(body, np.full(3, 0.7))
+    state = online_goal_babbling.train(state, p, body, np.full(3, 0.7), scales,
+                                       online_goal_babbling.draw(p, body, 3, rng))
+    for points in ("grid", "heldout"):
+        xs = gbmodel.evaluation.eval_points(body, 0.7, points)
+        fast = online_goal_babbling.distances(state, p, body, scales[-1], xs)
+        ref = online_goal_babbling.distances(state, online_goal_babbling.replace(p, fast=False),
+                                             body, scales[-1], xs)
+        assert fast.shape == (len(xs),) and fast.min() > 0
+        np.testing.assert_allclose(fast, ref, rtol=1e-12, atol=1e-15)
 
 
 # ---- under growth, and on the iCub ------------------------------------------------------------

@@ -34,8 +34,11 @@ Two paths compute the same thing with the same draws (all random numbers come fr
 per-sample loop compiled with numba in float64 (no fastmath: every sum in a fixed order, so the
 result does not depend on the CPU's vector width), is what runs by default. Its work on M runs on
 explicit 8-lane float64 vectors, one lane per row of M (M kept transposed and padded), and one
-pass over M per sample does the step and the next sample's prediction together. They agree to
-rounding (tests/test_learners.py). `Params.fast` picks the path.
+pass over M per sample does the step and the next sample's prediction together; sin and cos
+are its own polynomials (_sincos), and the evaluation's distances are compiled as well. They
+agree to rounding (tests/test_learners.py). `Params.fast` picks the path. The random walk's
+normals are drawn by numba's Generator from the trial's generator (`_normals`): numpy's very
+numbers, at under half numpy's cost.
 """
 from __future__ import annotations
 
@@ -47,6 +50,7 @@ from numba import njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic, models, register_model
 
+from .. import evaluation
 from ..features import exponents, features
 from ..growth import SpecError, check_int, check_number
 from .goal_babbling import goals
@@ -134,8 +138,19 @@ def draw(params: Params, body, B: int, rng: np.random.Generator) -> tuple:
     else:
         hops = rng.integers(1, len(body.targets), size=(B, K))
     coins = rng.uniform(0.0, 1.0, size=(B, K))
-    walk = rng.standard_normal((B, K * params.steps, body.m, body.n + 1))
+    shape = (B, K * params.steps, body.m, body.n + 1)
+    walk = _normals(rng, int(np.prod(shape))).reshape(shape)
     return hops, coins, walk
+
+
+@njit(cache=True)
+def _normals(rng, size):
+    """rng.standard_normal(size), drawn by numba's Generator: numpy's algorithm on the same bit
+    generator, so the same numbers and the same state after (tests/test_learners.py checks
+    both), at about 7 ns a number against numpy's 16 ns on this project's machine. The random
+    walk draws m (n + 1) of them per path sample, which made the draws alone cost about one
+    batch epoch on arm5."""
+    return rng.standard_normal(size)
 
 
 def plan(state: State, params: Params, targets, x_home, hops, coins):
@@ -223,8 +238,24 @@ def train_reference(state: State, params: Params, body, sizes, scales, draws) ->
 # ---- the fast path: the same per-sample loop, compiled ------------------------------------------
 # Plain float64, sequential: every sum runs in a fixed order (first term first), nothing is
 # compiled with fastmath (no reassociation, no fused multiply-adds), so the results do not depend
-# on the CPU's vector width; sin and cos are the C library's. They differ from the numpy path's
-# only by rounding, where numpy (or its BLAS) sums in another order or calls its own sin and cos.
+# on the CPU's vector width; sin and cos are its own (_sincos), not the C library's. They differ
+# from the numpy path's only by rounding, where numpy (or its BLAS) sums in another order or
+# calls its own sin and cos.
+_ARRAYS: dict = {}  # (id(body), degree) -> (body, arrays); the body kept so its id stays its own
+
+
+def _kernel_arrays(body, params: Params) -> tuple:
+    """(chain, joints, parent, coord) for the kernels: built once per body object (bodies are
+    frozen) and degree, not at every call (a trial calls train and distances ~100 times)."""
+    key = (id(body), params.degree)
+    hit = _ARRAYS.get(key)
+    if hit is None or hit[0] is not body:
+        if len(_ARRAYS) >= 32:
+            _ARRAYS.clear()
+        hit = _ARRAYS[key] = (body, _body_arrays(body) + _parents(_exps(params, body)))
+    return hit[1]
+
+
 def _body_arrays(body) -> tuple:
     """The body as the kernel takes it, float64: the full-size chain (a, d, cos alpha, sin
     alpha, base, outputs) and the joint map (normalized, saturates, q_min, q_max - q_min,
@@ -250,6 +281,41 @@ def _saturate(q, normalized, saturates):
                 q[i] = -1.0
 
 
+# sin and cos of a joint angle: Cephes' double-precision kernels (sin.c: |r| <= pi/4) after a
+# Cody-Waite reduction x = k pi/2 + r with pi/2 in three parts (the first two with trailing zero
+# bits, so k times them is exact for |k| < 2^24), then the quadrant k mod 4 swaps and negates
+# them. Plain float64 operations in a fixed order: the same result on every CPU and C library,
+# within 2 ulp of the C library's (tests/test_learners.py). Inlined and branch-free, a pair costs
+# 8.5 ns against the C library's 19.7 ns for sin and cos of independent angles on this
+# project's machine: the kinematics of each sample (m pairs) were the loop's largest part.
+_PIO2 = (1.57079625129699707031e0, 7.54978941586159635335e-8, 5.39030285815811905290e-15)
+_ROUND = 6755399441055744.0  # 1.5 * 2^52: x + _ROUND - _ROUND rounds x to an integer
+_SIN = (1.58962301576546568060e-10, -2.50507477628578072866e-8, 2.75573136213857245213e-6,
+        -1.98412698295895385996e-4, 8.33333333332211858878e-3, -1.66666666666666307295e-1)
+_COS = (-1.13585365213876817300e-11, 2.08757008419747316778e-9, -2.75573141792967388112e-7,
+        2.48015872888517045348e-5, -1.38888888888730564116e-3, 4.16666666666665929218e-2)
+
+
+@njit(cache=True)
+def _sincos(x):
+    """(sin x, cos x) for |x| < 2^24 (NaN for NaN or inf)."""
+    k = (x * 0.63661977236758134308 + _ROUND) - _ROUND  # nearest integer to x / (pi/2)
+    r = ((x - k * _PIO2[0]) - k * _PIO2[1]) - k * _PIO2[2]
+    z = r * r
+    ps = ((((_SIN[0] * z + _SIN[1]) * z + _SIN[2]) * z + _SIN[3]) * z + _SIN[4]) * z + _SIN[5]
+    pc = ((((_COS[0] * z + _COS[1]) * z + _COS[2]) * z + _COS[3]) * z + _COS[4]) * z + _COS[5]
+    s = r + r * z * ps
+    c = (1.0 - 0.5 * z) + z * z * pc
+    # quadrant 0: (s, c), 1: (c, -s), 2: (-s, -c), 3: (-c, s), without a branch (the angles'
+    # quadrants are unpredictable): a swap by select, signs by exact products with +-1. For
+    # NaN or inf, r and so both results are NaN whatever the quadrant.
+    quadrant = int(k) & 3
+    swap = quadrant & 1
+    a = c if swap else s
+    b = s if swap else c
+    return a * (1 - (quadrant & 2)), b * (1 - ((quadrant + 1) & 2))
+
+
 @njit(cache=True)
 def _forward(q, scale, chain, joints, out):
     """body.forward(q, scale=scale) into out (n,): the hand point carried backwards through the
@@ -266,7 +332,7 @@ def _forward(q, scale, chain, joints, out):
         u = px + a[i] * scale[i]
         v = ca[i] * py - sa[i] * pz
         w = sa[i] * py + ca[i] * pz + d[i] * scale[i]
-        c, s = np.cos(theta), np.sin(theta)
+        s, c = _sincos(theta)
         px, py, pz = c * u - s * v, s * u + c * v, w
     for j in range(len(outputs)):
         o = outputs[j]
@@ -554,8 +620,7 @@ def train_fast(state: State, params: Params, body, sizes, scales, draws) -> Stat
     MT[:, :m] = state.M.T
     P = f8(state.P)
     lxs, lx, lq = (f8(a) for a in state.last)
-    chain, joints = _body_arrays(body)
-    parent, coord = _parents(_exps(params, body))
+    chain, joints, parent, coord = _kernel_arrays(body, params)
     target, at_home = _train_block(
         MT, P, lxs, lx, lq, int(state.target), bool(state.at_home),
         np.ascontiguousarray(hops, np.int64), np.ascontiguousarray(coins, np.float64),
@@ -571,6 +636,41 @@ def train_fast(state: State, params: Params, body, sizes, scales, draws) -> Stat
 
 def predict(state: State, params: Params, body, x) -> np.ndarray:
     return predict_inverse(state.M, x, _exps(params, body))
+
+
+def distances(state: State, params: Params, body, scale, xs) -> np.ndarray:
+    """|f(g(x*)) - x*| per point (rows of xs), the body at per-joint factors `scale`: on the
+    fast path by `_distances` (the kernel's float64 features, prediction and kinematics, every
+    sum in order), else by the shared numpy evaluation; they agree to rounding."""
+    if not params.fast:
+        return evaluation.distances(lambda x: predict(state, params, body, x), body, scale, xs)
+    chain, joints, parent, coord = _kernel_arrays(body, params)
+    out = np.empty(len(xs))
+    _distances(np.ascontiguousarray(state.M, np.float64), np.ascontiguousarray(xs, np.float64),
+               np.ascontiguousarray(scale, np.float64).reshape(body.m), chain, joints, parent,
+               coord, out)
+    return out
+
+
+@njit(cache=True)
+def _distances(M, xs, scale, chain, joints, parent, coord, out):
+    """out[t] = |f(saturate(M Phi(xs[t]))) - xs[t]|, f the body at per-joint factors scale."""
+    m, p = M.shape
+    n = xs.shape[1]
+    phi, q, x = np.empty(p), np.empty(m), np.empty(n)
+    for t in range(len(xs)):
+        _features_tree(xs[t], parent, coord, phi)
+        for i in range(m):
+            g = 0.0
+            for k in range(p):
+                g += M[i, k] * phi[k]
+            q[i] = g
+        _saturate(q, joints[0], joints[1])
+        _forward(q, scale, chain, joints, x)
+        d = 0.0
+        for j in range(n):
+            d += (x[j] - xs[t, j]) ** 2
+        out[t] = np.sqrt(d)
 
 
 def model(state: State) -> np.ndarray:
