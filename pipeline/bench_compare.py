@@ -3,9 +3,11 @@ paper's settings (pipeline.bench's specs), a baseline checkout against this one,
 processes timed in CPU seconds (less sensitive to a shared machine than wall time), interleaved
 A B B A ...; prints medians and the ratio this / baseline.
 
-    python -m pipeline.bench_compare BASELINE_DIR [ROUNDS] [REPEATS]
+    python -m pipeline.bench_compare BASELINE_DIR [ROUNDS] [REPEATS] [LEARNER]
 
-BASELINE_DIR: another checkout, e.g. `git archive <commit> | tar -x -C /tmp/base`.
+BASELINE_DIR: another checkout, e.g. `git archive <commit> | tar -x -C /tmp/base`; LEARNER:
+goal_babbling (the default: the batch fast path) or online_goal_babbling (pipeline.bench's
+online trials).
 """
 from __future__ import annotations
 
@@ -29,22 +31,23 @@ def time_trial(spec, seed=0):
     return (time.process_time() - t0) / spec["epochs"]
 
 
-out = {}
+out, learner = {}, sys.argv[2]
+path = "online" if learner == "online_goal_babbling" else "fast"
 for body in ("arm5", "icub"):
-    spec = paper_spec(body, EPOCHS["fast"][body], True)
-    time_trial(paper_spec(body, 10, True))
+    spec = paper_spec(body, EPOCHS[path][body], True, learner)
+    time_trial(paper_spec(body, 10, True, learner))
     out[body] = [time_trial(spec, s) * 1e6 for s in range(int(sys.argv[1]))]
 print(json.dumps(out))
 '''
 
 
-def main(baseline: str, rounds: int = 4, reps: int = 3) -> dict:
+def main(baseline: str, rounds: int = 4, reps: int = 3, learner: str = "goal_babbling") -> dict:
     """Medians [us per trial-epoch] per body and tree; prints them with the ratios."""
     TREES = {"baseline": str(Path(baseline).resolve()), "this": HERE}
     res = {t: {"arm5": [], "icub": []} for t in TREES}
     for r in range(rounds):
         for t, path in (TREES.items() if r % 2 == 0 else reversed(list(TREES.items()))):
-            p = subprocess.run([sys.executable, "-c", CHILD, str(reps)], cwd=path, capture_output=True,
+            p = subprocess.run([sys.executable, "-c", CHILD, str(reps), learner], cwd=path, capture_output=True,
                                text=True, env={"PYTHONPATH": path, "PATH": "/usr/bin:/bin"})
             assert p.returncode == 0, p.stderr[-2000:]
             d = json.loads(p.stdout.strip().splitlines()[-1])
@@ -59,4 +62,4 @@ def main(baseline: str, rounds: int = 4, reps: int = 3) -> dict:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1], *(int(a) for a in sys.argv[2:4]))
+    main(sys.argv[1], *(int(a) for a in sys.argv[2:4]), *sys.argv[4:5])
