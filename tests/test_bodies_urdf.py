@@ -172,6 +172,33 @@ def test_fast_distances_of_a_urdf_body(urdf_file):
     np.testing.assert_allclose(fast.distances(M, body, exps, scale, xs), want, atol=2e-6)
 
 
+@pytest.mark.parametrize("pattern", ["proportional", "proximal_first"])
+def test_online_goal_babbling_runs_the_urdf_chain(urdf_file, pattern):
+    """Online Goal Babbling's compiled float64 loop takes the general chain too: the same curve
+    and M as its numpy reference (Body.forward's chain_position) up to rounding, under growth;
+    its compiled distances are Body.forward's."""
+    from gbmodel.learners import online_goal_babbling as online
+
+    def trial(fast):
+        spec = gbmodel.TrialSpec(body=_desc(urdf_file), epochs=20, evals_per_decade=5,
+                                 learner={"name": "online_goal_babbling", "fast": fast},
+                                 growth={"pattern": pattern, "start_size": 0.5, "period": 10})
+        return gbmodel.run_trial(spec, np.random.default_rng(3))
+    fast, ref = trial(True), trial(False)
+    np.testing.assert_allclose(fast.abs_error, ref.abs_error, rtol=1e-9)
+    np.testing.assert_allclose(fast.M, ref.M, rtol=1e-9, atol=1e-12)
+    body = body_from(_desc(urdf_file))
+    params = online.Params()
+    M = np.random.default_rng(0).normal(0, 0.3, size=(4, len(gbmodel.exponents(3))))
+    state = online.State(M, np.zeros((4, 4)), 0, True, ())
+    scale = np.array([0.9, 0.8, 0.7, 0.6])
+    want = np.linalg.norm(body.forward(body.saturate(gbmodel.predict(M, body.targets,
+                                                                     gbmodel.exponents(3))),
+                                       scale=scale) - body.targets, axis=-1)
+    np.testing.assert_allclose(online.distances(state, params, body, scale, body.targets), want,
+                               rtol=1e-12, atol=1e-15)
+
+
 def test_a_urdf_body_learns_through_simulate(urdf_file, tmp_path):
     """A body YAML in the test's own config folder, found with hydra.searchpath."""
     body = body_from(_desc(urdf_file))

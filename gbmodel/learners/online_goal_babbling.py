@@ -54,6 +54,7 @@ from .. import evaluation
 from ..features import exponents, features
 from ..growth import SpecError, check_int, check_number
 from .goal_babbling import goals
+from .goal_babbling.fast import _chain as kernel_chain  # the kernels' layout of a chain
 from .goal_babbling.reference import (NO_MOVEMENT, init_inverse, predict as predict_inverse,
                                       sample_weights, scale_perturbations)
 
@@ -258,12 +259,14 @@ def _kernel_arrays(body, params: Params) -> tuple:
 
 def _body_arrays(body) -> tuple:
     """The body as the kernel takes it, float64: the full-size chain (a, d, cos alpha, sin
-    alpha, base, outputs) and the joint map (normalized, saturates, q_min, q_max - q_min,
+    alpha, base, outputs, ty, R, general: the layout of goal_babbling's kernel, DH rows or a
+    URDF's general chain) and the joint map (normalized, saturates, q_min, q_max - q_min,
     theta_offset)."""
     f8 = lambda x: np.ascontiguousarray(x, np.float64)  # noqa: E731
-    full = body.chain(1.0)  # the kernel scales a and d epoch by epoch
+    full = kernel_chain(body)  # at full size: the kernel scales the translations epoch by epoch
     chain = tuple(f8(full[k]) for k in ("a", "d", "cos_alpha", "sin_alpha", "base")) \
-        + (np.array(body.outputs, np.int64),)
+        + (np.array(body.outputs, np.int64), f8(full["ty"]), f8(full["R"]),
+           bool(full["general"]))
     normalized, zeros = body.normalized, np.zeros(body.m)
     joints = (normalized, bool(body.saturates), f8(body.q_min if normalized else zeros),
               f8(body.q_max - body.q_min if normalized else zeros), f8(body.theta_offset))
@@ -319,8 +322,9 @@ def _sincos(x):
 @njit(cache=True)
 def _forward(q, scale, chain, joints, out):
     """body.forward(q, scale=scale) into out (n,): the hand point carried backwards through the
-    DH chain (gbmodel.kinematics.hand_position), operation by operation."""
-    a, d, ca, sa, base, outputs = chain
+    DH chain (gbmodel.kinematics.hand_position), operation by operation, or through a general
+    chain (chain_position: p <- Rz(theta_i) (R_i p + (a, ty, d)_i), then the base)."""
+    a, d, ca, sa, base, outputs, ty, R, general = chain
     normalized, _, q_min, q_span, offset = joints
     px = py = pz = 0.0
     for i in range(len(q) - 1, -1, -1):
@@ -329,9 +333,14 @@ def _forward(q, scale, chain, joints, out):
         else:
             theta = q[i]
         theta = theta + offset[i]
-        u = px + a[i] * scale[i]
-        v = ca[i] * py - sa[i] * pz
-        w = sa[i] * py + ca[i] * pz + d[i] * scale[i]
+        if general:
+            u = R[i, 0, 0] * px + R[i, 0, 1] * py + R[i, 0, 2] * pz + a[i] * scale[i]
+            v = R[i, 1, 0] * px + R[i, 1, 1] * py + R[i, 1, 2] * pz + ty[i] * scale[i]
+            w = R[i, 2, 0] * px + R[i, 2, 1] * py + R[i, 2, 2] * pz + d[i] * scale[i]
+        else:
+            u = px + a[i] * scale[i]
+            v = ca[i] * py - sa[i] * pz
+            w = sa[i] * py + ca[i] * pz + d[i] * scale[i]
         s, c = _sincos(theta)
         px, py, pz = c * u - s * v, s * u + c * v, w
     for j in range(len(outputs)):
