@@ -25,6 +25,25 @@ def fake_cost(t):
     return t["c"]
 
 
+def test_cost_weighs_each_learners_path():
+    """A trial's cost is its samples x joints x epochs times its learner's measured cost per
+    sample and joint (plan.SAMPLE_COST, from pipeline.bench_costs): online Goal Babbling's
+    106 samples an epoch cost more than Goal Babbling's 2120, as they do in CPU time; every
+    shipped learner has its weight."""
+    from gbmodel import learners
+    from pipeline.plan import SAMPLE_COST
+
+    def one(*over):
+        return cost(plan(compose(["body=arm5", "trials.count=1", "learner.epochs=100",
+                                  *over]))[0])
+    gb, online = one(), one("learner=online_goal_babbling")
+    assert gb == 100 * 2120 * 5 and online == 100 * 106 * 5 * 35
+    assert one("learner.fast=false") == 60 * gb
+    assert one("learner.updates=online") == 7 * gb
+    assert one("learner=online_goal_babbling", "learner.fast=false") > 100 * online
+    assert {name for name, _ in SAMPLE_COST} == set(learners.available())
+
+
 @pytest.mark.parametrize("n_trials,n", [(1, 1), (1, 4), (7, 3), (50, 4), (50, 50), (50, 80),
                                         (271, 16)])
 def test_shards_partition_todo_in_order_and_balance_cost(n_trials, n):
