@@ -273,7 +273,10 @@ def test_learner_files_set_no_hyperparameter():
         body = max((b for b in gbmodel.BODIES if path.stem.startswith(b + "_")), key=len)
         learner = path.stem[len(body) + 1:]  # the longest body name: icub_urdf before icub
         params = {f.name for f in dataclasses.fields(gbmodel.learners.get(learner).Params)}
-        assert set(yaml.safe_load(path.read_text())) <= params, path.name
+        data = yaml.safe_load(path.read_text())
+        for other in data.pop("defaults", []):  # another body's settings, shared
+            assert other == "_self_" or (path.parent / f"{other}.yaml").is_file(), path.name
+        assert set(data) <= params, path.name
 
 
 def test_the_composed_learner_is_the_cores_params():

@@ -88,6 +88,15 @@ def test_body_brings_its_learner_settings_unless_overridden():
     assert compose(["body=arm5"]).learner.targets_per_epoch == 15
 
 
+@pytest.mark.parametrize("learner", ["goal_babbling", "online_goal_babbling"])
+def test_the_urdf_icub_takes_the_icubs_learner_settings(learner):
+    """icub_urdf is the iCub from its URDF: each learner's settings are the DH iCub's."""
+    dh, urdf = (compose([f"body={b}", f"learner={learner}"]).learner for b in ("icub", "icub_urdf"))
+    assert (urdf.radius, urdf.targets_per_epoch, urdf.steps) == (0.1, 30, 10)
+    assert {k: v for k, v in urdf.items() if k != "fast"} == \
+        {k: v for k, v in dh.items() if k != "fast"}
+
+
 def test_default_learning_rate_is_the_cores_or_the_bodys_rule():
     """arm5 takes the core's default; the other bodies their own 1 / W (their body settings)."""
     assert compose(["body=arm5"]).learner.learning_rate == goal_babbling.Params().learning_rate
