@@ -109,8 +109,10 @@ def as_imported(path: Path, text: str, modules: dict | None = None) -> str:
 def imported_learners(sources, name: str) -> set[str]:
     """The other learners whose code the files `sources` ((label, text) pairs, labels as
     gbmodel/learners/...py) import, found in their import statements (relative ones resolved):
-    online Goal Babbling and motor babbling run goal_babbling's reference code."""
-    found = set()
+    online Goal Babbling and motor babbling run goal_babbling's reference code. A name imported
+    from the learners package itself counts when it is a learner (`from gbmodel.learners import
+    goal_babbling`), not when it is the registry's (`from . import register`)."""
+    found, known = set(), set(gbmodel.learners.available())
     for label, text in sources:
         parts = label[:-3].split("/") if label.endswith(".py") else []
         if parts[:2] != ["gbmodel", "learners"]:
@@ -120,14 +122,15 @@ def imported_learners(sources, name: str) -> set[str]:
             if isinstance(node, ast.ImportFrom):
                 base = package[:len(package) - node.level + 1] if node.level else []
                 stem = base + (node.module.split(".") if node.module else [])
-                targets = [stem + a.name.split(".") for a in node.names] if not node.module \
-                    else [stem]
+                targets = [stem + a.name.split(".") for a in node.names] \
+                    if not node.module or stem == ["gbmodel", "learners"] else [stem]
             elif isinstance(node, ast.Import):
                 targets = [a.name.split(".") for a in node.names]
             else:
                 continue
             found |= {t[2] for t in targets
-                      if t[:2] == ["gbmodel", "learners"] and len(t) > 2 and t[2] != name}
+                      if t[:2] == ["gbmodel", "learners"] and len(t) > 2 and t[2] != name
+                      and t[2] in known}
     return found
 
 

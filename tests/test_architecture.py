@@ -192,6 +192,14 @@ def test_a_learner_that_imports_another_learners_code_hashes_its_files():
         "goal_babbling", "example_memory", "motor_babbling"}
     assert fingerprint.imported_learners([("gbmodel/learners/new/fast.py",
                                            "from .reference import f\n")], "new") == set()
+    # a learner named from the package itself counts; the registry's own names do not
+    text = ("from gbmodel.learners import goal_babbling\nfrom ..learners import motor_babbling\n"
+            "from . import register, sources\n")
+    assert fingerprint.imported_learners([("gbmodel/learners/new.py", text)], "new") == {
+        "goal_babbling", "motor_babbling"}
+    assert fingerprint.imported_learners([("gbmodel/learners/new/__init__.py",
+                                           "from .. import example_memory, register\n")],
+                                         "new") == {"example_memory"}
 
 
 def test_the_fingerprint_of_one_learner_ignores_another_learners_files(tmp_path, monkeypatch):

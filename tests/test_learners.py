@@ -218,10 +218,12 @@ def test_online_draws_are_numpys_normals():
 
 def test_online_sincos_is_the_c_librarys_within_two_ulp():
     """The kernel's own sin and cos: within 2 ulp of the C library's (math.sin) over joint
-    angles and far beyond them, exact multiples of pi/4 included; NaN and inf give NaN."""
+    angles and far beyond them, exact multiples of pi/4 included; past 2^24 (a diverging
+    command) the C library's own; NaN and inf give NaN."""
     rng = np.random.default_rng(3)
     x = np.concatenate([np.linspace(-40, 40, 20001), rng.uniform(-1e4, 1e4, 20000),
-                        np.arange(-64, 65) * np.pi / 4, [0.0, 1e-300, -1e-12]])
+                        np.arange(-64, 65) * np.pi / 4, [0.0, 1e-300, -1e-12],
+                        [2.0 ** 24 - 1, 2.0 ** 24, 1e10, -1e16, 1e20, 1e300]])
     got = np.array([online_goal_babbling._sincos(v) for v in x])
     want = np.array([(math.sin(v), math.cos(v)) for v in x])
     ulp = np.spacing(np.maximum(np.abs(want), 1e-3))  # absolute near the zeros
