@@ -256,12 +256,14 @@ def test_goal_babblings_learning_rate_is_set_in_conf_only_by_bodies_and_variants
             code = line.split("#", 1)[0]
             if "learning_rate" not in code:
                 continue
-            if path.parent.name == "body_learner" and path.stem.split("_", 1)[1] == "goal_babbling":
+            body = max((b for b in gbmodel.BODIES if path.stem.startswith(b + "_")), key=len,
+                       default="")  # the longest body name: icub_urdf before icub
+            if path.parent.name == "body_learner" and path.stem[len(body) + 1:] == "goal_babbling":
                 assert re.fullmatch(r"learning_rate: 0\.\d+\s*", code), (where, code)
-                bodies.append(path.stem.split("_", 1)[0])
+                bodies.append(body)
             elif path.parent.name != "body_learner":  # another learner's body settings may
                 hits.append((where, code))
-    assert sorted(bodies) == ["arm2", "icub"]  # arm5 takes the default
+    assert sorted(bodies) == ["arm2", "ergo_jr", "icub"]  # arm5 takes the default
     assert hits  # the variants of the choices and readings experiments
     for where, code in hits:
         assert where.startswith("experiment/"), where

@@ -100,8 +100,12 @@ def test_the_urdf_icub_takes_the_icubs_learner_settings(learner):
 def test_default_learning_rate_is_the_cores_or_the_bodys_rule():
     """arm5 takes the core's default; the other bodies their own 1 / W (their body settings)."""
     assert compose(["body=arm5"]).learner.learning_rate == goal_babbling.Params().learning_rate
-    for body, W in (("arm2", 1931), ("icub", 1791)):
+    for body, W in (("arm2", 1931), ("icub", 1791), ("ergo_jr", 227.3)):
         assert compose([f"body={body}"]).learner.learning_rate == pytest.approx(1 / W, rel=1e-3)
+    # online Goal Babbling's per-sample rate: measured on the iCub and the Ergo Jr, else 0.1
+    for body, eta in (("arm5", 0.1), ("icub", 0.3), ("ergo_jr", 0.3)):
+        assert compose([f"body={body}", "learner=online_goal_babbling"]).learner.learning_rate \
+            == eta
 
 
 def test_fast_is_a_learner_setting():
