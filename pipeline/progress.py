@@ -31,9 +31,10 @@ class Progress:
                  stream=None, cost=None):
         if cost is None:
             from .plan import cost
-        self.s, self.cost, self.stream = summary, cost, stream or sys.stderr
+        self.s, self.stream = summary, stream or sys.stderr
         self.start = self.last = time.perf_counter()
-        self.total_cost, self.done_cost = sum(map(cost, todo)), 0.0
+        self.costs = {t["key"]: cost(t) for t in todo}  # each estimated once (it builds the body)
+        self.total_cost, self.done_cost = sum(self.costs.values()), 0.0
         self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
         self.lock, self.stop = threading.Lock(), threading.Event()
         self.beat, self.open_line = None, False
@@ -53,7 +54,7 @@ class Progress:
 
     def update(self, trial: dict, result: dict) -> None:
         with self.lock:
-            self.done_cost += self.cost(trial)
+            self.done_cost += self.costs.get(trial["key"], 0.0)
             now = time.perf_counter()
             self.last = now
             self._write(f"{self.head(now - self.start)} | {self.s.labels[trial['key']]} "

@@ -44,14 +44,15 @@ def _binary(name: str) -> str:
     return shutil.which(name) or str(Path("/usr/sbin", name))
 
 
-def _wait(what: str, ok, timeout: float = 60.0, every: float = 0.2):
+def wait(what: str, ok, timeout: float = 60.0, every: float = 0.2, error=RuntimeError):
+    """ok()'s first true value, polled every `every` seconds; `error` after `timeout`."""
     end = time.monotonic() + timeout
     while time.monotonic() < end:
         got = ok()
         if got:
             return got
         time.sleep(every)
-    raise RuntimeError(f"{what}: not ready after {timeout:.0f} s")
+    raise error(f"{what}: not ready after {timeout:.0f} s")
 
 
 def stop_pids(pids, timeout: float = 15.0) -> None:
@@ -176,7 +177,7 @@ StorageLoc=slurm_gbtest
         self._spawn("mariadbd", [_binary("mariadbd"), "--user=mysql", f"--datadir={d}/db",
                                  f"--socket={sock}", "--skip-networking",
                                  f"--pid-file={d}/run/mariadb.pid", "--skip-log-error"])
-        _wait("mariadbd", sock.exists, 60)
+        wait("mariadbd", sock.exists, 60)
         if not MYSQL_DEFAULT_SOCKET.exists():
             MYSQL_DEFAULT_SOCKET.parent.mkdir(parents=True, exist_ok=True)
             if MYSQL_DEFAULT_SOCKET.is_symlink():
@@ -185,10 +186,10 @@ StorageLoc=slurm_gbtest
             self.linked_socket = True
         os.chmod(d / "run", 0o777)
         self._spawn("slurmdbd", [_binary("slurmdbd"), "-D"])
-        _wait("slurmdbd", lambda: _port_open(16819), 60)
+        wait("slurmdbd", lambda: _port_open(16819), 60)
         self._spawn("slurmctld", [_binary("slurmctld"), "-D", "-i"])
         self._spawn("slurmd", [_binary("slurmd"), "-D"])
-        _wait("slurm node idle", lambda: "idle" in self.run("sinfo", "-h", "-o", "%T",
+        wait("slurm node idle", lambda: "idle" in self.run("sinfo", "-h", "-o", "%T",
                                                              check=False).stdout, 60)
         self.started_s = time.monotonic() - t0
         return self

@@ -55,6 +55,37 @@ def files_of(folder: Path) -> dict[str, bytes]:
     return out
 
 
+# ---- the engines' runs (test_backends_slow, test_engines_cluster): fig4 at smoke scale --------
+ENGINE_SMOKE = ("experiment=fig4", "profile=smoke", "learner.epochs=200", "trials.count=1")
+
+
+def cfg_of(root: Path, *overrides: str):
+    """fig4 at smoke scale, 6 trials of 200 epochs, rooted at `root`."""
+    return compose([*ENGINE_SMOKE, f"paths.root={root}", *overrides])
+
+
+def trial_files(root: Path) -> dict[str, bytes]:
+    """Relative path -> bytes of the trials a run under `root` cached (cache/trials/: a curve and
+    a sealed sidecar per trial), lock files left out: the files an engine must write byte for
+    byte as a local run does. Plans and failed trials' records lie outside cache/trials/."""
+    folder = root / "outputs/smoke/cache/trials"
+    return {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(folder.rglob("*"))
+            if p.is_file() and p.suffix != ".lock" and p.name != ".lock"}
+
+
+@pytest.fixture(scope="module")
+def local_files(tmp_path_factory):
+    """The trial files of that run on one local worker: what every engine must write."""
+    from pipeline.simulate import simulate
+
+    root = tmp_path_factory.mktemp("local")
+    summary = simulate(cfg_of(root, "workers=1"))
+    assert summary.ran == 6 and not summary.failed
+    files = trial_files(root)
+    assert len(files) == 12  # a curve and a sidecar per trial
+    return files
+
+
 def figure_trials(cache_dir, figure: str) -> tuple[list[dict], list[str]]:
     """(trials as (condition label, trial index, key) dicts, problems) of a figure's current
     plan, as aggregate reads it."""

@@ -1,8 +1,8 @@
 """The cluster engines end to end at smoke scale: the same cache files as a local run.
 
 Each test runs `simulate` in this process on a composed config (6 trials of fig4, 200 epochs)
-through an engine and compares every file under cache/fig4/ (plans and locks left out) byte for
-byte with a local run. Needs the extras: pip install -e '.[ray,slurm]'.
+through an engine and compares every file under cache/trials/ (locks left out) byte for byte
+with a local run. Needs the extras: pip install -e '.[ray,slurm]'.
 """
 import os
 import sys
@@ -10,34 +10,11 @@ from pathlib import Path
 
 import pytest
 
-from pipeline import backends
-from pipeline.config import compose
+from conftest import cfg_of, trial_files
+from pipeline import backends, cache
 from pipeline.simulate import simulate
 
 pytestmark = pytest.mark.slow
-
-SMOKE = ("experiment=fig4", "profile=smoke", "learner.epochs=200", "trials.count=1")
-
-
-def cfg_of(root: Path, *overrides: str):
-    return compose([*SMOKE, f"paths.root={root}", *overrides])
-
-
-def trial_files(root: Path) -> dict[str, bytes]:
-    folder = root / "outputs/smoke/cache/fig4"
-    return {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(folder.rglob("*"))
-            if p.is_file() and "plans" not in p.relative_to(folder).parts
-            and p.suffix != ".lock" and p.name != ".lock"}
-
-
-@pytest.fixture(scope="module")
-def local_files(tmp_path_factory):
-    root = tmp_path_factory.mktemp("local")
-    summary = simulate(cfg_of(root, "workers=1"))
-    assert summary.ran == 6 and not summary.failed
-    files = trial_files(root)
-    assert len(files) == 12  # a curve and a sidecar per trial
-    return files
 
 
 def with_options(monkeypatch, fn=None, **extra):
@@ -98,15 +75,15 @@ def test_ray_worker_killed_is_recorded_failed_and_rerun_completes(tmp_path, loca
 
     ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])  # tests/ is not on the
     cfg = cfg_of(tmp_path, "executor=ray", "workers=2")              # workers' sys.path
-    victim = plan(cfg)[2]["key"]
+    trial = plan(cfg)[2]
+    victim = trial["key"]
     with_options(monkeypatch, fn=KillOnce(victim, tmp_path / "killed"))
     first = simulate(cfg)
     assert list(first.failed) == [victim] and first.ran == 6
     print(first.failed[victim])
     assert "WorkerCrashedError" in first.failed[victim] and "\n" not in first.failed[victim]
-    folder = tmp_path / "outputs/smoke/cache/fig4"
-    assert (folder / "failed" / f"{victim}.json").exists()
-    assert not (folder / f"{victim}.json").exists()
+    assert cache.failure_path(cfg.paths.cache, trial).exists()
+    assert not any(p.exists() for p in cache.trial_paths(cfg.paths.cache, trial))
     again = simulate(cfg)  # the same command again
     assert again.ran == 1 and again.cached == 5 and not again.failed
     assert trial_files(tmp_path) == local_files

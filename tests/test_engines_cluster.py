@@ -16,37 +16,16 @@ from pathlib import Path
 
 import pytest
 
-from cluster_engines import Slurm, slurm_missing, stop_ray, two_node_ray
+from cluster_engines import Slurm, slurm_missing, stop_ray, two_node_ray, wait
+from conftest import cfg_of, trial_files
 from pipeline import backends
-from pipeline.config import compose
 from pipeline.plan import cost, plan
 from pipeline.simulate import simulate
 
 pytestmark = pytest.mark.cluster
 
-SMOKE = ("experiment=fig4", "profile=smoke", "learner.epochs=200", "trials.count=1")
 SLURM_FAST = ("executor=slurm", "executor.slurm.poll_s=1", "executor.slurm.lost_s=10",
               "executor.slurm.timeout_min=10")
-
-
-def cfg_of(root: Path, *overrides: str):
-    return compose([*SMOKE, f"paths.root={root}", *overrides])
-
-
-def trial_files(root: Path) -> dict[str, bytes]:
-    folder = root / "outputs/smoke/cache/fig4"
-    return {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(folder.rglob("*"))
-            if p.is_file() and "plans" not in p.relative_to(folder).parts
-            and "failed" not in p.relative_to(folder).parts
-            and p.suffix != ".lock" and p.name != ".lock"}
-
-
-@pytest.fixture(scope="module")
-def local_files(tmp_path_factory):
-    root = tmp_path_factory.mktemp("local")
-    summary = simulate(cfg_of(root, "workers=1"))
-    assert summary.ran == 6 and not summary.failed
-    return trial_files(root)
 
 
 class Slow:
@@ -102,13 +81,8 @@ def in_thread(fn):
 
 
 def until(what, ok, timeout=120.0, every=0.2):
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        got = ok()
-        if got:
-            return got
-        time.sleep(every)
-    raise AssertionError(f"{what}: not after {timeout:.0f} s")
+    """ok()'s first true value within `timeout` seconds, else a failed assertion."""
+    return wait(what, ok, timeout, every, error=AssertionError)
 
 
 # --- SLURM -------------------------------------------------------------------------------------

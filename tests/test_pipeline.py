@@ -293,23 +293,24 @@ def test_ctrl_c_on_two_workers_stops_at_once_and_resumes(tmp_path):
     import sys
     import time
 
-    args = tiny_overrides(tmp_path / "cut", "experiment=fig7", "learner.epochs=3000",
-                          "trials.count=2", "workers=2")
+    args = tiny_overrides(tmp_path / "cut", "experiment=fig7", "figure=fig7_cut",
+                          "learner.epochs=3000", "trials.count=2", "workers=2")
     env = dict(os.environ, PYTHONPATH=str(REPO_ROOT))
     proc = subprocess.Popen([sys.executable, "-m", "pipeline.simulate", *args], env=env,
                             stderr=subprocess.PIPE, text=True, start_new_session=True,
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
-    folder = tmp_path / "cut/outputs/smoke/cache/fig7"
-    while not list(folder.glob("*.parquet")) and proc.poll() is None:
+    folder = tmp_path / "cut/outputs/smoke/cache/trials"  # a trial finished: Ctrl-C mid-run
+    while not list(folder.glob("*/*.parquet")) and proc.poll() is None:
         time.sleep(0.2)
     os.killpg(proc.pid, signal.SIGINT)
     _, err = proc.communicate(timeout=30)
     assert proc.returncode == 130, err
-    assert "interrupted" in err and "Traceback" not in err
+    assert "stopped by SIGINT" in err and "Traceback" not in err
     r = run_cli("pipeline.simulate", *args)
     assert r.returncode == 0 and "cached" in r.stderr, r.stderr
     whole = run_cli("pipeline.simulate", *tiny_overrides(
-        tmp_path / "whole", "experiment=fig7", "learner.epochs=3000", "trials.count=2"))
+        tmp_path / "whole", "experiment=fig7", "figure=fig7_cut", "learner.epochs=3000",
+        "trials.count=2"))
     assert whole.returncode == 0, whole.stderr
     assert files_of(tmp_path / "cut/outputs/smoke/cache") == files_of(
         tmp_path / "whole/outputs/smoke/cache")
