@@ -16,7 +16,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import gbmodel  # noqa: E402
-from gbmodel.kinematics import hand_position  # noqa: E402
+from gbmodel.kinematics import chain_position, hand_position  # noqa: E402
 
 RC = {
     "font.family": "DejaVu Sans",
@@ -179,8 +179,15 @@ def joint_space_stages(spec: dict, stages: list[tuple[str, list]], title: str):
 
 def link_points(body, q, size, pattern) -> np.ndarray:
     """Root-frame points (m + 1, 3) of the chain's frames, base to hand, for command q (m,);
-    pattern: a growth pattern's name or a gbmodel.Growth."""
+    pattern: a growth pattern's name or a gbmodel.Growth. A general (URDF) chain: each joint's
+    origin, then the tool point (the hand of Body.forward)."""
     theta = body.joint_angles(np.asarray(q, float))
+    if body.general:
+        k = body._scale(size, pattern, None)  # the per-segment factors Body.forward applies
+        joints = [chain_position(theta[:j], body.frames[:j], body.frames[j][:, 3], k[:j])
+                  for j in range(1, body.m)]
+        return np.stack([body.frames[0][:, 3], *joints,
+                         chain_position(theta, body.frames, body.tool, k)])
     ch = body.chain(size, pattern)
     return np.stack([hand_position(theta[:k], ch["a"][:k], ch["d"][:k], ch["cos_alpha"][:k],
                                    ch["sin_alpha"][:k], ch["base"]) for k in range(body.m + 1)])
