@@ -27,6 +27,8 @@ from typing import TYPE_CHECKING, Optional
 
 import numpy as np
 
+from .spec import SpecError, check_choice, check_int, check_number
+
 if TYPE_CHECKING:
     from .bodies import Body
 
@@ -37,32 +39,6 @@ SCHEDULES = ("linear", "infant")
 WHO_LENGTH_CM = (49.9, 75.7, 87.1)
 _HALF = (WHO_LENGTH_CM[1] - WHO_LENGTH_CM[0]) / (WHO_LENGTH_CM[2] - WHO_LENGTH_CM[0])
 INFANT_RATE = 2.0 * np.log(_HALF / (1.0 - _HALF))  # k = 1.6336...
-
-
-class SpecError(ValueError):
-    """A bad value of a trial's spec; the message is one line, `<section>.<field>=<value>: why`."""
-
-    def __init__(self, key: str, value, why: str):
-        super().__init__(f"{key}={value!r}: {why}")
-        self.key = key
-
-
-def check_int(key, value, minimum):
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise SpecError(key, value, "must be a positive integer" if minimum == 1
-                        else f"must be an integer >= {minimum}")
-
-
-def check_number(key, value, minimum=None, strict=False):
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
-        raise SpecError(key, value, "must be a finite number")
-    if minimum is not None and (value <= minimum if strict else value < minimum):
-        raise SpecError(key, value, f"must be {'>' if strict else '>='} {minimum:g}")
-
-
-def check_choice(key, value, options):
-    if value not in options:
-        raise SpecError(key, value, f"choose one of {list(options)}")
 
 
 def progress(u, schedule: str = "linear"):

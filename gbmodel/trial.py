@@ -15,7 +15,8 @@ import numpy as np
 
 from . import evaluation, learners
 from .bodies import Body, make_body
-from .growth import Growth, SpecError, check_choice, check_int
+from .growth import Growth
+from .spec import SpecError, check_choice, check_epochs, check_int
 
 DRAW_BLOCK = 1000
 
@@ -67,7 +68,7 @@ class TrialSpec:
         body = self.make_body()
         self.make_growth().validate(body)
         self.make_learner()
-        check_int("learner.epochs", self.epochs, 1)
+        check_epochs("learner.epochs", self.epochs)
         check_int("learner.evals_per_decade", self.evals_per_decade, 1)
         ev = {**evaluation.DEFAULTS, **self.evaluation}
         check_choice("evaluation.points", ev["points"], evaluation.POINTS)

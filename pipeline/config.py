@@ -20,6 +20,7 @@ from omegaconf import MISSING, DictConfig, OmegaConf
 
 import gbmodel
 from gbmodel import evaluation
+from gbmodel.spec import MAX_EPOCHS
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 CONF_DIR = REPO_ROOT / "conf"
@@ -244,10 +245,9 @@ def compose(overrides: list[str] | tuple = ()) -> DictConfig:
         return hydra_compose(config_name="config", overrides=list(overrides))
 
 
-# ---- limits checked before planning (pipeline.cli.check; plan() may call check_limits too) -----
+# ---- limits, checked by plan() before it plans a variant's trials ---------------------------------
 MAX_TRIALS = 10_000  # trials.count: independent trials per condition (the paper's figures use 20)
 MAX_PLANNED = 100_000  # trials of one run in all (conditions x variants x trials.count)
-MAX_EPOCHS = 10**9  # learner.epochs: a trial's memory does not grow with them, its time does
 MAX_INT64 = 2**63 - 1  # growth periods are stored as int64 (the curve table's growth_period)
 
 
@@ -256,13 +256,13 @@ def _too_big(key, value, limit, unit, shown=None):
         raise ConfigError(f"{key}={value!r}: at most {shown or f'{limit:,}'} {unit}")
 
 
-def check_limits(cfg) -> list[str]:
+def check_limits(cfg) -> None:
     """Refuse (ConfigError naming the key and its unit) what would exhaust memory or overflow
     before a trial is planned: the trial count, the epochs, growth periods beyond int64, and the
-    whole run's size. Returns notes about legitimate but unusual values (a shrinking body)."""
+    whole run's size."""
     _too_big("trials.count", cfg.trials.count, MAX_TRIALS, "trials per condition")
     _too_big("learner.epochs", cfg.learner.epochs, MAX_EPOCHS, "epochs per trial",
-             f"{MAX_EPOCHS:.0e}")
+             f"{MAX_EPOCHS:.0e}")  # before planning multiplies the trials
     growth = cfg.growth
     _too_big("growth.period", growth.get("period"), MAX_INT64, "epochs (int64)")
     for p in cfg.conditions.periods:
@@ -275,7 +275,11 @@ def check_limits(cfg) -> list[str]:
             raise ConfigError(f"trials.count={count}: {total:,} trials in all ({conditions} "
                               f"conditions x {max(len(cfg.conditions.variants), 1)} variants); "
                               f"at most {MAX_PLANNED:,} per run")
-    notes = []
+
+
+def config_notes(cfg) -> list[str]:
+    """Notes about legitimate but unusual values (a shrinking body)."""
+    growth, notes = cfg.growth, []
     start, end, period = growth.get("start_size"), growth.get("end_size"), growth.get("period")
     if (isinstance(start, (int, float)) and isinstance(end, (int, float)) and start > end
             and (period or cfg.conditions.periods)):

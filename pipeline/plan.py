@@ -24,7 +24,7 @@ import numpy as np
 
 import gbmodel
 import gbmodel.bodies
-from gbmodel.growth import check_int
+from gbmodel.spec import check_int
 from omegaconf import DictConfig, OmegaConf
 
 from .config import (ConfigError, check_backend, check_limits, check_names, check_root,
@@ -32,7 +32,6 @@ from .config import (ConfigError, check_backend, check_limits, check_names, chec
 from .fingerprint import code_fingerprint, source_fingerprint  # noqa: F401  (the code as run)
 
 log = logging.getLogger(__name__)
-MAX_EPOCHS = 10**9  # a trial's memory does not grow with its epochs, but its time does
 
 
 def _bad(key, value, why):
@@ -155,8 +154,6 @@ def trial_spec(cfg: DictConfig, growth: dict) -> gbmodel.TrialSpec:
                           if isinstance(e, int) and e <= epochs}))
     for e in cfg.conditions.snapshots:
         check_int("conditions.snapshots", e, 1)
-    if isinstance(epochs, int) and epochs > MAX_EPOCHS:
-        _bad("learner.epochs", epochs, f"at most {MAX_EPOCHS:.0e} epochs per trial")
     spec = gbmodel.TrialSpec(
         body=OmegaConf.to_container(cfg.body), growth=growth, learner=learner,
         evaluation=OmegaConf.to_container(cfg.evaluation), epochs=epochs,

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import gbmodel
-from gbmodel import evaluation
+from gbmodel import evaluation, simd
 from gbmodel.features import exponents
 from gbmodel.learners import goal_babbling as gb
 from gbmodel.learners.goal_babbling import fast, reference
@@ -40,7 +40,7 @@ def spec_for(name, pattern="proportional", fast_path=True, body=None, growth=Non
 
 def test_sincos_accuracy():
     x = np.linspace(-10, 10, 200_001).astype(np.float32)
-    s, c = fast.sincos_array(x)
+    s, c = simd.sincos_array(x)
     exact = x.astype(np.float64)
     assert np.abs(s - np.sin(exact)).max() < 2e-6
     assert np.abs(c - np.cos(exact)).max() < 2e-6

@@ -4,7 +4,7 @@ A learner is one module (or package) in this folder, found by its name (`goal_ba
 `gbmodel/learners/goal_babbling/`). It provides:
 
     Params                 frozen dataclass of hyperparameters, with defaults; its validate()
-                           returns it or raises gbmodel.growth.SpecError naming `learner.<field>`
+                           returns it or raises gbmodel.spec.SpecError naming `learner.<field>`
     init(params, body, size, rng) -> state
                            the initial state with the body at size `size` (the first epoch's)
     draw(params, body, B, rng) -> tuple of arrays

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..growth import check_int, check_number
+from ..spec import check_int, check_number
 from ..nearest import Nearest
 
 

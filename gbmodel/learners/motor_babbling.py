@@ -23,8 +23,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..features import exponents, features
-from ..growth import check_choice, check_int, check_number
-from .goal_babbling.reference import init_inverse, predict as predict_inverse
+from ..spec import check_choice, check_int, check_number
+from ..inverse import init_inverse, predict as predict_inverse
 
 
 @dataclass(frozen=True)

@@ -2,8 +2,8 @@
 
 `reference.py` states one epoch in plain numpy, step by step as the paper writes it; `fast.py`
 computes the same epoch in compiled float32 loops (numba) and is tested against it with the same
-random draws. `Params.fast` picks the path. `goals.py`: which targets it aims at (goal_selection:
-random, the paper's, or progress).
+random draws. `Params.fast` picks the path. gbmodel/goals.py: which targets it aims at
+(goal_selection: random, the paper's, or progress).
 """
 from __future__ import annotations
 
@@ -11,10 +11,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ... import evaluation
+from ... import evaluation, goals
 from ...features import exponents
-from ...growth import SpecError, check_choice, check_int, check_number
-from . import goals, reference
+from ...spec import SpecError, check_choice, check_int, check_number
+from . import reference
 
 
 @dataclass(frozen=True)
@@ -60,7 +60,7 @@ class Params:
     # successive path targets: distinct (each differs from the one before) or any (uniform
     # over all targets, repeats allowed: a repeat is a still segment whose samples weigh 0)
     targets: str = "distinct"
-    # goal_selection: random (the paper's: the path targets as above) or progress (goals.py:
+    # goal_selection: random (the paper's: the path targets as above) or progress (gbmodel/goals.py:
     # drawn by the regions' recent change of error; not the paper's)
     goal_selection: str = "random"
     progress_period: int = 10  # epochs between measurements of the error at every target
@@ -145,7 +145,7 @@ def draw(params: Params, body, B: int, rng: np.random.Generator) -> tuple:
     With targets=distinct, successive targets of a path differ (the next is uniform over the
     other targets), so that every path step is a movement with a direction; with targets=any
     the next is uniform over all targets. With goal_selection=progress the first array holds
-    uniform numbers (B, K+1) in [0, 1), turned into targets in train (goals.py).
+    uniform numbers (B, K+1) in [0, 1), turned into targets in train (gbmodel/goals.py).
     """
     n_targets, K = len(body.targets), params.targets_per_epoch
     if params.goal_selection == "progress":

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...growth import SpecError, check_choice, check_int, check_number
+from .spec import SpecError, check_choice, check_int, check_number
 
 SELECTIONS = ("random", "progress")
 
