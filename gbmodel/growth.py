@@ -23,14 +23,11 @@ Schedules, with the growth progress u = (e - 1) / T_G clipped to [0, 1]:
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
-from typing import TYPE_CHECKING, Optional
+from typing import Optional
 
 import numpy as np
 
 from .spec import SpecError, check_choice, check_int, check_number
-
-if TYPE_CHECKING:
-    from .bodies import Body
 
 PATTERNS = ("proportional", "nonproportional", "proximal_first", "per_segment")
 SCHEDULES = ("linear", "infant")
@@ -99,7 +96,7 @@ def proximal_leads(seg, lead: float = 1.0) -> np.ndarray:
     return lead * spread / (np.abs(spread).max() or 1.0)
 
 
-def proximal_first_scale(body: "Body", sizes, start_size: float, end_size: float,
+def proximal_first_scale(body, sizes, start_size: float, end_size: float,
                          lead: float = 1.0) -> np.ndarray:
     """Per-joint length factors (..., m) when proximal segments grow ahead of distal ones."""
     seg = body.segment_lengths
@@ -130,7 +127,7 @@ class Growth:
     # [0.5, 0.25, 0, -0.25, -0.5]: the upper arm grows ahead of the forearm
     leads: Optional[list[float]] = None
 
-    def validate(self, body: "Body") -> "Growth":
+    def validate(self, body) -> "Growth":
         check_choice("growth.pattern", self.pattern, PATTERNS)
         check_choice("growth.schedule", self.schedule, SCHEDULES)
         check_int("growth.period", self.period, 0)
@@ -143,9 +140,10 @@ class Growth:
             check_number(f"growth.{name}", getattr(self, name), 0.0, strict=True)
             if self.pattern in ("proportional", "nonproportional"):
                 try:
-                    body.segment_scale(getattr(self, name), self.pattern, self.fixed_scale)
+                    self.scales(body, getattr(self, name))
                 except ValueError as err:
-                    raise SpecError(f"growth.{name}", getattr(self, name), str(err)) from None
+                    raise SpecError(f"growth.{name}", getattr(self, name),
+                                    f"body {body.name!r}: {err}") from None
         if self.pattern == "nonproportional" and body.growing.all():
             raise SpecError("growth.pattern", self.pattern,
                             f"every segment of {body.name} grows, so non-proportional growth "
@@ -172,7 +170,7 @@ class Growth:
         done = progress((e - 1) / self.period, self.schedule)
         return self.start_size + (self.end_size - self.start_size) * done
 
-    def segments(self, body: "Body") -> tuple[np.ndarray, np.ndarray]:
+    def segments(self, body) -> tuple[np.ndarray, np.ndarray]:
         """(grows, leads) per segment of `body`: the pattern as data for segment_factors."""
         seg, every = body.segment_lengths, np.ones(body.m, bool)
         if self.pattern == "nonproportional":
@@ -183,7 +181,7 @@ class Growth:
             return every, np.asarray(self.leads, np.float64)
         return every, np.zeros(body.m)
 
-    def scales(self, body: "Body", sizes) -> np.ndarray:
+    def scales(self, body, sizes) -> np.ndarray:
         """Per-joint length factors (..., m) of the body at `sizes` (any slice of epochs)."""
         grows, leads = self.segments(body)
         return segment_factors(body.segment_lengths, grows, leads, sizes, self.start_size,
@@ -191,3 +189,15 @@ class Growth:
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+
+def factors(body, size, pattern="proportional") -> np.ndarray:
+    """Per-segment length factors (..., m) of `body` at size `size` (scalar or array) grown by
+    `pattern`: a Growth, or a pattern's name with its default settings. The one place where a
+    growth pattern becomes the factors Body.forward, Body.chain and Body.frame_points take."""
+    growth = pattern if isinstance(pattern, Growth) else Growth(pattern=pattern)
+    check_choice("growth.pattern", growth.pattern, PATTERNS)
+    try:
+        return growth.scales(body, size)
+    except ValueError as err:
+        raise ValueError(f"body {body.name!r}: {err}") from None

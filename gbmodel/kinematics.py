@@ -69,7 +69,7 @@ def chain_layout(body) -> dict:
     translation (R = I), general True."""
     m = body.m
     if not body.general:
-        ch = body.chain(1.0)
+        ch = body.chain()
         return dict(ch, ty=np.zeros(m), R=np.zeros((m, 3, 3)), general=False)
     after = np.concatenate([body.frames[1:], np.hstack([np.eye(3), body.tool[:, None]])[None]])
     return dict(a=after[:, 0, 3], d=after[:, 2, 3], ty=after[:, 1, 3], R=after[:, :, :3],

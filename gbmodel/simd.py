@@ -405,7 +405,7 @@ def sincos64(x):
 
 @njit(cache=True)
 def chain_forward64(q, scale, chain, joints, out):
-    """body.forward(q, scale=scale) into out (n,) in scalar float64: the hand point carried
+    """body.forward(q, scale) into out (n,) in scalar float64: the hand point carried
     backwards through the chain of kinematics.chain_layout (float64 arrays; joints: normalized,
     saturates, q_min, q_span, theta_offset), DH rows operation by operation as
     kinematics.hand_position, a general chain as chain_position."""

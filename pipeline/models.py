@@ -54,7 +54,7 @@ class Model:
 
     def reach(self, x, trial: int = 0, epoch: int | None = None) -> np.ndarray:
         """Where the hand is (N, n) [m] after the posture for targets x."""
-        return self.body.forward(self.posture(x, trial, epoch), scale=self.scale)
+        return self.body.forward(self.posture(x, trial, epoch), self.scale)
 
 
 @dataclass

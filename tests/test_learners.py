@@ -98,7 +98,7 @@ def test_motor_babbling_fits_the_window_by_least_squares():
     state = motor_babbling.train(state, params, body, np.ones(3), scales[:3], (offsets[:3],))
     state = motor_babbling.train(state, params, body, np.ones(2), scales[3:], (offsets[3:],))
     qs = [body.saturate(body.home + params.spread * offsets[e]) for e in (3, 4)]
-    x = np.concatenate([body.forward(q, scale=scales[e]) for q, e in zip(qs, (3, 4))])
+    x = np.concatenate([body.forward(q, scales[e]) for q, e in zip(qs, (3, 4))])
     q = np.concatenate(qs)
     phi = features(x, exponents(2))
     expected = np.linalg.solve(phi.T @ phi / len(q) + 1e-4 * np.eye(10), phi.T @ q / len(q)).T

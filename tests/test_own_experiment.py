@@ -127,7 +127,8 @@ def test_trained_models_load_and_reach(tmp_path, compose_tiny):
     m = fig["TG10"]
     x = m.body.target_set(m.size)[:3]
     q = m.posture(x)
-    assert q.shape == (3, 5) and np.allclose(m.reach(x), m.body.forward(q, size=m.size))
+    assert q.shape == (3, 5) and np.allclose(
+        m.reach(x), m.body.forward(q, gbmodel.growth.factors(m.body, m.size)))
     assert not np.allclose(m.posture(x, epoch=5), q)  # the snapshot is another model
     side = json.loads((Path(cfg.paths.aggregate) / "custom/models.json").read_text())
     assert np.allclose(m.M[0], side["conditions"]["TG10"]["trials"]["0"]["M"])

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..growth import factors
 from ..spec import check_int, check_number
 from ..nearest import Nearest
 
@@ -70,7 +71,7 @@ class Everything:
 
 def init(params: Params, body, size: float, rng: np.random.Generator):
     q_home = body.saturate(body.home)
-    x_home = body.forward(q_home, size=size)
+    x_home = body.forward(q_home, factors(body, size))
     if params.window == 0:
         store = Nearest(body.n, body.m)
         store.add(x_home[None], q_home[None])
@@ -105,7 +106,7 @@ def train(state, params: Params, body, sizes, scales, draws, epochs=None):
         for e in range(len(sizes)):
             goals = body.target_set(sizes[e])[idx[e]]
             q = body.saturate(store.values[store.query(goals)] + params.sigma * noise[e])
-            store.add(body.forward(q, scale=scales[e]), q)
+            store.add(body.forward(q, scales[e]), q)
         return Everything(store, store.count, state.epochs + len(sizes))
     outcomes, commands, done = state.outcomes.copy(), state.commands.copy(), state.epochs
     for e in range(len(sizes)):
@@ -114,7 +115,7 @@ def train(state, params: Params, body, sizes, scales, draws, epochs=None):
         _, nearest = cKDTree(known_x).query(goals)
         q = body.saturate(known_q[nearest] + params.sigma * noise[e])
         slot = done % params.window
-        outcomes[slot], commands[slot] = body.forward(q, scale=scales[e]), q
+        outcomes[slot], commands[slot] = body.forward(q, scales[e]), q
         done += 1
     return State(outcomes, commands, state.home, done)
 

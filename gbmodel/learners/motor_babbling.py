@@ -99,7 +99,7 @@ def train(state: State, params: Params, body, sizes, scales, draws, epochs=None)
     M, gram, cross, count = state.M, state.gram.copy(), state.cross.copy(), state.count.copy()
     for e in range(len(sizes)):
         q = body.saturate(body.home + params.spread * offsets[e])
-        x = body.forward(q, scale=scales[e])
+        x = body.forward(q, scales[e])
         phi = features(x, exps)
         slot = (state.epochs + e) % len(count)
         keep = 1.0 if params.window == 0 else 0.0  # window 0: the one slot accumulates

@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 
 import gbmodel
+from gbmodel.growth import factors
 
 from .figures import final_body
 
@@ -172,7 +173,7 @@ def stage_claims(figure: str, spec: dict, stages: list) -> list[dict]:
     parts, spreads, extremes = [], [], []
     for label, M in stages:
         q = gbmodel.predict(np.asarray(M), xs, exps)
-        err = np.linalg.norm(body.forward(q, size, pattern) - xs, axis=-1)
+        err = np.linalg.norm(body.forward(q, factors(body, size, pattern)) - xs, axis=-1)
         spreads.append(float(np.abs(q - body.home).max()))
         extremes.append(float(max(err[0], err[-1])))
         parts.append(f"{label}: largest joint deviation from home {spreads[-1]:.2f} rad, mean error "

@@ -129,7 +129,7 @@ def length_ratio(body, scales) -> np.ndarray:
     """Total length of the chain's segments at per-joint length factors `scales` (..., m) over
     the full-size total."""
     def total(k):
-        ch = body.chain(scale=k)
+        ch = body.chain(k)
         return np.hypot(ch["a"], ch["d"]).sum(axis=-1)
 
     return total(np.asarray(scales, np.float64)) / total(np.ones(body.m))

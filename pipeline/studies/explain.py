@@ -19,13 +19,14 @@ import numpy as np
 from scipy.optimize import least_squares
 
 import gbmodel
+from gbmodel.growth import factors
 
 from .figures import final_body
 
 
 def _errors(body, size, pattern, exps, M, xs):
     q = gbmodel.predict(M, xs, exps)
-    return np.linalg.norm(body.forward(q, size, pattern) - xs, axis=-1)
+    return np.linalg.norm(body.forward(q, factors(body, size, pattern)) - xs, axis=-1)
 
 
 def best_cubic(spec: dict, M0) -> dict:
@@ -36,7 +37,7 @@ def best_cubic(spec: dict, M0) -> dict:
 
     def residuals(flat):
         q = gbmodel.predict(flat.reshape(M0.shape), xs, exps)
-        return (body.forward(q, size, pattern) - xs).ravel()
+        return (body.forward(q, factors(body, size, pattern)) - xs).ravel()
 
     fit = least_squares(residuals, M0.ravel(), method="trf", max_nfev=200 * M0.size)
     d = _errors(body, size, pattern, exps, fit.x.reshape(M0.shape), xs)

@@ -16,7 +16,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import gbmodel  # noqa: E402
-from gbmodel.kinematics import chain_position, hand_position  # noqa: E402
+from gbmodel.growth import factors  # noqa: E402
 
 RC = {
     "font.family": "DejaVu Sans",
@@ -139,7 +139,7 @@ def growth_end_handle():
 
 def final_body(spec: dict) -> tuple:
     """(body, size, growth, exps) of a trial's spec: the body (variant) at its final size, its
-    gbmodel.Growth (which Body.forward and link_points take as the pattern: every pattern) and
+    gbmodel.Growth (gbmodel.growth.factors maps it to the body's per-segment factors) and
     the feature exponents of its polynomial inverse."""
     body, growth = gbmodel.make_body(spec["body"]), gbmodel.Growth(**spec["growth"])
     return body, growth.end_size, growth, gbmodel.exponents(body.n, spec["learner"]["degree"])
@@ -155,7 +155,7 @@ def joint_space_stages(spec: dict, stages: list[tuple[str, list]], title: str):
     lim = max(np.pi, *(np.abs(c).max() for c in curves))
     grid = np.linspace(-lim, lim, 301)
     Q = np.stack(np.meshgrid(grid, grid, indexing="xy"), axis=-1)
-    height = body.forward(Q, size, pattern)[..., 0]
+    height = body.forward(Q, factors(body, size, pattern))[..., 0]
     cmap = plt.get_cmap("coolwarm")
     norm = matplotlib.colors.Normalize(targets.min(), targets.max())
 
@@ -175,22 +175,6 @@ def joint_space_stages(spec: dict, stages: list[tuple[str, list]], title: str):
     fig.suptitle(title)
     fig.tight_layout()
     return fig
-
-
-def link_points(body, q, size, pattern) -> np.ndarray:
-    """Root-frame points (m + 1, 3) of the chain's frames, base to hand, for command q (m,);
-    pattern: a growth pattern's name or a gbmodel.Growth. A general (URDF) chain: each joint's
-    origin, then the tool point (the hand of Body.forward)."""
-    theta = body.joint_angles(np.asarray(q, float))
-    if body.general:
-        k = body._scale(size, pattern, None)  # the per-segment factors Body.forward applies
-        joints = [chain_position(theta[:j], body.frames[:j], body.frames[j][:, 3], k[:j])
-                  for j in range(1, body.m)]
-        return np.stack([body.frames[0][:, 3], *joints,
-                         chain_position(theta, body.frames, body.tool, k)])
-    ch = body.chain(size, pattern)
-    return np.stack([hand_position(theta[:k], ch["a"][:k], ch["d"][:k], ch["cos_alpha"][:k],
-                                   ch["sin_alpha"][:k], ch["base"]) for k in range(body.m + 1)])
 
 
 def _grid_shape(targets) -> tuple | None:
@@ -225,7 +209,7 @@ def postures(panels: list[tuple[str, dict, list]], title: str, n_postures: int =
         M = np.asarray(M, dtype=float)
         targets = body.target_set(size)
         q = gbmodel.predict(M, targets, exps)
-        reached = body.forward(q, size, pattern)
+        reached = body.forward(q, factors(body, size, pattern))
         shape = _grid_shape(targets)
         ax = fig.add_subplot(1, len(panels), k + 1, projection="3d" if three_d else None)
         picks = np.linspace(0, len(targets) - 1, n_postures).round().astype(int)
@@ -236,7 +220,7 @@ def postures(panels: list[tuple[str, dict, list]], title: str, n_postures: int =
             _draw_grid(ax, targets, shape, color="0.7", lw=0.8)
             _draw_grid(ax, reached, shape, color="black", lw=0.8)
             for c, i in zip(cols, picks):
-                pts = link_points(body, q[i], size, pattern)[:, list(body.outputs)]
+                pts = body.frame_points(q[i], factors(body, size, pattern))[:, list(body.outputs)]
                 ax.plot(*pts.T, color=c, lw=1.6, marker="o", ms=2.5)
         err = np.linalg.norm(reached - targets, axis=-1).mean()
         ax.set_title(f"{label}\nsize {size:g}, mean error {1000 * err:.1f} mm", fontsize=8)
@@ -262,7 +246,8 @@ def _height_postures(ax, body, q, targets, reached, size, pattern, picks, cols):
     """A body with one target coordinate: the postures in the plane of the output axis and the
     root axis along which the arm extends most; targets and reached heights beside the hand."""
     out = body.outputs[0]
-    pts = np.stack([link_points(body, q[i], size, pattern) for i in range(len(q))])
+    k = factors(body, size, pattern)
+    pts = np.stack([body.frame_points(q[i], k) for i in range(len(q))])
     other = max((j for j in range(3) if j != out), key=lambda j: np.ptp(pts[..., j]))
     hand = pts[:, -1, other]
     ax.scatter(hand, targets[:, 0], s=10, color="0.7", zorder=2)

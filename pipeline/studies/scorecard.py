@@ -35,6 +35,7 @@ import pandas as pd
 from scipy import stats
 
 import gbmodel
+from gbmodel.growth import factors
 
 from .claims import EXCESS, FACTOR, RISE
 from .figures import final_body
@@ -243,7 +244,7 @@ def stage_tests(figure: str, spec: dict, trials: list[list]) -> list[Test]:
         for M in stages:
             q = gbmodel.predict(np.asarray(M), xs, exps)
             s.append(float(np.abs(q - body.home).max()))
-        err = np.linalg.norm(body.forward(q, size, pattern) - xs, axis=-1)
+        err = np.linalg.norm(body.forward(q, factors(body, size, pattern)) - xs, axis=-1)
         spread.append(s)
         extreme.append(float(max(err[0], err[-1])))
     spread, extreme = np.array(spread), np.array(extreme)

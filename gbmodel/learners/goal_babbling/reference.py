@@ -51,10 +51,10 @@ def rollout(M, body, scale, exps, path, A, b):
     """
     V = A.shape[0]
     q_home = body.saturate(body.home)
-    x_home = body.forward(q_home, scale=scale)
+    x_home = body.forward(q_home, scale)
     q = predict(M, path, exps)[None] + path @ A.transpose(0, 2, 1) + b[:, None, :]
     q = np.concatenate([np.broadcast_to(q_home, (V, 1, body.m)), body.saturate(q)], axis=1)
-    x = body.forward(q, scale=scale)
+    x = body.forward(q, scale)
     xstar = np.concatenate([np.broadcast_to(x_home, (V, 1, body.n)),
                             np.broadcast_to(path, (V,) + path.shape)], axis=1)
     return xstar, x, q

@@ -44,6 +44,7 @@ import numpy as np
 
 from ... import evaluation, goals
 from ...features import exponents
+from ...growth import factors
 from ...spec import SpecError, check_int, check_number
 from ...inverse import init_inverse, predict as predict_inverse
 from . import fast, reference
@@ -108,7 +109,7 @@ def init(params: Params, body, size: float, rng: np.random.Generator) -> State:
                      rng)
     P = rng.standard_normal((body.m, body.n + 1))
     q_home = body.saturate(body.home)
-    x_home = body.forward(q_home, size=size)
+    x_home = body.forward(q_home, factors(body, size))
     tracker = None
     if params.goal_selection == "progress":
         errors = goals.reaching_errors(lambda x: predict_inverse(M, x, _exps(params, body)),

@@ -47,7 +47,7 @@ def train_reference(state, params, body, sizes, scales, draws):
     M, P = state.M.copy(), state.P
     for e in range(len(sizes)):
         q_home = body.saturate(body.home)
-        x_home = body.forward(q_home, scale=scales[e])
+        x_home = body.forward(q_home, scales[e])
         xstar, home, target, at_home = plan(state, params, body.target_set(sizes[e]), x_home,
                                             hops[e], coins[e])
         A, b, P = perturbations(P, walk[e], params, *body.target_box(sizes[e]))
@@ -57,7 +57,7 @@ def train_reference(state, params, body, sizes, scales, draws):
                 x, q, w = x_home, q_home, 1.0
             else:
                 q = body.saturate(predict_inverse(M, xs, exps) + A[j] @ xs + b[j])
-                x = body.forward(q, scale=scales[e])
+                x = body.forward(q, scales[e])
                 w = sample_weights(*(np.stack([a, c]) for a, c in zip(last, (xs, x, q))))[1]
                 j += 1
             phi = features(x, exps)
