@@ -15,8 +15,9 @@ taken (the saturated one): that is the only posture whose outcome was observed.
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
+from dataclasses import MISSING, dataclass, field, fields
 from pathlib import Path
+from typing import Any, Optional
 
 import numpy as np
 import yaml
@@ -168,8 +169,39 @@ def cell_centres(targets: np.ndarray) -> np.ndarray:
     return _grid(*[0.5 * (a[1:] + a[:-1]) if len(a) > 1 else a for a in axes])
 
 
-FIELDS = ("name", "description", "units", "dh", "urdf", "base", "hand", "outputs", "limits", "normalise",
-          "saturate", "home", "grid", "grows")
+@dataclass(frozen=True)
+class Grid:
+    """The regular target grid at full size: num[j] points from lo[j] to hi[j] along axis j."""
+
+    lo: list[float]
+    hi: list[float]
+    num: list[int]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Description:
+    """A body's whole description, the fields of conf/body/<name>.yaml (docs/bodies.md); a field
+    without a default must be given. body_from checks the values; the pipeline's config schema
+    (BodyConf) is generated from these fields."""
+
+    name: str  # what the trials are labelled with
+    description: str = ""
+    units: str = "rad"  # rad | deg: of alpha, theta offset and limits
+    dh: Optional[list[Any]] = None  # per joint (a [m], d [m], alpha, theta offset)
+    urdf: Optional[dict[str, Any]] = None  # or a URDF's chain: {file, root, tip, joints, hold}
+    base: list[Any] = field(default_factory=lambda: [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0],
+                                                     [0.0, 0.0, 1.0, 0.0]])
+    hand: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    outputs: list[int]  # controlled hand coordinates (0 x, 1 y, 2 z)
+    limits: Optional[list[Any]] = None  # per joint [min, max]
+    normalise: bool = False  # commands in [-1, 1] onto the limits (true) or radians (false)
+    saturate: bool = True  # normalised commands clipped at the limits
+    home: list[float]  # the home posture, command units
+    grid: Grid  # the target grid at full size
+    grows: Optional[list[bool]] = None  # per segment: grows under non-proportional growth
+
+
+FIELDS = tuple(f.name for f in fields(Description))
 UNITS = {"rad": 1.0, "deg": None}  # deg: np.deg2rad (the same bits as the tables' conversion)
 SHIPPED = Path(__file__).resolve().parents[1] / "conf" / "body"  # the shipped descriptions
 
@@ -232,6 +264,9 @@ def body_from(desc: dict) -> Body:
     unknown = sorted(set(desc) - set(FIELDS))
     if unknown:
         raise _bad(unknown[0], desc[unknown[0]], f"unknown key; a body has {list(FIELDS)}")
+    desc = {**{f.name: f.default if f.default_factory is MISSING else f.default_factory()
+                for f in fields(Description) if (f.default, f.default_factory) != (MISSING, MISSING)},
+            **desc}  # the defaults of the fields not given
     name = desc.get("name")
     if not isinstance(name, str) or not name:
         raise _bad("name", name, "must be a non-empty string")

@@ -7,8 +7,8 @@ computes lane by lane what it writes, on every x86-64 CPU:
 - `F32x16` (vload ... vsum, LANES = 16) and `sincos` on it, for the float32 kernel;
 - `F64x8` (vload8 ... vmul8, W8 = 8), whose lanes round as the scalar loop does (separate * and
   +, no fused multiply-add), and `sincos64`, a scalar float64 sin/cos, for the float64 kernel;
-- `chain_step` (F32x16) and `chain_forward64` (scalar float64): the hand point carried one joint
-  backwards through the chain laid out by gbmodel.kinematics.chain_layout.
+- `chain_kinematics` (F32x16) and `chain_forward64` (scalar float64): the hand point carried
+  backwards through the chain laid out by gbmodel.kinematics.chain_layout, joint by joint.
 
 `F32x16` is LLVM
 <16 x float> (one zmm register, or two ymm halves without AVX-512, with the same result lane by
@@ -234,37 +234,72 @@ def sincos_array(x):
     return s[:n], c[:n]
 
 
-# ---- the chain step on F32x16 --------------------------------------------------------------------
+# ---- the chain on F32x16: forward kinematics of LANES samples at a time ---------------------------
 @njit(inline="always")
-def chain_step(px, py, pz, s, co, i, a, d, ca, sa, ty, R, general):
-    """The hand point (px, py, pz), LANES samples, carried backwards through joint i of a chain
-    laid out by gbmodel.kinematics.chain_layout (float32 arrays), with s, co the sine and cosine of
-    its angle: p <- Rz(theta) (R_i p + (a, ty, d)_i) for a general (URDF) chain, else the DH row
-    p <- Rz(theta) (p_x + a, cos(alpha) p_y - sin(alpha) p_z, sin(alpha) p_y + cos(alpha) p_z + d),
-    for the twists 0 and +-90 degrees (every DH joint of our bodies) without the products by 0
-    and +-1 (the same values, up to the sign of a zero)."""
-    if general:
-        u = vfma(vsplat(R[i, 0, 0]), px, vfma(vsplat(R[i, 0, 1]), py, vfma(
-            vsplat(R[i, 0, 2]), pz, vsplat(a[i]))))
-        v = vfma(vsplat(R[i, 1, 0]), px, vfma(vsplat(R[i, 1, 1]), py, vfma(
-            vsplat(R[i, 1, 2]), pz, vsplat(ty[i]))))
-        w = vfma(vsplat(R[i, 2, 0]), px, vfma(vsplat(R[i, 2, 1]), py, vfma(
-            vsplat(R[i, 2, 2]), pz, vsplat(d[i]))))
-    else:
-        u = vadd(px, vsplat(a[i]))
-        if sa[i] == 0 and ca[i] == 1:
-            v = py
-            w = vadd(pz, vsplat(d[i]))
-        elif ca[i] == 0 and sa[i] == 1:
-            v = vneg(pz)
-            w = vadd(py, vsplat(d[i]))
-        elif ca[i] == 0 and sa[i] == -1:
-            v = pz
-            w = vsub(vsplat(d[i]), py)
-        else:
-            v = vfma(vsplat(ca[i]), py, vmul(vsplat(-sa[i]), pz))
-            w = vadd(vfma(vsplat(sa[i]), py, vmul(vsplat(ca[i]), pz)), vsplat(d[i]))
-    return vfma(co, u, vmul(vneg(s), v)), vfma(s, u, vmul(co, v)), w
+def vclip(q):
+    """q clipped to [-1, 1] lane by lane (a NaN stays NaN)."""
+    one, minus_one = vsplat(_1), vsplat(-_1)
+    return vwhere(minus_one, q, minus_one, vwhere(q, one, one, q))
+
+
+@njit(cache=True)
+def chain_kinematics(Q, X, C, joints, body):
+    """Hand positions X[:, :C] of the commands Q[:, :C] (float32, C a multiple of LANES), through
+    the chain of gbmodel.kinematics.chain_layout as float32 arrays (body: a, d, cos alpha, sin
+    alpha, base, outputs, ty, R, general; joints: normalized, saturates, q_lo, q_span, offset),
+    saturating Q in place where the body does. Joint angles theta = q (span / 2) + offset + lo +
+    span / 2 for normalised commands, else offset + q. The hand point is carried from the last
+    joint to the base, LANES samples at a time in registers: p <- Rz(theta) (p_x + a,
+    cos(alpha) p_y - sin(alpha) p_z, sin(alpha) p_y + cos(alpha) p_z + d); for the twists 0 and
+    +-90 degrees (every joint of our bodies) without the products by 0 and +-1 (the same
+    values, up to the sign of a zero)."""
+    normalized, saturates, q_lo, q_span, offset = joints
+    a, d, ca, sa, base, outputs, ty, R, general = body
+    m = Q.shape[0]
+    for c in range(0, C, LANES):
+        px = py = pz = vsplat(0)
+        for ii in range(m):
+            i = m - 1 - ii
+            q = vload(Q, i, c)
+            if normalized:
+                if saturates:
+                    q = vclip(q)
+                    vstore(Q, i, c, q)
+                half_span = _HALF * q_span[i]
+                theta = vfma(q, vsplat(half_span), vsplat(offset[i] + q_lo[i] + half_span))
+            else:
+                theta = vadd(q, vsplat(offset[i]))
+            s, co = sincos(theta)  # the chain step: DH rows, or
+            if general:  # a URDF's chain: p <- Rz(theta) (R_i p + (a, ty, d)_i)
+                u = vfma(vsplat(R[i, 0, 0]), px, vfma(vsplat(R[i, 0, 1]), py, vfma(
+                    vsplat(R[i, 0, 2]), pz, vsplat(a[i]))))
+                v = vfma(vsplat(R[i, 1, 0]), px, vfma(vsplat(R[i, 1, 1]), py, vfma(
+                    vsplat(R[i, 1, 2]), pz, vsplat(ty[i]))))
+                pz = vfma(vsplat(R[i, 2, 0]), px, vfma(vsplat(R[i, 2, 1]), py, vfma(
+                    vsplat(R[i, 2, 2]), pz, vsplat(d[i]))))
+                px = vfma(co, u, vmul(vneg(s), v))
+                py = vfma(s, u, vmul(co, v))
+                continue
+            u = vadd(px, vsplat(a[i]))
+            if sa[i] == 0 and ca[i] == 1:
+                v = py
+                pz = vadd(pz, vsplat(d[i]))
+            elif ca[i] == 0 and sa[i] == 1:
+                v = vneg(pz)
+                pz = vadd(py, vsplat(d[i]))
+            elif ca[i] == 0 and sa[i] == -1:
+                v = pz
+                pz = vsub(vsplat(d[i]), py)
+            else:
+                v = vfma(vsplat(ca[i]), py, vmul(vsplat(-sa[i]), pz))
+                pz = vadd(vfma(vsplat(sa[i]), py, vmul(vsplat(ca[i]), pz)), vsplat(d[i]))
+            px = vfma(co, u, vmul(vneg(s), v))
+            py = vfma(s, u, vmul(co, v))
+        for j in range(len(outputs)):
+            o = outputs[j]
+            x = vfma(vsplat(base[o, 0]), px, vsplat(base[o, 3]))
+            x = vfma(vsplat(base[o, 1]), py, x)
+            vstore(X, j, c, vfma(vsplat(base[o, 2]), pz, x))
 
 
 # ---- explicit float64 vectors of W8 lanes ------------------------------------------------------

@@ -55,37 +55,28 @@ def schema_of(cls, name: str, extra: tuple = ()) -> type:
     return dataclasses.make_dataclass(name, list(extra) + fields)
 
 
-@dataclass
-class GridConf:
-    lo: list[float] = MISSING
-    hi: list[float] = MISSING
-    num: list[int] = MISSING
+def conf_of(cls, name: str) -> type:
+    """A Hydra schema with every field of gbmodel dataclass `cls`, its type and its default (a
+    field without one is MISSING: it must be given); a field whose type is a dataclass gets that
+    class's schema, generated the same way."""
+    hints = typing.get_type_hints(cls)
+    out = []
+    for f in dataclasses.fields(cls):
+        kind = hints[f.name]
+        if dataclasses.is_dataclass(kind):
+            kind = conf_of(kind, f"{kind.__name__}Conf")
+            out.append((f.name, kind, field(default_factory=kind)))
+        elif f.default_factory is not dataclasses.MISSING:
+            out.append((f.name, kind, field(default_factory=f.default_factory)))
+        else:
+            default = MISSING if f.default is dataclasses.MISSING else f.default
+            out.append((f.name, kind, field(default=default)))
+    return dataclasses.make_dataclass(name, out)
 
 
-@dataclass
-class BodyConf:
-    """A body's whole description (conf/body/<name>.yaml; gbmodel.bodies.body_from checks the
-    values; docs/bodies.md). It goes into every trial's spec, so editing one body's file
-    recomputes that body's trials only."""
-
-    name: str = MISSING  # what the trials are labelled with
-    description: str = ""
-    units: str = "rad"  # rad | deg: of alpha, theta offset and limits
-    dh: Optional[list[Any]] = None  # per joint (a [m], d [m], alpha, theta offset)
-    urdf: Optional[dict[str, Any]] = None  # or a URDF's chain: {file, root, tip, joints, hold}
-    base: list[Any] = field(default_factory=lambda: [[1.0, 0.0, 0.0, 0.0],
-                                                             [0.0, 1.0, 0.0, 0.0],
-                                                             [0.0, 0.0, 1.0, 0.0]])
-    hand: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
-    outputs: list[int] = MISSING  # controlled hand coordinates (0 x, 1 y, 2 z)
-    limits: Optional[list[Any]] = None  # per joint [min, max]
-    normalise: bool = False  # commands in [-1, 1] onto the limits (true) or radians (false)
-    saturate: bool = True  # normalised commands clipped at the limits
-    home: list[float] = MISSING  # the home posture, command units
-    grid: GridConf = field(default_factory=GridConf)  # the target grid at full size
-    grows: Optional[list[bool]] = None  # per segment: grows under non-proportional growth
-
-
+# body: gbmodel.bodies.Description's fields (conf/body/<name>.yaml). It goes into every trial's
+# spec, so editing one body's file recomputes that body's trials only.
+BodyConf = conf_of(gbmodel.bodies.Description, "BodyConf")
 # growth: gbmodel.Growth's fields; pattern `none` is a body of constant size end_size
 GrowthConf = schema_of(gbmodel.Growth, "GrowthConf")
 EvaluationConf = dataclasses.make_dataclass(

@@ -350,24 +350,11 @@ def plan_conditions(trials: list[dict]) -> list[dict]:
     return list(out.values())
 
 
-# CPU time per sample and joint of each learner's path, relative to Goal Babbling's fast batch
-# path (measured by `python -m pipeline.bench_costs`: 2.3-2.8 ns there; two runs on arm5 and
-# the iCub agree within a factor of about 3): without them, a run mixing learners misjudged its
-# ETA and its shards' balance by 35x (online Goal Babbling) to 10,000x (its numpy reference).
-SAMPLE_COST = {("goal_babbling", True): 1.0, ("goal_babbling", False): 60.0,
-               ("online_goal_babbling", True): 35.0, ("online_goal_babbling", False): 11000.0,
-               ("motor_babbling", True): 60.0, ("example_memory", True): 300.0}
-ONLINE_UPDATES_COST = 7.0  # Goal Babbling with learner.updates=online, against its batch step
-
-
 def cost(trial: dict) -> float:
     """Rough relative run time of a trial: samples per epoch x joints x epochs x the learner's
-    cost per sample and joint (SAMPLE_COST; 1 for a learner it does not know)."""
+    cost per sample and joint (its sample_cost; 1 for a learner without one)."""
     spec = gbmodel.TrialSpec.from_dict(trial["spec"])
     learner, params = spec.make_learner()
     body = spec.make_body()
-    name = spec.learner.get("name", "goal_babbling")
-    per = SAMPLE_COST.get((name, bool(getattr(params, "fast", True))), 1.0)
-    if getattr(params, "updates", "batch") == "online":
-        per *= ONLINE_UPDATES_COST
+    per = learner.sample_cost(params) if hasattr(learner, "sample_cost") else 1.0
     return float(spec.epochs) * learner.samples_per_epoch(params, body) * body.m * per

@@ -113,8 +113,10 @@ def test_the_rate_rule_is_a_command_for_any_body(tmp_path):
 
 def test_a_body_borrowing_arm5s_rate_is_told_so(tmp_path):
     trials = plan(compose(["body=arm2", "learner.learning_rate=0.000876"]))
-    assert simulate.borrowed_rates(trials) == ["arm2"]
-    assert simulate.borrowed_rates(plan(compose(["body=arm2"]))) == []
+    notes = simulate.learner_notes(trials + trials)
+    assert len(notes) == 1 and "body arm2 learns at the 5-DOF arm's plain-step rate" in notes[0]
+    assert "pipeline.tools.rate body=arm2" in notes[0]
+    assert simulate.learner_notes(plan(compose(["body=arm2"]))) == []
 
 
 # ---- 7. trained models from Python -------------------------------------------------------------

@@ -136,3 +136,9 @@ def model(state: State) -> None:
 
 def samples_per_epoch(params: Params, body) -> int:
     return params.goals
+
+
+def sample_cost(params: Params) -> float:
+    """CPU time per sample and joint, relative to Goal Babbling's fast batch path (a k-d tree
+    query and insertion per sample)."""
+    return 300.0

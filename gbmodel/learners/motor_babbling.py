@@ -121,3 +121,13 @@ def model(state: State) -> np.ndarray:
 
 def samples_per_epoch(params: Params, body) -> int:
     return params.samples
+
+
+def sample_cost(params: Params) -> float:
+    """CPU time per sample and joint, relative to Goal Babbling's fast batch path."""
+    return 60.0
+
+
+def predict_model(model, params: Params, body, x) -> np.ndarray:
+    """predict from what `model` stored (M)."""
+    return predict_inverse(np.asarray(model, np.float64), x, _exps(params, body))

@@ -220,6 +220,30 @@ def samples_per_epoch(params: Params, body) -> int:
     return params.variations * (params.targets_per_epoch * params.steps + 1) + extra
 
 
+def sample_cost(params: Params) -> float:
+    """CPU time per sample and joint, relative to the fast batch path (for a run's ETA and its
+    shards' balance; `python -m pipeline.tools.bench_costs` measures them): the numpy reference
+    about 60 times, one step per sample (updates=online) about 7 times the batch step."""
+    return (1.0 if params.fast else 60.0) * (7.0 if params.updates == "online" else 1.0)
+
+
+def notes(params: Params, body) -> list[str]:
+    """What a user should know about these settings on this body: a body other than arm5 whose
+    plain step runs at the default rate, which the 1 / W rule fixed for arm5 (nothing wrong,
+    but a rate not made for it)."""
+    if params.step == "plain" and params.learning_rate == Params().learning_rate \
+            and body.name != "arm5":
+        return [f"body {body.name} learns at the 5-DOF arm's plain-step rate (learner."
+                "learning_rate = 1 / W fixed for arm5); `python -m pipeline.tools.rate "
+                f"body={body.name}` prints its own"]
+    return []
+
+
+def predict_model(model, params: Params, body, x) -> np.ndarray:
+    """predict from what `model` stored (M)."""
+    return reference.predict(np.asarray(model, np.float64), x, _exps(params, body))
+
+
 
 def weight_sum(body, params: dict, seeds=(0, 1, 2), epochs: int = 20_000, probe: int = 50) -> float:
     """W, the rule that fixed the plain step's rates (eta = 1 / W): the median sum of the weights

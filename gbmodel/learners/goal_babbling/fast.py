@@ -16,7 +16,7 @@ float32 vector loops over the samples of an epoch:
   tolerances);
 - the hand is carried backwards through the chain, one rotation about z per joint, in
   registers, LANES samples at a time: DH rows, or a general (URDF) chain's fixed rotation and
-  translation per joint (gbmodel.kinematics.chain_layout, simd.chain_step);
+  translation per joint (gbmodel.kinematics.chain_layout, simd.chain_kinematics);
 - sin and cos are a branch-free polynomial (Cephes' kernels after a Cody-Waite reduction);
 - features are built monomial by monomial, each a parent monomial times one coordinate;
 - the gradient sum_t w (M Phi - q) Phi^T: the weighted residuals (rows in register tiles of 5),
@@ -45,54 +45,13 @@ from numba import njit
 from ...features import monomial_tree
 from ...kinematics import chain_layout
 from ...simd import (
-    F4, LANES, _1, _HALF, chain_step, sincos, vadd, vdiv, vfma, vload, vload1, vmul, vsplat,
+    F4, LANES, _1, _HALF, chain_kinematics, vadd, vclip, vdiv, vfma, vload, vload1, vmul, vsplat,
     vsqrt, vstore, vstore1, vsub, vsum, vwhere,
 )
 from .reference import NO_MOVEMENT
 
 _BLOCK = 512  # columns per block of features, residuals and gradient (multiple of LANES)
 _TILE = 5  # rows of a register tile of M Phi and of the gradient (m = 5, 10; p = 10, 20)
-
-# ---- kinematics ----------------------------------------------------------------------------------
-
-
-@njit(inline="always")
-def _clip(q):
-    """q clipped to [-1, 1] lane by lane (a NaN stays NaN)."""
-    one, minus_one = vsplat(_1), vsplat(-_1)
-    return vwhere(minus_one, q, minus_one, vwhere(q, one, one, q))
-
-
-@njit(cache=True)
-def _kinematics(Q, X, C, joints, body):
-    """Hand positions X[:, :C] of the commands Q[:, :C] (C a multiple of LANES),
-    saturating Q in place where the body does. Joint angles theta = q (span / 2) + offset + lo +
-    span / 2 for normalised commands, else offset + q. The hand point is carried from the last
-    joint to the base, LANES samples at a time in registers (simd.chain_step)."""
-    normalized, saturates, q_lo, q_span, offset = joints
-    a, d, ca, sa, base, outputs, ty, R, general = body
-    m = Q.shape[0]
-    for c in range(0, C, LANES):
-        px = py = pz = vsplat(0)
-        for ii in range(m):
-            i = m - 1 - ii
-            q = vload(Q, i, c)
-            if normalized:
-                if saturates:
-                    q = _clip(q)
-                    vstore(Q, i, c, q)
-                half_span = _HALF * q_span[i]
-                theta = vfma(q, vsplat(half_span), vsplat(offset[i] + q_lo[i] + half_span))
-            else:
-                theta = vadd(q, vsplat(offset[i]))
-            s, co = sincos(theta)
-            px, py, pz = chain_step(px, py, pz, s, co, i, a, d, ca, sa, ty, R, general)
-        for j in range(len(outputs)):
-            o = outputs[j]
-            x = vfma(vsplat(base[o, 0]), px, vsplat(base[o, 3]))
-            x = vfma(vsplat(base[o, 1]), py, x)
-            vstore(X, j, c, vfma(vsplat(base[o, 2]), pz, x))
-
 
 @njit(cache=True)
 def _features(X, c0, C, parent, var, Phi):
@@ -310,7 +269,7 @@ def _weights(dxs, nxs, X, Q, V, T, Npad, w):
             nxs_u = vload1(nxs, u)
             den = vsqrt(vmul(nxs_u, nx))
             cos = vwhere(den, zero, vdiv(dot, den), zero)
-            cos = _clip(cos)
+            cos = vclip(cos)
             w_dir = vwhere(nxs_u, no_move2, vmul(half, vadd(one, cos)), zero)
             w_eff = vwhere(nq, zero, vsqrt(vdiv(nx, nq)), zero)
             vstore1(w, c + 1, vmul(w_dir, w_eff))
@@ -390,7 +349,7 @@ def _epoch(M, idx, raw, amp, s, body, targets, home, parent, var, joints, radius
     # the home posture and where it puts the hand (every lane the same)
     for i in range(m):
         vstore(Qh, i, 0, vsplat(home[i]))
-    _kinematics(Qh, Xh, LANES, joints, body)
+    chain_kinematics(Qh, Xh, LANES, joints, body)
     # the target path (eq. 9) at the current size in columns 1 ... T, the hand at home in
     # column 0, the last target in the rest
     for j in range(n):
@@ -422,7 +381,7 @@ def _epoch(M, idx, raw, amp, s, body, targets, home, parent, var, joints, radius
     # the variations' disturbances (eq. 8), their rollouts, weights, residuals, gradient lanes
     _disturbances(raw, amp, s, box[0], box[1], radius, A, b)
     _commands(gpath, path, A, b, home, T, Npad, Q)
-    _kinematics(Q, X, Npad, joints, body)
+    chain_kinematics(Q, X, Npad, joints, body)
     _weights(dxs, nxs, X, Q, V, T, Npad, w)
     # gradient descent on the weighted command error (eq. 6), plain or normalised by sum w
     eta = rate if plain else rate / _lane_sum(w, Npad)
@@ -509,7 +468,7 @@ def _distances(M, scale, chain, xs, parent, var, joints, out):
             X[j, t] = xs[min(t, NT - 1), j]
     _features(X, 0, C, parent, var, Phi)
     _predict(M32, Phi, C, Q, Q, np.empty(0, np.float32), 0)
-    _kinematics(Q, X, C, joints, body)
+    chain_kinematics(Q, X, C, joints, body)
     for t in range(NT):
         d2 = 0.0
         for j in range(n):
