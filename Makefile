@@ -60,7 +60,7 @@ choices: ## the open-choices experiments only (choices_*), then aggregate and re
 	@$(MAKE) --no-print-directory pipeline FIGURES="$(CHOICES)"
 
 bench: $(STAMP) ## time the fast path against the numpy reference (outputs/bench/bench.json)
-	$(PY) -m pipeline.bench $(ARGS)
+	$(PY) -m pipeline.tools.bench $(ARGS)
 
 test: $(STAMP) ## run the test suite (slow tests excluded)
 	$(PY) -m pytest

@@ -49,8 +49,9 @@ class Model:
         """Commands (N, m) the model of `trial` (after `epoch`, a snapshot; None: the final M)
         chooses for targets x (N, n) [m]."""
         M = self.M[trial] if epoch is None else self.snapshots[trial][epoch]
-        exps = gbmodel.exponents(self.body.n, self.spec.learner.get("degree", 3))
-        return gbmodel.predict(M, np.atleast_2d(np.asarray(x, dtype=np.float64)), exps)
+        learner, params = self.spec.make_learner()
+        return learner.predict_model(M, params, self.body,
+                                     np.atleast_2d(np.asarray(x, dtype=np.float64)))
 
     def reach(self, x, trial: int = 0, epoch: int | None = None) -> np.ndarray:
         """Where the hand is (N, n) [m] after the posture for targets x."""

@@ -104,7 +104,7 @@ def test_the_plain_steps_rate_is_per_sample_and_exact_at_the_papers_settings():
 
 
 def test_the_rate_rule_is_a_command_for_any_body(tmp_path):
-    from pipeline import rate
+    from pipeline.tools import rate
 
     got = rate.rate(compose(["body=arm2"]), epochs=200, seeds=(0,))
     assert got["rate_samples"] == 2120 and got["W"] > 0

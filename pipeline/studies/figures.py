@@ -138,20 +138,26 @@ def growth_end_handle():
 
 
 def final_body(spec: dict) -> tuple:
-    """(body, size, growth, exps) of a trial's spec: the body (variant) at its final size, its
+    """(body, size, growth, predict) of a trial's spec: the body (variant) at its final size, its
     gbmodel.Growth (gbmodel.growth.factors maps it to the body's per-segment factors) and
-    the feature exponents of its polynomial inverse."""
-    body, growth = gbmodel.make_body(spec["body"]), gbmodel.Growth(**spec["growth"])
-    return body, growth.end_size, growth, gbmodel.exponents(body.n, spec["learner"]["degree"])
+    predict(model, x), the commands its learner's stored model (M) chooses for positions x
+    (the learner's predict_model)."""
+    spec = gbmodel.TrialSpec.from_dict(spec)
+    body, growth = spec.make_body(), spec.make_growth()
+    learner, params = spec.make_learner()
+    if not hasattr(learner, "predict_model"):
+        raise ValueError(f"learner {spec.learner.get('name')!r} has no predict_model: its "
+                         "stored model cannot be drawn")
+    return body, growth.end_size, growth, lambda M, x: learner.predict_model(M, params, body, x)
 
 
 def joint_space_stages(spec: dict, stages: list[tuple[str, list]], title: str):
     """Fig. 2: the inverse estimate of the 2-DOF arm in its joint space over the contours of
     equal hand height, one panel per stage. stages: (label, M) pairs."""
-    body, size, pattern, exps = final_body(spec)
+    body, size, pattern, predict = final_body(spec)
     targets = body.target_set(size)[:, 0]
     xs = np.linspace(targets.min(), targets.max(), 401)[:, None]
-    curves = [gbmodel.predict(np.asarray(M), xs, exps) for _, M in stages]
+    curves = [predict(M, xs) for _, M in stages]
     lim = max(np.pi, *(np.abs(c).max() for c in curves))
     grid = np.linspace(-lim, lim, 301)
     Q = np.stack(np.meshgrid(grid, grid, indexing="xy"), axis=-1)
@@ -164,7 +170,7 @@ def joint_space_stages(spec: dict, stages: list[tuple[str, list]], title: str):
         ax.contour(grid, grid, height, levels=np.sort(targets), cmap=cmap, norm=norm,
                    linewidths=0.7)
         ax.plot(g[:, 0], g[:, 1], color="black", lw=1.2)
-        q_t = gbmodel.predict(np.asarray(M), targets[:, None], exps)
+        q_t = predict(M, targets[:, None])
         ax.scatter(q_t[:, 0], q_t[:, 1], c=targets, cmap=cmap, norm=norm, s=14,
                    edgecolors="black", linewidths=0.4, zorder=3)
         ax.plot(*body.home, marker="+", color="black", ms=8)
@@ -205,10 +211,10 @@ def postures(panels: list[tuple[str, dict, list]], title: str, n_postures: int =
     three_d = any(final_body(spec)[0].n == 3 for _, spec, _ in panels)
     fig = plt.figure(figsize=(max(3.6 * len(panels), 6.0), 4.0))
     for k, (label, spec, M) in enumerate(panels):
-        body, size, pattern, exps = final_body(spec)
+        body, size, pattern, predict = final_body(spec)
         M = np.asarray(M, dtype=float)
         targets = body.target_set(size)
-        q = gbmodel.predict(M, targets, exps)
+        q = predict(M, targets)
         reached = body.forward(q, factors(body, size, pattern))
         shape = _grid_shape(targets)
         ax = fig.add_subplot(1, len(panels), k + 1, projection="3d" if three_d else None)

@@ -250,7 +250,7 @@ def weight_sum(body, params: dict, seeds=(0, 1, 2), epochs: int = 20_000, probe:
     per epoch at full size after `epochs` epochs of the normalised step at rate 1.0 (one trial per
     seed, then `probe` epochs each of new draws, not learned from). It makes the plain step equal
     to the normalised one at full-size convergence. body: a body description (make_body);
-    params: this learner's Params fields (V, R, K, L ...). `python -m pipeline.rate` prints it."""
+    params: this learner's Params fields (V, R, K, L ...). `python -m pipeline.tools.rate` prints it."""
     from ...trial import TrialSpec, run_trial
 
     params = {**params, "step": "normalised", "learning_rate": 1.0}
