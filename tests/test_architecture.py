@@ -475,3 +475,26 @@ def test_pipeline_has_no_import_circle_and_the_machinery_knows_no_study():
     for m in machinery:
         studies = {d for d in graph[m] if d.startswith("pipeline.studies")}
         assert not studies, f"{m} imports the studies {sorted(studies)}"
+
+
+def _named(doc: str, paths, folders: bool = True) -> list[str]:
+    """The paths whose file name (and, with folders, each folder above it, as `folder/`) the
+    doc does not name."""
+    text = (REPO_ROOT / "docs" / doc).read_text()
+    missing = []
+    for p in paths:
+        rel = p.relative_to(REPO_ROOT)
+        names = [rel.name] + ([f"{d}/" for d in rel.parts[:-1]] if folders else [])
+        missing += [f"{rel} ({n})" for n in names if n not in text]
+    return missing
+
+
+def test_the_docs_name_every_module_and_test_file():
+    """docs/core.md's layout names every module of gbmodel and pipeline (and its folders),
+    docs/tests.md every file of tests/: a file added without its line fails here."""
+    modules = [p for pkg in ("gbmodel", "pipeline") for p in (REPO_ROOT / pkg).rglob("*.py")]
+    assert len(modules) > 40
+    assert _named("core.md", modules) == []
+    assert _named("tests.md", sorted((REPO_ROOT / "tests").glob("*.py")), folders=False) == []
+    assert _named("core.md", [REPO_ROOT / "gbmodel" / "not_a_module.py"]) == [
+        "gbmodel/not_a_module.py (not_a_module.py)"]
