@@ -48,14 +48,14 @@ class _F32x16Model(models.PrimitiveModel):
         super().__init__(dmm, fe_type, _VEC)
 
 
-def _vector_pointer(context, builder, sig, args, n):
-    """Address of element args[1:1 + n] of the array args[0], as a pointer to a vector."""
+def _vector_pointer(context, builder, sig, args, n, vec=_VEC):
+    """Address of element args[1:1 + n] of the array args[0], as a pointer to a vector `vec`."""
     aryty = sig.args[0]
     inds = [context.cast(builder, v, t, types.intp) for v, t in zip(args[1:1 + n],
                                                                     sig.args[1:1 + n])]
     ptr = cgutils.get_item_pointer(context, builder, aryty,
                                    context.make_array(aryty)(context, builder, args[0]), inds)
-    return builder.bitcast(ptr, _VEC.as_pointer())
+    return builder.bitcast(ptr, vec.as_pointer())
 
 
 @intrinsic
@@ -328,13 +328,7 @@ class _F64x8Model(models.PrimitiveModel):
 
 
 def _pointer8(context, builder, sig, args, n):
-    """Address of element args[1:1 + n] of the float64 array args[0], as a vector pointer."""
-    aryty = sig.args[0]
-    inds = [context.cast(builder, v, t, types.intp) for v, t in zip(args[1:1 + n],
-                                                                    sig.args[1:1 + n])]
-    ptr = cgutils.get_item_pointer(context, builder, aryty,
-                                   context.make_array(aryty)(context, builder, args[0]), inds)
-    return builder.bitcast(ptr, _VEC8.as_pointer())
+    return _vector_pointer(context, builder, sig, args, n, _VEC8)
 
 
 @intrinsic

@@ -30,15 +30,11 @@ from ..nearest import Nearest
 class Params:
     # goals per epoch: Goal Babbling's sample budget on arm5, V (K L + 1) = 2120
     goals: int = 2120
-    # exploration noise [command units] (explauto's default: 0.1 of the motor range). On arm5
-    # (seed 0, 100 epochs), error on the grid / between its points (cell centres): 0.02 rad ->
-    # 0.8 / 25 mm (it learns the grid points only), 0.05 -> 2.1 / 5.1, 0.1 -> 2.8 / 3.0,
-    # 0.2 -> 3.0 / 3.1 mm; on the iCub after 50 epochs 0.05 -> 3.4, 0.1 -> 5.3, 0.2 -> 7.0 mm
+    # exploration noise [command units] (explauto's default: 0.1 of the motor range; too little
+    # learns the grid points only: docs/baselines.md, "Why the alternatives' defaults")
     sigma: float = 0.1
-    # epochs whose examples are kept (memory <= 1 + window * goals). Under growth (arm5, 0.5 ->
-    # 1.0 over 100 epochs) the relative error at epoch 50 is 1.0 % (window 1), 1.9 % (10) and
-    # 8.6 % (50): stale outcomes mislead. Without growth more memory is better (30 epochs:
-    # 1 -> 8.4, 10 -> 2.9, 50 -> 1.5 mm). 0: keep every example (gbmodel.nearest)
+    # epochs whose examples are kept (memory <= 1 + window * goals): under growth stale outcomes
+    # mislead, without growth more memory is better. 0: keep every example (gbmodel.nearest)
     window: int = 10
 
     def validate(self) -> "Params":

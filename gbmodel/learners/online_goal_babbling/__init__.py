@@ -59,11 +59,12 @@ class Params:
     radius: float = 0.2  # R, max |E_i(x)| over the target box (eq. 8)
     # random-walk step of the perturbation's parameters per sample, relative to their spread:
     # 0.3 keeps a perturbation for about 23 samples (1 / ln sqrt(1 + drift^2)), 3 targets; a
-    # perturbation held too long is learned as if it were the body (docs/baselines.md)
+    # perturbation held too long is learned as if it were the body (docs/baselines.md, "Why the
+    # alternatives' defaults")
     drift: float = 0.3
     home_probability: float = 0.1  # chance of a return home after each target
     # eta of the per-sample step; a body with smaller weights (normalised commands, the iCub's)
-    # may need its own (conf/learner/online_goal_babbling.yaml, docs/baselines.md)
+    # may need its own (conf/body_learner/<body>_online_goal_babbling.yaml, docs/baselines.md)
     learning_rate: float = 0.1
     init_range: float = 0.1  # |g(x) - home| bound at initialisation (as Goal Babbling)
     degree: int = 3
