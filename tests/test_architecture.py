@@ -498,3 +498,28 @@ def test_the_docs_name_every_module_and_test_file():
     assert _named("tests.md", sorted((REPO_ROOT / "tests").glob("*.py")), folders=False) == []
     assert _named("core.md", [REPO_ROOT / "gbmodel" / "not_a_module.py"]) == [
         "gbmodel/not_a_module.py (not_a_module.py)"]
+
+
+def test_the_body_schema_is_generated_from_gbmodels_description():
+    """BodyConf has gbmodel.bodies.Description's fields, types and defaults; a field without a
+    default must be given (MISSING), and the grid's schema is generated the same way."""
+    from omegaconf import MISSING
+
+    from gbmodel.bodies import FIELDS, Description
+
+    conf = {f.name: f for f in dataclasses.fields(pipeline.config.BodyConf)}
+    assert tuple(conf) == FIELDS == tuple(f.name for f in dataclasses.fields(Description))
+    assert conf["name"].default == MISSING and conf["units"].default == "rad"
+    assert conf["base"].default_factory() == Description(
+        name="x", outputs=[0], home=[0.0], grid=None).base
+    grid = conf["grid"].default_factory()
+    assert type(grid).__name__ == "GridConf" and grid.lo == MISSING
+
+
+def test_a_growth_pattern_becomes_factors_in_one_place():
+    body = gbmodel.make_body("arm5")
+    np.testing.assert_array_equal(gbmodel.growth.factors(body, 0.5), np.full(5, 0.5))
+    g = gbmodel.Growth(pattern="proximal_first")
+    np.testing.assert_array_equal(gbmodel.growth.factors(body, 0.7, g), g.scales(body, 0.7))
+    with pytest.raises(gbmodel.SpecError, match="growth.pattern='spiral'"):
+        gbmodel.growth.factors(body, 0.5, "spiral")
