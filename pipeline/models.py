@@ -38,7 +38,7 @@ class Model:
     @property
     def size(self) -> float:
         """The body's size factor at the end of the trial."""
-        return float(self.spec.make_growth().sizes([self.spec.epochs])[-1])
+        return float(self.spec.make_growth().sizes([self.spec.epochs], self.body)[-1])
 
     @property
     def scale(self) -> np.ndarray:
