@@ -127,6 +127,9 @@ class ConditionsConf:
     periods: list[int] = field(default_factory=list)  # growth periods T_G, one condition each
     references: list[float] = field(default_factory=list)  # constant sizes run as references
     snapshots: list[int] = field(default_factory=list)  # epochs after which M is stored
+    # more epochs after which M is stored: this many, log-spaced over 1 ... epochs (the report's
+    # animation of each condition, pipeline/studies/animation.py); 0: none
+    frames: int = 0
     variants: list[VariantConf] = field(default_factory=list)  # each: all of the above again
     # a budget of reaching movements (forward-kinematics samples) per trial instead of epochs:
     # each learner gets budget / its samples per epoch epochs, growing over growth_share of them
@@ -158,6 +161,8 @@ class ReportConf:
     publish: bool = False  # write the committed report (paths.published): make reproduce only
     paper_experiments: list[str] = MISSING  # what the committed report must hold, at full scale
     stamp_findings: bool = False  # record these numbers as the ones findings.md discusses
+    # a GIF per figure and condition whose trial 0 stored >= 2 models (conditions.frames)
+    animate: bool = True
     explain: bool = True  # the explanation rows, read from the explain_* aggregates (explain.py)
     scale: str = ""  # a reduced scale the title names ("smoke"; set by the profile), "" = as set
 

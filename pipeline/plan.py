@@ -147,14 +147,27 @@ def apply_budget(cfg: DictConfig) -> None:
         c.periods = [max(1, round(c.growth_share * epochs))]
 
 
+def frame_epochs(epochs: int, frames: int) -> list[int]:
+    """`frames` epochs spread evenly on a log scale over 1 ... epochs (fewer where two round to
+    the same epoch), the last one `epochs`: where the learning curve changes, it changes on a
+    log scale."""
+    if frames <= 0:
+        return []
+    if frames == 1:
+        return [int(epochs)]
+    return sorted({int(e) for e in np.rint(np.geomspace(1, epochs, frames))})
+
+
 def trial_spec(cfg: DictConfig, growth: dict) -> gbmodel.TrialSpec:
     """The TrialSpec of one condition, validated (ConfigError naming the config key)."""
     learner = OmegaConf.to_container(cfg.learner)
     epochs, per_decade = learner.pop("epochs"), learner.pop("evals_per_decade")
-    snaps = tuple(sorted({e for e in cfg.conditions.snapshots
-                          if isinstance(e, int) and e <= epochs}))
     for e in cfg.conditions.snapshots:
         check_int("conditions.snapshots", e, 1)
+    check_int("conditions.frames", cfg.conditions.frames, 0)
+    frames = frame_epochs(epochs, cfg.conditions.frames) if isinstance(epochs, int) else []
+    snaps = tuple(sorted({e for e in [*cfg.conditions.snapshots, *frames]
+                          if isinstance(e, int) and e <= epochs}))
     if isinstance(epochs, int) and epochs > MAX_EPOCHS:
         _bad("learner.epochs", epochs, f"at most {MAX_EPOCHS:.0e} epochs per trial")
     spec = gbmodel.TrialSpec(

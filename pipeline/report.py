@@ -3,6 +3,7 @@
     python -m pipeline.report              # everything under paths.aggregate -> paths.report
 
 Writes under paths.report (all bytes reproducible, no timestamps, only relative paths):
+    <figure>_<condition>.gif   the body growing and reaching, frame by frame (report.animate)
     <figure>_curves.png/.pdf   (a) absolute and (b) relative error against epochs (Fig. 4, 5, 7)
     fig2_stages.png/.pdf       the inverse estimate of arm2 in joint space at successive stages
     fig3_postures.png/.pdf     target grid vs reached grid with postures, 5-DOF arm (Fig. 3)
@@ -322,6 +323,9 @@ def write_report(cfg: DictConfig, aggs: dict, out: Path) -> list[Path]:
                                        "postures at the final size")
                 extra.append((f"{name}: targets, reached positions and postures",
                               figures.save(fig, out / f"{name}_postures", dpi)))
+        if cfg.report.animate:  # hook: a GIF per condition with stored stages (animation.py)
+            from .studies import animation
+            extra += [(f"Watch it learn: {t}", [p]) for t, p in animation.write(aggs, out)]
     for _, paths in extra:
         written += paths
 
