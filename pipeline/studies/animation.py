@@ -103,8 +103,7 @@ def _draw(ax, f: dict, lims, three_d: bool, plane) -> None:
             ax.set_box_aspect([b - a for a, b in lims], zoom=0.8)
             ax.grid(False)
             ax.view_init(elev=20, azim=-60)
-            for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
-                axis.set_major_locator(figures.matplotlib.ticker.MaxNLocator(4))
+            figures.sparse_3d_ticks(ax)
         else:
             ax.set(xlim=lims[0], ylim=lims[1], aspect="equal", xlabel="x [m]", ylabel="y [m]")
     ax.set_title(f"epoch {f['epoch']}, size {f['size']:.3f}\nmean error "
