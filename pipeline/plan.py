@@ -231,7 +231,8 @@ def plan(cfg: DictConfig) -> list[dict]:
         check_int("trials.count", cfg.trials.count, 1)
         check_int("trials.root_seed", cfg.trials.root_seed, 0)
         check_int("workers", cfg.workers, 1)
-        check_backend(cfg.executor.backend)  # an unknown engine, or one whose package is missing
+        check_backend(cfg.executor.backend, package=False)  # an unknown engine (its package:
+        # simulate, the stage that submits)
         if not cfg.figure or "/" in cfg.figure or cfg.figure.startswith("."):
             _bad("figure", cfg.figure, "must be a plain name (it names a folder)")
         check_root(cfg)
