@@ -35,11 +35,12 @@ EXTRA = {"ray": ("ray", "ray"), "slurm": ("submitit", "slurm"),
          "submitit_local": ("submitit", "slurm")}  # backend -> (package, pyproject extra)
 
 
-def check_backend(backend: str) -> None:
-    """ConfigError (one line) for an unknown backend, or one whose package is not installed."""
+def check_backend(backend: str, package: bool = True) -> None:
+    """ConfigError (one line) for an unknown backend, or (package) one whose package is not
+    installed: only the stage that submits (simulate) needs it, aggregate and report do not."""
     if backend not in BACKENDS:
         raise ConfigError(f"executor.backend={backend!r}: choose one of {', '.join(BACKENDS)}")
-    if backend in EXTRA:
+    if package and backend in EXTRA:
         package, extra = EXTRA[backend]
         if importlib.util.find_spec(package) is None:
             raise ConfigError(f"executor.backend={backend!r} needs the package {package}: "
@@ -119,6 +120,9 @@ class ConditionsConf:
     periods: list[int] = field(default_factory=list)  # growth periods T_G, one condition each
     references: list[float] = field(default_factory=list)  # constant sizes run as references
     snapshots: list[int] = field(default_factory=list)  # epochs after which M is stored
+    # more epochs after which M is stored: this many, log-spaced over 1 ... epochs (the report's
+    # animation of each condition, pipeline/studies/animation.py); 0: none
+    frames: int = 0
     variants: list[VariantConf] = field(default_factory=list)  # each: all of the above again
     # a budget of reaching movements (forward-kinematics samples) per trial instead of epochs:
     # each learner gets budget / its samples per epoch epochs, growing over growth_share of them
@@ -150,6 +154,8 @@ class ReportConf:
     publish: bool = False  # write the committed report (paths.published): make reproduce only
     paper_experiments: list[str] = MISSING  # what the committed report must hold, at full scale
     stamp_findings: bool = False  # record these numbers as the ones findings.md discusses
+    # a GIF per figure and condition whose trial 0 stored >= 2 models (conditions.frames)
+    animate: bool = True
     explain: bool = True  # the explanation rows, read from the explain_* aggregates (explain.py)
     scale: str = ""  # a reduced scale the title names ("smoke"; set by the profile), "" = as set
 
@@ -159,6 +165,13 @@ class SlurmConf:
     """SLURM jobs through submitit (executor=slurm; pipeline/backends.py)."""
 
     partition: Optional[str] = None  # --partition; null: the cluster's default
+    account: Optional[str] = None  # --account (the allocation charged); null: your default
+    qos: Optional[str] = None  # --qos; null: the partition's default
+    gres: Optional[str] = None  # --gres, e.g. "tmpdisk:10" (the trials need no GPU)
+    constraint: Optional[str] = None  # --constraint, node features, e.g. "intel&avx2"
+    # any other sbatch option, name without the dashes -> value, e.g. {reservation: lab,
+    # exclude: "node[01-02]"}: `#SBATCH --reservation=lab` (submitit's additional_parameters)
+    extra: dict[str, Any] = field(default_factory=dict)
     timeout_min: int = 1440  # --time of each job, minutes (a job runs a whole shard)
     mem_gb: float = 2.0  # --mem per job
     shards: Optional[int] = None  # array jobs; null: `workers`

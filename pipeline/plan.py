@@ -146,14 +146,27 @@ def apply_budget(cfg: DictConfig) -> None:
         c.periods = [max(1, round(c.growth_share * epochs))]
 
 
+def frame_epochs(epochs: int, frames: int) -> list[int]:
+    """`frames` epochs spread evenly on a log scale over 1 ... epochs (fewer where two round to
+    the same epoch), the last one `epochs`: where the learning curve changes, it changes on a
+    log scale."""
+    if frames <= 0:
+        return []
+    if frames == 1:
+        return [int(epochs)]
+    return sorted({int(e) for e in np.rint(np.geomspace(1, epochs, frames))})
+
+
 def trial_spec(cfg: DictConfig, growth: dict) -> gbmodel.TrialSpec:
     """The TrialSpec of one condition, validated (ConfigError naming the config key)."""
     learner = OmegaConf.to_container(cfg.learner)
     epochs, per_decade = learner.pop("epochs"), learner.pop("evals_per_decade")
-    snaps = tuple(sorted({e for e in cfg.conditions.snapshots
-                          if isinstance(e, int) and e <= epochs}))
     for e in cfg.conditions.snapshots:
         check_int("conditions.snapshots", e, 1)
+    check_int("conditions.frames", cfg.conditions.frames, 0)
+    frames = frame_epochs(epochs, cfg.conditions.frames) if isinstance(epochs, int) else []
+    snaps = tuple(sorted({e for e in [*cfg.conditions.snapshots, *frames]
+                          if isinstance(e, int) and e <= epochs}))
     spec = gbmodel.TrialSpec(
         body=OmegaConf.to_container(cfg.body), growth=growth, learner=learner,
         evaluation=OmegaConf.to_container(cfg.evaluation), epochs=epochs,
@@ -215,7 +228,8 @@ def plan(cfg: DictConfig) -> list[dict]:
         check_int("trials.count", cfg.trials.count, 1)
         check_int("trials.root_seed", cfg.trials.root_seed, 0)
         check_int("workers", cfg.workers, 1)
-        check_backend(cfg.executor.backend)  # an unknown engine, or one whose package is missing
+        check_backend(cfg.executor.backend, package=False)  # an unknown engine (its package:
+        # simulate, the stage that submits)
         if not cfg.figure or "/" in cfg.figure or cfg.figure.startswith("."):
             _bad("figure", cfg.figure, "must be a plain name (it names a folder)")
         check_root(cfg)

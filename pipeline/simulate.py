@@ -23,6 +23,7 @@ import hydra
 from omegaconf import DictConfig, OmegaConf
 
 from . import cache, cli, execute, io
+from .config import check_backend
 from .plan import cost, plan, plan_conditions
 from .progress import Progress
 
@@ -74,6 +75,7 @@ def jobs_of(cfg: DictConfig, overrides: list[str] = ()) -> list[Job]:
     """The figures this run plans: the config's own, or with `experiments=[a, b]` each of those
     experiments composed with the same other overrides (make smoke / make reproduce plan every
     experiment in one process)."""
+    check_backend(cfg.executor.backend)  # this stage submits: the engine's package is needed
     names = list(cfg.get("experiments") or [])
     if not names:
         return [Job(cfg, plan(cfg), _experiment_of(cfg))]
