@@ -151,6 +151,11 @@ def trial_spec(cfg: DictConfig, growth: dict) -> gbmodel.TrialSpec:
     """The TrialSpec of one condition, validated (ConfigError naming the config key)."""
     learner = OmegaConf.to_container(cfg.learner)
     epochs, per_decade = learner.pop("epochs"), learner.pop("evals_per_decade")
+    # a learner may leave fields out of the key that change nothing at their defaults
+    try:
+        learner = getattr(gbmodel.learners.get(learner["name"]), "keyed", dict)(learner)
+    except ValueError as err:
+        raise ConfigError(str(err)) from None
     snaps = tuple(sorted({e for e in cfg.conditions.snapshots
                           if isinstance(e, int) and e <= epochs}))
     for e in cfg.conditions.snapshots:
