@@ -3,7 +3,9 @@ body file (docs/bodies.md) with the URDF's limits, the middle of every joint's r
 and a target grid in front of the robot. Used by tests/test_new_robot.py and by the measurement
 in docs/bodies.md ("A new robot"):
 
-    .venv/bin/python tests/new_robots.py     # held-out errors and times, 3 seeds each
+    .venv/bin/python tests/new_robots.py             # held-out errors and times, 3 seeds each
+    .venv/bin/python tests/new_robots.py defaults    # the same with the paper's arm settings
+    .venv/bin/python tests/new_robots.py gradient    # the recipe's R, K, L with the gradient step
 
 - `panda_like`: Franka Panda's kinematics (0.333 m column, 0.316 + 0.384 m upper/forearm with
   the 0.0825 m elbow offsets, 0.088 m wrist offset, flange + hand 0.21 m) and joint limits;
@@ -109,7 +111,8 @@ if __name__ == "__main__":  # the measurement of docs/bodies.md
             for growth in ("none", "proportional"):
                 cfg = compose([f"hydra.searchpath=[file://{tmp}/conf]", f"body={name}",
                                f"growth={growth}", "learner.epochs=1000", "trials.count=3",
-                               *RECIPE])
+                               *(() if "defaults" in sys.argv else
+                                 RECIPE[1:] if "gradient" in sys.argv else RECIPE)])
                 rows = []
                 for t in plan(cfg):
                     t0 = time.perf_counter()
