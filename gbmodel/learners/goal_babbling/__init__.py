@@ -129,8 +129,8 @@ KEYED_DEFAULTS = dict(solver="gradient", window=10, ridge=1e-3)
 
 def keyed(learner: dict) -> dict:
     """The learner's fields as a trial's key holds them: the solver's fields left out at their
-    defaults (the paper's gradient step), so that adding the option kept every gradient trial's
-    key; any other value stays (and is validated)."""
+    defaults (the paper's gradient step), so that a gradient trial's key does not name options
+    it does not use; any other value stays (and is validated)."""
     return {k: v for k, v in learner.items()
             if k not in KEYED_DEFAULTS or v != KEYED_DEFAULTS[k]}
 
