@@ -245,13 +245,17 @@ def _tile1x1(Rw, Phi, C, i, k, GL):
 
 
 @njit(cache=True)
-def _accumulate(Rw, Phi, C, GL):
+def _accumulate(Rw, Phi, C, GL, symmetric=0):
     """Lanes of the gradient, GL (m, p * LANES) += Rw[:, :C] Phi[:, :C]^T: lane l of G[i, k]
-    sums the columns c = l (mod LANES) in order, whatever the CPU."""
+    sums the columns c = l (mod LANES) in order, whatever the CPU. With `symmetric` rows (the
+    first rows of Rw are Phi's, weighted: a Gram matrix), the tiles of those rows wholly above
+    the diagonal are left out (the caller mirrors them)."""
     m, p = Rw.shape[0], Phi.shape[0]
     mt, pt = m - m % _TILE, p - p % _TILE
     for i in range(0, mt, _TILE):
         for k in range(0, pt, _TILE):
+            if i + _TILE <= symmetric and k >= i + _TILE:
+                continue
             _tile5x5(Rw, Phi, C, i, k, GL)
     for i in range(mt, m):
         for k in range(0, pt, _TILE):
@@ -409,10 +413,13 @@ def _gram_sums(X, Q, w, Npad, parent, var, Phi, Z, GG, out):
                 vstore(Z, k, c, vmul(vload(Phi, k, c), wc))
             for i in range(m):
                 vstore(Z, p + i, c, vmul(vload(Q, i, c0 + c), wc))
-        _accumulate(Z, Phi, C, GG)
+        _accumulate(Z, Phi, C, GG, p)
     for i in range(p + m):
         for k in range(p):
             out[i, k] = vsum(vload(GG, i, k * LANES))
+    for i in range(p):  # G is symmetric: its upper triangle from the lower
+        for k in range(i + 1, p):
+            out[i, k] = out[k, i]
 
 
 _cholesky_solve = njit(cache=True)(cholesky_solve)
