@@ -10,9 +10,10 @@ and their ratio. Then the same for online Goal Babbling's compiled path (its epo
 samples and the returns home, its random walk drawn with it) and the ratio of its median to the
 batch fast path's median of the same run (the target: at most 2), in wall-clock and in CPU
 time, and Goal Babbling with learner.solver=lstsq (its epoch: the Gram sums and the p x p solve
-instead of the gradient step) against the gradient epoch. The four paths' trials are interleaved (pipeline.bench.paired), so that a shared
-machine's drifting speed moves them alike. With bench.parallel, it also times the same batch of arm5 trials on one and on
-two worker processes of the pipeline's executor. Writes paths.bench/bench.json.
+instead of the gradient step) against the gradient epoch. The four paths' trials are
+interleaved (pipeline.bench.paired), so that a shared machine's drifting speed moves them alike.
+With bench.parallel, it also times the same batch of arm5 trials on one and on two worker
+processes of the pipeline's executor. Writes paths.bench/bench.json.
 """
 from __future__ import annotations
 
