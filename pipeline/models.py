@@ -5,7 +5,9 @@
     >>> fig.labels                                     # ['TG10', 'TG100', ..., 'const1.0']
     >>> m = fig["TG1000"]                              # one condition
     >>> q = m.posture([[0.1, 0.5]])                    # the commands its trial 0 chooses
+    >>> m.joint_angles([[0.1, 0.5]])                   # the same as joint angles [rad]
     >>> m.reach([[0.1, 0.5]])                          # where the hand then is [m]
+    >>> dict(fig.items())                              # a Figure is a mapping label -> Model
 
 It reads what `python -m pipeline.aggregate` wrote (paths.aggregate/<figure>/models.json), or
 the report's compact copy (models/<figure>.json: final models, no snapshots), and
@@ -15,6 +17,7 @@ it learned, at the size the body had at the end of its trial.
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -48,11 +51,26 @@ class Model:
 
     def posture(self, x, trial: int = 0, epoch: int | None = None) -> np.ndarray:
         """Commands (N, m) the model of `trial` (after `epoch`, a snapshot; None: the final M)
-        chooses for targets x (N, n) [m]."""
+        chooses for targets x (N, n) [m], in the body's command units: joint angles [rad] for a
+        body in radians (arm2, arm5), normalised commands in [-1, 1] onto the joint limits for a
+        body with `normalise: true` (the iCub, URDF bodies); joint_angles() gives radians for
+        both. A target whose number of coordinates is not the body's n is refused
+        (ValueError)."""
         M = self.M[trial] if epoch is None else self.snapshots[trial][epoch]
+        body = self.body
+        x = np.atleast_2d(np.asarray(x, dtype=np.float64))
+        if x.shape[-1] != body.n:
+            raise ValueError(f"target of {x.shape[-1]} coordinates: {body.name} controls "
+                             f"{body.n} ({', '.join('xyz'[o] for o in body.outputs)})")
         learner, params = self.spec.make_learner()
-        return learner.predict_model(M, params, self.body,
-                                     np.atleast_2d(np.asarray(x, dtype=np.float64)))
+        return learner.predict_model(M, params, body, x)
+
+    def joint_angles(self, x, trial: int = 0, epoch: int | None = None) -> np.ndarray:
+        """The joints' angles (N, m) [rad] of the posture for targets x, in the robot's own
+        convention (its limits', without the DH table's offsets), saturated at the limits as
+        the body takes them."""
+        body = self.body
+        return body.joint_angles(self.posture(x, trial, epoch)) - body.theta_offset
 
     def reach(self, x, trial: int = 0, epoch: int | None = None) -> np.ndarray:
         """Where the hand is (N, n) [m] after the posture for targets x."""
@@ -60,7 +78,9 @@ class Model:
 
 
 @dataclass
-class Figure:
+class Figure(Mapping):
+    """The models of a figure's conditions: a mapping label -> Model (keys, items, in, len)."""
+
     name: str
     models: dict[str, Model]
 
@@ -72,6 +92,12 @@ class Figure:
         if label not in self.models:
             raise KeyError(f"{self.name} has no condition {label!r}; it has {self.labels}")
         return self.models[label]
+
+    def __iter__(self):
+        return iter(self.models)
+
+    def __len__(self) -> int:
+        return len(self.models)
 
 
 def load(figure: str, aggregate_dir=None) -> Figure:

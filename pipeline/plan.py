@@ -161,6 +161,11 @@ def trial_spec(cfg: DictConfig, growth: dict) -> gbmodel.TrialSpec:
     """The TrialSpec of one condition, validated (ConfigError naming the config key)."""
     learner = OmegaConf.to_container(cfg.learner)
     epochs, per_decade = learner.pop("epochs"), learner.pop("evals_per_decade")
+    # a learner may leave fields out of the key that change nothing at their defaults
+    try:
+        learner = getattr(gbmodel.learners.get(learner["name"]), "keyed", dict)(learner)
+    except ValueError as err:
+        raise ConfigError(str(err)) from None
     for e in cfg.conditions.snapshots:
         check_int("conditions.snapshots", e, 1)
     check_int("conditions.frames", cfg.conditions.frames, 0)

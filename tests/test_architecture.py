@@ -523,3 +523,16 @@ def test_a_growth_pattern_becomes_factors_in_one_place():
     np.testing.assert_array_equal(gbmodel.growth.factors(body, 0.7, g), g.scales(body, 0.7))
     with pytest.raises(gbmodel.SpecError, match="growth.pattern='spiral'"):
         gbmodel.growth.factors(body, 0.5, "spiral")
+
+
+def test_every_hydra_command_finds_the_config_folder():
+    """A stage or tool's @hydra.main(config_path=...) is relative to its own file: moving a
+    command into a sub-package must move its path with it (else: 'Primary config directory
+    not found' at start)."""
+    import re
+    found = 0
+    for path in (REPO_ROOT / "pipeline").rglob("*.py"):
+        for rel in re.findall(r'hydra\.main\(config_path="([^"]+)"', path.read_text()):
+            found += 1
+            assert (path.parent / rel).resolve() == (REPO_ROOT / "conf").resolve(), path
+    assert found >= 5

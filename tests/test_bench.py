@@ -19,3 +19,6 @@ def test_bench_writes_medians_and_the_fast_path_wins(tmp_path):
         assert row["online_over_batch"] == (row["online_us_per_trial_epoch"]
                                             / row["fast_us_per_trial_epoch"])
         assert 0 < row["online_draw_us_per_epoch"] < row["online_us_per_trial_epoch"]
+        # the lstsq solver's epoch against the gradient epoch
+        assert row["lstsq_over_gradient"] == (row["lstsq_us_per_trial_epoch"]
+                                              / row["fast_us_per_trial_epoch"])

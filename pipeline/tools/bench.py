@@ -9,9 +9,11 @@ number of epochs, and reports the median over repeats for both paths, measured i
 and their ratio. Then the same for online Goal Babbling's compiled path (its epoch: K L path
 samples and the returns home, its random walk drawn with it) and the ratio of its median to the
 batch fast path's median of the same run (the target: at most 2), in wall-clock and in CPU
-time. The three paths' trials are interleaved (pipeline.tools.bench.paired), so that a shared
-machine's drifting speed moves them alike. With bench.parallel, it also times the same batch of arm5 trials on one and on
-two worker processes of the pipeline's executor. Writes paths.bench/bench.json.
+time, and Goal Babbling with learner.solver=lstsq (its epoch: the Gram sums and the p x p solve
+instead of the gradient step) against the gradient epoch. The four paths' trials are
+interleaved (pipeline.tools.bench.paired), so that a shared machine's drifting speed moves them alike.
+With bench.parallel, it also times the same batch of arm5 trials on one and on two worker
+processes of the pipeline's executor. Writes paths.bench/bench.json.
 """
 from __future__ import annotations
 
@@ -32,14 +34,17 @@ from ..plan import plan
 
 # epochs per timed trial: long enough to swamp timer noise, short enough for the reference path
 EPOCHS = {"fast": {"arm5": 5000, "icub": 1000}, "reference": {"arm5": 100, "icub": 20},
-          "online": {"arm5": 5000, "icub": 1000}}
+          "online": {"arm5": 5000, "icub": 1000}, "lstsq": {"arm5": 5000, "icub": 1000}}
 
 
-def paper_spec(body: str, epochs: int, fast: bool, learner: str = "goal_babbling") -> dict:
+def paper_spec(body: str, epochs: int, fast: bool, learner: str = "goal_babbling",
+               extra: tuple = ()) -> dict:
     """The TrialSpec (as data) of a full-size trial of `body` at the paper's settings (online
-    Goal Babbling: conf/learner/online_goal_babbling.yaml with the body's settings)."""
+    Goal Babbling: conf/learner/online_goal_babbling.yaml with the body's settings), with
+    `extra` overrides."""
     trial = plan(compose([f"body={body}", f"learner={learner}", "growth=none", "trials.count=1",
-                          f"learner.epochs={epochs}", f"learner.fast={str(fast).lower()}"]))[0]
+                          f"learner.epochs={epochs}", f"learner.fast={str(fast).lower()}",
+                          *extra]))[0]
     return trial["spec"]
 
 
@@ -111,6 +116,8 @@ def bench(cfg: DictConfig) -> dict:
             time_trial(paper_spec(body, 10, True, learner))       # outside the timing
         specs = {"fast": paper_spec(body, EPOCHS["fast"][body], True),
                  "online": paper_spec(body, EPOCHS["online"][body], True, "online_goal_babbling"),
+                 "lstsq": paper_spec(body, EPOCHS["lstsq"][body], True,
+                                     extra=("learner.solver=lstsq",)),
                  "reference": paper_spec(body, EPOCHS["reference"][body], False)}
         times, row = paired(specs, repeats), {}
         for path in specs:
@@ -123,6 +130,8 @@ def bench(cfg: DictConfig) -> dict:
         row["online_over_batch_cpu"] = (row["online_cpu_us_per_trial_epoch"]
                                         / row["fast_cpu_us_per_trial_epoch"])
         row["online_draw_us_per_epoch"] = 1e6 * draw_time(specs["online"])
+        row["lstsq_over_gradient"] = (row["lstsq_us_per_trial_epoch"]
+                                      / row["fast_us_per_trial_epoch"])
         result[body] = row
         print(f"{body}: fast {row['fast_us_per_trial_epoch']:8.1f} us/trial-epoch   "
               f"reference {row['reference_us_per_trial_epoch']:9.1f} us/trial-epoch   "
@@ -130,7 +139,9 @@ def bench(cfg: DictConfig) -> dict:
               f"online {row['online_us_per_trial_epoch']:8.1f} us/trial-epoch, "
               f"online/batch {row['online_over_batch']:.2f} (CPU time "
               f"{row['online_over_batch_cpu']:.2f}; its draws alone "
-              f"{row['online_draw_us_per_epoch']:.1f} us/epoch)", flush=True)
+              f"{row['online_draw_us_per_epoch']:.1f} us/epoch)   "
+              f"lstsq {row['lstsq_us_per_trial_epoch']:8.1f} us/trial-epoch, lstsq/gradient "
+              f"{row['lstsq_over_gradient']:.2f}", flush=True)
     if cfg.bench.parallel:
         result["parallel"] = p = parallel_speedup()
         print(f"parallel: {p['trials']} arm5 trials, 1 worker {p['wall_s_1_worker']:.1f} s, "
@@ -146,7 +157,7 @@ def run(cfg: DictConfig) -> int:
     return 0
 
 
-@hydra.main(config_path="../conf", config_name="config", version_base="1.3")
+@hydra.main(config_path="../../conf", config_name="config", version_base="1.3")
 def main(cfg: DictConfig) -> None:
     with execute.single_threaded_children():
         cli.finish(run, cfg)

@@ -5,12 +5,20 @@
 
 W is the median sum of the weights per epoch at full size after 20,000 epochs of the normalised
 step at rate 1.0 (3 seeds; gbmodel.learners.goal_babbling.weight_sum): the plain step at
-eta = 1 / W equals the normalised step at full-size convergence. It prints W, eta and the two
-lines that set them for the body (conf/body_learner/<body>_goal_babbling.yaml).
+eta = 1 / W equals the normalised step at full-size convergence. It prints the body's learner
+settings file (body_learner/<body>_goal_babbling.yaml of the config folder that holds the
+body's file, conf/ or a folder of hydra.searchpath: the command names it): the package line,
+the settings given on the command line that differ from the core's defaults, and eta and the
+samples it holds for. With learner.solver=lstsq there is no rate, and no W to compute:
+
+    python -m pipeline.tools.rate 'hydra.searchpath=[file:///my/conf]' body=my_arm \
+        learner.solver=lstsq learner.radius=0.1 learner.targets_per_epoch=30 learner.steps=10
 """
 from __future__ import annotations
 
+import dataclasses
 import sys
+from pathlib import Path
 
 import hydra
 from omegaconf import DictConfig, OmegaConf
@@ -18,6 +26,7 @@ from omegaconf import DictConfig, OmegaConf
 from gbmodel.learners import goal_babbling as gb
 
 from .. import cli
+from ..config import REPO_ROOT
 
 EPOCHS, SEEDS, PROBE = 20_000, (0, 1, 2), 50  # the rule, as it was fixed before the runs
 
@@ -39,18 +48,52 @@ def rate(cfg: DictConfig, epochs: int = EPOCHS, seeds=SEEDS) -> dict:
                 current=p.rate())
 
 
+def own_settings(cfg: DictConfig) -> dict:
+    """cfg's Goal Babbling settings that differ from the core's defaults (Params), rate aside."""
+    defaults = dataclasses.asdict(gb.Params())
+    return {k: v for k, v in OmegaConf.to_container(cfg.learner).items()
+            if k in defaults and v != defaults[k] and k not in ("learning_rate", "rate_samples")}
+
+
+def destination(cfg: DictConfig) -> Path:
+    """Where the body's learner settings go: body_learner/<body>_goal_babbling.yaml in the
+    config folder that holds the body's file (a folder of hydra.searchpath, or conf/)."""
+    from hydra.core.hydra_config import HydraConfig
+
+    folders = [Path(s.path) for s in HydraConfig.get().runtime.config_sources
+               if s.schema == "file"] if HydraConfig.initialized() else []
+    home = next((f for f in folders if (f / "body" / f"{cfg.body.name}.yaml").is_file()),
+                REPO_ROOT / "conf")
+    return home / "body_learner" / f"{cfg.body.name}_goal_babbling.yaml"
+
+
+def settings_file(cfg: DictConfig, path: Path, r: dict | None) -> str:
+    """The file to paste at `path`: the package line, cfg's own settings and (r given, the
+    plain step) its rate."""
+    lines = ["# @package learner", f"# {path}: Goal Babbling's settings for {cfg.body.name}"]
+    lines += [f"{k}: {v}" for k, v in own_settings(cfg).items()]
+    if r is not None:
+        lines += [f"learning_rate: {r['learning_rate']:.3g}   # 1 / W, W = {r['W']:.0f}",
+                  f"rate_samples: {r['rate_samples']}"]
+    return "\n".join(lines) + "\n"
+
+
 def run(cfg: DictConfig) -> int:
-    print(f"computing W for {cfg.body.name}: {len(SEEDS)} trials of {EPOCHS} epochs of the "
-          "normalised step ...", file=sys.stderr, flush=True)
-    r = rate(cfg)
-    print(f"{r['body']}: W = {r['W']:.0f}, eta = 1 / W = {r['learning_rate']:.6g} at "
-          f"{r['rate_samples']} samples per epoch (this config's eta: {r['current']:.6g})\n"
-          f"# conf/body_learner/{r['body']}_goal_babbling.yaml\n"
-          f"learning_rate: {r['learning_rate']:.3g}\nrate_samples: {r['rate_samples']}")
+    path = destination(cfg)
+    r = None
+    if cfg.learner.solver == "gradient":
+        print(f"computing W for {cfg.body.name}: {len(SEEDS)} trials of {EPOCHS} epochs of the "
+              "normalised step ...", file=sys.stderr, flush=True)
+        r = rate(cfg)
+        print(f"{r['body']}: W = {r['W']:.0f}, eta = 1 / W = {r['learning_rate']:.6g} at "
+              f"{r['rate_samples']} samples per epoch (this config's eta: {r['current']:.6g})",
+              file=sys.stderr)
+    print(f"put these lines into {path}:", file=sys.stderr)
+    print(settings_file(cfg, path, r), end="")
     return 0
 
 
-@hydra.main(config_path="../conf", config_name="config", version_base="1.3")
+@hydra.main(config_path="../../conf", config_name="config", version_base="1.3")
 def main(cfg: DictConfig) -> None:
     cli.finish(run, cfg)
 

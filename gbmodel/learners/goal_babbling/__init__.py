@@ -14,7 +14,7 @@ import numpy as np
 from ... import evaluation, goals
 from ...features import exponents
 from ...spec import SpecError, check_choice, check_int, check_number
-from . import reference
+from . import reference, solve
 
 
 @dataclass(frozen=True)
@@ -66,6 +66,14 @@ class Params:
     progress_period: int = 10  # epochs between measurements of the error at every target
     progress_window: int = 3  # measurements per half of the progress window
     progress_share: float = 0.2  # the uniform part of the choice
+    # how M learns from an epoch's samples: gradient (the paper's step on eq. 6, at the rate
+    # above) or lstsq (solve.py: M solved from eq. 6's weighted normal equations over the
+    # samples of the last `window` epochs, with a ridge relative to each feature's scale that
+    # pulls towards the current M; no rate). Neither enters a trial's key at its default
+    # (keyed).
+    solver: str = "gradient"
+    window: int = 10  # epochs whose samples the lstsq solve fits
+    ridge: float = 1e-3  # the lstsq solve's ridge, times each feature's sum of w Phi_k^2
 
     def validate(self) -> "Params":
         for name in ("variations", "targets_per_epoch", "steps", "degree"):
@@ -86,6 +94,12 @@ class Params:
         check_number("learner.rate_step_factor", self.rate_step_factor, 0.0, strict=True)
         check_number("learner.anneal_epochs", self.anneal_epochs, 0.0, strict=True)
         check_choice("learner.targets", self.targets, ("distinct", "any"))
+        check_choice("learner.solver", self.solver, SOLVERS)
+        check_int("learner.window", self.window, 1)
+        check_number("learner.ridge", self.ridge, 0.0)
+        if self.solver == "lstsq" and self.updates != "batch":
+            raise SpecError("learner.updates", self.updates,
+                            "learner.solver=lstsq solves once per epoch: needs updates=batch")
         goals.check(self)
         return self
 
@@ -109,6 +123,18 @@ class Params:
         return self.rate() * tau / (tau + e - 1.0)
 
 
+SOLVERS = ("gradient", "lstsq")
+KEYED_DEFAULTS = dict(solver="gradient", window=10, ridge=1e-3)
+
+
+def keyed(learner: dict) -> dict:
+    """The learner's fields as a trial's key holds them: the solver's fields left out at their
+    defaults (the paper's gradient step), so that a gradient trial's key does not name options
+    it does not use; any other value stays (and is validated)."""
+    return {k: v for k, v in learner.items()
+            if k not in KEYED_DEFAULTS or v != KEYED_DEFAULTS[k]}
+
+
 def _exps(params, body):
     return exponents(body.n, params.degree)
 
@@ -121,7 +147,8 @@ class Progressive:
 
 
 def _M(state) -> np.ndarray:
-    return state.M if isinstance(state, Progressive) else state
+    state = state.M if isinstance(state, Progressive) else state
+    return state.M if isinstance(state, solve.Solved) else state
 
 
 def init(params: Params, body, size: float, rng: np.random.Generator):
@@ -129,6 +156,8 @@ def init(params: Params, body, size: float, rng: np.random.Generator):
     goal_selection=progress, and the error at every target measured once)."""
     M = reference.init_inverse(body.home, *body.target_box(size), _exps(params, body),
                                params.init_range, rng)
+    if params.solver == "lstsq":
+        M = solve.start(M, params.window)
     if params.goal_selection == "random":
         return M
     errors = goals.reaching_errors(lambda x: predict(M, params, body, x), body, size,
@@ -187,6 +216,12 @@ def _train(M, params: Params, body, sizes, scales, draws, epochs) -> np.ndarray:
     if params.fast:
         from . import fast
         return fast.run_block(M, body, params, exps, sizes, scales, rates, idx, raw, *amp)
+    if isinstance(M, solve.Solved):
+        for e in range(len(sizes)):
+            _, x, q, w = reference.samples(M.M, body, sizes[e], scales[e], exps, idx[e], raw[e],
+                                           params.radius, params.steps, amp[0][e] if amp else None)
+            M = solve.solve(M, solve.grams(x, q, w, exps), params.ridge)
+        return M
     for e in range(len(sizes)):
         M, _ = reference.epoch(M, body, sizes[e], scales[e], exps, idx[e], raw[e], params.radius,
                                params.steps, rates[e], amp[0][e] if amp else None,

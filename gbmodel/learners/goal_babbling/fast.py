@@ -49,6 +49,7 @@ from ...simd import (
     vsqrt, vstore, vstore1, vsub, vsum, vwhere,
 )
 from .reference import NO_MOVEMENT
+from .solve import Solved, cholesky_solve
 
 _BLOCK = 512  # columns per block of features, residuals and gradient (multiple of LANES)
 _TILE = 5  # rows of a register tile of M Phi and of the gradient (m = 5, 10; p = 10, 20)
@@ -178,13 +179,17 @@ def _tile1x1(Rw, Phi, C, i, k, GL):
 
 
 @njit(cache=True)
-def _accumulate(Rw, Phi, C, GL):
+def _accumulate(Rw, Phi, C, GL, symmetric=0):
     """Lanes of the gradient, GL (m, p * LANES) += Rw[:, :C] Phi[:, :C]^T: lane l of G[i, k]
-    sums the columns c = l (mod LANES) in order, whatever the CPU."""
+    sums the columns c = l (mod LANES) in order, whatever the CPU. With `symmetric` rows (the
+    first rows of Rw are Phi's, weighted: a Gram matrix), the tiles of those rows wholly above
+    the diagonal are left out (the caller mirrors them)."""
     m, p = Rw.shape[0], Phi.shape[0]
     mt, pt = m - m % _TILE, p - p % _TILE
     for i in range(0, mt, _TILE):
         for k in range(0, pt, _TILE):
+            if i + _TILE <= symmetric and k >= i + _TILE:
+                continue
             _tile5x5(Rw, Phi, C, i, k, GL)
     for i in range(mt, m):
         for k in range(0, pt, _TILE):
@@ -326,13 +331,77 @@ def _online(M, X, Q, w, N, parent, var, eta):
                 M[i, k] -= r[i] * phi[k]
 
 
+@njit(cache=True)
+def _gram_sums(X, Q, w, Npad, parent, var, Phi, Z, GG, out):
+    """out (p + m, p) = [sum_t w Phi Phi^T; sum_t w q Phi^T] over the columns of X, Q, w
+    (solve.grams): the rows w Phi and w q in blocks, their products with Phi in the gradient's
+    register tiles (float32 lanes, float64 sum)."""
+    p, m = Phi.shape[0], Q.shape[0]
+    GG[:] = 0
+    for c0 in range(0, Npad, _BLOCK):
+        C = min(_BLOCK, Npad - c0)
+        _features(X, c0, C, parent, var, Phi)
+        for c in range(0, C, LANES):
+            wc = vload1(w, c0 + c)
+            for k in range(p):
+                vstore(Z, k, c, vmul(vload(Phi, k, c), wc))
+            for i in range(m):
+                vstore(Z, p + i, c, vmul(vload(Q, i, c0 + c), wc))
+        _accumulate(Z, Phi, C, GG, p)
+    for i in range(p + m):
+        for k in range(p):
+            out[i, k] = vsum(vload(GG, i, k * LANES))
+    for i in range(p):  # G is symmetric: its upper triangle from the lower
+        for k in range(i + 1, p):
+            out[i, k] = out[k, i]
+
+
+_cholesky_solve = njit(cache=True)(cholesky_solve)
+
+
+@njit(cache=True)
+def _solve(M, ring, slot, ridge, X, Q, w, Npad, parent, var, Phi, solver_work):
+    """solver=lstsq (solve.solve): this epoch's Gram sums into ring[slot], then M from the sum
+    of the slots (in slot order) by the ridge system, in place."""
+    Z, GG, total, A, B, L, out = solver_work
+    m, p = M.shape
+    _gram_sums(X, Q, w, Npad, parent, var, Phi, Z, GG, ring[slot])
+    total[:] = ring[0]
+    for k in range(1, ring.shape[0]):
+        for i in range(p + m):
+            for j in range(p):
+                total[i, j] += ring[k, i, j]
+    for i in range(p):
+        for j in range(p):
+            A[i, j] = total[i, j]
+        d = ridge * total[i, i] if total[i, i] > 0 else 1.0
+        A[i, i] += d
+        for r in range(m):
+            B[i, r] = total[p + r, i] + d * M[r, i]
+    _cholesky_solve(A, B, L, out)
+    for r in range(m):
+        for i in range(p):
+            M[r, i] = out[i, r]
+
+
+@njit(cache=True)
+def _solver_work(m, n, p, V, T, window):
+    """Work arrays of solver=lstsq (a window of 0: none, for the gradient step)."""
+    Npad = -(-(V * (T + 1)) // LANES) * LANES
+    cols = min(Npad, _BLOCK) if window > 0 else LANES
+    f4 = np.float32
+    return (np.empty((p + m, cols), f4), np.empty((p + m, p * LANES), f4), np.empty((p + m, p)),
+            np.empty((p, p)), np.empty((p, m)), np.zeros((p, p)), np.empty((p, m)))
+
+
 BATCH, STEPS, ONLINE = 0, 1, 2  # the updates readings, as the kernel takes them
 
 
 @njit(cache=True)
 def _epoch(M, idx, raw, amp, s, body, targets, home, parent, var, joints, radius, steps,
-           rate, plain, updates, update_steps, box, work):
-    """One epoch (see reference.epoch): rolls out, weights, updates M in place with rate eta.
+           rate, plain, updates, update_steps, box, work, ring, slot, ridge, solver_work):
+    """One epoch (see reference.epoch): rolls out, weights, updates M in place with rate eta,
+    or (a ring of Gram sums given, len(ring) > 0: solver=lstsq) solves M (_solve, its slot).
 
     Leaves the samples in work: Q (m, N) postures, X (n, N) reached positions, w (N) weights,
     variation v in the columns v (T + 1) ... v (T + 1) + T (N = V (T + 1); then columns of
@@ -383,6 +452,9 @@ def _epoch(M, idx, raw, amp, s, body, targets, home, parent, var, joints, radius
     _commands(gpath, path, A, b, home, T, Npad, Q)
     chain_kinematics(Q, X, Npad, joints, body)
     _weights(dxs, nxs, X, Q, V, T, Npad, w)
+    if len(ring) > 0:
+        _solve(M, ring, slot, ridge, X, Q, w, Npad, parent, var, Phi, solver_work)
+        return
     # gradient descent on the weighted command error (eq. 6), plain or normalised by sum w
     eta = rate if plain else rate / _lane_sum(w, Npad)
     if updates == ONLINE:
@@ -426,12 +498,15 @@ def _box(targets):
 
 @njit(cache=True)
 def _block(M, idx, raw, amp, sizes, scales, rates, chain, targets, home, parent, var, joints,
-           radius, steps, plain, updates, update_steps):
-    """Epochs e = 0 ... B-1 with sizes[e], per-joint length factors scales[e] and rates[e]."""
+           radius, steps, plain, updates, update_steps, ring, done, ridge):
+    """Epochs e = 0 ... B-1 with sizes[e], per-joint length factors scales[e] and rates[e]
+    (solver=lstsq: ring, the Gram sums of the window, after `done` epochs learned)."""
     a, d, ca, sa, base, outputs, ty, R, general = chain
     m, p = M.shape
     n = targets.shape[1]
-    work = _work(m, n, p, raw.shape[1], (idx.shape[1] - 1) * steps)
+    V, T = raw.shape[1], (idx.shape[1] - 1) * steps
+    work = _work(m, n, p, V, T)
+    solver_work = _solver_work(m, n, p, V, T, len(ring))
     box = _box(targets)
     ae = np.empty(m, np.float32)
     de = np.empty(m, np.float32)
@@ -443,7 +518,8 @@ def _block(M, idx, raw, amp, sizes, scales, rates, chain, targets, home, parent,
             ye[i] = ty[i] * scales[e, i]
         body = (ae, de, ca, sa, base, outputs, ye, R, general)
         _epoch(M, idx[e], raw[e], amp[e], sizes[e], body, targets, home, parent, var, joints,
-               radius, steps, rates[e], plain, updates, update_steps, box, work)
+               radius, steps, rates[e], plain, updates, update_steps, box, work, ring,
+               (done + e) % max(len(ring), 1), ridge, solver_work)
 
 
 @njit(cache=True)
@@ -525,16 +601,23 @@ def _options(params):
                 update_steps=int(params.update_steps))
 
 
+_NO_RING = np.zeros((0, 1, 1))
+
+
 def run_block(M, body, params, exps, sizes, scales, rates, idx, raw, amp=None):
     """Epochs with sizes `sizes`, per-joint length factors `scales` (B, m), rates eta (B,) and
     draws idx, raw (and amp, the amplitude factors of the uniform reading). Returns the
-    updated M."""
-    M = np.array(M, dtype=np.float64, order="C")
-    _block(M, np.ascontiguousarray(idx, np.int64), np.ascontiguousarray(raw, np.float64),
+    updated M, or with M a solve.Solved state (solver=lstsq) the next Solved state."""
+    solved = isinstance(M, Solved)
+    ring = np.array(M.ring, dtype=np.float64, order="C") if solved else _NO_RING
+    done = M.epochs if solved else 0
+    out = np.array(M.M if solved else M, dtype=np.float64, order="C")
+    _block(out, np.ascontiguousarray(idx, np.int64), np.ascontiguousarray(raw, np.float64),
            _amplitudes(raw, amp), np.ascontiguousarray(sizes, np.float64),
            np.ascontiguousarray(scales, np.float32).reshape(len(sizes), body.m),
-           np.ascontiguousarray(rates, np.float64), **_options(params), **_arrays(body, exps))
-    return M
+           np.ascontiguousarray(rates, np.float64), **_options(params), **_arrays(body, exps),
+           ring=ring, done=done, ridge=float(params.ridge))
+    return Solved(out, ring, done + len(sizes)) if solved else out
 
 
 def distances(M, body, exps, scale, xs):
@@ -561,7 +644,8 @@ def epoch_samples(M, body, params, exps, size, scale, idx, raw, amp=None, rate=N
     _epoch(M, np.asarray(idx, np.int64), np.ascontiguousarray(raw, np.float64),
            _amplitudes(raw, amp), float(size), chain, arr["targets"], arr["home"], arr["parent"],
            arr["var"], arr["joints"], rate=float(params.learning_rate if rate is None else rate),
-           box=_box(arr["targets"]), work=work, **_options(params))
+           box=_box(arr["targets"]), work=work, ring=_NO_RING, slot=0, ridge=0.0,
+           solver_work=_solver_work(body.m, body.n, len(exps), V, T, 0), **_options(params))
     Q, X, w = work[0], work[1], work[2]
     N = V * (T + 1)
     return (M, Q[:, :N].T.reshape(V, T + 1, -1), X[:, :N].T.reshape(V, T + 1, -1),

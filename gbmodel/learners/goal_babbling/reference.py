@@ -20,6 +20,8 @@ Readings of the text that it leaves open are options (Params in __init__.py), th
   v at u_vi R, u_vi ~ U(0, 1): the disturbance "never exceeds R", eq. 8);
 - updates: `batch` (one step per epoch), `steps` (update_steps steps on the epoch's samples) or
   `online` (one step per sample, in the order the samples were reached);
+- solver: `gradient` (step 5) or `lstsq` (solve.py: M solved from the normal equations of
+  eq. 6 over the last `window` epochs' samples, instead of step 5);
 - the rate schedule (Params.rates: constant, or annealed, not the paper's) and whether successive
   path targets must differ (Params.targets) act through draw and eta, not here.
 """
@@ -89,11 +91,16 @@ def epoch(M, body, size, scale, exps, idx, raw, radius, steps, learning_rate, am
           step="plain", updates="batch", update_steps=1):
     """One epoch of Goal Babbling with the body at size `size` (per-joint length factors
     `scale`); returns the updated M and the samples (xstar, x, q, w)."""
+    xstar, x, q, w = samples(M, body, size, scale, exps, idx, raw, radius, steps, amp)
+    M = update(M, x, q, w, exps, learning_rate, step, updates, update_steps)
+    return M, (xstar, x, q, w)
+
+
+def samples(M, body, size, scale, exps, idx, raw, radius, steps, amp=None):
+    """Steps 1-4 of an epoch: the samples (xstar, x, q, w) that M's variations collect."""
     lo, hi = body.target_box(size)
     path = target_path(body.target_set(size), idx, steps)
     A, b = scale_perturbations(raw, lo, hi, radius, amp)
     xstar, x, q = rollout(M, body, scale, exps, path, A, b)
-    w = sample_weights(xstar, x, q)
-    M = update(M, x, q, w, exps, learning_rate, step, updates, update_steps)
-    return M, (xstar, x, q, w)
+    return xstar, x, q, sample_weights(xstar, x, q)
 

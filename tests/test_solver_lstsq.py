@@ -1,0 +1,168 @@
+"""learner.solver=lstsq (goal_babbling/solve.py): M solved from eq. 6's weighted normal equations
+over a ring of the last `window` epochs' Gram sums, on the numpy path and in the kernel.
+
+Tolerances: the kernel accumulates the Gram sums in float32 lanes from its float32 rollout, so
+they agree with the float64 reference's to 1e-4 relative to each row's largest entry (measured
+<= 9e-5 on the iCub, <= 6e-6 on the arms); the solved inverse, compared where it is used (its
+commands at the targets), to 2e-4 (measured <= 6e-5 in the first epoch, ~2e-6 after).
+"""
+import numpy as np
+import pytest
+
+import gbmodel
+from gbmodel.features import exponents, features
+from gbmodel.growth import factors
+from gbmodel.spec import SpecError
+from gbmodel.learners import goal_babbling as gb
+from gbmodel.learners.goal_babbling import reference, solve
+from pipeline.config import compose
+from pipeline.plan import plan
+
+from conftest import run_cli
+
+ICUB = dict(radius=0.1, targets_per_epoch=30, steps=10)
+BODIES = [("arm2", {}), ("arm5", {}), ("icub", ICUB), ("icub_urdf", ICUB)]  # DH and URDF
+
+
+def one_epoch(S, params, body, d, size=1.0, fast=True):
+    p = gb.Params(**{**params.__dict__, "fast": fast})
+    scale = np.ones((1, body.m))
+    return gb.train(S, p, body, np.full(1, size), scale, d, np.arange(1, 2))
+
+
+@pytest.mark.parametrize("name, kw", BODIES)
+def test_kernel_solve_matches_reference(name, kw):
+    """Epoch by epoch from the reference's state: the same ring slot, the same commands."""
+    body = gbmodel.make_body(name)
+    params = gb.Params(**kw, solver="lstsq", window=3)
+    rng = np.random.default_rng(3)
+    S = gb.init(params, body, 1.0, rng)
+    p = S.M.shape[1]
+    assert isinstance(S, solve.Solved) and S.ring.shape == (3, p + body.m, p)
+    for e in range(5):  # past the window: slots are overwritten
+        d = gb.draw(params, body, 1, rng)
+        ref, fst = one_epoch(S, params, body, d, fast=False), one_epoch(S, params, body, d)
+        assert ref.epochs == fst.epochs == e + 1
+        slot = e % 3
+        scale = np.abs(ref.ring[slot]).max(axis=1, keepdims=True)
+        assert np.abs(fst.ring[slot] - ref.ring[slot]).max(axis=None) > 0  # float32 vs float64
+        np.testing.assert_array_less(np.abs(fst.ring[slot] - ref.ring[slot]) / scale, 1e-4)
+        g = lambda s: gb.predict(s, params, body, body.targets)  # noqa: E731
+        np.testing.assert_allclose(g(fst), g(ref), atol=2e-4)
+        assert not np.allclose(ref.M, S.M), "the solve must change M"
+        S = ref
+
+
+def test_solve_is_the_weighted_least_squares_of_the_window():
+    """With no ridge, M minimises sum w |M Phi(x) - q|^2 over the samples of the last `window`
+    epochs exactly (numpy's lstsq on the stacked sqrt(w)-scaled rows), the older ones forgotten."""
+    body = gbmodel.make_body("arm5")
+    params = gb.Params(solver="lstsq", window=2, ridge=0.0, fast=False)
+    exps = exponents(body.n, params.degree)
+    rng = np.random.default_rng(0)
+    S = gb.init(params, body, 1.0, rng)
+    rows = []
+    for e in range(3):
+        idx, raw = gb.draw(params, body, 1, rng)
+        _, x, q, w = reference.samples(S.M, body, 1.0, np.ones(body.m), exps, idx[0], raw[0],
+                                       params.radius, params.steps)
+        rows.append((x.reshape(-1, body.n), q.reshape(-1, body.m), w.reshape(-1)))
+        S = solve.solve(S, solve.grams(x, q, w, exps), params.ridge)
+    x, q, w = (np.concatenate(a) for a in zip(*rows[1:]))  # the last two epochs
+    assert w[0] == 1.0  # the home example, weight 1
+    sw = np.sqrt(w)[:, None]
+    expected = np.linalg.lstsq(sw * features(x, exps), sw * q, rcond=None)[0].T
+    g = lambda M: reference.predict(M, body.targets, exps)  # noqa: E731
+    np.testing.assert_allclose(g(S.M), g(expected), atol=1e-9)
+
+
+def test_ridge_pulls_towards_the_current_model():
+    """A huge ridge keeps M; a feature that never varies keeps its column of M."""
+    body = gbmodel.make_body("arm5")
+    rng = np.random.default_rng(1)
+    M0 = rng.normal(size=(body.m, 10))
+    total = rng.normal(size=(10 + body.m, 10))
+    total[:10] = total[:10] @ total[:10].T
+    A, B = solve.system(M0, total, 1e12)
+    np.testing.assert_allclose(np.linalg.solve(A, B).T, M0, atol=1e-9)
+    total[3, :] = total[:, 3] = 0
+    A, B = solve.system(M0, total, 0.0)
+    np.testing.assert_allclose(np.linalg.solve(A, B).T[:, 3], M0[:, 3], atol=1e-12)
+
+
+def test_cholesky_solve_matches_numpy():
+    rng = np.random.default_rng(2)
+    X = rng.normal(size=(20, 20))
+    A, B = X @ X.T + np.eye(20), rng.normal(size=(20, 7))
+    out = np.empty_like(B)
+    solve.cholesky_solve(A, B, np.zeros_like(A), out)
+    np.testing.assert_allclose(out, np.linalg.solve(A, B), rtol=1e-10, atol=1e-10)
+
+
+@pytest.mark.parametrize("fast", [True, False])
+def test_chunks_and_growth_do_not_change_the_result(fast):
+    """The ring lives in the state: two blocks of epochs give the bytes of one (a growing body,
+    so the epochs differ), on both paths."""
+    body = gbmodel.make_body("arm5")
+    params = gb.Params(solver="lstsq", window=4, fast=fast)
+    sizes = np.linspace(0.6, 1.0, 9)
+    scales = np.stack([factors(body, s, "proportional") for s in sizes])
+    rng = np.random.default_rng(4)
+    S = gb.init(params, body, sizes[0], rng)
+    d = gb.draw(params, body, 9, rng)
+    whole = gb.train(S, params, body, sizes, scales, d, np.arange(1, 10))
+    part = gb.train(S, params, body, sizes[:5], scales[:5], tuple(a[:5] for a in d),
+                    np.arange(1, 6))
+    part = gb.train(part, params, body, sizes[5:], scales[5:], tuple(a[5:] for a in d),
+                    np.arange(6, 10))
+    assert whole.epochs == part.epochs == 9
+    assert whole.M.tobytes() == part.M.tobytes() and whole.ring.tobytes() == part.ring.tobytes()
+
+
+@pytest.mark.parametrize("name, kw", [("arm5", {}), ("icub_urdf", ICUB)])
+def test_lstsq_learns_a_trial(name, kw):
+    """A short trial on a DH and a URDF body: well below the initial error, finite on both
+    paths, and the progress goal selection carries the solver's state."""
+    for extra in ({}, {"goal_selection": "progress"}):
+        spec = gbmodel.TrialSpec(body={"name": name}, epochs=60, learner={
+            "name": "goal_babbling", "solver": "lstsq", **kw, **extra})
+        r = gbmodel.run_trial(spec, np.random.default_rng(0))
+        assert r.abs_error[-1] < 0.2 * r.abs_error[0], r.abs_error
+        assert r.M.shape == (gbmodel.make_body(name).m, 10 if name == "arm5" else 20)
+
+
+@pytest.mark.parametrize("field, value, shown", [
+    ("solver", "foo", "learner.solver='foo'"), ("window", 0, "learner.window=0"),
+    ("ridge", -1.0, "learner.ridge=-1.0"),
+])
+def test_bad_values_are_refused(field, value, shown):
+    with pytest.raises(SpecError, match=shown.replace("(", r"\(")):
+        gb.Params(**{field: value}).validate()
+
+
+def test_lstsq_needs_batch_updates():
+    with pytest.raises(SpecError, match="learner.updates='online'"):
+        gb.Params(solver="lstsq", updates="online").validate()
+
+
+@pytest.mark.parametrize("arg, shown", [
+    ("learner.solver=foo", "learner.solver='foo'"), ("learner.window=0", "learner.window=0"),
+    ("learner.ridge=-1", "learner.ridge=-1"),
+])
+def test_bad_values_exit_2_with_one_line(tmp_path, arg, shown):
+    r = run_cli("pipeline.simulate", "experiment=fig4", "profile=smoke", arg,
+                f"paths.root={tmp_path}")
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1, r.stderr
+    assert lines[0].startswith("error: ") and shown in lines[0], r.stderr
+
+
+def test_solver_enters_the_trial_key_only_when_not_the_default():
+    default = plan(compose(["experiment=fig4", "profile=smoke"]))[0]
+    assert not {"solver", "window", "ridge"} & set(default["spec"]["learner"])
+    lstsq = plan(compose(["experiment=fig4", "profile=smoke", "learner.solver=lstsq"]))[0]
+    assert lstsq["spec"]["learner"]["solver"] == "lstsq"
+    assert "window" not in lstsq["spec"]["learner"] and lstsq["key"] != default["key"]
+    wide = plan(compose(["experiment=fig4", "profile=smoke", "learner.solver=lstsq",
+                         "learner.window=20"]))[0]
+    assert wide["spec"]["learner"]["window"] == 20 and wide["key"] != lstsq["key"]
