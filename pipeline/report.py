@@ -120,6 +120,13 @@ def up_to_date(out: Path, digest: str) -> bool:
         return False
 
 
+def counted_figures(declared: dict) -> list[str]:
+    """The figures whose cells the headline counts: every one that declares the paper's claims,
+    except one judged on another that is there (paper.judged_on: Fig. 7 on fig7_20trials)."""
+    return [k for k, a in declared.items()
+            if a["models"].get("paper", {}).get("judged_on") not in declared]
+
+
 def declares_claims(agg: dict) -> bool:
     """Whether the figure's experiment declares the paper's claims (paper.claims: true)."""
     return bool(agg["models"].get("paper", {}).get("claims", False))
@@ -332,27 +339,22 @@ def write_report(cfg: DictConfig, aggs: dict, out: Path) -> list[Path]:
     io.write_text(out / "summary.md", table_md)
     written += [out / "summary.csv", out / "summary.md"]
 
-    claim_rows = []
-    for name, agg in declared.items():
-        if (agg["summary"]["growth"] != "none").any():
-            claim_rows += claims.growth_claims(name, agg["curves"], agg["summary"])
     judge_stages = stages is not None and js in declared
-    if judge_stages:
-        claim_rows += claims.stage_claims(js, *stages)
+    measures = scorecard.results(declared, dict(
+        figure=js, spec=stages[0], trials=_trial_stages(aggs[js])) if judge_stages else None)
+    cards = scorecard.cells(measures) if measures else None
+    claim_rows = scorecard.claims_table(cards).to_dict("records") if measures else []
     card_md = ""
     if claim_rows:
         io.write_text(out / "claims.csv", pd.DataFrame(claim_rows).to_csv(index=False))
-        written.append(out / "claims.csv")
-        measures = scorecard.results(declared, dict(
-            figure=js, spec=stages[0], trials=_trial_stages(aggs[js])) if judge_stages else None)
-        cards = scorecard.cells(measures)
         io.write_text(out / "scorecard.csv", pd.DataFrame(measures).to_csv(
             index=False, float_format="%.6g"))
         with figures.plt.rc_context(rc):
-            written += [out / "scorecard.csv"] + figures.save(scorecard.figure(
-                cards, title.split(":")[0] + ": the paper's claims, 95 % intervals over trials"),
-                out / "scorecard", dpi)
-        card_md = scorecard.markdown(cards, measures)
+            written += [out / "claims.csv", out / "scorecard.csv"] + figures.save(
+                scorecard.figure(cards, title.split(":")[0] + ": the paper's claims, 95 % "
+                                 "intervals over trials"), out / "scorecard", dpi)
+        card_md = scorecard.markdown(cards, measures, counted_figures(declared),
+                                     claims.our_reading(cards))
     if aggs:
         curves = pd.concat([a["curves"] for a in aggs.values()], ignore_index=True)
         io.write_table(out / "curves.parquet", io.frame_to_table(curves))
@@ -372,11 +374,11 @@ def write_report(cfg: DictConfig, aggs: dict, out: Path) -> list[Path]:
     if claim_rows:
         md += ["## Scorecard: the paper's claims, with their uncertainty", "",
                "![scorecard](scorecard.png)", "", card_md,
-               "Each cell: the verdict of the measure that decides it, its value on the mean over "
-               "trials and its 95 % interval (`scorecard.csv` holds every measure); "
-               "pipeline/studies/scorecard.py says how.", ""]
-        md += ["## The paper's claims, measured on the mean (the pre-set criteria)", "",
-               claims.CRITERIA, "", claims.markdown(claim_rows)]
+               "Each cell: its verdict, how many of its conditions are reproduced, and its worst "
+               "condition: the mean over trials of the measure and its 95 % interval "
+               "(`scorecard.csv` holds every measure and each trial's value, `claims.csv` every "
+               "cell); pipeline/studies/scorecard.py says how.", ""]
+        md += ["## The claims, their criteria and measures", "", claims.markdown()]
     if cfg.report.stamp_findings:
         stamp_findings(summary, claim_rows)
     if cfg.report.explain:
@@ -423,9 +425,7 @@ def write_report(cfg: DictConfig, aggs: dict, out: Path) -> list[Path]:
         md += ["## Every reading of the paper against every claim", "",
                "Each row is a reading of the text (conf/experiment/readings_*.yaml, "
                "pipeline/studies/readings.py); each column a claim, checked as above.", "",
-               f"![readings]({png})", "", readings.intervals_markdown(reading_cards),
-               "The same, each verdict on the mean over trials (the pre-set criteria):", "",
-               readings.markdown(reading_table)]
+               f"![readings]({png})", "", readings.intervals_markdown(reading_cards)]
     rival_table = baselines.table(rivals)
     if len(rival_table):
         rival_claims = baselines.claims(rival_table)
