@@ -154,10 +154,11 @@ def criterion(r: dict) -> str:
 
 
 def _margin(g: pd.DataFrame) -> pd.Series:
-    """How far each measure's point lies inside its criterion, in half-widths of its interval
+    """How far each measure's point lies inside its criterion, relative to the bound's size
     (negative: outside); the worst condition of a cell has the smallest."""
-    half = ((g["high"] - g["low"]) / 2).where(lambda h: h > 0, 1e-300).fillna(1e-300)
-    return np.minimum((g["value"] - g["lo"]) / half, (g["hi"] - g["value"]) / half)
+    def rel(d, b):
+        return d / np.maximum(np.abs(b.where(np.isfinite(b), 1.0)), 1e-2)
+    return np.minimum(rel(g["value"] - g["lo"], g["lo"]), rel(g["hi"] - g["value"], g["hi"]))
 
 
 def cells(results: list[dict]) -> pd.DataFrame:
