@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 
 from pipeline import aggregate, cache, cli, report, simulate
-from pipeline.studies import claims, scorecard
+from pipeline.studies import claims, paper, scorecard
 from pipeline.config import REPO_ROOT, ConfigError, VariantConf, compose
 from pipeline.plan import code_fingerprint, plan
 from conftest import TINY, files_of, run_cli, tiny_overrides
@@ -102,7 +102,7 @@ def test_diverged_trials_fail_the_bootstrapping_claim():
 
 def test_diverged_trials_show_in_the_summary_table():
     _, summary = _diverged_summary()
-    assert "diverged" in report.summary_markdown(summary)
+    assert "diverged" in paper.summary_markdown(summary)
 
 
 def test_a_rerun_still_names_the_diverged_trials(tmp_path, compose_tiny):

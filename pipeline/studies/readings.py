@@ -17,6 +17,7 @@ from gbmodel.learners.goal_babbling import reference
 
 from . import claims, figures, scorecard
 from .choices import escape
+from .sections import Context, declares_claims, register
 
 STUDIES = {"readings_fig4": "fig4", "readings_fig5": "fig5", "readings_fig7": "fig7"}
 
@@ -136,3 +137,21 @@ def figure(aggs: dict, title: str):
     fig.suptitle(title)
     fig.tight_layout(rect=(0, 0.6 / (2.5 * len(studies) + 1.4), 1, 1))
     return fig
+
+
+@register("readings", 30)
+def section(ctx: Context) -> list[str]:
+    studies = ctx.of("readings")
+    read = {k: a for k, a in studies.items() if declares_claims(a)}
+    reading_table = table(read)
+    if not len(reading_table):
+        return []
+    cards = intervals(read)
+    ctx.text("readings_scorecard.csv", cards.to_csv(index=False, float_format="%.6g"))
+    ctx.text("readings.csv", reading_table.to_csv(index=False, float_format="%.6g"))
+    png = ctx.save(figure(studies, "Readings of the paper: absolute error of every condition "
+                          "(mean over trials)"), "readings_curves")[0].name
+    return ["## Every reading of the paper against every claim", "",
+            "Each row is a reading of the text (conf/experiment/readings_*.yaml, "
+            "pipeline/studies/readings.py); each column a claim, checked as above.", "",
+            f"![readings]({png})", "", intervals_markdown(cards)]
