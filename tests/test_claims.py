@@ -217,3 +217,13 @@ def test_fig2_extremes_need_three_trials():
     spec, ms = _stages(0.06)
     res = [sc.run_test(t, _covered()) for t in claims.stage_tests("fig2", spec, [ms] * 2)]
     assert next(r for r in res if r["claim"] == "stages")["verdict"] == sc.INCONCLUSIVE
+
+
+def test_a_trials_jitter_is_no_rebound_but_a_lasting_one_is():
+    x = np.linspace(1.0, 0.5, 40)
+    jitter = x * (1 + 0.15 * (-1) ** np.arange(40))  # +-15 % from point to point
+    assert claims.rebound(jitter) > 0.3 and claims.rebound(claims.smooth(jitter)) < 0.1
+    lasting = x.copy()
+    lasting[20:] *= 1.5  # a step up that stays
+    assert claims.rebound(claims.smooth(lasting)) > 0.3
+    assert claims.smooth(x[:9]).shape == (9,)  # too short to smooth
