@@ -63,6 +63,21 @@ def coverage(aggs: dict, counts=(3, 5, 10), draws: int = 400,
     return per_kind, per_measure
 
 
+BEGIN, END = "<!-- coverage table: pipeline.studies.coverage -->", "<!-- end of coverage table -->"
+
+
+def markdown(per_kind: pd.DataFrame) -> str:
+    """The coverage table as docs/scorecard.md shows it (between BEGIN and END)."""
+    counts = sorted(per_kind["trials"].unique())
+    lines = ["| measure type | " + " | ".join(f"{n} of 20 trials" for n in counts) + " |",
+             "|---|" + "---|" * len(counts)]
+    for kind, g in per_kind.groupby("kind", sort=True):
+        by = dict(zip(g["trials"], g["coverage"]))
+        lines.append(f"| {kind} | " + " | ".join(
+            f"{100 * by[n]:.1f} %" if n in by else "" for n in counts) + " |")
+    return "\n".join([BEGIN, *lines, END])
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m pipeline.studies.coverage",
                                 description=__doc__.split("\n\n")[0])
@@ -88,7 +103,7 @@ def main(argv=None) -> int:
             return 2
     per_kind, per_measure = coverage(aggs, a.trials, a.draws)
     io.write_text(a.out, per_kind.to_csv(index=False, float_format="%.4f"))
-    print(per_kind.to_string(index=False))
+    print(markdown(per_kind))
     print(per_measure.to_string(index=False))
     return 0
 
