@@ -138,6 +138,12 @@ class PaperConf:
     # whether the report checks the paper's claims on this experiment: its figures and studies
     # declare it; a custom experiment does not, and is reported by its curves alone
     claims: bool = False
+    # the report section that reports it (pipeline/studies/sections.py): figures, readings,
+    # baselines, explain, choices, or a study of one's own
+    study: str = "figures"
+    # the figure whose cells the scorecard's headline counts instead of this one's, when both
+    # are reported (Fig. 7 on fig7_20trials); this one's are shown beside
+    judged_on: Optional[str] = None
 
 
 @dataclass

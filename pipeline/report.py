@@ -41,9 +41,10 @@ from omegaconf import DictConfig, OmegaConf
 
 from . import cli, io
 from .config import ConfigError, check_stamp
+from .studies import sections
+from .studies.sections import declares_claims
 
 log = logging.getLogger("pipeline.report")
-MAX_PANELS = 4  # posture panels of a figure that report.postures does not name
 
 
 def load_aggregates(folder: Path, names=None) -> dict:
@@ -122,11 +123,6 @@ def up_to_date(out: Path, digest: str) -> bool:
         return False
 
 
-def declares_claims(agg: dict) -> bool:
-    """Whether the figure's experiment declares the paper's claims (paper.claims: true)."""
-    return bool(agg["models"].get("paper", {}).get("claims", False))
-
-
 def scale_mismatches(cfg: DictConfig, aggs: dict, experiments) -> list[str]:
     """For each of `experiments` whose figure is not aggregated with exactly the trials of its
     full-scale plan, one line saying so (an empty list: all at the paper's scale)."""
@@ -155,35 +151,6 @@ def check_published_scale(cfg: DictConfig, aggs: dict) -> None:
             "reproduce at the paper's scale")
 
 
-def _mm(v) -> str:
-    return "" if v is None or not np.isfinite(v) else f"{1000 * v:.1f}"
-
-
-def _pm(mean, std) -> str:
-    if not np.isfinite(mean):
-        return ""
-    return _mm(mean) + (f" ± {_mm(std)}" if np.isfinite(std) else "")
-
-
-def summary_markdown(summary: pd.DataFrame) -> str:
-    """The summary as a Markdown table, errors in mm (relative errors: mm per unit body size)."""
-    head = ("| figure | condition | body | growth | T_G | trials | final abs. error [mm] "
-            "| final rel. error [mm/size] | peak abs. error during growth [mm] (rise, epoch) "
-            "| run failures | diverged | failed to bootstrap | paper: final abs. error [mm] |")
-    lines = [head, "|" + "---|" * head.count(" | ") + "---|"]
-    for _, r in summary.iterrows():
-        peak = (f"{_mm(r['peak_abs_error_growth'])} (+{_mm(r['rise_abs_error_growth'])}, "
-                f"epoch {r['peak_epoch_growth']})" if np.isfinite(r["peak_abs_error_growth"]) else "")
-        lines.append(
-            f"| {r['figure']} | {r['condition']} | {r['body']} | {r['growth']} "
-            f"| {r['growth_period'] if r['growth'] != 'none' else ''} | {r['n_trials']} "
-            f"| {_pm(r['final_abs_error_mean'], r['final_abs_error_std'])} "
-            f"| {_pm(r['final_rel_error_mean'], r['final_rel_error_std'])} | {peak} "
-            f"| {r['n_run_failures']} | {r['n_diverged']} | {r['n_bootstrap_failures']} "
-            f"| {_mm(r['paper_final_abs_error'])} |")
-    return "\n".join(lines) + "\n"
-
-
 def report_title(cfg: DictConfig, aggs: dict) -> str:
     """A report is "Reproduction of ..." only when every figure that declares the paper's claims
     holds its experiment's full-scale trials; any other report is titled by its experiments and
@@ -201,54 +168,10 @@ def report_title(cfg: DictConfig, aggs: dict) -> str:
     return f"Paper experiments at a custom scale (not the paper's): {names}"
 
 
-def _title(figure: str, agg: dict) -> str:
-    return agg["models"].get("paper", {}).get("title") or f"{figure}"
-
-
-def _stages_figure(agg: dict) -> tuple | None:
-    """(spec, [(label, M)]) of trial 0 of the first condition: its snapshots, then the final M."""
-    for cond in agg["models"]["conditions"].values():
-        trial = cond["trials"].get("0")
-        if trial is None:
-            continue
-        stages = [(f"after epoch {e}", M) for e, M in
-                  sorted(trial["snapshots"].items(), key=lambda kv: int(kv[0]))]
-        if str(cond["spec"]["epochs"]) not in trial["snapshots"]:
-            stages.append((f"final, epoch {cond['spec']['epochs']}", trial["M"]))
-        stages = [(f"({chr(97 + i)}) {label}", M) for i, (label, M) in enumerate(stages)]
-        return cond["spec"], stages
-    return None
-
-
-def _trial_stages(agg: dict) -> list[list]:
-    """Each trial's M at every stage of _stages_figure (snapshots, then the final M), for the
-    scorecard's interval over Fig. 2's trials."""
-    for cond in agg["models"]["conditions"].values():
-        out = []
-        for _, trial in sorted(cond["trials"].items(), key=lambda kv: int(kv[0])):
-            ms = [M for _, M in sorted(trial["snapshots"].items(), key=lambda kv: int(kv[0]))]
-            if str(cond["spec"]["epochs"]) not in trial["snapshots"]:
-                ms.append(trial["M"])
-            out.append(ms)
-        if out:
-            return out
-    return []
-
-
-def _posture_panels(aggs: dict, wanted) -> list:
-    panels = []
-    for figure, condition in wanted:
-        cond = aggs.get(figure, {}).get("models", {}).get("conditions", {}).get(condition)
-        # a posture needs a polynomial inverse M (Goal Babbling's); other learners have none
-        if cond and "0" in cond["trials"] and "degree" in cond["spec"]["learner"]:
-            label = f"{figure} {condition}, trial 0"
-            panels.append((label, cond["spec"], cond["trials"]["0"]["M"]))
-    return panels
-
-
 def report(cfg: DictConfig, explicit: bool = False) -> list[Path]:
     """Write every report file, unless the report is already made of the same inputs; return
-    the paths written. explicit: the command line named a figure (figure= / experiment=)."""
+    the paths written. explicit: the command line named a figure (figure= / experiment=); its
+    report goes to paths.report/<figure>/, so that it replaces only that figure's earlier one."""
     check_stamp(cfg)  # report.stamp_findings: the publishing run only, before anything is written
     names, folder = selected(cfg, explicit), Path(cfg.paths.aggregate)
     names = names if names is not None else aggregated(folder)
@@ -256,6 +179,8 @@ def report(cfg: DictConfig, explicit: bool = False) -> list[Path]:
         raise FileNotFoundError(f"nothing aggregated under {cfg.paths.aggregate}: "
                                 "run pipeline.simulate and pipeline.aggregate first")
     out = Path(cfg.paths.published if cfg.report.publish else cfg.paths.report)
+    if explicit and not cfg.report.publish:  # one figure's report beside any other's
+        out = out / io.safe_name("figure", names[0])
     digest = inputs_digest(cfg, {n: io.read_json(io.set_of(folder / io.safe_name("figure", n))
                                                  / "manifest.json").get("inputs") for n in names})
     if up_to_date(out, digest) and not cfg.report.stamp_findings:
@@ -273,238 +198,27 @@ def report(cfg: DictConfig, explicit: bool = False) -> list[Path]:
 
 
 def write_report(cfg: DictConfig, aggs: dict, out: Path) -> list[Path]:
-    """Write every report file of `aggs` into `out`; return their paths."""
+    """Write every report file of `aggs` into `out`; return their paths: each experiment's
+    study section (pipeline/studies/sections.py) in its place, then the list of files."""
     # the studies (matplotlib, scipy.stats) are imported only when there is something to draw
-    from .studies import (baselines, choices, claims, conventions, explain, figures, readings,
-                          scorecard)
+    from .studies import figures
 
-    title = report_title(cfg, aggs)
-    studies = {k: a for k, a in aggs.items() if k in readings.STUDIES}
-    rivals = {k: a for k, a in aggs.items() if k in baselines.STUDIES}
-    explained = {k: a for k, a in aggs.items() if k in explain.STUDIES}
-    chosen = {k: a for k, a in aggs.items() if k not in studies and k not in rivals
-              and k not in explained and a["summary"]["choice"].astype(bool).any()}
-    aggs = {k: a for k, a in aggs.items()
-            if k not in chosen and k not in studies and k not in rivals and k not in explained}
-    declared = {k: a for k, a in aggs.items() if declares_claims(a)}
-    rc, dpi = figures.RC, cfg.report.dpi
-    written, sections = [], []
-    js = cfg.report.joint_space_figure  # Fig. 2: stages in a joint space over one target axis
-    stages = _stages_figure(aggs[js]) if js in aggs else None
-    if stages is not None and figures.final_body(stages[0])[0].n != 1:
-        stages = None
-    with figures.plt.rc_context(rc):
-        for name, agg in aggs.items():
-            fig = figures.learning_curves(
-                agg["curves"], agg["summary"], _title(name, agg), log_y=cfg.report.log_error_axis,
-                paper_abs=agg["models"].get("paper", {}).get("final_abs_error"))
-            paths = figures.save(fig, out / f"{name}_curves", dpi)
-            written += paths
-            sections.append((name, _title(name, agg), [paths[0].name], agg["summary"]))
-
-        extra = []
-        if stages is not None:
-            fig = figures.joint_space_stages(
-                *stages, "Fig. 2: inverse estimate of the 2-DOF arm in joint space "
-                "(contours: equal hand height)")
-            extra.append(("Fig. 2: stages of learning (joint space)",
-                          figures.save(fig, out / f"{js}_stages", dpi)))
-        posture_sets = OmegaConf.to_container(cfg.report.postures)
-        posture_sets = {name: wanted for name, wanted in posture_sets.items()
-                        if any(f in declared for f, _ in wanted)}
-        drawn = {f for wanted in posture_sets.values() for f, _ in wanted if f in aggs}
-        for name in aggs:  # every other figure: trial 0 of each of its first conditions
-            if name not in drawn and name != js:
-                posture_sets[name] = [[name, c] for c in
-                                      list(aggs[name]["models"]["conditions"])[:MAX_PANELS]]
-        for name, wanted in posture_sets.items():
-            panels = _posture_panels(aggs, wanted)
-            if panels:
-                fig = figures.postures(panels, f"{name}: targets, reached positions and "
-                                       "postures at the final size")
-                extra.append((f"{name}: targets, reached positions and postures",
-                              figures.save(fig, out / f"{name}_postures", dpi)))
-        if cfg.report.animate:  # hook: a GIF per condition with stored stages (animation.py)
-            from .studies import animation
-            extra += [(f"Watch it learn: {t}", [p]) for t, p in animation.write(aggs, out)]
-    for _, paths in extra:
-        written += paths
-
-    summary = (pd.concat([a["summary"] for a in aggs.values()], ignore_index=True) if aggs
-               else pd.DataFrame(columns=["figure", "condition"] + FINDINGS_COLUMNS))
-    table_md = summary_markdown(summary)
-    io.write_text(out / "summary.csv", summary.to_csv(index=False, float_format="%.6g"))
-    io.write_text(out / "summary.md", table_md)
-    written += [out / "summary.csv", out / "summary.md"]
-
-    claim_rows = []
-    for name, agg in declared.items():
-        if (agg["summary"]["growth"] != "none").any():
-            claim_rows += claims.growth_claims(name, agg["curves"], agg["summary"])
-    judge_stages = stages is not None and js in declared
-    if judge_stages:
-        claim_rows += claims.stage_claims(js, *stages)
-    card_md = ""
-    if claim_rows:
-        io.write_text(out / "claims.csv", pd.DataFrame(claim_rows).to_csv(index=False))
-        written.append(out / "claims.csv")
-        measures = scorecard.results(declared, dict(
-            figure=js, spec=stages[0], trials=_trial_stages(aggs[js])) if judge_stages else None)
-        cards = scorecard.cells(measures)
-        io.write_text(out / "scorecard.csv", pd.DataFrame(measures).to_csv(
-            index=False, float_format="%.6g"))
-        with figures.plt.rc_context(rc):
-            written += [out / "scorecard.csv"] + figures.save(scorecard.figure(
-                cards, title.split(":")[0] + ": the paper's claims, 95 % intervals over trials"),
-                out / "scorecard", dpi)
-        card_md = scorecard.markdown(cards, measures)
-    if aggs:
-        curves = pd.concat([a["curves"] for a in aggs.values()], ignore_index=True)
-        io.write_table(out / "curves.parquet", io.frame_to_table(curves))
-        written.append(out / "curves.parquet")
-    choice_table = choices.table(chosen)
-    if len(choice_table):
-        io.write_text(out / "choices.csv", choice_table.to_csv(index=False, float_format="%.6g"))
-        io.write_text(out / "choices.md", choices.markdown(choice_table, chosen))
-        written += [out / "choices.csv", out / "choices.md"]
-
-    md = [f"# {title}", "",
-          "Generated by `python -m pipeline.report` from `pipeline.aggregate`'s tables; "
-          "`make reproduce` regenerates the committed report. Errors: mean over trials (± standard "
+    ctx = sections.Context(cfg, out, report_title(cfg, aggs), sections.group(aggs))
+    paper = any(declares_claims(a) for a in aggs.values())
+    md = [f"# {ctx.title}", "",
+          "Generated by `python -m pipeline.report` from `pipeline.aggregate`'s tables"
+          + ("; `make reproduce` regenerates the committed report" if paper else "")
+          + ". Errors: mean over trials (± standard "
           "deviation); curves: mean with the inter-quartile band. A trial *failed to bootstrap* "
           f"when its final relative error exceeds {cfg.aggregate.fail_factor:g} times the median "
           "of its condition.", ""]
-    if claim_rows:
-        md += ["## Scorecard: the paper's claims, with their uncertainty", "",
-               "![scorecard](scorecard.png)", "", card_md,
-               "Each cell: the verdict of the measure that decides it, its value on the mean over "
-               "trials and its 95 % interval (`scorecard.csv` holds every measure); "
-               "pipeline/studies/scorecard.py says how.", ""]
-        md += ["## The paper's claims, measured on the mean (the pre-set criteria)", "",
-               claims.CRITERIA, "", claims.markdown(claim_rows)]
-    if cfg.report.stamp_findings:
-        stamp_findings(summary, claim_rows)
-    if cfg.report.explain:
-        rows = explain.rows({**aggs, **explained})
-        if rows:
-            io.write_text(out / "explanations.csv", pd.DataFrame(rows).to_csv(index=False))
-            written.append(out / "explanations.csv")
-            md += ["## Decisive experiments behind the explanations", "",
-                   "Read from the aggregated experiments explain_* (conf/experiment/, "
-                   "pipeline/studies/explain.py): what a cubic can reach when fitted directly "
-                   "(the capacity bound), the 2-DOF arm learned with its extremes away from the "
-                   "stretched arm, and the iCub continued at a smaller learning rate.", "",
-                   "| figure | experiment | measured |", "|---|---|---|"]
-            md += [f"| {r['figure']} | {r['experiment']} | {r['measured']} |" for r in rows]
-            md += [""]
-    md += [findings(summary, claim_rows)]  # the discussion of the committed run, if it is this
-    for name, title, images, summ in sections:
-        r0 = summ.iloc[0] if len(summ) else None
-        md += [f"## {title}", ""]
-        if r0 is not None:
-            md += [f"Body `{r0['body']}`, {int(r0['epochs'])} epochs, "
-                   f"{int(summ['n_trials'].max())} trials per condition.", ""]
-        md += [f"![{name}]({img})" for img in images] + ["", summary_markdown(summ)]
-    for title, paths in extra:
-        md += [f"## {title}", "", f"![{paths[0].stem}]({paths[0].name})", ""]
-    def study(name, table, fig):
-        """A study's table (CSV) and figure; returns the figure's PNG name."""
-        io.write_text(out / f"{name}.csv", table.to_csv(index=False, float_format="%.6g"))
-        with figures.plt.rc_context(rc):
-            paths = figures.save(fig, out / f"{name}_curves", dpi)
-        written.extend([out / f"{name}.csv"] + paths)
-        return paths[0].name
-
-    read = {k: a for k, a in studies.items() if declares_claims(a)}
-    reading_table = readings.table(read)
-    if len(reading_table):
-        reading_cards = readings.intervals(read)
-        io.write_text(out / "readings_scorecard.csv", reading_cards.to_csv(
-            index=False, float_format="%.6g"))
-        written.append(out / "readings_scorecard.csv")
-        png = study("readings", reading_table, readings.figure(
-            studies, "Readings of the paper: absolute error of every condition (mean over "
-            "trials)"))
-        md += ["## Every reading of the paper against every claim", "",
-               "Each row is a reading of the text (conf/experiment/readings_*.yaml, "
-               "pipeline/studies/readings.py); each column a claim, checked as above.", "",
-               f"![readings]({png})", "", readings.intervals_markdown(reading_cards),
-               "The same, each verdict on the mean over trials (the pre-set criteria):", "",
-               readings.markdown(reading_table)]
-    rival_table = baselines.table(rivals)
-    if len(rival_table):
-        rival_claims = baselines.claims(rival_table)
-        png = study("baselines", rival_table, baselines.figure(
-            rivals, "Goal Babbling and its alternatives: error against reaching movements"))
-        md += ["## Beyond the paper: Goal Babbling against its alternatives under growth", "",
-               "The learners (gbmodel/learners/) at budgets of reaching movements, on "
-               "the 5-DOF arm and the iCub, without growth, with the paper's linear growth and "
-               "with an infant-like schedule (conf/experiment/baselines_*.yaml, "
-               "pipeline/studies/baselines.py, docs/baselines.md). Errors at the end of each "
-               "budget; the figure draws the held-out error; the largest jump is the "
-               "final inverse's largest joint-space step between neighbouring points on lines "
-               "through the target box (branch switching, lookup).", "",
-               f"![baselines]({png})", "", baselines.markdown(rival_table, rival_claims)]
-    convention_table = conventions.table(  # the paper's figures: reporting conventions
-        aggs, conventions.read_trials(cfg.paths.aggregate, aggs), cfg.aggregate.fail_factor,
-        OmegaConf.to_container(cfg.report.postures))
-    if len(convention_table):
-        io.write_text(out / "conventions.csv",
-                      convention_table.to_csv(index=False, float_format="%.6g"))
-        written.append(out / "conventions.csv")
-        md += [conventions.markdown(convention_table)]
-    if len(choice_table):
-        text = (out / "choices.md").read_text().split("\n", 1)[1]
-        md += ["## Choices the paper leaves open: measured effect of the alternatives", text]
-    from .studies import provenance  # hook: trained models, provenance and credits
-    written += provenance.write_models(aggs, out)
-    md += provenance.markdown(dict(sorted({**aggs, **chosen, **studies, **rivals,
-                                           **explained}.items())))
-    files = sorted(p.relative_to(out).as_posix() for p in written) + ["report.md"]
+    with figures.plt.rc_context(figures.RC):
+        md += sections.run(ctx)
+    files = sorted(p.relative_to(out).as_posix() for p in ctx.written) + ["report.md"]
     md += ["## Files", "", "Every file of this report (all regenerated by `python -m pipeline.report`):",
            ""] + [f"- `{f}`" for f in files]
     io.write_text(out / "report.md", "\n".join(md) + "\n")
-    written.append(out / "report.md")
-    return written
-
-
-FINDINGS = Path(__file__).parent / "studies" / "findings.md"
-FINDINGS_NUMBERS = Path(__file__).parent / "studies" / "findings_numbers.csv"
-TOLERANCE = 1e-6  # relative: the discussion holds for numbers this close to its run's
-
-
-FINDINGS_COLUMNS = ["final_abs_error_mean", "final_rel_error_mean", "peak_abs_error_growth"]
-
-
-def findings_numbers(summary: pd.DataFrame, claim_rows: list[dict]) -> pd.DataFrame:
-    """What the discussion was written against: every final and peak error, and every verdict."""
-    rows = [dict(what=f"{r.figure} {r.condition} {c}", value=float(getattr(r, c)), verdict="")
-            for r in summary.itertuples() for c in FINDINGS_COLUMNS]
-    rows += [dict(what=f"{r['figure']} {r['claim']}", value=float("nan"), verdict=r["verdict"])
-             for r in claim_rows]
-    return pd.DataFrame(rows)
-
-
-def findings(summary: pd.DataFrame, claim_rows: list[dict]) -> str:
-    """pipeline/studies/findings.md, hand-written about one run, if these are that run's numbers (every
-    verdict the same, every number within TOLERANCE); else a note that it is left out."""
-    now = findings_numbers(summary, claim_rows)
-    if FINDINGS_NUMBERS.exists():
-        ref = pd.read_csv(FINDINGS_NUMBERS, keep_default_na=False,
-                          dtype={"what": str, "verdict": str}, converters={"value": float})
-        if (len(ref) == len(now) and (ref["what"] == now["what"]).all()
-                and (ref["verdict"] == now["verdict"]).all()
-                and np.allclose(now["value"], ref["value"], rtol=TOLERANCE, atol=0,
-                                equal_nan=True)):
-            return FINDINGS.read_text()
-    return ("## Discussion\n\n`pipeline/studies/findings.md` discusses the committed full-scale run; "
-            "these numbers come from another run, so it is left out.\n")
-
-
-def stamp_findings(summary: pd.DataFrame, claim_rows: list[dict]) -> None:
-    """Record the numbers findings.md was written against (after rereading it against them)."""
-    io.write_text(FINDINGS_NUMBERS, findings_numbers(summary, claim_rows)
-                  .to_csv(index=False, float_format="%.17g", na_rep="nan"))
+    return ctx.written + [out / "report.md"]
 
 
 def listed_files(report_md: Path) -> list[str]:

@@ -1,13 +1,18 @@
-"""The measures behind the report's verdicts, on synthetic curves with known answers."""
+"""The table of claims and their per-trial measures, on synthetic trial curves with known
+answers; the discussion's stamp."""
 import numpy as np
 import pandas as pd
 import pytest
 
-from pipeline import report
-from pipeline.studies import claims
+from pipeline.studies import paper
 from pipeline.measures import growth_peak
+from pipeline.studies import claims
+from pipeline.studies import scorecard as sc
 
 EPOCHS = np.array([1, 2, 5, 10, 11, 20, 50, 100])
+SHORT = np.linspace(0.2, 0.01, len(EPOCHS))
+LONG = np.linspace(0.4, 0.02, len(EPOCHS))
+RISING = [0.2, 0.3, 0.4, 0.5, 0.45, 0.2, 0.1, 0.02]
 
 
 def test_growth_peak_is_the_largest_rise_above_the_running_minimum():
@@ -15,92 +20,178 @@ def test_growth_peak_is_the_largest_rise_above_the_running_minimum():
     assert growth_peak(curve) == (10, 6.0, 3.0)
     falling = pd.DataFrame(dict(epoch=EPOCHS, abs_error_mean=np.linspace(5, 1, len(EPOCHS))))
     assert growth_peak(falling)[2] == 0.0
+    # the per-trial rise of the claims is the same measure, relative to the error before it
+    assert claims.rise(np.array([5, 4, 3, 6, 5, 2, 2.5, 1.0])) == pytest.approx(1.0)
 
 
-def _figure(grown):
-    """Curves and summary of a figure: references falling from 0.4 and 0.2 m, and a body grown
-    over 10 epochs whose absolute error is `grown` (relative error: the same over its size)."""
-    short = np.linspace(0.2, 0.01, len(EPOCHS))
-    long_ = np.linspace(0.4, 0.02, len(EPOCHS))
-    size = np.clip(0.5 + 0.05 * (EPOCHS - 1), 0.5, 1.0)
-    rows = []
-    for name, err, s in [("TG10", grown, size), ("const0.5", short, 0.5), ("const1.0", long_, 1.0)]:
-        rows += [dict(condition=name, epoch=e, abs_error_mean=a, rel_error_mean=a / si)
-                 for e, a, si in zip(EPOCHS, err, np.broadcast_to(s, EPOCHS.shape))]
-    curves = pd.DataFrame(rows)
-    during = curves[(curves.condition == "TG10") & (curves.epoch <= 11)]
-    ep, peak, rise = growth_peak(during)
-    base = dict(paper_final_abs_error=0.02, n_bootstrap_failures=0, n_run_failures=0, n_trials=5)
-    summary = pd.DataFrame([
-        dict(condition="TG10", growth="proportional", growth_period=10, end_size=1.0,
-             final_abs_error_mean=grown[-1], peak_abs_error_growth=peak,
-             rise_abs_error_growth=rise, peak_epoch_growth=ep, **base),
-        dict(condition="const0.5", growth="none", growth_period=0, end_size=0.5,
-             final_abs_error_mean=short[-1], **base),
-        dict(condition="const1.0", growth="none", growth_period=0, end_size=1.0,
-             final_abs_error_mean=long_[-1], **base),
-    ])
-    return curves, summary
+def _figure(grown, periods=(10,), n=4, noise=0.01, seed=3, paper=0.02):
+    """Trials and summary of a figure: references falling from 0.2 (half size) and 0.4 m, and
+    bodies grown over each of `periods` whose absolute error is `grown`."""
+    rng = np.random.default_rng(seed)
+    rows, summ = [], []
+    base = dict(paper_final_abs_error=paper, n_bootstrap_failures=0, n_run_failures=0,
+                n_diverged=0, n_trials=n)
+    conds = [(f"TG{p}", np.asarray(grown, float), 1.0, "proportional", p) for p in periods]
+    conds += [("const0.5", SHORT, 0.5, "none", 0), ("const1.0", LONG, 1.0, "none", 0)]
+    for name, err, size, growth, period in conds:
+        for t in range(n):
+            e = err * (1 + noise * rng.standard_normal(len(EPOCHS)))
+            rows += [dict(condition=name, trial=t, epoch=ep, abs_error=a, rel_error=a / size)
+                     for ep, a in zip(EPOCHS, e)]
+        summ.append(dict(condition=name, growth=growth, growth_period=period, end_size=size,
+                         **base))
+    return pd.DataFrame(rows), pd.DataFrame(summ)
 
 
-def _verdicts(grown):
-    rows = claims.growth_claims("figX", *_figure(np.asarray(grown, float)))
-    return {r["claim"].split(",")[0].split(" (")[0]: r["verdict"] for r in rows}
+def _cells(*args, **kw):
+    return sc.cells(sc.results({"figX": dict(zip(("trials", "summary"), _figure(*args, **kw)))},
+                               table=_covered())).set_index("claim")
+
+
+def _covered(coverage=0.95):
+    return pd.DataFrame([dict(kind=k, trials=2, draws=100, coverage=coverage)
+                         for k in ("final", "rebound", "excess", "ratio")])
 
 
 def test_a_body_that_rises_during_growth_and_then_learns_reproduces_the_claims():
-    # rises from 0.2 to 0.5 m while growing (epochs 1-11), then falls to the long reference's end
-    v = _verdicts([0.2, 0.3, 0.4, 0.5, 0.45, 0.2, 0.1, 0.02])
-    assert v["the absolute error rises temporarily during growth for T_G in {10"] == "reproduced"
-    assert v["the absolute error rises above both constant-size references during growth"] \
-        == "reproduced"
-    assert v["final error about 20.0 mm"].startswith("not reproduced: const0.5")
-    assert v["bootstrapping succeeds in every trial"] == "reproduced"
+    c = _cells(RISING)
+    assert c.loc["rise", "verdict"] == sc.REPRODUCED
+    assert c.loc["above_start", "verdict"] == sc.REPRODUCED
+    assert c.loc["bootstrap", "verdict"] == sc.REPRODUCED
 
 
-def test_a_body_that_never_rises_fails_the_rise_claims():
-    v = _verdicts(np.linspace(0.2, 0.02, len(EPOCHS)))
-    assert v["the absolute error rises temporarily during growth for T_G in {10"] \
-        == "not reproduced: T_G=10"
-    assert v["the absolute error rises above both constant-size references during growth"] \
-        == "not reproduced: T_G=10"
+def test_a_half_size_reference_is_judged_per_unit_size():
+    # const0.5 ends at 10 mm on a body of half the size: 20 mm at full size, the paper's value
+    c = _cells(RISING)
+    t = sc.results({"figX": dict(zip(("trials", "summary"), _figure(RISING)))}, table=_covered())
+    half = next(r for r in t if r["claim"] == "final" and r["where"] == "const0.5")
+    assert half["value"] == pytest.approx(1.0, rel=0.02) and half["verdict"] == sc.REPRODUCED
+    assert c.loc["final", "verdict"] == sc.REPRODUCED
+
+
+def test_a_body_that_never_rises_fails_the_rise_claims_in_the_worst_condition():
+    c = _cells(np.linspace(0.2, 0.02, len(EPOCHS)), periods=(10, 100))
+    assert c.loc["rise", "verdict"] == sc.NOT
+    assert c.loc["rise", "measures"] == 2 and c.loc["rise", "reproduced"] == 0
+    assert "1 of" not in sc.cell_text(c.loc["rise"].to_dict() | dict(claim="rise"))
+
+
+def test_the_cell_shows_the_worst_condition_and_k_of_n():
+    # T_G = 10 rises, T_G = 100 does not: 1 of 2 reproduced, the worst is TG100
+    trials, summary = _figure(RISING, periods=(10, 100))
+    flat = trials["condition"] == "TG100"
+    trials.loc[flat, "abs_error"] = trials.loc[flat, "epoch"].map(
+        dict(zip(EPOCHS, np.linspace(0.2, 0.02, len(EPOCHS)))))
+    c = sc.cells(sc.results({"figX": dict(trials=trials, summary=summary)},
+                           table=_covered())).set_index("claim")
+    assert c.loc["rise", "verdict"] == sc.NOT and c.loc["rise", "where"] == "TG100"
+    assert (c.loc["rise", "reproduced"], c.loc["rise", "measures"]) == (1, 2)
+    assert "(1 of 2 reproduced)" in sc.cell_text(c.loc["rise"].to_dict())
+
+
+def test_above_both_references_is_not_measured_where_it_cannot_pass():
+    t = sc.results({"figX": dict(zip(("trials", "summary"),
+                                     _figure(RISING, periods=(10, 100))))}, table=_covered())
+    assert {r["where"] for r in t if r["claim"] == "above_refs"} == {"TG100"}
 
 
 def test_a_rebound_after_growth_is_degeneration():
-    v = _verdicts([0.2, 0.3, 0.4, 0.5, 0.45, 0.05, 0.2, 0.02])
-    assert v["no degeneration: the error keeps decreasing after growth"].startswith(
-        "not reproduced")
+    c = _cells([0.2, 0.3, 0.4, 0.5, 0.45, 0.05, 0.2, 0.02])
+    assert c.loc["after", "verdict"] == sc.NOT
+
+
+def test_without_measured_coverage_nothing_is_called_not_reproduced():
+    flat = np.linspace(0.2, 0.02, len(EPOCHS))
+    res = sc.results({"figX": dict(zip(("trials", "summary"), _figure(flat)))},
+                     table=_covered(0.80))
+    cells = sc.cells(res).set_index("claim")
+    assert cells.loc["rise", "verdict"] == sc.INCONCLUSIVE
+    assert sc.established("rebound", 5, _covered(0.95))
+    assert not sc.established("rebound", 5, _covered(0.80))
+    assert not sc.established("rebound", 1, _covered(0.95))  # not measured at 1 trial
+
+
+def test_diagnostics_are_shown_and_never_counted():
+    cards = _cells(np.linspace(0.2, 0.02, len(EPOCHS))).reset_index()
+    diag = cards[cards["diagnostic"]]
+    assert set(diag["claim"]) >= {"above_start", "during"}
+    n = sc.headline(cards)
+    assert sum(n.values()) == int((~cards["diagnostic"]).sum())
+    assert sum(sc.headline(cards, counted=["figY"]).values()) == 0
+    md = sc.markdown(cards, [], counted=["figX"])
+    assert "(diagnostic)" in md and f"**{n['reproduced']} reproduced" in md
+
+
+def test_claims_csv_and_scorecard_csv_agree():
+    """claims.csv's verdict of a cell is the verdict its measures in scorecard.csv give."""
+    res = sc.results({"figX": dict(zip(("trials", "summary"),
+                                       _figure(RISING, periods=(10, 100), noise=0.3))),
+                      "figY": dict(zip(("trials", "summary"), _figure(RISING, noise=0.01)))},
+                     table=_covered())
+    table = sc.claims_table(sc.cells(res))
+    per = pd.DataFrame(res)
+    for r in table.to_dict("records"):
+        vs = set(per[(per["figure"] == r["figure"]) & (per["claim"] == r["claim"])]["verdict"])
+        want = (sc.NOT if sc.NOT in vs else sc.INCONCLUSIVE if sc.INCONCLUSIVE in vs
+                else sc.REPRODUCED)
+        assert r["verdict"] == want
+        assert r["words"] == claims.BY_ID[r["claim"]].words
+
+
+def test_every_claim_has_words_a_criterion_and_a_measure():
+    assert len({c.id for c in claims.CLAIMS}) == len(claims.CLAIMS)
+    for c in claims.CLAIMS:
+        assert c.words and c.criterion and c.measure and c.figures
+    md = claims.markdown()
+    assert md.count("\n") == len(claims.CLAIMS) + 2
+
+
+def test_our_reading_is_shown_only_beside_the_verdicts_it_was_written_for():
+    cards = pd.DataFrame([dict(claim="rise", figure="fig4", verdict=sc.REPRODUCED),
+                          dict(claim="rise", figure="fig5", verdict=sc.NOT)])
+    table = pd.DataFrame([dict(claim="rise", written_for="fig4=reproduced; fig5=not reproduced",
+                               text="rises at T_G <= 100")])
+    assert claims.our_reading(cards, table) == {"rise": "rises at T_G <= 100"}
+    cards.loc[1, "verdict"] = sc.INCONCLUSIVE
+    assert "written for other verdicts: fig5: not reproduced, now inconclusive" \
+        in claims.our_reading(cards, table)["rise"]
+
+
+def test_the_committed_readings_name_known_claims():
+    t = claims.readings_table()
+    assert set(t["claim"]) <= set(claims.BY_ID)
+    assert (t["text"].str.len() > 0).all()
 
 
 def test_the_discussion_is_shown_only_beside_the_numbers_it_was_written_for(tmp_path,
                                                                             monkeypatch):
     """findings.md is included when findings_numbers.csv matches the run (the same rows and
-    verdicts, numbers within report.TOLERANCE), and left out otherwise, or when nothing was
+    verdicts, numbers within paper.TOLERANCE), and left out otherwise, or when nothing was
     stamped."""
     text = "## Why\n\nBecause 17.5 mm.\n"
     (tmp_path / "findings.md").write_text(text)
-    monkeypatch.setattr(report, "FINDINGS", tmp_path / "findings.md")
-    monkeypatch.setattr(report, "FINDINGS_NUMBERS", tmp_path / "findings_numbers.csv")
-    curves, summary = _figure(np.array([0.2, 0.3, 0.4, 0.5, 0.45, 0.2, 0.1, 0.02]))
+    monkeypatch.setattr(paper, "FINDINGS", tmp_path / "findings.md")
+    monkeypatch.setattr(paper, "FINDINGS_NUMBERS", tmp_path / "findings_numbers.csv")
+    trials, summary = _figure(RISING)
     summary["figure"] = "figX"
-    summary["final_rel_error_mean"] = summary["final_abs_error_mean"] / summary["end_size"]
-    rows = claims.growth_claims("figX", curves, summary)
-    assert "left out" in report.findings(summary, rows)  # nothing stamped yet
-    report.stamp_findings(summary, rows)
-    assert report.findings(summary, rows) == text
+    for col in paper.FINDINGS_COLUMNS:
+        summary[col] = 0.01
+    rows = sc.claims_table(sc.cells(sc.results({"figX": dict(trials=trials, summary=summary)},
+                                               table=_covered()))).to_dict("records")
+    assert "left out" in paper.findings(summary, rows)  # nothing stamped yet
+    paper.stamp_findings(summary, rows)
+    assert paper.findings(summary, rows) == text
     other = summary.copy()
     other.loc[0, "final_abs_error_mean"] *= 1 + 1e-4  # another run
-    assert "left out" in report.findings(other, rows)
-    assert "left out" in report.findings(summary.iloc[:2], rows)  # a condition fewer
-    flipped = [dict(r, verdict="reproduced") for r in rows]
-    assert flipped != rows and "left out" in report.findings(summary, flipped)
+    assert "left out" in paper.findings(other, rows)
+    assert "left out" in paper.findings(summary.iloc[:2], rows)  # a condition fewer
+    flipped = [dict(r, verdict="not reproduced") for r in rows]
+    assert flipped != rows and "left out" in paper.findings(summary, flipped)
 
 
-@pytest.mark.parametrize("spread, verdict", [(0.06, "reproduced"), (0.5, "not reproduced")])
-def test_fig2_stages_start_near_home(spread, verdict):
+def _stages(spread):
     import gbmodel
 
-    body = gbmodel.make_body("arm2")
     exps = gbmodel.exponents(1)
     start = np.zeros((2, len(exps)))
     start[0, 0] = spread  # g(x) = home + (spread, 0) everywhere
@@ -108,5 +199,31 @@ def test_fig2_stages_start_near_home(spread, verdict):
     final[0, 1] = np.pi / 2  # q1 = pi/2 * x: reaches heights +-1 m exactly, and 0 at home
     spec = dict(body=dict(name="arm2"), growth=dict(pattern="proportional", end_size=1.0),
                 learner=dict(name="goal_babbling", degree=3))
-    rows = claims.stage_claims("fig2", spec, [("(a)", start), ("(b)", final)])
-    assert rows[0]["verdict"].startswith(verdict)
+    return spec, [start, final]
+
+
+@pytest.mark.parametrize("spread, verdict", [(0.06, "reproduced"), (0.5, "not reproduced")])
+def test_fig2_stages_start_near_home(spread, verdict):
+    spec, ms = _stages(spread)
+    res = [sc.run_test(t, _covered()) for t in claims.stage_tests("fig2", spec, [ms] * 3)]
+    home = next(r for r in res if r["claim"] == "stages_home")
+    assert home["verdict"] == verdict and home["diagnostic"]
+    extremes = next(r for r in res if r["claim"] == "stages")
+    assert extremes["verdict"] == "reproduced" and extremes["unit"] == "m"
+    assert sc.fmt(0.0745, "m") == "74.5 mm"
+
+
+def test_fig2_extremes_need_three_trials():
+    spec, ms = _stages(0.06)
+    res = [sc.run_test(t, _covered()) for t in claims.stage_tests("fig2", spec, [ms] * 2)]
+    assert next(r for r in res if r["claim"] == "stages")["verdict"] == sc.INCONCLUSIVE
+
+
+def test_a_trials_jitter_is_no_rebound_but_a_lasting_one_is():
+    x = np.linspace(1.0, 0.5, 40)
+    jitter = x * (1 + 0.15 * (-1) ** np.arange(40))  # +-15 % from point to point
+    assert claims.rebound(jitter) > 0.3 and claims.rebound(claims.smooth(jitter)) < 0.1
+    lasting = x.copy()
+    lasting[20:] *= 1.5  # a step up that stays
+    assert claims.rebound(claims.smooth(lasting)) > 0.3
+    assert claims.smooth(x[:9]).shape == (9,)  # too short to smooth

@@ -65,7 +65,9 @@ def test_experiment_holds_the_papers_conditions(name):
 
 def test_fig2_is_the_2dof_arm_with_snapshots():
     cfg = compose(["experiment=fig2"])
-    (trial,) = plan(cfg)
+    trials = plan(cfg)
+    assert len(trials) >= 3  # the extremes are judged over at least 3 trials
+    trial = trials[0]
     assert trial["spec"]["body"]["name"] == "arm2" and trial["labels"]["growth"] == "none"
     assert len(trial["spec"]["snapshots"]) >= 3
 

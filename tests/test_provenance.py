@@ -28,7 +28,7 @@ def smoke(tmp_path_factory):
         r = run_cli(stage, *args)
         assert r.returncode == 0, r.stderr[-2000:]
     out = root / "outputs" / "smoke"
-    return dict(root=root, report=out / "latest", aggregate=out / "aggregate")
+    return dict(root=root, report=out / "latest" / "prov", aggregate=out / "aggregate")
 
 
 def test_report_holds_the_final_models_and_they_reach_as_the_aggregate(smoke):

@@ -6,9 +6,21 @@ import pytest
 from pipeline.studies import scorecard as sc
 
 
+COVERED = pd.DataFrame([dict(kind=k, trials=2, draws=100, coverage=0.95)
+                        for k in ("final", "rebound", "excess", "ratio")])
+
+
 def _test(values, lo=0.9, hi=1.1):
-    t = sc.Test("figX", "final", "c", [np.asarray(values, float)], lambda m: m, lo, hi, unit="x")
-    return sc.run_test(t)
+    t = sc.Test("figX", "final", "c", np.asarray(values, float), lo, hi, unit="x", kind="final")
+    return sc.run_test(t, COVERED)
+
+
+def test_the_point_lies_inside_its_interval():
+    rng = np.random.default_rng(5)
+    for n in (2, 3, 5, 20):
+        for scale in (0.01, 1.0):
+            r = _test(1 + scale * rng.lognormal(size=n))
+            assert r["low"] <= r["value"] <= r["high"]
 
 
 def test_a_clear_pass_a_clear_fail_and_a_straddle():
@@ -80,22 +92,25 @@ def _figure(n_trials, noise):
 
 
 def test_growth_claims_on_trial_curves():
-    res = sc.results({"figX": _figure(8, 0.01)})
+    res = sc.results({"figX": _figure(8, 0.01)}, table=COVERED)
     cards = sc.cells(res).set_index("claim")
     assert cards.loc["rise", "verdict"] == sc.REPRODUCED
-    assert cards.loc["above_refs", "verdict"] == sc.REPRODUCED
-    assert cards.loc["final", "verdict"] == sc.NOT  # const0.5 ends at 10 mm, half the paper's
-    assert cards.loc["final", "where"] == "const0.5"
+    assert cards.loc["above_start", "verdict"] == sc.REPRODUCED
+    # const0.5 ends at 10 mm on a half-size body: 20 mm per full size, the paper's value
+    assert cards.loc["final", "verdict"] == sc.REPRODUCED
     assert cards.loc["bootstrap", "verdict"] == sc.REPRODUCED
     md = sc.markdown(sc.cells(res), res)
     assert "| claim of the paper | figX | our reading |" in md
+    for r in res:  # no measure's point lies outside its interval
+        assert r["claim"] == "bootstrap" or r["low"] <= r["value"] <= r["high"]
     # one trial per condition: no interval, so nothing is decided but the exact count
-    one = sc.cells(sc.results({"figX": _figure(1, 0.01)})).set_index("claim")
+    one = sc.cells(sc.results({"figX": _figure(1, 0.01)}, table=COVERED)).set_index("claim")
     assert set(one.drop(index="bootstrap")["verdict"]) == {sc.INCONCLUSIVE}
 
 
 def test_the_scorecard_figure_draws_every_cell(tmp_path):
-    cards = sc.cells(sc.results({"figX": _figure(4, 0.05), "figY": _figure(4, 0.3)}))
+    cards = sc.cells(sc.results({"figX": _figure(4, 0.05), "figY": _figure(4, 0.3)},
+                                table=COVERED))
     fig = sc.figure(cards, "scorecard")
     assert len(fig.axes[0].patches) == len(cards["claim"].unique()) * 2
     fig.savefig(tmp_path / "s.png")

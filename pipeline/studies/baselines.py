@@ -16,6 +16,7 @@ from scipy import stats
 
 from . import figures
 from .choices import escape
+from .sections import Context, register
 
 STUDIES = ("baselines_arm5", "baselines_icub")
 GB, GB_PROGRESS = "Goal Babbling", "Goal Babbling (goals by progress)"
@@ -272,3 +273,24 @@ def figure(aggs: dict, title: str):
     fig.suptitle(title)
     fig.tight_layout()
     return fig
+
+
+@register("baselines", 40)
+def section(ctx: Context) -> list[str]:
+    rivals = ctx.of("baselines")
+    rival_table = table(rivals)
+    if not len(rival_table):
+        return []
+    rival_claims = claims(rival_table)
+    ctx.text("baselines.csv", rival_table.to_csv(index=False, float_format="%.6g"))
+    png = ctx.save(figure(rivals, "Goal Babbling and its alternatives: error against reaching "
+                          "movements"), "baselines_curves")[0].name
+    return ["## Beyond the paper: Goal Babbling against its alternatives under growth", "",
+            "The learners (gbmodel/learners/) at budgets of reaching movements, on "
+            "the 5-DOF arm and the iCub, without growth, with the paper's linear growth and "
+            "with an infant-like schedule (conf/experiment/baselines_*.yaml, "
+            "pipeline/studies/baselines.py, docs/baselines.md). Errors at the end of each "
+            "budget; the figure draws the held-out error; the largest jump is the "
+            "final inverse's largest joint-space step between neighbouring points on lines "
+            "through the target box (branch switching, lookup).", "",
+            f"![baselines]({png})", "", markdown(rival_table, rival_claims)]

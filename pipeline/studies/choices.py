@@ -16,6 +16,8 @@ import gbmodel
 from gbmodel import evaluation
 from gbmodel.bodies import cell_centres
 
+from .sections import Context, register
+
 
 def scores(spec: dict, M) -> dict:
     """The final model M of a trial scored over the grid and off it, with the body at its end."""
@@ -95,3 +97,16 @@ def markdown(t: pd.DataFrame, aggs: dict) -> str:
             f"| {r.rms_mm:.1f} | {r.mean_sq_mm2:.0f} | {r.worst_mm:.1f} | {r.off_grid_mm:.1f} "
             f"| {'' if np.isnan(r.growth_rise_pct) else f'+{r.growth_rise_pct:.0f} %'} |")
     return "\n".join(lines) + "\n"
+
+
+@register("choices", 60)
+def section(ctx: Context) -> list[str]:
+    chosen = ctx.of("choices")
+    t = table(chosen)
+    if not len(t):
+        return []
+    ctx.text("choices.csv", t.to_csv(index=False, float_format="%.6g"))
+    text = markdown(t, chosen)
+    ctx.text("choices.md", text)
+    return ["## Choices the paper leaves open: measured effect of the alternatives",
+            text.split("\n", 1)[1]]

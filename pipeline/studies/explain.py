@@ -21,6 +21,7 @@ from scipy.optimize import least_squares
 from gbmodel.growth import factors
 
 from .figures import final_body
+from .sections import Context, register
 
 
 def _errors(body, size, pattern, predict, M, xs):
@@ -142,3 +143,22 @@ def rows(aggs: dict) -> list[dict]:
                                  f"rate, {k['smaller_mm']:.2f} mm at {k['factor']:g} x the rate "
                                  f"(mean over {k['trials']} trials)"))
     return out
+
+
+@register("explain", 20)
+def section(ctx: Context) -> list[str]:
+    if not ctx.cfg.report.explain:
+        return []
+    found = rows({**ctx.of("figures"), **ctx.of("explain")})
+    if not found:
+        return []
+    import pandas as pd
+
+    ctx.text("explanations.csv", pd.DataFrame(found).to_csv(index=False))
+    return (["## Decisive experiments behind the explanations", "",
+             "Read from the aggregated experiments explain_* (conf/experiment/, "
+             "pipeline/studies/explain.py): what a cubic can reach when fitted directly "
+             "(the capacity bound), the 2-DOF arm learned with its extremes away from the "
+             "stretched arm, and the iCub continued at a smaller learning rate.", "",
+             "| figure | experiment | measured |", "|---|---|---|"]
+            + [f"| {r['figure']} | {r['experiment']} | {r['measured']} |" for r in found] + [""])

@@ -22,6 +22,7 @@ from importlib import metadata
 from pathlib import Path
 
 from ..config import REPO_ROOT
+from .sections import Context, register
 
 PACKAGES = ("numpy", "numba", "scipy", "pandas", "pyarrow", "matplotlib", "hydra-core",
             "omegaconf")
@@ -152,3 +153,14 @@ def markdown(aggs: dict) -> list[str]:
            "reproduced here."] + ([""] + ["Third-party robot models used by this report:", ""]
                                  + lines if lines else []) + [""]
     return md
+
+
+@register("provenance", 1000)
+def section(ctx: Context) -> list[str]:
+    """The report's last section: the paper figures' trained models (models/<figure>.json),
+    what produced the report, and the credits of the robot models it used."""
+    if not ctx.groups:
+        return []
+    ctx.written.extend(write_models(ctx.of("figures"), ctx.out))
+    every = {k: a for group in ctx.groups.values() for k, a in group.items()}
+    return markdown(dict(sorted(every.items())))

@@ -17,6 +17,7 @@ from gbmodel.learners.goal_babbling import reference
 
 from . import claims, figures, scorecard
 from .choices import escape
+from .sections import Context, declares_claims, register
 
 STUDIES = {"readings_fig4": "fig4", "readings_fig5": "fig5", "readings_fig7": "fig7"}
 
@@ -59,9 +60,9 @@ def intervals(aggs: dict) -> pd.DataFrame:
         s = aggs[study]["summary"]
         for label in s["variant"].drop_duplicates():
             names = s[s["variant"] == label]["condition"].tolist()
-            tests = scorecard.growth_tests(fig, _rename(aggs[study]["trials"], names),
-                                           _rename(s, names))
-            cards = scorecard.cells([scorecard.run_test(t) for t in tests])
+            tests = claims.tests(fig, _rename(aggs[study]["trials"], names), _rename(s, names))
+            table = scorecard.coverage_table()
+            cards = scorecard.cells([scorecard.run_test(t, table) for t in tests])
             rows += [dict(c, reading=label) for c in cards.to_dict("records")]
     return pd.DataFrame(rows)
 
@@ -70,7 +71,7 @@ def intervals_markdown(t: pd.DataFrame) -> str:
     """Per figure: rows = readings, columns = claims, cells = verdict, value and interval."""
     lines = []
     for fig, tf in t.groupby("figure", sort=False):
-        cl = [c for c, _, _ in scorecard.CLAIMS if c in set(tf["claim"])]
+        cl = [c.id for c in claims.CLAIMS if c.id in set(tf["claim"])]
         lines += [f"### {fig}: verdicts with their 95 % intervals "
                   f"({int(tf[tf['claim'] != 'bootstrap']['trials'].max())} trials per condition "
                   "and reading)", "",
@@ -86,49 +87,15 @@ def intervals_markdown(t: pd.DataFrame) -> str:
 
 
 def table(aggs: dict) -> pd.DataFrame:
-    """One row per (figure, reading, claim): measured and verdict."""
-    rows = []
-    for study, fig in STUDIES.items():
-        if study not in aggs:
-            continue
-        for label, (cv, sv) in split(aggs[study]).items():
-            for r in claims.growth_claims(fig, cv, sv):
-                rows.append(dict(figure=fig, reading=label, claim=r["claim"],
-                                 measured=r["measured"], verdict=r["verdict"],
-                                 trials=int(sv["n_trials"].max())))
-    return pd.DataFrame(rows)
-
-
-SHORT = (("final error about", "final error about the paper's"),
-         ("rises temporarily", "temporary rise (pre-set)"),
-         ("above both constant-size", "above both references"),
-         ("above the body growth starts", "above the start body (added)"),
-         ("blends", "blending"), ("after growth", "no degeneration after growth"),
-         ("during growth: the relative", "no degeneration during growth (added)"),
-         ("bootstrapping succeeds", "every trial bootstraps"))
-
-
-def _short(claim: str) -> str:
-    return next((short for key, short in SHORT if key in claim), claim)
-
-
-def markdown(t: pd.DataFrame) -> str:
-    """Per figure: rows = readings, columns = claims, cells = verdict (measured below)."""
-    lines = []
-    for fig, tf in t.groupby("figure", sort=False):
-        cl = list(dict.fromkeys(tf["claim"]))
-        lines += [f"### {fig} ({int(tf['trials'].max())} trials per condition and reading)", "",
-                  "| reading | " + " | ".join(escape(_short(c)) for c in cl) + " |",
-                  "|---|" + "---|" * len(cl)]
-        for reading, tr in tf.groupby("reading", sort=False):
-            cells = {r.claim: r.verdict for r in tr.itertuples()}
-            lines.append(f"| {escape(reading)} | "
-                         + " | ".join(escape(cells.get(c, "")) for c in cl) + " |")
-        lines += ["", "<details><summary>measured numbers</summary>", ""]
-        for r in tf.itertuples():
-            lines.append(f"- {r.reading} — {r.claim}: {r.measured}")
-        lines += ["", "</details>", ""]
-    return "\n".join(lines)
+    """readings.csv: one row per (figure, reading, claim), the cells of `intervals`."""
+    t = intervals(aggs)
+    if not len(t):
+        return pd.DataFrame()
+    return pd.DataFrame(dict(
+        figure=t["figure"], reading=t["reading"], claim=t["claim"],
+        diagnostic=t["diagnostic"], verdict=t["verdict"],
+        measured=[scorecard.cell_text(r).replace("**", "") for r in t.to_dict("records")],
+        trials=t["trials"]))
 
 
 def figure(aggs: dict, title: str):
@@ -170,3 +137,21 @@ def figure(aggs: dict, title: str):
     fig.suptitle(title)
     fig.tight_layout(rect=(0, 0.6 / (2.5 * len(studies) + 1.4), 1, 1))
     return fig
+
+
+@register("readings", 30)
+def section(ctx: Context) -> list[str]:
+    studies = ctx.of("readings")
+    read = {k: a for k, a in studies.items() if declares_claims(a)}
+    reading_table = table(read)
+    if not len(reading_table):
+        return []
+    cards = intervals(read)
+    ctx.text("readings_scorecard.csv", cards.to_csv(index=False, float_format="%.6g"))
+    ctx.text("readings.csv", reading_table.to_csv(index=False, float_format="%.6g"))
+    png = ctx.save(figure(studies, "Readings of the paper: absolute error of every condition "
+                          "(mean over trials)"), "readings_curves")[0].name
+    return ["## Every reading of the paper against every claim", "",
+            "Each row is a reading of the text (conf/experiment/readings_*.yaml, "
+            "pipeline/studies/readings.py); each column a claim, checked as above.", "",
+            f"![readings]({png})", "", intervals_markdown(cards)]

@@ -1,96 +1,55 @@
 """The scorecard: every claim of the paper on every figure, with a 95 % interval over trials.
 
-claims.py checks each claim on the mean curves, against criteria fixed before the full-scale run.
-The mean over 5 or 20 trials is itself uncertain, so here each claim's measure is recomputed on
-bootstrap resamples of the trials (each condition resampled on its own: the conditions' trials
-are independent runs) and the verdict follows from where its 95 % interval lies:
+Each claim's measure (pipeline/studies/claims.py) is a value per trial; a cell's value is its
+mean over the trials, and the interval is Student's t interval of that mean:
+
+    mean +- t(0.975, n - 1) * s / sqrt(n)
+
+Why t, on per-trial values: the mean of independent trials is what the t interval is for, its
+point always lies inside it, and its coverage measured by drawing 3, 5 and 10 of 20 trials
+(pipeline/studies/coverage.py, docs/scorecard.md) is near 95 % for every measure type; the
+percentile bootstrap of a maximum of the mean curve was biased (it covered the 20-trial value in
+far fewer than 95 % of draws) and had its point outside its own interval.
 
     reproduced      the interval lies within the criterion
-    not reproduced  the interval lies outside it
+    not reproduced  the interval lies outside it, and the measure's coverage at this trial
+                    count is established (COVERAGE, >= MIN_COVERAGE); else inconclusive
     inconclusive    the interval straddles a bound of the criterion (or there is one trial only)
 
-For an inconclusive measure, `trials_to_decide` is the trial count per condition at which an
-interval of the observed spread (its half-width shrinking as 1 / sqrt(n)) would no longer reach
-the bound.
-
-Interval: scipy.stats.bootstrap, percentile method, 2000 resamples, a fixed seed (SEED) so that
-the report is byte-stable. Why percentile, not BCa: BCa's acceleration comes from the jackknife,
-n leave-one-out values, and with the 2-5 trials of Fig. 7 and the readings study it is
-ill-determined (scipy warns of a degenerate distribution, and returns NaN when the trials agree);
-the percentile interval is defined for every n >= 2. With so few trials any bootstrap interval
-is too narrow rather than too wide (it cannot see spread the trials did not show), so an
-"inconclusive" is a firm statement and a "reproduced" on 2-5 trials a weaker one.
-
-The trials of a condition are resampled as whole curves, so a measure over epochs (a rise, a
-rebound) is recomputed on the resample's mean curve, exactly as claims.py computes it on the mean.
+A cell (claim x figure) holds one measure per condition: it is not reproduced if any is, else
+inconclusive if any is, else reproduced; it shows its worst condition and how many of its
+measures are reproduced. For an inconclusive measure, `trials_to_decide` is the trial count per
+condition at which an interval of the observed spread (its half-width shrinking as 1 / sqrt(n))
+would no longer reach the bound.
 """
 from __future__ import annotations
 
 import math
 import textwrap
-from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 from scipy import stats
 
-from gbmodel.growth import factors
+from .claims import BY_ID, CLAIMS, Test, stage_tests, tests as growth_tests, title
 
-from .claims import EXCESS, FACTOR, RISE
-from .figures import final_body
-
-SEED = 2010  # the bootstrap's random draws: fixed, so the same trials give the same bytes
-RESAMPLES = 2000  # the 2.5 % and 97.5 % points move by < 1 % of the interval's width beyond this
 LEVEL = 0.95
-
-# (id, the claim in short, added after the full run?) in the scorecard's row order
-CLAIMS = [
-    ("final", "final error about the paper's value (within x1.5)", False),
-    ("rise", "the error rises temporarily during growth", False),
-    ("above_refs", "above both references during growth", True),
-    ("above_start", "above the start body during growth", True),
-    ("blend", "the relative error blends between the references", False),
-    ("after", "no degeneration after growth", False),
-    ("during", "no degeneration during growth", True),
-    ("bootstrap", "bootstrapping succeeds in every trial", False),
-    ("stages", "Fig. 2 stages: home, expanding, extremes reached", False),
-]
-TITLES = {c: t + (" (added)" if added else "") for c, t, added in CLAIMS}
+MIN_COVERAGE = 0.90  # a measure type's interval is trusted to say "not reproduced" from here
+COVERAGE = Path(__file__).parent / "coverage.csv"  # written by pipeline.studies.coverage
+TITLES = {c.id: title(c.id) for c in CLAIMS}
 REPRODUCED, NOT, INCONCLUSIVE = "reproduced", "not reproduced", "inconclusive"
 
 
-@dataclass
-class Test:
-    """One measure of one claim: `stat` of the trial means of `samples` (arrays with trials on
-    axis 0), required to lie in [lo, hi]."""
-
-    figure: str
-    claim: str
-    where: str  # which condition(s)
-    samples: list
-    stat: object  # callable(*means) -> value; vectorised over leading axes
-    lo: float = -np.inf
-    hi: float = np.inf
-    unit: str = "%"  # how the value prints: "%" (a fraction), "x" (a ratio), "mm", "rad"
-    exact: bool = False  # a count over all trials: no resampling (bootstrap claim)
-    result: dict = field(default_factory=dict)
-
-
-def interval(samples: list, stat) -> tuple[float, float, float]:
-    """(point, low, high): `stat` of the trial means and its 95 % percentile bootstrap interval
-    over trials, each sample resampled on its own; (point, nan, nan) with fewer than 2 trials."""
-    samples = [np.asarray(s, float) for s in samples]
-    point = float(stat(*[s.mean(axis=0) for s in samples]))
-    if min(len(s) for s in samples) < 2:
+def interval(values: np.ndarray) -> tuple[float, float, float]:
+    """(mean, low, high): the mean of the per-trial values and its 95 % t interval (no interval
+    for one trial)."""
+    v = np.asarray(values, float)
+    point = float(v.mean()) if len(v) else np.nan
+    if len(v) < 2:
         return point, np.nan, np.nan
-
-    def of_indices(*idx, axis=-1):
-        return stat(*[s[i].mean(axis=i.ndim - 1) for s, i in zip(samples, idx)])
-
-    res = stats.bootstrap([np.arange(len(s)) for s in samples], of_indices, vectorized=True,
-                          paired=False, n_resamples=RESAMPLES, batch=200, method="percentile",
-                          confidence_level=LEVEL, rng=np.random.default_rng(SEED))
-    return point, float(res.confidence_interval.low), float(res.confidence_interval.high)
+    half = float(stats.t.ppf(0.5 + LEVEL / 2, len(v) - 1) * v.std(ddof=1) / math.sqrt(len(v)))
+    return point, point - half, point + half
 
 
 def verdict(low: float, high: float, lo: float, hi: float) -> str:
@@ -123,136 +82,42 @@ def trials_to_decide(point: float, low: float, high: float, lo: float, hi: float
     return max(n + 1, math.ceil(n * (half / gap) ** 2))
 
 
-def run_test(t: Test) -> dict:
+def coverage_table() -> pd.DataFrame:
+    """The measured coverage per measure type and trial count (empty when never measured)."""
+    if not COVERAGE.exists():
+        return pd.DataFrame(columns=["kind", "trials", "draws", "coverage"])
+    return pd.read_csv(COVERAGE)
+
+
+def established(kind: str, n: int, table: pd.DataFrame | None = None) -> bool:
+    """Whether the interval of measure type `kind` on n trials is trusted to say "not
+    reproduced": the coverage measured at the largest trial count <= n is >= MIN_COVERAGE."""
+    t = coverage_table() if table is None else table
+    t = t[(t["kind"] == kind) & (t["trials"] <= n)]
+    return bool(len(t)) and float(t.sort_values("trials")["coverage"].iloc[-1]) >= MIN_COVERAGE
+
+
+def run_test(t: Test, table: pd.DataFrame | None = None) -> dict:
     """Measure a test and judge it; stores and returns its result."""
-    n = min(len(s) for s in t.samples)
     if t.exact:  # a count: the verdict is exact, the interval is the failure rate's
-        k, n_all = (int(v) for v in t.samples[0])
-        ci = stats.binomtest(k, n_all).proportion_ci(LEVEL) if n_all else None
-        point, low, high = (k / n_all if n_all else np.nan,
-                            ci.low if ci else np.nan, ci.high if ci else np.nan)
-        v, need = (REPRODUCED if k == 0 else NOT), None
-        n = n_all
+        k, n = (int(v) for v in t.values)
+        ci = stats.binomtest(k, n).proportion_ci(LEVEL) if n else None
+        point, low, high = (k / n if n else np.nan, ci.low if ci else np.nan,
+                            ci.high if ci else np.nan)
+        v, need, per_trial = (REPRODUCED if k == 0 else NOT), None, ""
     else:
-        point, low, high = interval(t.samples, t.stat)
+        n = len(t.values)
+        point, low, high = interval(t.values)
         v = verdict(low, high, t.lo, t.hi)
+        if (v == NOT and not established(t.kind, n, table)) or n < BY_ID[t.claim].min_trials:
+            v = INCONCLUSIVE
         need = trials_to_decide(point, low, high, t.lo, t.hi, n) if v == INCONCLUSIVE else None
-    t.result = dict(figure=t.figure, claim=t.claim, where=t.where, value=point, low=low,
-                    high=high, lo=t.lo, hi=t.hi, unit=t.unit, trials=n, verdict=v,
-                    trials_to_decide=need)
+        per_trial = " ".join(f"{x:.6g}" for x in t.values)
+    t.result = dict(figure=t.figure, claim=t.claim, diagnostic=BY_ID[t.claim].diagnostic,
+                    where=t.where, value=point, low=low, high=high, lo=t.lo, hi=t.hi,
+                    unit=t.unit, kind=t.kind, trials=n, verdict=v, trials_to_decide=need,
+                    per_trial=per_trial)
     return t.result
-
-
-# --- the measures, on trial curves ---------------------------------------------------------------
-
-def _per_trial(trials: pd.DataFrame, condition: str, column: str) -> tuple[np.ndarray, np.ndarray]:
-    """(epochs, values[trial, epoch]) of one condition's trial curves."""
-    c = trials[trials["condition"] == condition]
-    p = c.pivot(index="trial", columns="epoch", values=column).sort_index(axis=1).dropna(axis=1)
-    return p.columns.to_numpy(), p.to_numpy()
-
-
-def _at(epochs: np.ndarray, ref: tuple) -> np.ndarray:
-    """A reference's values (trial, epoch) at `epochs`; every epoch must be among its own (the
-    conditions of a figure are evaluated at the same epochs)."""
-    idx = np.searchsorted(ref[0], epochs)
-    if np.any(idx >= len(ref[0])) or not np.array_equal(ref[0][np.minimum(idx, len(ref[0]) - 1)],
-                                                          epochs):
-        raise ValueError("a reference condition lacks some epochs of the growing one")
-    return ref[1][:, idx]
-
-
-def _rebound(v):
-    """The largest rise above the running minimum, relative to it, along the last axis."""
-    return (v / np.minimum.accumulate(v, axis=-1) - 1).max(axis=-1)
-
-
-def _rise(v):
-    """The pre-set temporary rise (aggregate.rise) relative to the lowest error before it."""
-    r = v - np.minimum.accumulate(v, axis=-1)
-    i = np.argmax(r, axis=-1)[..., None]
-    top, up = np.take_along_axis(v, i, -1)[..., 0], np.take_along_axis(r, i, -1)[..., 0]
-    base = top - up
-    return np.where(base > 0, up / np.where(base > 0, base, 1), 0.0)
-
-
-def growth_tests(figure: str, trials: pd.DataFrame, summary: pd.DataFrame) -> list[Test]:
-    """The tests of every growth claim (Fig. 4, 5, 7) on one figure's trial curves, the same
-    measures and criteria as claims.growth_claims, per condition."""
-    tests = []
-    growing = summary[summary["growth"] != "none"]
-    refs = summary[summary["growth"] == "none"].sort_values("end_size")
-    paper = summary["paper_final_abs_error"].iloc[0] if len(summary) else np.nan
-    abs_, rel = {}, {}
-    for c in summary["condition"]:
-        abs_[c], rel[c] = _per_trial(trials, c, "abs_error"), _per_trial(trials, c, "rel_error")
-    if np.isfinite(paper):
-        for c in summary["condition"]:
-            tests.append(Test(figure, "final", c, [abs_[c][1][:, -1]], lambda m: m / paper,
-                              1 / FACTOR, FACTOR, unit="x"))
-    two_refs = len(refs) == 2
-    if two_refs:
-        short, long_ = refs["condition"]
-    for r in growing.itertuples():
-        ep, g = abs_[r.condition]
-        _, gr = rel[r.condition]
-        during = ep <= r.growth_period + 1
-        after = ep >= r.growth_period + 1
-        where = r.condition
-        required = r.growth_period <= 1000
-        if required:
-            tests.append(Test(figure, "rise", where, [g[:, during]], _rise, RISE, np.inf))
-        if two_refs and required:
-            s_, l_ = _at(ep[during], abs_[short]), _at(ep[during], abs_[long_])
-            tests.append(Test(figure, "above_refs", where, [g[:, during], s_, l_],
-                              lambda m, s, l: (m / np.maximum(s, l) - 1).max(axis=-1),
-                              RISE, np.inf))
-            tests.append(Test(figure, "above_start", where, [g[:, during], s_],
-                              lambda m, s: (m / s - 1).max(axis=-1), RISE, np.inf))
-        if two_refs:
-            s_, l_ = _at(ep, rel[short]), _at(ep, rel[long_])
-
-            def blend(m, s, l):
-                up = np.maximum(s, l)
-                return np.maximum(((m - up) / up).max(axis=-1), np.abs(m[..., -1] / l[..., -1] - 1))
-            tests.append(Test(figure, "blend", where, [gr, s_, l_], blend, -np.inf, EXCESS))
-        if after.sum() >= 2:
-            tests.append(Test(figure, "after", where + " rebound", [gr[:, after]], _rebound,
-                              -np.inf, EXCESS))
-            tests.append(Test(figure, "after", where + " end / start", [gr[:, after]],
-                              lambda m: m[..., -1] / m[..., 0], -np.inf, 1.0 - 1e-12, unit="x"))
-        tests.append(Test(figure, "during", where, [gr[:, during]], _rebound, -np.inf, EXCESS))
-    fails = int(summary["n_bootstrap_failures"].sum() + summary["n_run_failures"].sum()
-                + summary.get("n_diverged", pd.Series(dtype=int)).sum())
-    total = int(summary["n_trials"].sum() + summary["n_run_failures"].sum()
-                + summary.get("n_diverged", pd.Series(dtype=int)).sum())
-    tests.append(Test(figure, "bootstrap", f"{fails} of {total} trials failed",
-                      [np.array([fails, total])], None, unit="rate", exact=True))
-    return tests
-
-
-def stage_tests(figure: str, spec: dict, trials: list[list]) -> list[Test]:
-    """Fig. 2 (claims.stage_claims) over trials: `trials` holds each trial's M per stage. The
-    mean over trials of the start's deviation from home <= 0.2 rad, of the growth of the spread
-    from stage to stage > 0, and of the error at the worst extreme < 5 cm."""
-    body, size, pattern, predict = final_body(spec)
-    xs = body.target_set(size)
-    spread, extreme = [], []
-    for stages in trials:
-        s = []
-        for M in stages:
-            q = predict(M, xs)
-            s.append(float(np.abs(q - body.home).max()))
-        err = np.linalg.norm(body.forward(q, factors(body, size, pattern)) - xs, axis=-1)
-        spread.append(s)
-        extreme.append(float(max(err[0], err[-1])))
-    spread, extreme = np.array(spread), np.array(extreme)
-    return [Test(figure, "stages", "start: deviation from home", [spread[:, 0]], lambda m: m,
-                 -np.inf, 0.2, unit="rad"),
-            Test(figure, "stages", "smallest growth of the spread", [spread],
-                 lambda m: np.diff(m, axis=-1).min(axis=-1), 1e-12, np.inf, unit="rad"),
-            Test(figure, "stages", "final error at the extremes", [extreme], lambda m: m,
-                 -np.inf, 0.05 - 1e-12, unit="mm")]
 
 
 # --- cells, tables, figure -------------------------------------------------------------------------
@@ -264,7 +129,7 @@ def fmt(value: float, unit: str) -> str:
         return f"{100 * value:+.0f} %"
     if unit == "rate":
         return f"{100 * value:.0f} %"
-    if unit == "mm":
+    if unit == "m":  # a length, stored in metres, printed in mm
         return f"{1000 * value:.1f} mm"
     if unit == "rad":
         return f"{value:.2f} rad"
@@ -288,30 +153,31 @@ def criterion(r: dict) -> str:
     return (f"> {fmt(lo, r['unit'])}" if np.isfinite(lo) else f"< {fmt(hi, r['unit'])}")
 
 
+def _margin(g: pd.DataFrame) -> pd.Series:
+    """How far each measure's point lies inside its criterion, relative to the bound's size
+    (negative: outside); the worst condition of a cell has the smallest."""
+    def rel(d, b):
+        return d / np.maximum(np.abs(b.where(np.isfinite(b), 1.0)), 1e-2)
+    return np.minimum(rel(g["value"] - g["lo"], g["lo"]), rel(g["hi"] - g["value"], g["hi"]))
+
+
 def cells(results: list[dict]) -> pd.DataFrame:
     """One cell per (claim, figure): the verdict of all its measures (not reproduced if any is,
-    else inconclusive if any is, else reproduced) and the measure that decides it."""
+    else inconclusive if any is, else reproduced), how many are reproduced (k of n), and the
+    worst measure (the smallest margin to the criterion), which the cell shows."""
     df = pd.DataFrame(results)
     rows = []
     for (claim, figure), g in df.groupby(["claim", "figure"], sort=False):
         vs = g["verdict"].tolist()
-        if NOT in vs:
-            v, pick = NOT, g[g["verdict"] == NOT].iloc[0]
-        elif INCONCLUSIVE in vs:
-            inc = g[g["verdict"] == INCONCLUSIVE]
-            need = inc["trials_to_decide"].map(lambda x: np.inf if x is None or pd.isna(x) else x)
-            v, pick = INCONCLUSIVE, inc.loc[need.idxmax()]
-        else:
-            span = (g["high"] - g["low"]).abs().replace(0, 1e-300)
-            margin = np.minimum((g["low"] - g["lo"]) / span, (g["hi"] - g["high"]) / span)
-            v, pick = REPRODUCED, g.loc[margin.fillna(np.inf).idxmin()]
+        v = NOT if NOT in vs else INCONCLUSIVE if INCONCLUSIVE in vs else REPRODUCED
+        pick = g.loc[_margin(g).fillna(-np.inf).idxmin()]
         need = pick["trials_to_decide"]
-        rows.append(dict(claim=claim, figure=figure, verdict=v, where=pick["where"],
-                         value=pick["value"], low=pick["low"], high=pick["high"],
-                         unit=pick["unit"], trials=int(pick["trials"]),
+        rows.append(dict(claim=claim, figure=figure, diagnostic=bool(BY_ID[claim].diagnostic),
+                         verdict=v, where=pick["where"], value=pick["value"], low=pick["low"],
+                         high=pick["high"], unit=pick["unit"], trials=int(pick["trials"]),
                          trials_to_decide=None if need is None or pd.isna(need) else int(need),
-                         measures=len(g), counts=f"{vs.count(REPRODUCED)}/{vs.count(NOT)}/"
-                                                 f"{vs.count(INCONCLUSIVE)}"))
+                         reproduced=vs.count(REPRODUCED), measures=len(g),
+                         per_trial=pick.get("per_trial", "")))
     return pd.DataFrame(rows)
 
 
@@ -322,46 +188,65 @@ def _need(r: dict) -> int | None:
 
 
 def cell_text(c, newline: str = " ") -> str:
-    """'not reproduced' + the deciding measure, its value and interval (+ trials to decide)."""
+    """'not reproduced', k of n, the worst measure: its value and interval (+ trials to
+    decide)."""
     r = dict(c)
-    text = f"**{r['verdict']}**{newline}{r['where']}: {fmt(r['value'], r['unit'])} {fmt_interval(r)}"
+    text = f"**{r['verdict']}**"
+    if r.get("measures", 1) > 1:
+        text += f" ({r['reproduced']} of {r['measures']} reproduced)"
+    text += f"{newline}worst: {r['where']}: {fmt(r['value'], r['unit'])} {fmt_interval(r)}"
     if r["verdict"] == INCONCLUSIVE and _need(r):
         text += f"{newline}~{_need(r)} trials would decide"
     return text
 
 
 def _order(cards: pd.DataFrame) -> tuple[list, list]:
-    claims = [c for c, _, _ in CLAIMS if c in set(cards["claim"])]
+    claims = [c.id for c in CLAIMS if c.id in set(cards["claim"])]
     figs = sorted(set(cards["figure"]))
     return claims, figs
 
 
-def reading(claim: str, row: pd.DataFrame) -> str:
-    """'our reading' of a claim over the figures, in one line, from its verdicts alone."""
-    vs = set(row["verdict"])
-    if vs == {REPRODUCED}:
-        return "reproduced on every figure"
-    if vs == {NOT}:
-        return "not reproduced on any figure, beyond the trials' spread"
-    parts = [f"{v} on {', '.join(row[row['verdict'] == v]['figure'])}"
-             for v in (REPRODUCED, NOT, INCONCLUSIVE) if v in vs]
-    return "; ".join(parts)
+def headline(cards: pd.DataFrame, counted=None) -> dict:
+    """Cells per verdict over the paper's claims (no diagnostics) on the counted figures (None:
+    every figure): each claim of the paper once per figure it is judged on."""
+    c = cards[~cards["diagnostic"].astype(bool)]
+    if counted is not None:
+        c = c[c["figure"].isin(counted)]
+    return {v: int((c["verdict"] == v).sum()) for v in (REPRODUCED, NOT, INCONCLUSIVE)}
 
 
-def markdown(cards: pd.DataFrame, results: list[dict]) -> str:
-    """The scorecard (claims x figures) and, below it, every measure with its interval."""
+def claims_table(cards: pd.DataFrame) -> pd.DataFrame:
+    """claims.csv: one row per cell, the claim's words, criterion and measure from the table of
+    claims, and the cell's verdict, worst condition and k of n, from the same results as
+    scorecard.csv."""
+    rows = []
+    for r in cards.to_dict("records"):
+        c = BY_ID[r["claim"]]
+        rows.append(dict(figure=r["figure"], claim=r["claim"], words=c.words,
+                         diagnostic=c.diagnostic, criterion=c.criterion, measure=c.measure,
+                         verdict=r["verdict"], reproduced=r["reproduced"],
+                         measures=r["measures"], worst=r["where"],
+                         measured=f"{fmt(r['value'], r['unit'])} {fmt_interval(r)}",
+                         trials=r["trials"]))
+    return pd.DataFrame(rows)
+
+
+def markdown(cards: pd.DataFrame, results: list[dict], counted=None, readings=None) -> str:
+    """The scorecard (claims x figures) and, below it, every measure with its interval.
+    counted: the figures the headline counts; readings: claim -> our reading (written text)."""
     claims, figs = _order(cards)
-    n = {v: int((cards["verdict"] == v).sum()) for v in (REPRODUCED, NOT, INCONCLUSIVE)}
-    lines = [f"{len(cards)} claim cells: **{n[REPRODUCED]} reproduced, {n[NOT]} not reproduced, "
-             f"{n[INCONCLUSIVE]} inconclusive** (95 % percentile bootstrap intervals over "
-             f"trials; \"(added)\": a measure added after the full run, beside the pre-set ones).",
+    n = headline(cards, counted)
+    where = "" if counted is None else f" on {', '.join(sorted(counted))}"
+    lines = [f"The paper's claims{where}: **{n[REPRODUCED]} reproduced, {n[NOT]} not reproduced, "
+             f"{n[INCONCLUSIVE]} inconclusive** (95 % t intervals of the mean over trials of a "
+             "per-trial measure; diagnostics, marked, are shown and not counted).",
              "", "| claim of the paper | " + " | ".join(figs) + " | our reading |",
              "|---|" + "---|" * (len(figs) + 1)]
     for claim in claims:
         row = cards[cards["claim"] == claim]
         by = {r.figure: cell_text(r._asdict(), "<br>") for r in row.itertuples()}
         lines.append(f"| {TITLES[claim]} | " + " | ".join(by.get(f, "—") for f in figs)
-                     + f" | {reading(claim, row)} |")
+                     + f" | {(readings or {}).get(claim, '')} |")
     lines += ["", "<details><summary>every measure, its 95 % interval and criterion</summary>", "",
               "| figure | claim | measure | value | 95 % interval | criterion | trials | verdict "
               "| trials to decide |", "|---|---|---|---|---|---|---|---|---|"]
@@ -396,7 +281,8 @@ def figure(cards: pd.DataFrame, title: str):
                 continue
             c = hit.iloc[0].to_dict()
             ax.add_patch(plt.Rectangle((j, i), 1, 1, fc=COLOURS[c["verdict"]], ec="white", lw=2))
-            text = f"{c['where']}: {fmt(c['value'], c['unit'])} {fmt_interval(c)}"
+            text = (f"{c['reproduced']} of {c['measures']} reproduced; " if c["measures"] > 1
+                    else "") + f"worst: {c['where']}: {fmt(c['value'], c['unit'])} {fmt_interval(c)}"
             if c["verdict"] == INCONCLUSIVE and _need(c):
                 text += f"; ~{_need(c)} trials would decide"
             ax.text(j + 0.5, i + 0.3, c["verdict"], ha="center", va="center", fontsize=8,
@@ -413,7 +299,7 @@ def figure(cards: pd.DataFrame, title: str):
     return fig
 
 
-def results(aggs: dict, stages: dict | None = None) -> list[dict]:
+def results(aggs: dict, stages: dict | None = None, table: pd.DataFrame | None = None) -> list[dict]:
     """Every test of every figure that declares the paper's claims (aggs: figure -> aggregate with
     its trials), and of Fig. 2's stages (`stages`: figure, spec, per-trial Ms), measured."""
     tests = []
@@ -422,4 +308,5 @@ def results(aggs: dict, stages: dict | None = None) -> list[dict]:
             tests += growth_tests(name, agg["trials"], agg["summary"])
     if stages:
         tests += stage_tests(stages["figure"], stages["spec"], stages["trials"])
-    return [run_test(t) for t in tests]
+    table = coverage_table() if table is None else table
+    return [run_test(t, table) for t in tests]

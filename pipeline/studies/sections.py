@@ -1,0 +1,93 @@
+"""The report's sections: a registry the report stage loops over.
+
+Each experiment declares its study in its config (`paper.study`, next to `paper.claims`;
+"figures" unless it says otherwise). A study's section is a function registered here under
+that name with its place in the report; it gets a Context (the settings, the output folder,
+every study's aggregates) and returns its Markdown lines, writing its files through the
+Context. Adding a study is one module that registers its section, and its experiments.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+DEFAULT = "figures"
+SECTIONS: dict[str, tuple[int, object]] = {}  # study -> (place in the report, section)
+
+
+def register(study: str, place: int):
+    """Register `section(ctx) -> list[str]` as the section of `study`, at `place` (ascending)."""
+    def deco(fn):
+        SECTIONS[study] = (place, fn)
+        return fn
+    return deco
+
+
+def study_of(agg: dict) -> str:
+    return agg["models"].get("paper", {}).get("study") or DEFAULT
+
+
+def _load() -> None:
+    """Import every module of the studies package: each registers its section when imported,
+    so a new study needs no edit anywhere else."""
+    import importlib
+    import pkgutil
+
+    for m in pkgutil.iter_modules([str(Path(__file__).parent)]):
+        if m.name != "__main__":
+            importlib.import_module(f"{__package__}.{m.name}")
+
+
+def group(aggs: dict) -> dict:
+    """study -> {figure: aggregate}, by each experiment's declared study. A study no section is
+    registered for is a ValueError naming it."""
+    _load()
+    out = {}
+    for name, agg in aggs.items():
+        s = study_of(agg)
+        if s not in SECTIONS:
+            raise ValueError(f"{name}: paper.study={s!r} names no report section (known: "
+                             f"{', '.join(sorted(SECTIONS))})")
+        out.setdefault(s, {})[name] = agg
+    return out
+
+
+@dataclass
+class Context:
+    cfg: object
+    out: Path
+    title: str
+    groups: dict  # study -> {figure: aggregate}
+    written: list = field(default_factory=list)
+
+    def of(self, study: str) -> dict:
+        return self.groups.get(study, {})
+
+    def text(self, name: str, text: str) -> Path:
+        from .. import io
+
+        io.write_text(self.out / name, text)
+        self.written.append(self.out / name)
+        return self.out / name
+
+    def save(self, fig, stem: str) -> list[Path]:
+        """A figure as PNG and PDF (figures.save); returns the paths, PNG first."""
+        from . import figures
+
+        paths = figures.save(fig, self.out / stem, self.cfg.report.dpi)
+        self.written.extend(paths)
+        return paths
+
+
+def run(ctx: Context) -> list[str]:
+    """Every registered section in its place: the report's Markdown lines."""
+    _load()
+    md = []
+    for _, section in sorted(SECTIONS.values(), key=lambda s: s[0]):
+        md += section(ctx)
+    return md
+
+
+def declares_claims(agg: dict) -> bool:
+    """Whether the figure's experiment declares the paper's claims (paper.claims: true)."""
+    return bool(agg["models"].get("paper", {}).get("claims", False))

@@ -1,0 +1,54 @@
+"""A report of one's own figure: what made it, no paper boilerplate, and one figure's report
+never removes another's."""
+from pathlib import Path
+
+from pipeline import aggregate, report, simulate
+
+
+def test_two_figures_reports_one_after_the_other_are_both_found(tmp_path, compose_tiny):
+    cfgs = {name: compose_tiny(tmp_path, f"figure={name}", "growth=none", *extra)
+            for name, extra in (("vsweep", ["learner.radius=0.15"]), ("grid", []))}
+    for name, cfg in cfgs.items():
+        simulate.simulate(cfg)
+        aggregate.aggregate(cfg, True)
+    for name, cfg in cfgs.items():
+        report.report(cfg, explicit=True)
+    root = Path(cfgs["grid"].paths.report)
+    for name in cfgs:
+        text = (root / name / "report.md").read_text()
+        assert (root / name / f"{name}_curves.png").stat().st_size > 0
+        assert all((root / name / f).exists() for f in report.listed_files(root / name / "report.md"))
+        assert "make reproduce" not in text and "Discussion" not in text
+    own = (root / "vsweep" / "report.md").read_text()
+    assert "learner.radius=0.15" in own  # the setting that made it, per condition
+    assert "learner.radius" not in (root / "grid" / "report.md").read_text()
+
+
+def test_a_toy_study_joins_the_report_through_the_registry(tmp_path, compose_tiny, monkeypatch):
+    import pytest
+
+    from pipeline.studies import sections
+
+    monkeypatch.setattr(sections, "SECTIONS", dict(sections.SECTIONS))
+    sections._load()
+
+    @sections.register("toy", 99)
+    def toy(ctx):
+        figs = ctx.of("toy")
+        if not figs:
+            return []
+        ctx.text("toy.csv", "figure\n" + "\n".join(figs) + "\n")
+        return ["## A toy study", "", f"{len(figs)} figure(s): {', '.join(figs)}", ""]
+
+    cfg = compose_tiny(tmp_path, "figure=toyfig", "growth=none", "paper.study=toy")
+    simulate.simulate(cfg)
+    aggregate.aggregate(cfg)
+    report.report(cfg)
+    out = Path(cfg.paths.report)
+    text = (out / "report.md").read_text()
+    assert "## A toy study" in text and "1 figure(s): toyfig" in text
+    assert "toy.csv" in report.listed_files(out / "report.md")
+    assert "toyfig_curves.png" not in report.listed_files(out / "report.md")  # not a figure
+    del sections.SECTIONS["toy"]
+    with pytest.raises(ValueError, match="paper.study='toy' names no report section"):
+        sections.group(report.load_aggregates(cfg.paths.aggregate))
