@@ -191,12 +191,19 @@ def read_json(path, need: tuple = ()) -> dict:
     """The JSON object in `path`, with the keys `need`; DamagedFile naming the file if it is not
     one (FileNotFoundError if it is missing)."""
     try:
-        obj = json.loads(Path(path).read_bytes())
+        raw = Path(path).read_bytes()
+    except IsADirectoryError:
+        raise DamagedFile(f"{path}: a folder, not a JSON file") from None
+    return parse_json(raw, path, need)
+
+
+def parse_json(raw: bytes, path, need: tuple = ()) -> dict:
+    """read_json on the bytes `raw` of the file `path` (named in the error)."""
+    try:
+        obj = json.loads(raw)
     except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as err:
         raise DamagedFile(f"{path}: damaged, not valid JSON ({type(err).__name__}: "
                           f"{str(err)[:80]})") from None
-    except IsADirectoryError:
-        raise DamagedFile(f"{path}: a folder, not a JSON file") from None
     if not isinstance(obj, dict):
         raise DamagedFile(f"{path}: damaged, not a JSON object")
     missing = [k for k in need if k not in obj]
@@ -223,6 +230,20 @@ def read_table(path, columns=None, schema: pa.Schema | None = None) -> pa.Table:
             raise  # a fault of the place (permissions), not of the file
         raise DamagedFile(f"{path}: damaged, not a readable Parquet file "
                           f"({str(err).splitlines()[0][:80]})") from None
+    return _has_columns(table, path, schema)
+
+
+def parse_table(data: bytes, path, schema: pa.Schema | None = None) -> pa.Table:
+    """read_table on the bytes `data` of the file `path` (named in the error)."""
+    try:
+        table = pq.read_table(pa.BufferReader(data))
+    except pa.ArrowException as err:
+        raise DamagedFile(f"{path}: damaged, not a readable Parquet file "
+                          f"({str(err).splitlines()[0][:80]})") from None
+    return _has_columns(table, path, schema)
+
+
+def _has_columns(table: pa.Table, path, schema: pa.Schema | None) -> pa.Table:
     if schema is not None and not set(schema.names) <= set(table.column_names):
         missing = sorted(set(schema.names) - set(table.column_names))
         raise DamagedFile(f"{path}: damaged, lacks the columns {', '.join(missing)}")
