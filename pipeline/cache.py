@@ -113,14 +113,14 @@ def write_trial(cache_dir, trial: dict, result: dict) -> None:
         record.update(error=result["error"], epoch=result["epoch"])
         curve.unlink(missing_ok=True)
     else:
-        io.write_table(curve, io.trial_curve_table(result))
-        record["curve_sha256"] = io.sha256_file(curve)
+        record["curve_sha256"] = io.write_table(curve, io.trial_curve_table(result))
         record["largest_jump"] = float(result["largest_jump"])
         M = result["M"]
         record["M"] = None if M is None else np.asarray(M).tolist()
         record["snapshots"] = {str(e): np.asarray(m).tolist()
                                for e, m in sorted(result["snapshots"].items())}
-    io.write_json(side, io.seal(record))  # timing is left out: the sidecar's bytes must not vary
+    # compact: the sidecar is read by programs; timing is left out: its bytes must not vary
+    io.write_json(side, io.seal(record), compact=True)
 
 
 def read_curve(cache_dir, trial: dict):

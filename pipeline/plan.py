@@ -182,7 +182,7 @@ def check_reach(body_json: str) -> None:
 
 
 # ---- planned runs: a fully planned command plans nothing again ----------------------------------
-PLANNED = "planned"  # under paths.cache: <digest>.json, the jobs one command line planned
+PLANNED = "planned"  # paths.out/planned/<digest>.json: a command's jobs (the cache holds trials)
 _PLAN_SOURCES = (("conf", ("*.yaml",)), ("pipeline", ("*.py",)),
                  ("gbmodel", ("*.py", "*.yaml", "*.urdf", "*.json")))
 

@@ -73,10 +73,10 @@ def jobs_of(cfg: DictConfig, overrides: list[str] = ()) -> list[Job]:
     """The figures this run plans: the config's own, or with `experiments=[a, b]` each of those
     experiments composed with the same other overrides (make smoke / make reproduce plan every
     experiment in one process). A command planned before (the same plan_digest: config,
-    overrides, config files and code) takes its jobs from paths.cache/planned/ instead of
+    overrides, config files and code) takes its jobs from paths.out/planned/ instead of
     composing and planning again; the run's own settings are checked either way."""
     experiment = None if cfg.get("experiments") else _experiment_of(cfg)
-    saved = Path(cfg.paths.cache) / PLANNED / f"{plan_digest(cfg, [overrides, experiment])}.json"
+    saved = Path(cfg.paths.out) / PLANNED / f"{plan_digest(cfg, [overrides, experiment])}.json"
     try:
         jobs = [Job(**j) for j in io.read_json(saved, need=("jobs",))["jobs"]]
     except (OSError, ValueError, TypeError):
@@ -85,7 +85,7 @@ def jobs_of(cfg: DictConfig, overrides: list[str] = ()) -> list[Job]:
         check_run(cfg)
         return jobs
     jobs = plan_jobs(cfg, overrides, experiment)
-    io.write_json(saved, dict(jobs=[vars(j) for j in jobs]))
+    io.write_json(saved, dict(jobs=[vars(j) for j in jobs]), compact=True)
     return jobs
 
 

@@ -1,4 +1,4 @@
-"""A command planned before takes its plan from paths.cache/planned/: no compose, no planning,
+"""A command planned before takes its plan from paths.out/planned/: no compose, no planning,
 the same trials; anything that changes the plan's inputs plans again."""
 import json
 from pathlib import Path
@@ -23,7 +23,7 @@ def composes(monkeypatch):
 
 
 def saved(cfg) -> list[Path]:
-    return sorted((Path(cfg.paths.cache) / plan.PLANNED).glob("*.json"))
+    return sorted((Path(cfg.paths.out) / plan.PLANNED).glob("*.json"))
 
 
 def test_a_planned_command_is_not_composed_again_and_gives_the_same_trials(

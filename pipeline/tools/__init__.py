@@ -1,0 +1,1 @@
+"""Tools that measure the pipeline (benchmarks): `python -m pipeline.tools.<name>`."""
