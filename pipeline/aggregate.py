@@ -13,6 +13,9 @@ paths.aggregate/<figure>/:
     models.json       per condition and trial: the final model M and its snapshots
     manifest.json     the digest of the inputs (conditions, trials' seals, code): unchanged
                       inputs leave the figure as it is
+    index.parquet     per trial: its files' signature (pipeline.cache.signature), seal, status
+                      and rows in trials.parquet; the next run reads only the trials whose
+                      files changed and takes the others from this set
 Only the trials of the plan are read, so stale cache entries never mix in. A trial that diverged
 or failed is counted as such and left out of every mean; a damaged or missing file is named.
 """

@@ -103,6 +103,60 @@ def sweep(code: Path, size: int, epochs: int, workers: int, keep: bool) -> dict:
             shutil.rmtree(root, ignore_errors=True)
 
 
+def packing(n: int, rows: int = 11) -> dict:
+    """The cache's file layout against a packed one, on `n` synthetic trial curves of `rows`
+    epochs (TRIAL_CURVE) and their sidecars: files, bytes, and ms per trial to write them and to
+    read and checksum them back. per_trial: a Parquet curve and a JSON sidecar each (the cache);
+    packed: one Parquet of every curve (a key column) and one JSON of every sidecar."""
+    import hashlib
+
+    import numpy as np
+    import pyarrow as pa
+
+    rng = np.random.default_rng(0)
+    curves = [pa.table({f.name: pa.array(rng.integers(1, 10, rows) if pa.types.is_integer(
+        f.type) else rng.random(rows), f.type) for f in io.TRIAL_CURVE}) for _ in range(n)]
+    keys = [f"{i:020x}" for i in range(n)]
+    sides = [dict(key=k, M=rng.random((2, 5)).tolist(), status="ok") for k in keys]
+    out = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        one = Path(tmp) / "per_trial"
+        t0 = time.process_time()
+        for k, c, side in zip(keys, curves, sides):
+            side = dict(side, curve_sha256=io.write_table(one / k[:2] / f"{k}.parquet", c))
+            io.write_json(one / k[:2] / f"{k}.json", io.seal(side), compact=True)
+        t1 = time.process_time()
+        for k in keys:
+            data = (one / k[:2] / f"{k}.parquet").read_bytes()
+            side = io.check_seal(io.parse_json((one / k[:2] / f"{k}.json").read_bytes(), k))
+            assert hashlib.sha256(data).hexdigest() == side["curve_sha256"]
+            io.parse_table(data, k)
+        t2 = time.process_time()
+        out["per_trial"] = dict(files=files_under(one), write_ms=1e3 * (t1 - t0) / n,
+                                read_ms=1e3 * (t2 - t1) / n)
+        packed = Path(tmp) / "packed"
+        t0 = time.process_time()
+        table = pa.concat_tables([c.append_column("key", pa.array([k] * rows))
+                                  for k, c in zip(keys, curves)])
+        digest = io.write_table(packed / "curves.parquet", table)
+        io.write_json(packed / "sidecars.json", io.seal(dict(curves_sha256=digest, trials=sides)),
+                      compact=True)
+        t1 = time.process_time()
+        data = (packed / "curves.parquet").read_bytes()
+        side = io.check_seal(io.parse_json((packed / "sidecars.json").read_bytes(), "pack"))
+        assert hashlib.sha256(data).hexdigest() == side["curves_sha256"]
+        io.parse_table(data, "pack")
+        t2 = time.process_time()
+        out["packed"] = dict(files=files_under(packed), write_ms=1e3 * (t1 - t0) / n,
+                             read_ms=1e3 * (t2 - t1) / n)
+        for name, folder in (("per_trial", one), ("packed", packed)):
+            out[name]["mb"] = round(sum(p.stat().st_size for p in folder.rglob("*")
+                                        if p.is_file()) / 2**20, 2)
+            out[name] = {k: round(v, 4) if isinstance(v, float) else v
+                         for k, v in out[name].items()}
+    return out
+
+
 def table(results: list[dict]) -> str:
     head = f"{'checkout':<28} {'trials':>7} {'stage':<17} {'wall s':>8} {'CPU s':>8} " \
            f"{'ms CPU/trial':>12} {'peak MB':>8} {'files':>7}"
@@ -130,7 +184,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--baseline", type=Path, help="another checkout to run beside this one")
     ap.add_argument("--out", type=Path, default=REPO / "outputs" / "bench" / "scale.json")
     ap.add_argument("--keep", action="store_true", help="keep the temporary roots")
+    ap.add_argument("--packing", type=int, metavar="N",
+                    help="instead: the cache's files against one packed file, for N trials")
     a = ap.parse_args(argv)
+    if a.packing is not None:
+        if a.packing < 1:
+            print(f"error: --packing={a.packing}: at least 1 trial", file=sys.stderr)
+            return 2
+        print(json.dumps(dict(trials=a.packing, **packing(a.packing), machine=load()), indent=1))
+        return 0
     try:
         sizes = [int(s) for s in a.sizes.split(",")]
     except ValueError:
