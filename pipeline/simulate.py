@@ -78,15 +78,40 @@ def jobs_of(cfg: DictConfig, overrides: list[str] = ()) -> list[Job]:
     experiment = None if cfg.get("experiments") else _experiment_of(cfg)
     saved = Path(cfg.paths.out) / PLANNED / f"{plan_digest(cfg, [overrides, experiment])}.json"
     try:
-        jobs = [Job(**j) for j in io.read_json(saved, need=("jobs",))["jobs"]]
-    except (OSError, ValueError, TypeError):
+        jobs = unpack_jobs(io.read_json(saved, need=("jobs", "specs")))
+    except (OSError, ValueError, TypeError, KeyError, IndexError):
         jobs = None
     if jobs is not None:
         check_run(cfg)
         return jobs
     jobs = plan_jobs(cfg, overrides, experiment)
-    io.write_json(saved, dict(jobs=[vars(j) for j in jobs]), compact=True)
+    io.write_json(saved, pack_jobs(jobs), compact=True)
     return jobs
+
+
+def pack_jobs(jobs: list[Job]) -> dict:
+    """Jobs as plain data, each distinct trial spec once (a condition's trials share theirs):
+    a sweep of 100,000 trials stores its few conditions' specs, not 100,000 copies."""
+    specs, index, seen = [], {}, {}  # seen: by object (a plan shares a condition's spec)
+    out = []
+    for j in jobs:
+        trials = []
+        for t in j.trials:
+            ix = seen.get(id(t["spec"]))
+            if ix is None:
+                ix = index.setdefault(io.dump_json(t["spec"]), len(specs))
+                seen[id(t["spec"])] = ix
+                if ix == len(specs):
+                    specs.append(t["spec"])
+            trials.append({**{k: v for k, v in t.items() if k != "spec"}, "spec": ix})
+        out.append({**vars(j), "trials": trials})
+    return dict(specs=specs, jobs=out)
+
+
+def unpack_jobs(saved: dict) -> list[Job]:
+    specs = saved["specs"]
+    return [Job(**{**j, "trials": [{**t, "spec": specs[t["spec"]]} for t in j["trials"]]})
+            for j in saved["jobs"]]
 
 
 def plan_jobs(cfg: DictConfig, overrides, experiment: str | None) -> list[Job]:

@@ -64,3 +64,13 @@ def test_the_digest_follows_the_planning_sources(tmp_path, compose_tiny, monkeyp
     before = plan.plan_digest(cfg, [])
     monkeypatch.setattr(plan, "planning_sources", lambda: "other code")
     assert plan.plan_digest(cfg, []) != before
+
+
+def test_a_conditions_spec_is_stored_once(tmp_path, compose_tiny):
+    cfg = compose_tiny(tmp_path, "trials.count=5", "conditions.references=[0.5]")
+    jobs = simulate.jobs_of(cfg)
+    (path,) = saved(cfg)
+    stored = json.loads(path.read_text())
+    assert len(stored["specs"]) == 2 and len(jobs[0].trials) == 10
+    assert [vars(j) for j in simulate.unpack_jobs(stored)] == json.loads(io.dump_json(
+        [vars(j) for j in jobs]))
