@@ -38,8 +38,8 @@ TRIALS, PLANS, FAILED = "trials", "plans", "failed"
 
 def trial_paths(cache_dir, trial: dict) -> tuple[Path, Path]:
     key = trial["key"]
-    folder = Path(cache_dir) / TRIALS / key[:2]
-    return folder / f"{key}.parquet", folder / f"{key}.json"
+    stem = os.path.join(cache_dir, TRIALS, key[:2], key)  # strings first: pathlib's joins cost
+    return Path(f"{stem}.parquet"), Path(f"{stem}.json")
 
 
 def failure_path(cache_dir, trial: dict) -> Path:
