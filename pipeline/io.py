@@ -219,10 +219,10 @@ def parse_json(raw: bytes, path, need: tuple = ()) -> dict:
 def write_table(path, table: pa.Table) -> str:
     """Parquet with fixed settings and no timestamps: the same table gives the same bytes.
     Returns the SHA-256 of the bytes written (no second read to checksum them)."""
-    sink = pa.BufferOutputStream()
-    pq.write_table(table, sink, compression="zstd", compression_level=3)
-    data = sink.getvalue()
-    with atomic_file(path) as fh:
+    with atomic_file(path) as fh:  # an error (a full disk) names `path`
+        sink = pa.BufferOutputStream()
+        pq.write_table(table, sink, compression="zstd", compression_level=3)
+        data = sink.getvalue()
         fh.write(data)
     return hashlib.sha256(data).hexdigest()
 
