@@ -60,7 +60,7 @@ choices: ## the open-choices experiments only (choices_*), then aggregate and re
 	@$(MAKE) --no-print-directory pipeline FIGURES="$(CHOICES)"
 
 bench: $(STAMP) ## time the fast path against the numpy reference (outputs/bench/bench.json)
-	$(PY) -m pipeline.bench $(ARGS)
+	$(PY) -m pipeline.tools.bench $(ARGS)
 
 scale: $(STAMP) ## time sweeps of 1,000 and 10,000 short trials stage by stage (outputs/bench/scale.json; ARGS="--baseline DIR")
 	$(PY) -m pipeline.tools.scale $(ARGS)

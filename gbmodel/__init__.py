@@ -15,8 +15,9 @@ from .bodies import Body, make_body, shipped
 BODIES = shipped()  # the names of the shipped bodies (conf/body/*.yaml)
 from .evaluation import eval_epochs
 from .features import exponents, feature_bounds, features
-from .growth import PATTERNS as GROWTH_PATTERNS, Growth, SpecError
-from .learners.goal_babbling.reference import predict
+from .growth import PATTERNS as GROWTH_PATTERNS, Growth
+from .spec import SpecError
+from .inverse import predict
 from .trial import Diverged, TrialResult, TrialSpec, run_trial
 
 __all__ = [

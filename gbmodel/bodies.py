@@ -3,7 +3,8 @@ kinematics, DH rows or a URDF's chain (gbmodel/urdf.py); this module holds the g
 no body's numbers.
 
 A body knows its full-size chain, its joint limits, its home posture, its target set and which
-segments grow. Growth is a new description (scaled lengths), never new kinematics code.
+segments grow. Growth is a new description (per-segment length factors, which gbmodel.growth
+computes), never new kinematics code.
 
 Commands q are what the inverse estimate outputs. For the planar arms they are joint angles in
 radians. For the iCub they are normalised (paper sec. 3.3): q_i in [-1, 1] maps linearly onto
@@ -14,8 +15,9 @@ taken (the saturated one): that is the only posture whose outcome was observed.
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
+from dataclasses import MISSING, dataclass, field, fields
 from pathlib import Path
+from typing import Any, Optional
 
 import numpy as np
 import yaml
@@ -90,61 +92,53 @@ class Body:
             q = self.q_min + 0.5 * (q + 1.0) * (self.q_max - self.q_min)
         return q + self.theta_offset
 
-    # ---- growth ----------------------------------------------------------------------------------
-    def segment_scale(self, size, pattern: str = "proportional", fixed: float = 1.0) -> np.ndarray:
-        """Per-joint length factors (..., m) when the body has `size` (scalar or array) times
-        its full total length.
+    # ---- kinematics ------------------------------------------------------------------------------
+    def _factors(self, factors) -> np.ndarray:
+        """Per-segment length factors (m,) or (..., m): the full-size body's ones when None
+        (gbmodel.growth.factors maps a size and a growth pattern to them)."""
+        return np.ones(self.m) if factors is None else np.asarray(factors, np.float64)
 
-        proportional: every length times size. nonproportional: the non-growing segments stay at
-        `fixed` times their full length (1.0: the full-size body is the common end of every
-        size; 0.5: the half-size body is the common start), the growing ones change by the
-        common factor that makes the total length size * full total.
-        """
-        from .growth import segment_factors  # growth is data over the body (no import circle)
-
-        if pattern not in ("proportional", "nonproportional"):
-            raise ValueError(f"unknown growth pattern {pattern!r}; choose proportional or "
-                             "nonproportional (others: gbmodel.Growth.scales)")
-        grows = self.growing if pattern == "nonproportional" else np.ones(self.m, bool)
-        try:
-            return segment_factors(self.segment_lengths, grows, np.zeros(self.m), size,
-                                   fixed=fixed)
-        except ValueError as err:
-            raise ValueError(f"body {self.name!r}: {err}") from None
-
-    def _scale(self, size, pattern, scale) -> np.ndarray:
-        """Per-joint length factors: `scale`, or those of `pattern` (a name or a Growth)."""
-        if scale is None:
-            scale = (pattern.scales(self, size) if hasattr(pattern, "scales")
-                     else self.segment_scale(size, pattern))
-        return np.asarray(scale, np.float64)
-
-    def chain(self, size: float = 1.0, pattern: str = "proportional", scale=None) -> dict:
-        """Arrays describing the chain at a given size (or per-joint length factors `scale`):
+    def chain(self, factors=None) -> dict:
+        """Arrays describing the DH chain with per-segment length factors `factors` (m,):
         a, d, cos/sin alpha, base. DH chains only."""
         if self.general:
             raise ValueError(f"body {self.name!r} is a general (URDF) chain, not DH rows: this "
                              "learner or kernel takes DH chains only so far")
-        k = self._scale(size, pattern, scale)
+        k = self._factors(factors)
         return dict(
             a=self.a * k, d=self.d * k, cos_alpha=self._cos_alpha, sin_alpha=self._sin_alpha,
             base=self.base,
         )
 
-    def forward(self, q: np.ndarray, size: float = 1.0, pattern: str = "proportional",
-                scale=None) -> np.ndarray:
-        """Hand position (n,) or (N, n) [m] for commands q of shape (m,) or (N, m), with the
-        body at `size` grown by `pattern` (proportional, nonproportional, or a gbmodel.Growth:
-        any of its patterns), or with per-joint length factors `scale` (m,)."""
+    def forward(self, q: np.ndarray, factors=None) -> np.ndarray:
+        """Hand position (n,) or (N, n) [m] for commands q of shape (m,) or (N, m), with
+        per-segment length factors `factors` (m,) (None: the full-size body; a size and a growth
+        pattern give them through gbmodel.growth.factors)."""
         q = np.asarray(q, dtype=np.float64)
         if q.shape[-1] != self.m:
             raise ValueError(f"{self.name} takes {self.m} joint commands, got shape {q.shape}")
         if self.general:
             p = chain_position(self.joint_angles(q), self.frames, self.tool,
-                               self._scale(size, pattern, scale))
+                               self._factors(factors))
             return p[..., list(self.outputs)]
-        p = hand_position(self.joint_angles(q), **self.chain(size, pattern, scale))
+        p = hand_position(self.joint_angles(q), **self.chain(factors))
         return p[..., list(self.outputs)]
+
+    def frame_points(self, q: np.ndarray, factors=None) -> np.ndarray:
+        """Root-frame points (m + 1, 3) for command q (m,), base to hand: every joint's origin,
+        then the hand (the tool point, all three coordinates of what forward returns), as
+        robotics-toolbox's fkine_all. For drawing a posture."""
+        theta = self.joint_angles(np.asarray(q, float))
+        k = self._factors(factors)
+        if self.general:
+            joints = [chain_position(theta[:j], self.frames[:j], self.frames[j][:, 3], k[:j])
+                      for j in range(1, self.m)]
+            return np.stack([self.frames[0][:, 3], *joints,
+                             chain_position(theta, self.frames, self.tool, k)])
+        ch = self.chain(k)
+        return np.stack([hand_position(theta[:j], ch["a"][:j], ch["d"][:j], ch["cos_alpha"][:j],
+                                       ch["sin_alpha"][:j], ch["base"])
+                         for j in range(self.m + 1)])
 
     def target_set(self, size: float = 1.0) -> np.ndarray:
         """The target set scales with the body (paper sec. 3.1)."""
@@ -175,8 +169,39 @@ def cell_centres(targets: np.ndarray) -> np.ndarray:
     return _grid(*[0.5 * (a[1:] + a[:-1]) if len(a) > 1 else a for a in axes])
 
 
-FIELDS = ("name", "description", "units", "dh", "urdf", "base", "hand", "outputs", "limits", "normalise",
-          "saturate", "home", "grid", "grows")
+@dataclass(frozen=True)
+class Grid:
+    """The regular target grid at full size: num[j] points from lo[j] to hi[j] along axis j."""
+
+    lo: list[float]
+    hi: list[float]
+    num: list[int]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Description:
+    """A body's whole description, the fields of conf/body/<name>.yaml (docs/bodies.md); a field
+    without a default must be given. body_from checks the values; the pipeline's config schema
+    (BodyConf) is generated from these fields."""
+
+    name: str  # what the trials are labelled with
+    description: str = ""
+    units: str = "rad"  # rad | deg: of alpha, theta offset and limits
+    dh: Optional[list[Any]] = None  # per joint (a [m], d [m], alpha, theta offset)
+    urdf: Optional[dict[str, Any]] = None  # or a URDF's chain: {file, root, tip, joints, hold}
+    base: list[Any] = field(default_factory=lambda: [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0],
+                                                     [0.0, 0.0, 1.0, 0.0]])
+    hand: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    outputs: list[int]  # controlled hand coordinates (0 x, 1 y, 2 z)
+    limits: Optional[list[Any]] = None  # per joint [min, max]
+    normalise: bool = False  # commands in [-1, 1] onto the limits (true) or radians (false)
+    saturate: bool = True  # normalised commands clipped at the limits
+    home: list[float]  # the home posture, command units
+    grid: Grid  # the target grid at full size
+    grows: Optional[list[bool]] = None  # per segment: grows under non-proportional growth
+
+
+FIELDS = tuple(f.name for f in fields(Description))
 UNITS = {"rad": 1.0, "deg": None}  # deg: np.deg2rad (the same bits as the tables' conversion)
 SHIPPED = Path(__file__).resolve().parents[1] / "conf" / "body"  # the shipped descriptions
 
@@ -239,6 +264,9 @@ def body_from(desc: dict) -> Body:
     unknown = sorted(set(desc) - set(FIELDS))
     if unknown:
         raise _bad(unknown[0], desc[unknown[0]], f"unknown key; a body has {list(FIELDS)}")
+    desc = {**{f.name: f.default if f.default_factory is MISSING else f.default_factory()
+                for f in fields(Description) if (f.default, f.default_factory) != (MISSING, MISSING)},
+            **desc}  # the defaults of the fields not given
     name = desc.get("name")
     if not isinstance(name, str) or not name:
         raise _bad("name", name, "must be a non-empty string")
@@ -349,17 +377,17 @@ def unreachable(body: Body, rng: np.random.Generator, size: float = 1.0, samples
     from the nearest of `samples` random postures, damped Gauss-Newton steps on the commands
     (clipped to [-1, 1] where normalised, numerical Jacobian). A target it misses may still be
     reachable in principle (a local search), so callers warn, never refuse."""
-    targets = body.target_set(size)
+    targets, k = body.target_set(size), np.full(body.m, float(size))  # proportional at `size`
     box = 1.0 if body.normalized else np.pi
     Q = rng.uniform(-box, box, size=(samples, body.m))
-    X = body.forward(Q, size)
+    X = body.forward(Q, k)
     q = Q[np.argmin(((targets[:, None, :] - X[None]) ** 2).sum(-1), axis=1)]
     eye, h = 1e-4 * np.eye(body.m), 1e-6
     for _ in range(steps):
-        x = body.forward(q, size)
-        J = np.stack([(body.forward(q + h * e, size) - x) / h for e in np.eye(body.m)], axis=-1)
+        x = body.forward(q, k)
+        J = np.stack([(body.forward(q + h * e, k) - x) / h for e in np.eye(body.m)], axis=-1)
         JT = J.transpose(0, 2, 1)
         dq = np.linalg.solve(JT @ J + eye, JT @ (targets - x)[..., None])[..., 0]
         q = np.clip(q + dq, -box, box) if body.normalized and body.saturates else q + dq
-    miss = np.linalg.norm(body.forward(q, size) - targets, axis=-1)
+    miss = np.linalg.norm(body.forward(q, k) - targets, axis=-1)
     return np.flatnonzero(miss > tol)

@@ -68,7 +68,7 @@ def eval_points(body: Body, size: float, which: str = "grid", path_steps: int = 
 
 def distances(predict, body: Body, scale, xs: np.ndarray) -> np.ndarray:
     """|f(g(x*)) - x*| for every point x* (rows of xs), the body at per-joint factors `scale`."""
-    return np.linalg.norm(body.forward(predict(xs), scale=scale) - xs, axis=-1)
+    return np.linalg.norm(body.forward(predict(xs), scale) - xs, axis=-1)
 
 
 def error(d: np.ndarray, formula: str = "mean") -> float:

@@ -46,3 +46,19 @@ def _monomials(x: np.ndarray, exps: np.ndarray) -> np.ndarray:
         for power in range(1, int(exps[:, j].max(initial=0)) + 1):
             out = np.where(exps[:, j] >= power, out * x[..., j], out)
     return out
+
+
+def monomial_tree(exps: np.ndarray, last: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """For the compiled kernels: parent[k], var[k] with exps[k] = exps[parent[k]] + unit(var[k])
+    (parent[0] = var[0] = 0), so that Phi_k = Phi_parent[k] * x_var[k], one multiplication per
+    monomial (rows of exps are ordered by total degree, so a parent comes first). var[k] is the
+    first coordinate in monomial k, or the last with last=True (the kernels' products then run in
+    different orders, and each kernel keeps its own)."""
+    table = np.asarray(exps).tolist()
+    rows = {tuple(e): k for k, e in enumerate(table)}
+    parent, var = np.zeros(len(table), np.int64), np.zeros(len(table), np.int64)
+    for k, e in enumerate(table[1:], start=1):
+        nonzero = [i for i, v in enumerate(e) if v > 0]
+        j = nonzero[-1] if last else nonzero[0]
+        parent[k], var[k] = rows[tuple(v - (i == j) for i, v in enumerate(e))], j
+    return parent, var

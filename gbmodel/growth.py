@@ -19,50 +19,37 @@ Schedules, with the growth progress u = (e - 1) / T_G clipped to [0, 1]:
   normalised curve's value at u = 1/2 is 1 / (1 + exp(-k/2)), so k = 2 ln(f / (1 - f)) = 1.63.
   It is a constant, not a field: "infant" names this one published shape, and a free rate would
   be a parameter without a source (k -> 0 is the linear schedule).
+- table: measured sizes, `growth.table`, rows [t, size] (one size factor for the whole body) or
+  [t, f_1, ..., f_m] (one length factor per segment, base to hand). The time column is in any unit
+  (months, say) and is mapped linearly onto the epochs: the first row is epoch 1, the last epoch
+  T_G + 1; between two rows the size is interpolated linearly in time,
+  S = S_0 + (S_1 - S_0) ((t - t_0) / (t_1 - t_0)), and it is constant beyond the last row. The
+  two-row table [[0, start], [1, end]] is the linear schedule to the bit (the same formula). A
+  per-segment table's body size is the length-weighted mean of its factors (the total length
+  relative to the full one); since that mean is linear in time between rows as well, the factors
+  at body size S interpolate the rows linearly in S, which is exactly the factors at the epoch of
+  S (the body sizes of the rows must rise, or fall, strictly).
+
+Relative growth rates (`growth.rates`, pattern per_segment, instead of leads): segment i's length
+factor changes at r_i times a common rate at every epoch, so rates [2, 2, 1, 1, 1] is "the upper
+arm grows twice as fast as the forearm" over the whole growth (rate_factors).
 """
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
-from typing import TYPE_CHECKING, Optional
+from typing import Optional
 
 import numpy as np
 
-if TYPE_CHECKING:
-    from .bodies import Body
+from .spec import SpecError, check_choice, check_int, check_number
 
 PATTERNS = ("proportional", "nonproportional", "proximal_first", "per_segment")
-SCHEDULES = ("linear", "infant")
+SCHEDULES = ("linear", "infant", "table")
 
 # WHO Child Growth Standards (2006), length-for-age, boys, median [cm]: birth, 12 and 24 months
 WHO_LENGTH_CM = (49.9, 75.7, 87.1)
 _HALF = (WHO_LENGTH_CM[1] - WHO_LENGTH_CM[0]) / (WHO_LENGTH_CM[2] - WHO_LENGTH_CM[0])
 INFANT_RATE = 2.0 * np.log(_HALF / (1.0 - _HALF))  # k = 1.6336...
-
-
-class SpecError(ValueError):
-    """A bad value of a trial's spec; the message is one line, `<section>.<field>=<value>: why`."""
-
-    def __init__(self, key: str, value, why: str):
-        super().__init__(f"{key}={value!r}: {why}")
-        self.key = key
-
-
-def check_int(key, value, minimum):
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise SpecError(key, value, "must be a positive integer" if minimum == 1
-                        else f"must be an integer >= {minimum}")
-
-
-def check_number(key, value, minimum=None, strict=False):
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
-        raise SpecError(key, value, "must be a finite number")
-    if minimum is not None and (value <= minimum if strict else value < minimum):
-        raise SpecError(key, value, f"must be {'>' if strict else '>='} {minimum:g}")
-
-
-def check_choice(key, value, options):
-    if value not in options:
-        raise SpecError(key, value, f"choose one of {list(options)}")
 
 
 def progress(u, schedule: str = "linear"):
@@ -72,6 +59,9 @@ def progress(u, schedule: str = "linear"):
         return u
     if schedule == "infant":
         return np.expm1(-INFANT_RATE * u) / np.expm1(-INFANT_RATE)
+    if schedule == "table":
+        raise ValueError("growth.schedule='table': the sizes come from growth.table "
+                         "(Growth.sizes), not from a progress curve")
     raise ValueError(f"growth.schedule={schedule!r}: choose one of {list(SCHEDULES)}")
 
 
@@ -123,12 +113,86 @@ def proximal_leads(seg, lead: float = 1.0) -> np.ndarray:
     return lead * spread / (np.abs(spread).max() or 1.0)
 
 
-def proximal_first_scale(body: "Body", sizes, start_size: float, end_size: float,
+def proximal_first_scale(body, sizes, start_size: float, end_size: float,
                          lead: float = 1.0) -> np.ndarray:
     """Per-joint length factors (..., m) when proximal segments grow ahead of distal ones."""
     seg = body.segment_lengths
     return segment_factors(seg, np.ones(body.m, bool), proximal_leads(seg, lead), sizes,
                            start_size, end_size)
+
+
+def check_table(table, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """(times (n,), sizes (n, k)) of a growth table, k = 1 (the body) or m (per segment);
+    SpecError (one line) for a table that is not rows [t, size...] of one length, >= 2 rows,
+    strictly rising times and positive finite sizes."""
+    key = "growth.table"
+    if (not isinstance(table, (list, tuple)) or len(table) < 2
+            or not all(isinstance(r, (list, tuple)) for r in table)):
+        raise SpecError(key, table, "needs at least two rows [t, size] or [t, f_1, ..., f_m]")
+    widths = {len(r) for r in table}
+    if len(widths) != 1 or widths.pop() not in (2, m + 1):
+        raise SpecError(key, table, f"every row must be [t, size] or [t, f_1, ..., f_{m}] "
+                        f"({m} segment factors)")
+    if not all(isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x)
+               for r in table for x in r):
+        raise SpecError(key, table, "every entry must be a finite number")
+    arr = np.asarray(table, np.float64)
+    bad = np.flatnonzero(np.diff(arr[:, 0]) <= 0)
+    if bad.size:
+        raise SpecError(key, table, f"the times must rise strictly (row {bad[0] + 1}: "
+                        f"{arr[bad[0], 0]:g}, then {arr[bad[0] + 1, 0]:g})")
+    if np.any(arr[:, 1:] <= 0):
+        raise SpecError(key, table, "sizes must be > 0")
+    return arr[:, 0], arr[:, 1:]
+
+
+def interpolate(x, xs, ys) -> np.ndarray:
+    """Piecewise-linear ys (n, k) over strictly rising xs (n,) at x (...,) -> (..., k): between
+    rows y_j + (y_{j+1} - y_j) ((x - x_j) / (x_{j+1} - x_j)), the end rows beyond the ends."""
+    x = np.asarray(x, np.float64)
+    j = np.clip(np.searchsorted(xs, x, side="right") - 1, 0, len(xs) - 2)
+    w = np.clip((x - xs[j]) / (xs[j + 1] - xs[j]), 0.0, 1.0)[..., None]
+    return ys[j] + (ys[j + 1] - ys[j]) * w
+
+
+def table_body_sizes(sizes: np.ndarray, seg) -> np.ndarray:
+    """The body size of each row of a table's sizes (n, k): the column itself (k = 1), or the
+    length-weighted mean of the segment factors (k = m)."""
+    if sizes.shape[1] == 1:
+        return sizes[:, 0]
+    seg = np.asarray(seg, np.float64)
+    return sizes @ seg / seg.sum()
+
+
+def table_factors(seg, table, sizes) -> np.ndarray:
+    """Per-joint length factors (..., m) of a per-segment table at body sizes `sizes`: its rows
+    interpolated linearly in the body size (module docstring: exactly the factors at that
+    epoch). A size outside the table's raises ValueError."""
+    _, f = check_table(table, len(seg))
+    body = table_body_sizes(f, seg)
+    order = np.argsort(body)
+    s = np.asarray(sizes, np.float64)
+    lo, hi = body[order[0]], body[order[-1]]
+    if np.any(s < lo - 1e-12) or np.any(s > hi + 1e-12):
+        raise ValueError(f"size {float(np.min(s)) if np.any(s < lo) else float(np.max(s)):g} "
+                         f"is outside the growth table's body sizes {lo:g} ... {hi:g}")
+    return interpolate(s, body[order], f[order])
+
+
+def rate_factors(seg, rates, sizes, start_size: float = 0.5, end_size: float = 1.0) -> np.ndarray:
+    """Per-joint length factors (..., m) when segment i grows at r_i times a common rate.
+
+    Every segment ends at end_size (the full body's shape) and f_i = end - r_i c (1 - p), with
+    p = (S - start) / (end - start) the growth done and c = (end - start) L / sum_j r_j l_j, so
+    that the total length is S times the full one L at every size; df_i/dp = r_i c, hence
+    df_i / df_j = r_i / r_j throughout the growth."""
+    seg, r = np.asarray(seg, np.float64), np.asarray(rates, np.float64)
+    sizes = np.asarray(sizes, np.float64)[..., None]
+    if end_size == start_size:
+        return np.broadcast_to(sizes, sizes.shape[:-1] + (len(seg),)).copy()
+    c = (end_size - start_size) * seg.sum() / (r @ seg)
+    p = (sizes - start_size) / (end_size - start_size)
+    return end_size - r * c * (1.0 - p)
 
 
 @dataclass(frozen=True)
@@ -153,8 +217,13 @@ class Growth:
     # per_segment: each segment's lead c_i (-1 ... 1; segment_factors), base to hand, e.g.
     # [0.5, 0.25, 0, -0.25, -0.5]: the upper arm grows ahead of the forearm
     leads: Optional[list[float]] = None
+    # per_segment: each segment's relative growth rate r_i >= 0 instead of leads (rate_factors),
+    # e.g. [2, 2, 1, 1, 1]: the upper arm grows twice as fast as the forearm
+    rates: Optional[list[float]] = None
+    # schedule table: rows [t, size] or [t, f_1, ..., f_m] (module docstring)
+    table: Optional[list] = None
 
-    def validate(self, body: "Body") -> "Growth":
+    def validate(self, body) -> "Growth":
         check_choice("growth.pattern", self.pattern, PATTERNS)
         check_choice("growth.schedule", self.schedule, SCHEDULES)
         check_int("growth.period", self.period, 0)
@@ -167,14 +236,20 @@ class Growth:
             check_number(f"growth.{name}", getattr(self, name), 0.0, strict=True)
             if self.pattern in ("proportional", "nonproportional"):
                 try:
-                    body.segment_scale(getattr(self, name), self.pattern, self.fixed_scale)
+                    self.scales(body, getattr(self, name))
                 except ValueError as err:
-                    raise SpecError(f"growth.{name}", getattr(self, name), str(err)) from None
+                    raise SpecError(f"growth.{name}", getattr(self, name),
+                                    f"body {body.name!r}: {err}") from None
         if self.pattern == "nonproportional" and body.growing.all():
             raise SpecError("growth.pattern", self.pattern,
                             f"every segment of {body.name} grows, so non-proportional growth "
                             "would equal proportional growth; use growth=proportional")
-        if self.pattern == "per_segment":
+        self._validate_table(body)
+        if self.pattern == "per_segment" and self.rates is not None:
+            self._validate_rates(body)
+        elif self.rates is not None:
+            raise SpecError("growth.rates", self.rates, "only growth=per_segment uses rates")
+        if self.pattern == "per_segment" and self.rates is None:
             c = self.leads
             if (not isinstance(c, (list, tuple)) or len(c) != body.m
                     or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
@@ -188,15 +263,71 @@ class Growth:
                             f"{body.name} has fewer than two segments of non-zero length")
         return self
 
-    def sizes(self, epochs) -> np.ndarray:
-        """Size factor of each epoch in `epochs` (1-based)."""
+    def _validate_rates(self, body: "Body") -> None:
+        r = self.rates
+        if self.leads is not None:
+            raise SpecError("growth.rates", r, "give growth.leads or growth.rates, not both")
+        if (not isinstance(r, (list, tuple)) or len(r) != body.m
+                or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                           and np.isfinite(x) and x >= 0 for x in r)
+                or not np.dot(r, body.segment_lengths) > 0):
+            raise SpecError("growth.rates", r, f"per_segment growth needs {body.m} rates >= 0, "
+                            f"one per segment of {body.name}, not all zero")
+        first = rate_factors(body.segment_lengths, r, self.start_size, self.start_size,
+                             self.end_size)
+        if self.start_size != self.end_size and np.any(first <= 0):
+            i = int(np.argmin(first))
+            raise SpecError("growth.rates", r, f"segment {i + 1} would start at length factor "
+                            f"{first[i]:.3g} <= 0: its rate is too large for growth from "
+                            f"{self.start_size:g} to {self.end_size:g}")
+
+    def _validate_table(self, body: "Body") -> None:
+        if self.schedule != "table":
+            if self.table is not None:
+                raise SpecError("growth.table", self.table, "only schedule=table uses a table")
+            return
+        if self.table is None:
+            raise SpecError("growth.table", None, "schedule=table needs growth.table: rows "
+                            "[t, size] or [t, f_1, ..., f_m]")
+        _, f = check_table(self.table, body.m)
+        sizes = table_body_sizes(f, body.segment_lengths)
+        if f.shape[1] > 1:
+            if self.pattern not in ("proportional", "none"):
+                raise SpecError("growth.pattern", self.pattern, "a per-segment table gives "
+                                "every segment's factor; use growth=proportional")
+            steps = np.diff(sizes)
+            if not (np.all(steps > 0) or np.all(steps < 0)):
+                raise SpecError("growth.table", self.table, "the body sizes of a per-segment "
+                                "table (length-weighted means of its rows) must rise, or fall, "
+                                "strictly")
+        if not self.period and f.shape[1] > 1 and not (
+                sizes.min() - 1e-12 <= self.end_size <= sizes.max() + 1e-12):
+            raise SpecError("growth.end_size", self.end_size, f"a constant body under a "
+                            f"per-segment table needs a size in its range {sizes.min():.6g} "
+                            f"... {sizes.max():.6g}")
+        if self.period and (not np.isclose(sizes[0], self.start_size, rtol=0, atol=1e-9)
+                            or not np.isclose(sizes[-1], self.end_size, rtol=0, atol=1e-9)):
+            raise SpecError("growth.table", self.table, f"its body sizes run from {sizes[0]:.6g} "
+                            f"to {sizes[-1]:.6g}: set growth.start_size={sizes[0]:.6g} "
+                            f"growth.end_size={sizes[-1]:.6g}")
+
+    def sizes(self, epochs, body: "Body | None" = None) -> np.ndarray:
+        """Size factor of each epoch in `epochs` (1-based); a per-segment table needs the body."""
         e = np.asarray(epochs)
         if self.period == 0:
             return np.full(e.shape, float(self.end_size))
+        if self.schedule == "table":
+            t, f = check_table(self.table, len(self.table[0]) - 1)
+            if f.shape[1] > 1 and body is None:
+                raise ValueError("a per-segment growth table needs the body for its sizes")
+            rows = table_body_sizes(f, None if body is None else body.segment_lengths)
+            # the times as growth progress 0 ... 1, so that any time unit gives the same sizes
+            return interpolate((e - 1) / self.period, (t - t[0]) / (t[-1] - t[0]),
+                               rows[:, None])[..., 0]
         done = progress((e - 1) / self.period, self.schedule)
         return self.start_size + (self.end_size - self.start_size) * done
 
-    def segments(self, body: "Body") -> tuple[np.ndarray, np.ndarray]:
+    def segments(self, body) -> tuple[np.ndarray, np.ndarray]:
         """(grows, leads) per segment of `body`: the pattern as data for segment_factors."""
         seg, every = body.segment_lengths, np.ones(body.m, bool)
         if self.pattern == "nonproportional":
@@ -207,11 +338,28 @@ class Growth:
             return every, np.asarray(self.leads, np.float64)
         return every, np.zeros(body.m)
 
-    def scales(self, body: "Body", sizes) -> np.ndarray:
+    def scales(self, body, sizes) -> np.ndarray:
         """Per-joint length factors (..., m) of the body at `sizes` (any slice of epochs)."""
+        if self.table is not None and len(self.table[0]) > 2:
+            return table_factors(body.segment_lengths, self.table, sizes)
+        if self.rates is not None:
+            return rate_factors(body.segment_lengths, self.rates, sizes, self.start_size,
+                                self.end_size)
         grows, leads = self.segments(body)
         return segment_factors(body.segment_lengths, grows, leads, sizes, self.start_size,
                                self.end_size, self.fixed_scale)
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+
+def factors(body, size, pattern="proportional") -> np.ndarray:
+    """Per-segment length factors (..., m) of `body` at size `size` (scalar or array) grown by
+    `pattern`: a Growth, or a pattern's name with its default settings. The one place where a
+    growth pattern becomes the factors Body.forward, Body.chain and Body.frame_points take."""
+    growth = pattern if isinstance(pattern, Growth) else Growth(pattern=pattern)
+    check_choice("growth.pattern", growth.pattern, PATTERNS)
+    try:
+        return growth.scales(body, size)
+    except ValueError as err:
+        raise ValueError(f"body {body.name!r}: {err}") from None

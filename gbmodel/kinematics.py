@@ -1,9 +1,11 @@
-"""Forward kinematics of a serial chain in standard Denavit-Hartenberg form, written once.
+"""Forward kinematics of a serial chain, in numpy, and the chain's layout for the kernels.
 
-Every body of the project (the planar arms included) is a DH chain
+A body is either a chain in standard Denavit-Hartenberg form (hand_position)
     A_i = Rz(theta_i) . Tz(d_i) . Tx(a_i) . Rx(alpha_i),   T = H0 . A_0 ... A_{m-1}
-and only the hand *position* is needed, so the hand point is carried backwards through the
-chain, p <- A_i p, which costs one rotation about z per joint and no 4x4 products.
+or a general chain read from a URDF (chain_position): per joint a fixed transform, then a
+rotation about the local z axis. Only the hand *position* is needed, so the hand point is
+carried backwards through the chain, one rotation about z per joint and no 4x4 products.
+chain_layout gives both kinds as one table for the compiled kernels (gbmodel.simd).
 """
 from __future__ import annotations
 
@@ -56,3 +58,19 @@ def chain_position(theta: np.ndarray, frames: np.ndarray, tool: np.ndarray,
         R = frames[i][:, :3]
         p = np.stack([R[r, 0] * x + R[r, 1] * y + R[r, 2] * z + t[r] for r in range(3)], axis=-1)
     return p
+
+
+def chain_layout(body) -> dict:
+    """The chain at full size as the compiled kernels step through it (gbmodel.simd.chain_step,
+    chain_forward64): p <- Rz(theta_i) (R_i p + t_i), t_i = (a_i, ty_i, d_i) scaled by segment
+    i's growth, then the base (3x4). DH rows: R_i = Rx(alpha_i) (cos_alpha, sin_alpha, the rows'
+    own branch), ty = 0, general False. A general chain (a URDF's: hand = F_0 Rz(q_0) F_1 ...
+    Rz(q_{m-1}) tool): the base is F_0, (R_i | t_i) is F_{i+1}, and the tool the last joint's
+    translation (R = I), general True."""
+    m = body.m
+    if not body.general:
+        ch = body.chain()
+        return dict(ch, ty=np.zeros(m), R=np.zeros((m, 3, 3)), general=False)
+    after = np.concatenate([body.frames[1:], np.hstack([np.eye(3), body.tool[:, None]])[None]])
+    return dict(a=after[:, 0, 3], d=after[:, 2, 3], ty=after[:, 1, 3], R=after[:, :, :3],
+                cos_alpha=np.ones(m), sin_alpha=np.zeros(m), base=body.frames[0], general=True)

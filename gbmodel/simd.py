@@ -1,13 +1,21 @@
-"""Explicit float32 vectors of LANES lanes for the compiled kernels (numba), and sin/cos on them.
+"""The compiled kernels' toolbox (numba): explicit vector types, sin/cos, and the chain step.
 
-Every kernel (the Goal Babbling kernel, the online learner's, the chains' kinematics) shares this
-one set, so that each computes lane by lane what it writes, on every x86-64 CPU: `F32x16` is LLVM
+Every kernel (Goal Babbling's float32 batch kernel, online Goal Babbling's float64 per-sample
+kernel) takes its vectors, its sin and cos and its step through a chain from here, so that each
+computes lane by lane what it writes, on every x86-64 CPU:
+
+- `F32x16` (vload ... vsum, LANES = 16) and `sincos` on it, for the float32 kernel;
+- `F64x8` (vload8 ... vmul8, W8 = 8), whose lanes round as the scalar loop does (separate * and
+  +, no fused multiply-add), and `sincos64`, a scalar float64 sin/cos, for the float64 kernel;
+- `chain_kinematics` (F32x16) and `chain_forward64` (scalar float64): the hand point carried
+  backwards through the chain laid out by gbmodel.kinematics.chain_layout, joint by joint.
+
+`F32x16` is LLVM
 <16 x float> (one zmm register, or two ymm halves without AVX-512, with the same result lane by
 lane); vadd ... vfma are single IEEE operations (vfma: llvm.fma, rounded once; vdiv, vsqrt
 correctly rounded); vsum adds the lanes in a fixed tree; sincos is a branch-free polynomial
 (Cephes' kernels after a Cody-Waite reduction). Nothing is compiled with fastmath.
-(Moved from gbmodel/learners/goal_babbling/fast.py; tests/test_kernel_targets.py checks the
-kernels bit for bit across CPU targets.)
+tests/test_kernel_targets.py checks the kernels bit for bit across CPU targets.
 """
 from __future__ import annotations
 
@@ -40,14 +48,14 @@ class _F32x16Model(models.PrimitiveModel):
         super().__init__(dmm, fe_type, _VEC)
 
 
-def _vector_pointer(context, builder, sig, args, n):
-    """Address of element args[1:1 + n] of the array args[0], as a pointer to a vector."""
+def _vector_pointer(context, builder, sig, args, n, vec=_VEC):
+    """Address of element args[1:1 + n] of the array args[0], as a pointer to a vector `vec`."""
     aryty = sig.args[0]
     inds = [context.cast(builder, v, t, types.intp) for v, t in zip(args[1:1 + n],
                                                                     sig.args[1:1 + n])]
     ptr = cgutils.get_item_pointer(context, builder, aryty,
                                    context.make_array(aryty)(context, builder, args[0]), inds)
-    return builder.bitcast(ptr, _VEC.as_pointer())
+    return builder.bitcast(ptr, vec.as_pointer())
 
 
 @intrinsic
@@ -224,3 +232,233 @@ def sincos_array(x):
         vstore1(s, i, si)
         vstore1(c, i, ci)
     return s[:n], c[:n]
+
+
+# ---- the chain on F32x16: forward kinematics of LANES samples at a time ---------------------------
+@njit(inline="always")
+def vclip(q):
+    """q clipped to [-1, 1] lane by lane (a NaN stays NaN)."""
+    one, minus_one = vsplat(_1), vsplat(-_1)
+    return vwhere(minus_one, q, minus_one, vwhere(q, one, one, q))
+
+
+@njit(cache=True)
+def chain_kinematics(Q, X, C, joints, body):
+    """Hand positions X[:, :C] of the commands Q[:, :C] (float32, C a multiple of LANES), through
+    the chain of gbmodel.kinematics.chain_layout as float32 arrays (body: a, d, cos alpha, sin
+    alpha, base, outputs, ty, R, general; joints: normalized, saturates, q_lo, q_span, offset),
+    saturating Q in place where the body does. Joint angles theta = q (span / 2) + offset + lo +
+    span / 2 for normalised commands, else offset + q. The hand point is carried from the last
+    joint to the base, LANES samples at a time in registers: p <- Rz(theta) (p_x + a,
+    cos(alpha) p_y - sin(alpha) p_z, sin(alpha) p_y + cos(alpha) p_z + d); for the twists 0 and
+    +-90 degrees (every joint of our bodies) without the products by 0 and +-1 (the same
+    values, up to the sign of a zero)."""
+    normalized, saturates, q_lo, q_span, offset = joints
+    a, d, ca, sa, base, outputs, ty, R, general = body
+    m = Q.shape[0]
+    for c in range(0, C, LANES):
+        px = py = pz = vsplat(0)
+        for ii in range(m):
+            i = m - 1 - ii
+            q = vload(Q, i, c)
+            if normalized:
+                if saturates:
+                    q = vclip(q)
+                    vstore(Q, i, c, q)
+                half_span = _HALF * q_span[i]
+                theta = vfma(q, vsplat(half_span), vsplat(offset[i] + q_lo[i] + half_span))
+            else:
+                theta = vadd(q, vsplat(offset[i]))
+            s, co = sincos(theta)  # the chain step: DH rows, or
+            if general:  # a URDF's chain: p <- Rz(theta) (R_i p + (a, ty, d)_i)
+                u = vfma(vsplat(R[i, 0, 0]), px, vfma(vsplat(R[i, 0, 1]), py, vfma(
+                    vsplat(R[i, 0, 2]), pz, vsplat(a[i]))))
+                v = vfma(vsplat(R[i, 1, 0]), px, vfma(vsplat(R[i, 1, 1]), py, vfma(
+                    vsplat(R[i, 1, 2]), pz, vsplat(ty[i]))))
+                pz = vfma(vsplat(R[i, 2, 0]), px, vfma(vsplat(R[i, 2, 1]), py, vfma(
+                    vsplat(R[i, 2, 2]), pz, vsplat(d[i]))))
+                px = vfma(co, u, vmul(vneg(s), v))
+                py = vfma(s, u, vmul(co, v))
+                continue
+            u = vadd(px, vsplat(a[i]))
+            if sa[i] == 0 and ca[i] == 1:
+                v = py
+                pz = vadd(pz, vsplat(d[i]))
+            elif ca[i] == 0 and sa[i] == 1:
+                v = vneg(pz)
+                pz = vadd(py, vsplat(d[i]))
+            elif ca[i] == 0 and sa[i] == -1:
+                v = pz
+                pz = vsub(vsplat(d[i]), py)
+            else:
+                v = vfma(vsplat(ca[i]), py, vmul(vsplat(-sa[i]), pz))
+                pz = vadd(vfma(vsplat(sa[i]), py, vmul(vsplat(ca[i]), pz)), vsplat(d[i]))
+            px = vfma(co, u, vmul(vneg(s), v))
+            py = vfma(s, u, vmul(co, v))
+        for j in range(len(outputs)):
+            o = outputs[j]
+            x = vfma(vsplat(base[o, 0]), px, vsplat(base[o, 3]))
+            x = vfma(vsplat(base[o, 1]), py, x)
+            vstore(X, j, c, vfma(vsplat(base[o, 2]), pz, x))
+
+
+# ---- explicit float64 vectors of W8 lanes ------------------------------------------------------
+# LLVM <8 x double>: one zmm register, two ymm or four xmm halves. Used with separate roundings
+# of * and + (no fused multiply-add), a lane computes exactly what a scalar loop computes,
+# whatever the CPU's vector width. The float64 siblings of the float32 set above, named with a
+# trailing 8.
+W8 = 8
+_VEC8 = ir.VectorType(ir.DoubleType(), W8)
+
+
+class F64x8Type(types.Type):
+    """LLVM <8 x double>."""
+
+    def __init__(self):
+        super().__init__(name="F64x8")
+
+
+F64x8 = F64x8Type()
+
+
+@register_model(F64x8Type)
+class _F64x8Model(models.PrimitiveModel):
+    def __init__(self, dmm, fe_type):
+        super().__init__(dmm, fe_type, _VEC8)
+
+
+def _pointer8(context, builder, sig, args, n):
+    return _vector_pointer(context, builder, sig, args, n, _VEC8)
+
+
+@intrinsic
+def vload8(typingctx, a, k, i):
+    """a[k, i:i + 8] of a 2-d float64 array with contiguous rows (no bounds check)."""
+    def codegen(context, builder, sig, args):
+        return builder.load(_pointer8(context, builder, sig, args, 2), align=8)
+    return F64x8(a, k, i), codegen
+
+
+@intrinsic
+def vstore8(typingctx, a, k, i, v):
+    """a[k, i:i + 8] = v."""
+    def codegen(context, builder, sig, args):
+        builder.store(args[3], _pointer8(context, builder, sig, args, 2), align=8)
+        return context.get_dummy_value()
+    return types.none(a, k, i, v), codegen
+
+
+@intrinsic
+def vload18(typingctx, a, i):
+    """a[i:i + 8] of a contiguous 1-d float64 array (no bounds check)."""
+    def codegen(context, builder, sig, args):
+        return builder.load(_pointer8(context, builder, sig, args, 1), align=8)
+    return F64x8(a, i), codegen
+
+
+@intrinsic
+def vstore18(typingctx, a, i, v):
+    """a[i:i + 8] = v."""
+    def codegen(context, builder, sig, args):
+        builder.store(args[2], _pointer8(context, builder, sig, args, 1), align=8)
+        return context.get_dummy_value()
+    return types.none(a, i, v), codegen
+
+
+@intrinsic
+def vsplat8(typingctx, x):
+    """Every lane x (as float64)."""
+    def codegen(context, builder, sig, args):
+        x = context.cast(builder, args[0], sig.args[0], types.float64)
+        v = builder.insert_element(ir.Constant(_VEC8, ir.Undefined), x,
+                                   ir.Constant(ir.IntType(32), 0))
+        return builder.shuffle_vector(v, v, ir.Constant(ir.VectorType(ir.IntType(32), W8),
+                                                         [0] * W8))
+    return F64x8(x), codegen
+
+
+@intrinsic
+def vadd8(typingctx, a, b):
+    return F64x8(a, b), lambda context, builder, sig, args: builder.fadd(*args)
+
+
+@intrinsic
+def vsub8(typingctx, a, b):
+    return F64x8(a, b), lambda context, builder, sig, args: builder.fsub(*args)
+
+
+@intrinsic
+def vmul8(typingctx, a, b):
+    return F64x8(a, b), lambda context, builder, sig, args: builder.fmul(*args)
+
+
+
+# ---- float64 scalars ------------------------------------------------------------------------------
+# sin and cos of a joint angle: Cephes' double-precision kernels (sin.c: |r| <= pi/4) after a
+# Cody-Waite reduction x = k pi/2 + r with pi/2 in three parts (the first two with trailing zero
+# bits, so k times them is exact for |k| < 2^24), then the quadrant k mod 4 swaps and negates
+# them. Plain float64 operations in a fixed order: the same result on every CPU and C library,
+# within 2 ulp of the C library's (tests/test_learners.py), and without a branch but the (always
+# taken) range check, as the angles' quadrants are unpredictable.
+_PIO2_64 = (1.57079625129699707031e0, 7.54978941586159635335e-8, 5.39030285815811905290e-15)
+_ROUND64 = 6755399441055744.0  # 1.5 * 2^52: x + _ROUND64 - _ROUND64 rounds x to an integer
+_SIN64 = (1.58962301576546568060e-10, -2.50507477628578072866e-8, 2.75573136213857245213e-6,
+           -1.98412698295895385996e-4, 8.33333333332211858878e-3, -1.66666666666666307295e-1)
+_COS64 = (-1.13585365213876817300e-11, 2.08757008419747316778e-9, -2.75573141792967388112e-7,
+           2.48015872888517045348e-5, -1.38888888888730564116e-3, 4.16666666666665929218e-2)
+
+
+@njit(cache=True)
+def sincos64(x):
+    """(sin x, cos x): the polynomials for |x| < 2^24, the C library beyond (a diverging
+    command, NaN or inf: never a joint angle of a learning trial)."""
+    if not abs(x) < 16777216.0:
+        return np.sin(x), np.cos(x)
+    k = (x * 0.63661977236758134308 + _ROUND64) - _ROUND64  # nearest integer to x / (pi/2)
+    r = ((x - k * _PIO2_64[0]) - k * _PIO2_64[1]) - k * _PIO2_64[2]
+    z = r * r
+    ps = ((((_SIN64[0] * z + _SIN64[1]) * z + _SIN64[2]) * z + _SIN64[3]) * z
+          + _SIN64[4]) * z + _SIN64[5]
+    pc = ((((_COS64[0] * z + _COS64[1]) * z + _COS64[2]) * z + _COS64[3]) * z
+          + _COS64[4]) * z + _COS64[5]
+    s = r + r * z * ps
+    c = (1.0 - 0.5 * z) + z * z * pc
+    # quadrant 0: (s, c), 1: (c, -s), 2: (-s, -c), 3: (-c, s), without a branch (the angles'
+    # quadrants are unpredictable): a swap by select, signs by exact products with +-1.
+    quadrant = int(k) & 3
+    swap = quadrant & 1
+    a = c if swap else s
+    b = s if swap else c
+    return a * (1 - (quadrant & 2)), b * (1 - ((quadrant + 1) & 2))
+
+
+@njit(cache=True)
+def chain_forward64(q, scale, chain, joints, out):
+    """body.forward(q, scale) into out (n,) in scalar float64: the hand point carried
+    backwards through the chain of kinematics.chain_layout (float64 arrays; joints: normalized,
+    saturates, q_min, q_span, theta_offset), DH rows operation by operation as
+    kinematics.hand_position, a general chain as chain_position."""
+    a, d, ca, sa, base, outputs, ty, R, general = chain
+    normalized, _, q_min, q_span, offset = joints
+    px = py = pz = 0.0
+    for i in range(len(q) - 1, -1, -1):
+        if normalized:
+            theta = q_min[i] + 0.5 * (q[i] + 1.0) * q_span[i]
+        else:
+            theta = q[i]
+        theta = theta + offset[i]
+        if general:
+            u = R[i, 0, 0] * px + R[i, 0, 1] * py + R[i, 0, 2] * pz + a[i] * scale[i]
+            v = R[i, 1, 0] * px + R[i, 1, 1] * py + R[i, 1, 2] * pz + ty[i] * scale[i]
+            w = R[i, 2, 0] * px + R[i, 2, 1] * py + R[i, 2, 2] * pz + d[i] * scale[i]
+        else:
+            u = px + a[i] * scale[i]
+            v = ca[i] * py - sa[i] * pz
+            w = sa[i] * py + ca[i] * pz + d[i] * scale[i]
+        s, c = sincos64(theta)
+        px, py, pz = c * u - s * v, s * u + c * v, w
+    for j in range(len(outputs)):
+        o = outputs[j]
+        out[j] = px * base[o, 0] + py * base[o, 1] + pz * base[o, 2] + base[o, 3]
+
+

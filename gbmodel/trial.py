@@ -15,7 +15,8 @@ import numpy as np
 
 from . import evaluation, learners
 from .bodies import Body, make_body
-from .growth import Growth, SpecError, check_choice, check_int
+from .growth import Growth
+from .spec import SpecError, check_choice, check_epochs, check_int
 
 DRAW_BLOCK = 1000
 
@@ -68,7 +69,7 @@ class TrialSpec:
         body = self.make_body() if body is None else body
         self.make_growth().validate(body)
         self.make_learner()
-        check_int("learner.epochs", self.epochs, 1)
+        check_epochs("learner.epochs", self.epochs)
         check_int("learner.evals_per_decade", self.evals_per_decade, 1)
         ev = {**evaluation.DEFAULTS, **self.evaluation}
         check_choice("evaluation.points", ev["points"], evaluation.POINTS)
@@ -113,7 +114,7 @@ def run_trial(spec: TrialSpec, rng: np.random.Generator) -> TrialResult:
     # Sizes and scales are built per block of DRAW_BLOCK epochs, never for every epoch at once,
     # so a trial's memory does not grow with its epochs (each value is computed elementwise:
     # the same bytes as from the whole array).
-    state = learner.init(params, body, growth.sizes(np.array([1]))[0], rng)
+    state = learner.init(params, body, growth.sizes(np.array([1]), body)[0], rng)
 
     evals = evaluation.eval_epochs(spec.epochs, spec.evals_per_decade)
     cuts = set(evals.tolist()) | set(spec.snapshots)
@@ -121,7 +122,7 @@ def run_trial(spec: TrialSpec, rng: np.random.Generator) -> TrialResult:
     k, snapshots = 0, {}
     for start in range(0, spec.epochs, DRAW_BLOCK):  # epochs start+1 ... stop
         stop = min(start + DRAW_BLOCK, spec.epochs)
-        sizes = growth.sizes(np.arange(start + 1, stop + 1))  # of epochs start+1 ... stop
+        sizes = growth.sizes(np.arange(start + 1, stop + 1), body)  # of epochs start+1 ... stop
         scales = growth.scales(body, sizes)
         draws = learner.draw(params, body, stop - start, rng)
         bounds = sorted({start, stop} | {e for e in cuts if start < e < stop})

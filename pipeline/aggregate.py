@@ -34,6 +34,7 @@ import pyarrow as pa
 from omegaconf import DictConfig
 
 from . import cache, cli, io
+from .measures import finals, growth_peak
 from .plan import condition_labels, source_fingerprint
 
 log = logging.getLogger("pipeline.aggregate")
@@ -244,28 +245,6 @@ def curve_stats(trials: pd.DataFrame) -> pd.DataFrame:
     return out.reset_index()
 
 
-def rise(values: np.ndarray) -> tuple[int, float]:
-    """(index, rise) of the point rising most above the lowest value before it (0, 0 if none):
-    the paper's "significant temporary increase" of the error during growth (sec. 3.1)."""
-    r = values - np.minimum.accumulate(values)
-    i = int(np.argmax(r))
-    return i, float(r[i])
-
-
-def growth_peak(curve: pd.DataFrame) -> tuple[int, float, float]:
-    """(epoch, value, rise) of the temporary increase of the mean absolute error during growth."""
-    c = curve.sort_values("epoch")
-    err = c["abs_error_mean"].to_numpy()
-    i, r = rise(err)
-    return int(c["epoch"].iloc[i]), float(err[i]), r
-
-
-def finals(trials: pd.DataFrame) -> pd.DataFrame:
-    """Each trial's final row: the rows of every condition at that condition's last epoch."""
-    last = trials.groupby("condition", sort=False)["epoch"].transform("max")
-    return trials[trials["epoch"] == last]
-
-
 def summarize(trials: pd.DataFrame, curves: pd.DataFrame, conds: dict, paper: dict,
               fail_factor: float) -> pd.DataFrame:
     """One row per condition: final errors (mean, std over trials), the temporary increase of the
@@ -303,7 +282,8 @@ def summarize(trials: pd.DataFrame, curves: pd.DataFrame, conds: dict, paper: di
     return pd.DataFrame(rows)
 
 
-CODE = ("aggregate.py", "cache.py", "io.py", "plan.py")  # what an aggregate's bytes depend on
+# what an aggregate's bytes depend on
+CODE = ("aggregate.py", "cache.py", "io.py", "measures.py", "plan.py")
 
 
 @lru_cache(maxsize=1)

@@ -261,6 +261,11 @@ def job_parameters(opts: dict, workers: int, cluster: str, figure: str) -> dict:
     if cluster == "slurm":
         params.update(mem_gb=opts["mem_gb"], slurm_partition=opts["partition"],
                       slurm_array_parallelism=workers, slurm_signal_delay_s=signal_delay(opts))
+        for key in ("account", "qos", "gres", "constraint"):
+            if opts.get(key) is not None:
+                params[f"slurm_{key}"] = opts[key]
+        if opts.get("extra"):
+            params["slurm_additional_parameters"] = dict(opts["extra"])
     return params
 
 

@@ -18,8 +18,7 @@ from hydra.core.override_parser.overrides_parser import OverridesParser
 from . import execute, stop
 from .fingerprint import CodeChanged
 from .io import BadInput
-from .config import (ConfigError, check_keys, check_limits, check_names, check_root,
-                     check_stamp, compose)
+from .config import ConfigError, check_keys, compose, config_notes
 from .plan import condition_labels, plan, plan_conditions
 
 # Hydra's command-line flags that take a value as the next argument
@@ -91,11 +90,8 @@ def check(argv: list[str]) -> str | None:
         try:  # values too: every sweep job is checked up front
             cfg = compose(list(combination))
             check_keys(cfg)
-            check_root(cfg)
-            check_names(cfg)
-            check_stamp(cfg)
-            notes += [n for n in check_limits(cfg) if n not in notes]  # before planning
-            trials = plan(cfg)
+            trials = plan(cfg)  # checks the values, the limits before planning
+            notes += [n for n in config_notes(cfg) if n not in notes]
             keeps_experiment(list(combination), trials)
             planned.setdefault(cfg.figure, []).extend(trials)
         except ConfigError as err:

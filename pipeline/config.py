@@ -20,6 +20,7 @@ from omegaconf import MISSING, DictConfig, OmegaConf
 
 import gbmodel
 from gbmodel import evaluation
+from gbmodel.spec import MAX_EPOCHS
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 CONF_DIR = REPO_ROOT / "conf"
@@ -34,11 +35,12 @@ EXTRA = {"ray": ("ray", "ray"), "slurm": ("submitit", "slurm"),
          "submitit_local": ("submitit", "slurm")}  # backend -> (package, pyproject extra)
 
 
-def check_backend(backend: str) -> None:
-    """ConfigError (one line) for an unknown backend, or one whose package is not installed."""
+def check_backend(backend: str, package: bool = True) -> None:
+    """ConfigError (one line) for an unknown backend, or (package) one whose package is not
+    installed: only the stage that submits (simulate) needs it, aggregate and report do not."""
     if backend not in BACKENDS:
         raise ConfigError(f"executor.backend={backend!r}: choose one of {', '.join(BACKENDS)}")
-    if backend in EXTRA:
+    if package and backend in EXTRA:
         package, extra = EXTRA[backend]
         if importlib.util.find_spec(package) is None:
             raise ConfigError(f"executor.backend={backend!r} needs the package {package}: "
@@ -54,37 +56,28 @@ def schema_of(cls, name: str, extra: tuple = ()) -> type:
     return dataclasses.make_dataclass(name, list(extra) + fields)
 
 
-@dataclass
-class GridConf:
-    lo: list[float] = MISSING
-    hi: list[float] = MISSING
-    num: list[int] = MISSING
+def conf_of(cls, name: str) -> type:
+    """A Hydra schema with every field of gbmodel dataclass `cls`, its type and its default (a
+    field without one is MISSING: it must be given); a field whose type is a dataclass gets that
+    class's schema, generated the same way."""
+    hints = typing.get_type_hints(cls)
+    out = []
+    for f in dataclasses.fields(cls):
+        kind = hints[f.name]
+        if dataclasses.is_dataclass(kind):
+            kind = conf_of(kind, f"{kind.__name__}Conf")
+            out.append((f.name, kind, field(default_factory=kind)))
+        elif f.default_factory is not dataclasses.MISSING:
+            out.append((f.name, kind, field(default_factory=f.default_factory)))
+        else:
+            default = MISSING if f.default is dataclasses.MISSING else f.default
+            out.append((f.name, kind, field(default=default)))
+    return dataclasses.make_dataclass(name, out)
 
 
-@dataclass
-class BodyConf:
-    """A body's whole description (conf/body/<name>.yaml; gbmodel.bodies.body_from checks the
-    values; docs/bodies.md). It goes into every trial's spec, so editing one body's file
-    recomputes that body's trials only."""
-
-    name: str = MISSING  # what the trials are labelled with
-    description: str = ""
-    units: str = "rad"  # rad | deg: of alpha, theta offset and limits
-    dh: Optional[list[Any]] = None  # per joint (a [m], d [m], alpha, theta offset)
-    urdf: Optional[dict[str, Any]] = None  # or a URDF's chain: {file, root, tip, joints, hold}
-    base: list[Any] = field(default_factory=lambda: [[1.0, 0.0, 0.0, 0.0],
-                                                             [0.0, 1.0, 0.0, 0.0],
-                                                             [0.0, 0.0, 1.0, 0.0]])
-    hand: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
-    outputs: list[int] = MISSING  # controlled hand coordinates (0 x, 1 y, 2 z)
-    limits: Optional[list[Any]] = None  # per joint [min, max]
-    normalise: bool = False  # commands in [-1, 1] onto the limits (true) or radians (false)
-    saturate: bool = True  # normalised commands clipped at the limits
-    home: list[float] = MISSING  # the home posture, command units
-    grid: GridConf = field(default_factory=GridConf)  # the target grid at full size
-    grows: Optional[list[bool]] = None  # per segment: grows under non-proportional growth
-
-
+# body: gbmodel.bodies.Description's fields (conf/body/<name>.yaml). It goes into every trial's
+# spec, so editing one body's file recomputes that body's trials only.
+BodyConf = conf_of(gbmodel.bodies.Description, "BodyConf")
 # growth: gbmodel.Growth's fields; pattern `none` is a body of constant size end_size
 GrowthConf = schema_of(gbmodel.Growth, "GrowthConf")
 EvaluationConf = dataclasses.make_dataclass(
@@ -127,6 +120,9 @@ class ConditionsConf:
     periods: list[int] = field(default_factory=list)  # growth periods T_G, one condition each
     references: list[float] = field(default_factory=list)  # constant sizes run as references
     snapshots: list[int] = field(default_factory=list)  # epochs after which M is stored
+    # more epochs after which M is stored: this many, log-spaced over 1 ... epochs (the report's
+    # animation of each condition, pipeline/studies/animation.py); 0: none
+    frames: int = 0
     variants: list[VariantConf] = field(default_factory=list)  # each: all of the above again
     # a budget of reaching movements (forward-kinematics samples) per trial instead of epochs:
     # each learner gets budget / its samples per epoch epochs, growing over growth_share of them
@@ -158,6 +154,8 @@ class ReportConf:
     publish: bool = False  # write the committed report (paths.published): make reproduce only
     paper_experiments: list[str] = MISSING  # what the committed report must hold, at full scale
     stamp_findings: bool = False  # record these numbers as the ones findings.md discusses
+    # a GIF per figure and condition whose trial 0 stored >= 2 models (conditions.frames)
+    animate: bool = True
     explain: bool = True  # the explanation rows, read from the explain_* aggregates (explain.py)
     scale: str = ""  # a reduced scale the title names ("smoke"; set by the profile), "" = as set
 
@@ -167,6 +165,13 @@ class SlurmConf:
     """SLURM jobs through submitit (executor=slurm; pipeline/backends.py)."""
 
     partition: Optional[str] = None  # --partition; null: the cluster's default
+    account: Optional[str] = None  # --account (the allocation charged); null: your default
+    qos: Optional[str] = None  # --qos; null: the partition's default
+    gres: Optional[str] = None  # --gres, e.g. "tmpdisk:10" (the trials need no GPU)
+    constraint: Optional[str] = None  # --constraint, node features, e.g. "intel&avx2"
+    # any other sbatch option, name without the dashes -> value, e.g. {reservation: lab,
+    # exclude: "node[01-02]"}: `#SBATCH --reservation=lab` (submitit's additional_parameters)
+    extra: dict[str, Any] = field(default_factory=dict)
     timeout_min: int = 1440  # --time of each job, minutes (a job runs a whole shard)
     mem_gb: float = 2.0  # --mem per job
     shards: Optional[int] = None  # array jobs; null: `workers`
@@ -244,10 +249,9 @@ def compose(overrides: list[str] | tuple = ()) -> DictConfig:
         return hydra_compose(config_name="config", overrides=list(overrides))
 
 
-# ---- limits checked before planning (pipeline.cli.check; plan() may call check_limits too) -----
+# ---- limits, checked by plan() before it plans a variant's trials ---------------------------------
 MAX_TRIALS = 10_000  # trials.count: independent trials per condition (the paper's figures use 20)
 MAX_PLANNED = 100_000  # trials of one run in all (conditions x variants x trials.count)
-MAX_EPOCHS = 10**9  # learner.epochs: a trial's memory does not grow with them, its time does
 MAX_INT64 = 2**63 - 1  # growth periods are stored as int64 (the curve table's growth_period)
 
 
@@ -256,13 +260,13 @@ def _too_big(key, value, limit, unit, shown=None):
         raise ConfigError(f"{key}={value!r}: at most {shown or f'{limit:,}'} {unit}")
 
 
-def check_limits(cfg) -> list[str]:
+def check_limits(cfg) -> None:
     """Refuse (ConfigError naming the key and its unit) what would exhaust memory or overflow
     before a trial is planned: the trial count, the epochs, growth periods beyond int64, and the
-    whole run's size. Returns notes about legitimate but unusual values (a shrinking body)."""
+    whole run's size."""
     _too_big("trials.count", cfg.trials.count, MAX_TRIALS, "trials per condition")
     _too_big("learner.epochs", cfg.learner.epochs, MAX_EPOCHS, "epochs per trial",
-             f"{MAX_EPOCHS:.0e}")
+             f"{MAX_EPOCHS:.0e}")  # before planning multiplies the trials
     growth = cfg.growth
     _too_big("growth.period", growth.get("period"), MAX_INT64, "epochs (int64)")
     for p in cfg.conditions.periods:
@@ -275,7 +279,11 @@ def check_limits(cfg) -> list[str]:
             raise ConfigError(f"trials.count={count}: {total:,} trials in all ({conditions} "
                               f"conditions x {max(len(cfg.conditions.variants), 1)} variants); "
                               f"at most {MAX_PLANNED:,} per run")
-    notes = []
+
+
+def config_notes(cfg) -> list[str]:
+    """Notes about legitimate but unusual values (a shrinking body)."""
+    growth, notes = cfg.growth, []
     start, end, period = growth.get("start_size"), growth.get("end_size"), growth.get("period")
     if (isinstance(start, (int, float)) and isinstance(end, (int, float)) and start > end
             and (period or cfg.conditions.periods)):

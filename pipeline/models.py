@@ -7,7 +7,8 @@
     >>> q = m.posture([[0.1, 0.5]])                    # the commands its trial 0 chooses
     >>> m.reach([[0.1, 0.5]])                          # where the hand then is [m]
 
-It reads what `python -m pipeline.aggregate` wrote (paths.aggregate/<figure>/models.json) and
+It reads what `python -m pipeline.aggregate` wrote (paths.aggregate/<figure>/models.json), or
+the report's compact copy (models/<figure>.json: final models, no snapshots), and
 builds bodies and growth from each condition's trial spec, so a model is evaluated on the body
 it learned, at the size the body had at the end of its trial.
 """
@@ -38,7 +39,7 @@ class Model:
     @property
     def size(self) -> float:
         """The body's size factor at the end of the trial."""
-        return float(self.spec.make_growth().sizes([self.spec.epochs])[-1])
+        return float(self.spec.make_growth().sizes([self.spec.epochs], self.body)[-1])
 
     @property
     def scale(self) -> np.ndarray:
@@ -49,12 +50,13 @@ class Model:
         """Commands (N, m) the model of `trial` (after `epoch`, a snapshot; None: the final M)
         chooses for targets x (N, n) [m]."""
         M = self.M[trial] if epoch is None else self.snapshots[trial][epoch]
-        exps = gbmodel.exponents(self.body.n, self.spec.learner.get("degree", 3))
-        return gbmodel.predict(M, np.atleast_2d(np.asarray(x, dtype=np.float64)), exps)
+        learner, params = self.spec.make_learner()
+        return learner.predict_model(M, params, self.body,
+                                     np.atleast_2d(np.asarray(x, dtype=np.float64)))
 
     def reach(self, x, trial: int = 0, epoch: int | None = None) -> np.ndarray:
         """Where the hand is (N, n) [m] after the posture for targets x."""
-        return self.body.forward(self.posture(x, trial, epoch), scale=self.scale)
+        return self.body.forward(self.posture(x, trial, epoch), self.scale)
 
 
 @dataclass
@@ -74,15 +76,20 @@ class Figure:
 
 def load(figure: str, aggregate_dir=None) -> Figure:
     """The trained models of `figure` from paths.aggregate (default: outputs/aggregate of the
-    repository; pass the folder for another root or profile, e.g. outputs/smoke/aggregate)."""
-    if aggregate_dir is None:
-        from .config import REPO_ROOT
+    repository; pass the folder for another root or profile, e.g. outputs/smoke/aggregate), or
+    from a report folder's models/<figure>.json (the report stage writes them; without a local
+    aggregate, the committed report's, outputs/report/models/, are read: a fresh clone)."""
+    from .config import REPO_ROOT
 
-        aggregate_dir = REPO_ROOT / "outputs" / "aggregate"
-    path = Path(aggregate_dir) / figure / "models.json"
-    if not path.exists():
-        raise FileNotFoundError(f"{path}: not aggregated (run pipeline.simulate and "
-                                "pipeline.aggregate for this figure)")
+    folders = ([Path(aggregate_dir)] if aggregate_dir is not None else
+               [REPO_ROOT / "outputs" / "aggregate", REPO_ROOT / "outputs" / "report"])
+    tried = [p for d in folders
+             for p in (d / figure / "models.json", d / "models" / f"{figure}.json")]
+    path = next((p for p in tried if p.exists()), None)
+    if path is None:
+        raise FileNotFoundError(f"{tried[0]}: not aggregated (run pipeline.simulate and "
+                                "pipeline.aggregate for this figure, or pipeline.report for "
+                                "its models/<figure>.json)")
     data = json.loads(path.read_text())
     out = {}
     for label, c in data["conditions"].items():
@@ -92,6 +99,6 @@ def load(figure: str, aggregate_dir=None) -> Figure:
         out[label] = Model(
             label=label, spec=gbmodel.TrialSpec.from_dict(c["spec"]),
             M={i: np.asarray(t["M"]) for i, t in trials.items()},
-            snapshots={i: {int(e): np.asarray(m) for e, m in t["snapshots"].items()}
+            snapshots={i: {int(e): np.asarray(m) for e, m in t.get("snapshots", {}).items()}
                        for i, t in trials.items()})
     return Figure(figure, out)

@@ -24,7 +24,7 @@ import numpy as np
 
 import gbmodel
 import gbmodel.bodies
-from gbmodel.growth import check_int
+from gbmodel.spec import check_int
 from omegaconf import DictConfig, OmegaConf
 
 from .config import (ConfigError, check_backend, check_limits, check_names, check_root,
@@ -32,7 +32,6 @@ from .config import (ConfigError, check_backend, check_limits, check_names, chec
 from .fingerprint import code_fingerprint, source_fingerprint  # noqa: F401  (the code as run)
 
 log = logging.getLogger(__name__)
-MAX_EPOCHS = 10**9  # a trial's memory does not grow with its epochs, but its time does
 
 
 def _bad(key, value, why):
@@ -147,16 +146,27 @@ def apply_budget(cfg: DictConfig) -> None:
         c.periods = [max(1, round(c.growth_share * epochs))]
 
 
+def frame_epochs(epochs: int, frames: int) -> list[int]:
+    """`frames` epochs spread evenly on a log scale over 1 ... epochs (fewer where two round to
+    the same epoch), the last one `epochs`: where the learning curve changes, it changes on a
+    log scale."""
+    if frames <= 0:
+        return []
+    if frames == 1:
+        return [int(epochs)]
+    return sorted({int(e) for e in np.rint(np.geomspace(1, epochs, frames))})
+
+
 def trial_spec(cfg: DictConfig, growth: dict) -> gbmodel.TrialSpec:
     """The TrialSpec of one condition, validated (ConfigError naming the config key)."""
     learner = OmegaConf.to_container(cfg.learner)
     epochs, per_decade = learner.pop("epochs"), learner.pop("evals_per_decade")
-    snaps = tuple(sorted({e for e in cfg.conditions.snapshots
-                          if isinstance(e, int) and e <= epochs}))
     for e in cfg.conditions.snapshots:
         check_int("conditions.snapshots", e, 1)
-    if isinstance(epochs, int) and epochs > MAX_EPOCHS:
-        _bad("learner.epochs", epochs, f"at most {MAX_EPOCHS:.0e} epochs per trial")
+    check_int("conditions.frames", cfg.conditions.frames, 0)
+    frames = frame_epochs(epochs, cfg.conditions.frames) if isinstance(epochs, int) else []
+    snaps = tuple(sorted({e for e in [*cfg.conditions.snapshots, *frames]
+                          if isinstance(e, int) and e <= epochs}))
     spec = gbmodel.TrialSpec(
         body=OmegaConf.to_container(cfg.body), growth=growth, learner=learner,
         evaluation=OmegaConf.to_container(cfg.evaluation), epochs=epochs,
@@ -244,7 +254,8 @@ def check_run(cfg: DictConfig) -> None:
     check_int("trials.count", cfg.trials.count, 1)
     check_int("trials.root_seed", cfg.trials.root_seed, 0)
     check_int("workers", cfg.workers, 1)
-    check_backend(cfg.executor.backend)  # an unknown engine, or one whose package is missing
+    check_backend(cfg.executor.backend, package=False)  # an unknown engine (its package:
+    # simulate, the stage that submits)
     if not cfg.figure or "/" in cfg.figure or cfg.figure.startswith("."):
         _bad("figure", cfg.figure, "must be a plain name (it names a folder)")
     check_root(cfg)
@@ -391,19 +402,9 @@ def plan_conditions(trials: list[dict]) -> list[dict]:
     return list(out.values())
 
 
-# CPU time per sample and joint of each learner's path, relative to Goal Babbling's fast batch
-# path (measured by `python -m pipeline.bench_costs`: 2.3-2.8 ns there; two runs on arm5 and
-# the iCub agree within a factor of about 3): without them, a run mixing learners misjudged its
-# ETA and its shards' balance by 35x (online Goal Babbling) to 10,000x (its numpy reference).
-SAMPLE_COST = {("goal_babbling", True): 1.0, ("goal_babbling", False): 60.0,
-               ("online_goal_babbling", True): 35.0, ("online_goal_babbling", False): 11000.0,
-               ("motor_babbling", True): 60.0, ("example_memory", True): 300.0}
-ONLINE_UPDATES_COST = 7.0  # Goal Babbling with learner.updates=online, against its batch step
-
-
 def cost(trial: dict) -> float:
     """Rough relative run time of a trial: samples per epoch x joints x epochs x the learner's
-    cost per sample and joint (SAMPLE_COST; 1 for a learner it does not know)."""
+    cost per sample and joint (its sample_cost; 1 for a learner without one)."""
     return _cost(_canonical(trial["spec"]))
 
 
@@ -412,8 +413,5 @@ def _cost(spec_json: str) -> float:  # per condition, not per trial: a body is b
     spec = gbmodel.TrialSpec.from_dict(json.loads(spec_json))
     learner, params = spec.make_learner()
     body = spec.make_body()
-    name = spec.learner.get("name", "goal_babbling")
-    per = SAMPLE_COST.get((name, bool(getattr(params, "fast", True))), 1.0)
-    if getattr(params, "updates", "batch") == "online":
-        per *= ONLINE_UPDATES_COST
+    per = learner.sample_cost(params) if hasattr(learner, "sample_cost") else 1.0
     return float(spec.epochs) * learner.samples_per_epoch(params, body) * body.m * per

@@ -11,18 +11,21 @@ trial is recorded with its error, the others go on, and the stage exits non-zero
 """
 from __future__ import annotations
 
+import json
 import logging
 import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import gbmodel
 import hydra
 from omegaconf import DictConfig, OmegaConf
 
 from . import cache, cli, execute, io
+from .config import check_backend
 from .plan import PLANNED, check_run, cost, plan, plan_conditions, plan_digest
-from .progress import Progress, fmt_duration  # noqa: F401 - fmt_duration: was here
+from .progress import Progress
 
 log = logging.getLogger("pipeline.simulate")
 WAIT_POLL_S = 2.0
@@ -75,6 +78,7 @@ def jobs_of(cfg: DictConfig, overrides: list[str] = ()) -> list[Job]:
     experiment in one process). A command planned before (the same plan_digest: config,
     overrides, config files and code) takes its jobs from paths.out/planned/ instead of
     composing and planning again; the run's own settings are checked either way."""
+    check_backend(cfg.executor.backend)  # this stage submits: the engine's package is needed
     experiment = None if cfg.get("experiments") else _experiment_of(cfg)
     saved = Path(cfg.paths.out) / PLANNED / f"{plan_digest(cfg, [overrides, experiment])}.json"
     try:
@@ -146,10 +150,8 @@ def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = Non
     group: the Hydra multirun this run is a job of (job: its number), whose records make one
     figure together; None: this run's records make the figure alone."""
     jobs = jobs_of(cfg, overrides)  # raises ConfigError before anything is written
-    for body in borrowed_rates(t for j in jobs for t in j.trials):
-        print(f"note: body {body} learns at the 5-DOF arm's plain-step rate (learner.learning_rate"
-              f" = 1 / W fixed for arm5); `python -m pipeline.rate body={body}` prints its own",
-              file=sys.stderr)
+    for note in learner_notes(t for j in jobs for t in j.trials):
+        print(f"note: {note}", file=sys.stderr)
     cache_dir = Path(cfg.paths.cache)
     names = list(dict.fromkeys(j.figure for j in jobs))
     figure = ", ".join(names) if len(names) <= 3 else f"{len(names)} figures"
@@ -223,17 +225,19 @@ def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = Non
     return summary
 
 
-def borrowed_rates(trials) -> list[str]:
-    """Bodies other than arm5 whose Goal Babbling plain step runs at the default rate, which
-    the rule fixed for arm5: nothing wrong, but a rate not made for them, so it is said."""
-    from gbmodel.learners.goal_babbling import Params
-
-    default, out = Params().learning_rate, {}
+def learner_notes(trials) -> list[str]:
+    """What the trials' learners say about their settings on their bodies (the learner's
+    optional `notes`), each note once, in the order of the trials."""
+    out, seen = {}, set()
     for t in trials:
-        learner, body = t["spec"]["learner"], t["spec"]["body"]["name"]
-        if (learner["name"] == "goal_babbling" and learner.get("step") == "plain"
-                and learner.get("learning_rate") == default and body != "arm5"):
-            out[body] = True
+        key = json.dumps([t["spec"]["learner"], t["spec"]["body"]], sort_keys=True)
+        if key in seen:
+            continue
+        seen.add(key)
+        spec = gbmodel.TrialSpec.from_dict(t["spec"])
+        learner, params = spec.make_learner()
+        if hasattr(learner, "notes"):
+            out.update(dict.fromkeys(learner.notes(params, spec.make_body())))
     return list(out)
 
 

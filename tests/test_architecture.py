@@ -176,15 +176,16 @@ def test_the_fingerprint_hashes_the_shared_core_and_the_learners_own_files(monke
 
 
 def test_a_learner_that_imports_another_learners_code_hashes_its_files():
-    """Online Goal Babbling and motor babbling import goal_babbling's reference code (init,
-    weights, perturbations): that code is in their fingerprints; the example memory imports
-    none."""
+    """The shipped learners share code only through the core (gbmodel/inverse.py, goals.py):
+    each one's fingerprint holds its own files alone; a learner importing another's code would
+    have that code in its fingerprint too."""
     labels = lambda name: {label for label, _ in fingerprint.learner_sources(name)}  # noqa: E731
-    gb = labels("goal_babbling")
-    assert "gbmodel/learners/goal_babbling/reference.py" in gb
-    for name in ("online_goal_babbling", "motor_babbling"):
-        assert labels(name) == gb | {f"gbmodel/learners/{name}.py"}
-    assert labels("example_memory") == {"gbmodel/learners/example_memory.py"}
+    own = lambda name: {p.relative_to(GBMODEL.parent).as_posix()  # noqa: E731
+                        for p in (GBMODEL / "learners" / name).rglob("*.py")}
+    for name in ("goal_babbling", "online_goal_babbling"):
+        assert labels(name) == own(name) and f"gbmodel/learners/{name}/fast.py" in own(name)
+    for name in ("motor_babbling", "example_memory"):
+        assert labels(name) == {f"gbmodel/learners/{name}.py"}
     # relative and absolute imports, resolved from the importing file's package
     text = ("from .goal_babbling import goals\nfrom ..features import x\n"
             "import gbmodel.learners.example_memory\nfrom . import motor_babbling\n")
@@ -234,8 +235,8 @@ def test_the_fingerprint_of_one_learner_ignores_another_learners_files(tmp_path,
         online = fp("online_goal_babbling")
         ref.write_text(ref.read_text() + "\nEXTRA = 1\n")
         assert fp("goal_babbling") != gb and fp("zz_other") == zz
-        # online Goal Babbling runs goal_babbling's reference code: its trials follow it too
-        assert fp("online_goal_babbling") != online
+        # online Goal Babbling shares no code with goal_babbling's folder: its trials stay
+        assert fp("online_goal_babbling") == online
         gb = fp("goal_babbling")
         core = copy / "bodies.py"
         core.write_text(core.read_text() + "\nEXTRA = 1\n")
@@ -378,46 +379,147 @@ def test_every_experiment_composes_and_plans(name, profile):
         assert list(dict.fromkeys(t["variant"]["label"] for t in trials)) == labels
 
 
-def _pipeline_imports() -> dict[str, set[str]]:
-    """module -> the pipeline modules it imports (at the top or inside a function)."""
+def _imports(package: str = "pipeline") -> dict[str, set[str]]:
+    """module -> the modules of `package` (pipeline or gbmodel) it imports, at the top or inside
+    a function; a name imported from a package counts as its submodule where one exists."""
     import ast
 
-    root = REPO_ROOT / "pipeline"
-    out = {}
+    root = REPO_ROOT / package
+    mods = {}
     for path in root.rglob("*.py"):
-        mod = ".".join(("pipeline",) + path.relative_to(root).with_suffix("").parts)
-        mod = mod.removesuffix(".__init__")
+        mod = ".".join((package,) + path.relative_to(root).with_suffix("").parts)
+        mods[mod.removesuffix(".__init__")] = path
+    out = {}
+    for mod, path in mods.items():
         pkg = mod if path.name == "__init__.py" else mod.rsplit(".", 1)[0]
         deps = set()
         for node in ast.walk(ast.parse(path.read_text())):
-            if isinstance(node, ast.ImportFrom) and node.level:
-                base = pkg.split(".")[: len(pkg.split(".")) - node.level + 1]
-                target = ".".join(base + ([node.module] if node.module else []))
-                names = [target] if node.module else [f"{target}.{a.name}" for a in node.names]
-                deps |= set(names)
-            elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith("pipeline"):
-                deps.add(node.module)
-        out[mod] = deps
+            if isinstance(node, ast.ImportFrom):
+                if node.level:
+                    base = pkg.split(".")[: len(pkg.split(".")) - node.level + 1]
+                    target = ".".join(base + ([node.module] if node.module else []))
+                else:
+                    target = node.module or ""
+                if not target.split(".")[0] == package:
+                    continue
+                subs = {f"{target}.{a.name}" for a in node.names} & set(mods)
+                deps |= subs if subs else {target}
+            elif isinstance(node, ast.Import):
+                deps |= {a.name for a in node.names if a.name.split(".")[0] == package}
+        out[mod] = {d for d in deps if d in mods and d != mod}
     return out
 
 
-def test_pipeline_has_no_import_circle_and_the_machinery_knows_no_study():
-    graph = _pipeline_imports()
-    graph = {m: {d for d in deps if d in graph} for m, deps in graph.items()}
+def _circle(graph: dict[str, set[str]]) -> list[str] | None:
+    """An import circle of graph (module -> modules it imports), or None."""
     state = {}
 
     def visit(m, stack):
         state[m] = "open"
-        for d in graph[m]:
-            assert state.get(d) != "open", f"import circle: {' -> '.join(stack + [m, d])}"
+        for d in sorted(graph[m]):
+            if state.get(d) == "open":
+                return stack + [m, d]
             if d not in state:
-                visit(d, stack + [m])
+                found = visit(d, stack + [m])
+                if found:
+                    return found
         state[m] = "done"
+        return None
 
-    for m in graph:
+    for m in sorted(graph):
         if m not in state:
-            visit(m, [])
+            found = visit(m, [])
+            if found:
+                return found
+    return None
+
+
+def test_the_circle_check_finds_a_circle():
+    assert _circle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
+    assert _circle({"a": {"b"}, "b": set(), "c": {"a", "b"}}) is None
+
+
+def test_gbmodel_has_no_import_circle_and_imports_no_pipeline():
+    graph = _imports("gbmodel")
+    assert "gbmodel.bodies" in graph and "gbmodel.learners.goal_babbling.fast" in graph
+    # the package's __init__ gathers the public names: what it imports is not a circle
+    inner = {m: deps - {"gbmodel"} for m, deps in graph.items() if m != "gbmodel"}
+    assert _circle(inner) is None, f"import circle: {' -> '.join(_circle(inner))}"
+    for path in (REPO_ROOT / "gbmodel").rglob("*.py"):
+        text = path.read_text()
+        assert not re.search(r"^\s*(from|import) pipeline", text, re.M), path
+
+
+def test_no_learner_imports_another_learners_code():
+    """A learner's files import the shared core (gbmodel's modules outside learners/), never
+    another learner's: a new learner is its own folder, and changing one learner touches no
+    other."""
+    learner_of = {}
+    for mod in _imports("gbmodel"):
+        parts = mod.split(".")
+        if parts[:2] == ["gbmodel", "learners"] and len(parts) > 2:
+            learner_of[mod] = parts[2]
+    assert {"goal_babbling", "online_goal_babbling", "motor_babbling",
+            "example_memory"} <= set(learner_of.values())
+    for mod, deps in _imports("gbmodel").items():
+        if mod in learner_of:
+            others = {d for d in deps if learner_of.get(d, learner_of[mod]) != learner_of[mod]}
+            assert not others, f"{mod} imports another learner's code: {sorted(others)}"
+
+
+def test_pipeline_has_no_import_circle_and_the_machinery_knows_no_study():
+    graph = _imports("pipeline")
+    inner = {m: deps - {"pipeline"} for m, deps in graph.items() if m != "pipeline"}
+    assert _circle(inner) is None, f"import circle: {' -> '.join(_circle(inner))}"
     machinery = [m for m in graph if not m.startswith("pipeline.studies") and m != "pipeline.report"]
     for m in machinery:
         studies = {d for d in graph[m] if d.startswith("pipeline.studies")}
         assert not studies, f"{m} imports the studies {sorted(studies)}"
+
+
+def _named(doc: str, paths, folders: bool = True) -> list[str]:
+    """The paths whose file name (and, with folders, each folder above it, as `folder/`) the
+    doc does not name."""
+    text = (REPO_ROOT / "docs" / doc).read_text()
+    missing = []
+    for p in paths:
+        rel = p.relative_to(REPO_ROOT)
+        names = [rel.name] + ([f"{d}/" for d in rel.parts[:-1]] if folders else [])
+        missing += [f"{rel} ({n})" for n in names if n not in text]
+    return missing
+
+
+def test_the_docs_name_every_module_and_test_file():
+    """docs/core.md's layout names every module of gbmodel and pipeline (and its folders),
+    docs/tests.md every file of tests/: a file added without its line fails here."""
+    modules = [p for pkg in ("gbmodel", "pipeline") for p in (REPO_ROOT / pkg).rglob("*.py")]
+    assert len(modules) > 40
+    assert _named("core.md", modules) == []
+    assert _named("tests.md", sorted((REPO_ROOT / "tests").glob("*.py")), folders=False) == []
+    assert _named("core.md", [REPO_ROOT / "gbmodel" / "not_a_module.py"]) == [
+        "gbmodel/not_a_module.py (not_a_module.py)"]
+
+
+def test_the_body_schema_is_generated_from_gbmodels_description():
+    """BodyConf has gbmodel.bodies.Description's fields, types and defaults; a field without a
+    default must be given (MISSING), and the grid's schema is generated the same way."""
+    from omegaconf import MISSING
+
+    from gbmodel.bodies import FIELDS, Description
+
+    conf = {f.name: f for f in dataclasses.fields(pipeline.config.BodyConf)}
+    assert tuple(conf) == FIELDS == tuple(f.name for f in dataclasses.fields(Description))
+    assert conf["name"].default == MISSING and conf["units"].default == "rad"
+    assert conf["base"].default_factory() == Description(
+        name="x", outputs=[0], home=[0.0], grid=None).base
+    grid = conf["grid"].default_factory()
+    assert type(grid).__name__ == "GridConf" and grid.lo == MISSING
+
+
+def test_a_growth_pattern_becomes_factors_in_one_place():
+    body = gbmodel.make_body("arm5")
+    np.testing.assert_array_equal(gbmodel.growth.factors(body, 0.5), np.full(5, 0.5))
+    g = gbmodel.Growth(pattern="proximal_first")
+    np.testing.assert_array_equal(gbmodel.growth.factors(body, 0.7, g), g.scales(body, 0.7))
+    with pytest.raises(gbmodel.SpecError, match="growth.pattern='spiral'"):
+        gbmodel.growth.factors(body, 0.5, "spiral")

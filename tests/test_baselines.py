@@ -79,7 +79,7 @@ def test_memory_window_zero_is_accepted_and_negative_is_not():
 
 # ---- goals chosen by learning progress ----------------------------------------------------------
 from gbmodel.learners import online_goal_babbling  # noqa: E402
-from gbmodel.learners.goal_babbling import goals  # noqa: E402
+from gbmodel import goals  # noqa: E402
 
 GROWING = {"pattern": "proportional", "period": 20, "start_size": 0.5}
 

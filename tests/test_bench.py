@@ -2,7 +2,7 @@
 import json
 from pathlib import Path
 
-from pipeline import bench
+from pipeline.tools import bench
 from pipeline.config import compose
 
 

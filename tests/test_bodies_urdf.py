@@ -105,7 +105,7 @@ def test_growth_scales_the_links(urdf_file):
     q = np.full(4, 0.2)
     base_point = body_from(_desc(urdf_file, urdf={"file": str(urdf_file), "root": "world",
                                                   "tip": "l1"}, home=[0.0])).forward([0.0])
-    half = body.forward(q, 0.5, g)
+    half = body.forward(q, g.scales(body, 0.5))
     full = body.forward(q)
     # the first joint sits where the base puts it: the hand's offset from it halves
     np.testing.assert_allclose(half - base_point, 0.5 * (full - base_point), atol=1e-12)
@@ -168,7 +168,7 @@ def test_fast_distances_of_a_urdf_body(urdf_file):
     M = np.random.default_rng(0).normal(0, 0.3, size=(4, len(exps)))
     xs = body.targets
     scale = np.array([0.9, 0.8, 0.7, 0.6])
-    want = np.linalg.norm(body.forward(gbmodel.predict(M, xs, exps), scale=scale) - xs, axis=-1)
+    want = np.linalg.norm(body.forward(gbmodel.predict(M, xs, exps), scale) - xs, axis=-1)
     np.testing.assert_allclose(fast.distances(M, body, exps, scale, xs), want, atol=2e-6)
 
 
@@ -194,7 +194,7 @@ def test_online_goal_babbling_runs_the_urdf_chain(urdf_file, pattern):
     scale = np.array([0.9, 0.8, 0.7, 0.6])
     want = np.linalg.norm(body.forward(body.saturate(gbmodel.predict(M, body.targets,
                                                                      gbmodel.exponents(3))),
-                                       scale=scale) - body.targets, axis=-1)
+                                       scale) - body.targets, axis=-1)
     np.testing.assert_allclose(online.distances(state, params, body, scale, body.targets), want,
                                rtol=1e-12, atol=1e-15)
 

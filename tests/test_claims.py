@@ -5,7 +5,7 @@ import pytest
 
 from pipeline import report
 from pipeline.studies import claims
-from pipeline.aggregate import growth_peak
+from pipeline.measures import growth_peak
 
 EPOCHS = np.array([1, 2, 5, 10, 11, 20, 50, 100])
 

@@ -121,7 +121,7 @@ def test_relative_error_normalisations_agree_for_proportional_growth():
 @pytest.mark.parametrize("fixed", [1.0, 0.5])
 def test_nonproportional_growth_has_unequal_segments_but_total_length_s(fixed):
     """Non-proportional growth scales the growing segments so that the total length is S x the
-    full one (Body.segment_scale): the segments differ from S, the normalisations do not."""
+    full one (gbmodel.growth.factors): the segments differ from S, the normalisations do not."""
     n = conventions.normalisations(_spec("nonproportional", fixed=fixed))
     assert n["spread"][0] < 0.9 and n["spread"][1] > 1.1
     assert n["difference"] < 1e-12

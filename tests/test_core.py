@@ -9,6 +9,7 @@ from scipy.optimize import least_squares
 
 import gbmodel
 from gbmodel import Growth, SpecError
+from gbmodel.growth import factors
 from gbmodel.evaluation import eval_epochs, evaluate
 from gbmodel.features import exponents, feature_bounds, features
 from gbmodel.learners import goal_babbling
@@ -83,21 +84,21 @@ def test_icub_saturates_at_joint_limits():
 def test_proportional_growth_scales_the_hand(name):
     body = gbmodel.make_body(name)
     q = np.random.default_rng(3).uniform(-1, 1, size=(10, body.m))
-    np.testing.assert_allclose(body.forward(q, 0.5), 0.5 * body.forward(q), atol=1e-15)
+    np.testing.assert_allclose(body.forward(q, factors(body, 0.5)), 0.5 * body.forward(q), atol=1e-15)
 
 
 def test_nonproportional_growth_of_arm5():
     arm5 = gbmodel.make_body("arm5")
     for size in (0.5, 0.75, 1.0):
-        lengths = arm5.a * arm5.segment_scale(size, "nonproportional")
+        lengths = arm5.a * factors(arm5, size, "nonproportional")
         assert lengths.sum() == pytest.approx(size)
         assert lengths[1] == lengths[3] == pytest.approx(0.2), "segments 2 and 4 do not grow"
-    start = arm5.a * arm5.segment_scale(0.5, "nonproportional")
+    start = arm5.a * factors(arm5, 0.5, "nonproportional")
     np.testing.assert_allclose(start[[0, 2, 4]], 0.1 / 3)
     # the straight arm reaches exactly its total length
-    assert arm5.forward(np.zeros(5), 0.5, "nonproportional") == pytest.approx([0.5, 0.0])
+    assert arm5.forward(np.zeros(5), factors(arm5, 0.5, "nonproportional")) == pytest.approx([0.5, 0.0])
     with pytest.raises(ValueError, match="too small"):
-        arm5.segment_scale(0.3, "nonproportional")
+        factors(arm5, 0.3, "nonproportional")
 
 
 def test_size_schedule():
@@ -127,7 +128,8 @@ def test_target_set_reachable_at_every_size(name):
         for size in sizes:
             q = body.home.copy()
             for x in body.target_set(size):  # walk the grid from posture to posture
-                sol = least_squares(lambda q: body.forward(q, size, pattern) - x, q,
+                sol = least_squares(lambda q: body.forward(q, factors(body, size, pattern)) - x,
+                                    q,
                                     bounds=(lo, hi) if body.normalized else (-np.inf, np.inf))
                 assert np.abs(sol.fun).max() < 1e-4, f"{name} cannot reach {x} at size {size}"
                 q = sol.x
@@ -231,13 +233,14 @@ def test_epoch_reaches_with_the_grown_body():
     and the step changes M."""
     body, exps, rng = gbmodel.make_body("arm5"), exponents(2), np.random.default_rng(6)
     size = 0.7
-    scale = body.segment_scale(size, "nonproportional")
+    scale = factors(body, size, "nonproportional")
     M = learner.init_inverse(body.home, *body.target_box(size), exps, 0.1, rng)
     idx, raw = goal_babbling.draw(goal_babbling.Params(), body, 1, rng)
     M_new, (xstar, x, q, w) = learner.epoch(M, body, size, scale, exps, idx[0], raw[0], 0.2, 7,
                                             1.0)
     assert x.shape == (20, 15 * 7 + 1, 2) and q.shape == (20, 15 * 7 + 1, 5)
-    np.testing.assert_allclose(x, body.forward(q, size, "nonproportional"), atol=1e-15)
+    np.testing.assert_allclose(x, body.forward(q, factors(body, size, "nonproportional")),
+                               atol=1e-15)
     np.testing.assert_array_equal(w[:, 0], 1.0)
     assert not np.allclose(M_new, M)
 
@@ -302,7 +305,7 @@ def test_curve_columns():
     assert r.size[0] == 0.5 and r.size[-1] == 1.0
     # the last point of the curve is the evaluation of the final model
     body, params = spec.make_body(), spec.make_learner()[1]
-    scale = body.segment_scale(1.0, "proportional")
+    scale = factors(body, 1.0, "proportional")
     assert r.abs_error[-1] == evaluate(goal_babbling, r.M, params, body, 1.0, scale)
 
 

@@ -126,6 +126,17 @@ def test_slurm_run_matches_local_run(slurm, tmp_path, local_files):
     assert trial_files(tmp_path) == local_files
 
 
+def test_slurm_lab_options_reach_the_jobs(slurm, tmp_path, local_files):
+    """executor.slurm.extra (a free-form sbatch option) and gres-less defaults: the jobs run
+    with the option in their script and compute the same trial files."""
+    summary = simulate(cfg_of(tmp_path, *SLURM_FAST, "workers=2",
+                              "+executor.slurm.extra.comment=gbgrowth-lab"))
+    assert summary.ran == 6 and not summary.failed, summary.lines()
+    assert trial_files(tmp_path) == local_files
+    scripts = list(tmp_path.rglob("*_submission.sh"))
+    assert scripts and all("#SBATCH --comment=gbgrowth-lab" in p.read_text() for p in scripts)
+
+
 def test_slurm_jobs_cancelled_or_killed_lose_only_their_trials_without_accounting(
         slurm, tmp_path, local_files, monkeypatch):
     """scancel one shard's job, SIGKILL another's processes; sacct made to fail (a cluster

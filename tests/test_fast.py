@@ -17,8 +17,9 @@ import numpy as np
 import pytest
 
 import gbmodel
-from gbmodel import evaluation
+from gbmodel import evaluation, simd
 from gbmodel.features import exponents
+from gbmodel.growth import factors
 from gbmodel.learners import goal_babbling as gb
 from gbmodel.learners.goal_babbling import fast, reference
 
@@ -40,7 +41,7 @@ def spec_for(name, pattern="proportional", fast_path=True, body=None, growth=Non
 
 def test_sincos_accuracy():
     x = np.linspace(-10, 10, 200_001).astype(np.float32)
-    s, c = fast.sincos_array(x)
+    s, c = simd.sincos_array(x)
     exact = x.astype(np.float64)
     assert np.abs(s - np.sin(exact)).max() < 2e-6
     assert np.abs(c - np.cos(exact)).max() < 2e-6
@@ -55,7 +56,7 @@ def test_one_epoch_matches_reference(name, pattern, size, degree):
     body = gbmodel.make_body(name)
     params = gb.Params(**SETTINGS[name], degree=degree)
     exps = exponents(body.n, params.degree)
-    scale = body.segment_scale(size, pattern)
+    scale = factors(body, size, pattern)
     rng = np.random.default_rng(3)
     M = gb.init(params, body, size, rng)
     for _ in range(3):  # a few epochs, each from the reference's M
@@ -102,7 +103,7 @@ def test_distances_match_numpy_evaluation(name, pattern, size):
     for an initial and a learned M, on the grid and off it."""
     body = gbmodel.make_body(name)
     params = gb.Params(**SETTINGS[name])
-    scale = body.segment_scale(size, pattern)
+    scale = factors(body, size, pattern)
     rng = np.random.default_rng(5)
     M0 = gb.init(params, body, size, rng)
     M1 = gb.train(M0, params, body, np.full(20, size), np.tile(scale, (20, 1)),

@@ -69,7 +69,7 @@ def test_proximal_first_on_arm5_by_numbers():
         body, 0.75), 0.75)
     # the straight arm reaches its total length
     scale = g.scales(body, 0.6)
-    assert body.forward(np.zeros(5), scale=scale) == pytest.approx([0.6, 0.0])
+    assert body.forward(np.zeros(5), scale) == pytest.approx([0.6, 0.0])
 
 
 def test_proximal_first_runs_in_a_trial():
@@ -143,7 +143,7 @@ def test_leads_are_checked(kwargs):
     dict(pattern="nonproportional", fixed_scale=0.5, start_size=0.5, end_size=0.6),
     dict(pattern="proximal_first"), dict(pattern="per_segment", leads=[0.5, 0.2, 0, -0.2, -0.5])])
 def test_every_pattern_draws_its_postures(growth):
-    """The posture figures (Fig. 3) take every pattern (proximal_first crashed them before)."""
+    """The posture figures (Fig. 3) take every pattern."""
     import matplotlib
     matplotlib.use("Agg")
     from pipeline.studies import figures
@@ -152,6 +152,6 @@ def test_every_pattern_draws_its_postures(growth):
     M = gbmodel.run_trial(gbmodel.TrialSpec.from_dict(spec), np.random.default_rng(0)).M
     fig = figures.postures([("a", spec, M)], "test")
     body, size, g, _ = figures.final_body(spec)
-    np.testing.assert_allclose(figures.link_points(body, body.home, size, g)[-1, :2],
-                               body.forward(body.home, scale=g.scales(body, size)), atol=1e-15)
+    np.testing.assert_allclose(body.frame_points(body.home, g.scales(body, size))[-1, :2],
+                               body.forward(body.home, g.scales(body, size)), atol=1e-15)
     assert fig.axes

@@ -10,6 +10,7 @@ import gbmodel
 from gbmodel import SpecError, TrialSpec, learners, run_trial
 from gbmodel.features import exponents, features
 from gbmodel.learners import example_memory, motor_babbling, online_goal_babbling
+from gbmodel.simd import sincos64
 
 NEW = ["motor_babbling", "example_memory", "online_goal_babbling"]
 STATIC = {"start_size": 1.0, "end_size": 1.0}  # no growth, the full body
@@ -97,7 +98,7 @@ def test_motor_babbling_fits_the_window_by_least_squares():
     state = motor_babbling.train(state, params, body, np.ones(3), scales[:3], (offsets[:3],))
     state = motor_babbling.train(state, params, body, np.ones(2), scales[3:], (offsets[3:],))
     qs = [body.saturate(body.home + params.spread * offsets[e]) for e in (3, 4)]
-    x = np.concatenate([body.forward(q, scale=scales[e]) for q, e in zip(qs, (3, 4))])
+    x = np.concatenate([body.forward(q, scales[e]) for q, e in zip(qs, (3, 4))])
     q = np.concatenate(qs)
     phi = features(x, exponents(2))
     expected = np.linalg.solve(phi.T @ phi / len(q) + 1e-4 * np.eye(10), phi.T @ q / len(q)).T
@@ -211,7 +212,7 @@ def test_online_draws_are_numpys_normals():
     shape = (3, 7, 5, 3)
     for bits in (np.random.PCG64, np.random.Philox):
         ours, theirs = np.random.Generator(bits(11)), np.random.Generator(bits(11))
-        walk = online_goal_babbling._normals(ours, int(np.prod(shape))).reshape(shape)
+        walk = online_goal_babbling.fast.normals(ours, int(np.prod(shape))).reshape(shape)
         np.testing.assert_array_equal(walk, theirs.standard_normal(shape))
         np.testing.assert_array_equal(ours.random(9), theirs.random(9))  # the state after
 
@@ -224,12 +225,12 @@ def test_online_sincos_is_the_c_librarys_within_two_ulp():
     x = np.concatenate([np.linspace(-40, 40, 20001), rng.uniform(-1e4, 1e4, 20000),
                         np.arange(-64, 65) * np.pi / 4, [0.0, 1e-300, -1e-12],
                         [2.0 ** 24 - 1, 2.0 ** 24, 1e10, -1e16, 1e20, 1e300]])
-    got = np.array([online_goal_babbling._sincos(v) for v in x])
+    got = np.array([sincos64(v) for v in x])
     want = np.array([(math.sin(v), math.cos(v)) for v in x])
     ulp = np.spacing(np.maximum(np.abs(want), 1e-3))  # absolute near the zeros
     assert (np.abs(got - want) <= 2 * ulp).all(), np.abs(got - want).max()
     for bad in (np.nan, np.inf, -np.inf):
-        assert np.isnan(online_goal_babbling._sincos(bad)).all()
+        assert np.isnan(sincos64(bad)).all()
 
 
 @pytest.mark.parametrize("body", ["arm5", "icub"])

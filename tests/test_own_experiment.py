@@ -104,7 +104,7 @@ def test_the_plain_steps_rate_is_per_sample_and_exact_at_the_papers_settings():
 
 
 def test_the_rate_rule_is_a_command_for_any_body(tmp_path):
-    from pipeline import rate
+    from pipeline.tools import rate
 
     got = rate.rate(compose(["body=arm2"]), epochs=200, seeds=(0,))
     assert got["rate_samples"] == 2120 and got["W"] > 0
@@ -113,8 +113,10 @@ def test_the_rate_rule_is_a_command_for_any_body(tmp_path):
 
 def test_a_body_borrowing_arm5s_rate_is_told_so(tmp_path):
     trials = plan(compose(["body=arm2", "learner.learning_rate=0.000876"]))
-    assert simulate.borrowed_rates(trials) == ["arm2"]
-    assert simulate.borrowed_rates(plan(compose(["body=arm2"]))) == []
+    notes = simulate.learner_notes(trials + trials)
+    assert len(notes) == 1 and "body arm2 learns at the 5-DOF arm's plain-step rate" in notes[0]
+    assert "pipeline.tools.rate body=arm2" in notes[0]
+    assert simulate.learner_notes(plan(compose(["body=arm2"]))) == []
 
 
 # ---- 7. trained models from Python -------------------------------------------------------------
@@ -127,7 +129,8 @@ def test_trained_models_load_and_reach(tmp_path, compose_tiny):
     m = fig["TG10"]
     x = m.body.target_set(m.size)[:3]
     q = m.posture(x)
-    assert q.shape == (3, 5) and np.allclose(m.reach(x), m.body.forward(q, size=m.size))
+    assert q.shape == (3, 5) and np.allclose(
+        m.reach(x), m.body.forward(q, gbmodel.growth.factors(m.body, m.size)))
     assert not np.allclose(m.posture(x, epoch=5), q)  # the snapshot is another model
     side = json.loads((Path(cfg.paths.aggregate) / "custom/models.json").read_text())
     assert np.allclose(m.M[0], side["conditions"]["TG10"]["trials"]["0"]["M"])

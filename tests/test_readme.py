@@ -29,7 +29,8 @@ def run(args, root):
 
 def test_the_section_has_every_kind_of_example():
     stages = {c.split()[2] for c in COMMANDS}
-    assert {"pipeline.simulate", "pipeline.aggregate", "pipeline.report", "pipeline.rate"} <= stages
+    assert {"pipeline.simulate", "pipeline.aggregate", "pipeline.report",
+            "pipeline.tools.rate"} <= stages
     assert any(" -m learner." in c or "-m learner=" in c for c in COMMANDS)  # a sweep
     assert any("body=" in c for c in COMMANDS) and any("growth=" in c for c in COMMANDS)
     assert len(PYTHON) == 1 and "models.load" in PYTHON[0]
@@ -45,7 +46,7 @@ def tree(tmp_path_factory):
         stage = args[1]
         if stage == "pipeline.simulate":
             args += TINY
-        if stage == "pipeline.rate":
+        if stage == "pipeline.tools.rate":
             continue  # its rule runs 3 x 20,000 epochs: tests/test_own_experiment.py runs it small
         r = run(args + [f"paths.root={root}"], root)
         done.append((command, r))
@@ -55,7 +56,7 @@ def tree(tmp_path_factory):
 @pytest.mark.parametrize("i", range(len(COMMANDS)))
 def test_every_readme_command_runs(tree, i):
     root, done = tree
-    if COMMANDS[i].split()[2] == "pipeline.rate":
+    if COMMANDS[i].split()[2] == "pipeline.tools.rate":
         pytest.skip("the rate rule's full run is tested small in test_own_experiment.py")
     command, r = next(d for d in done if d[0] == COMMANDS[i])
     assert r.returncode == 0, f"{command}\n{r.stderr[-2000:]}"

@@ -14,7 +14,7 @@ GROWTHS = ("proportional", "nonproportional", "proximal_first", "none")
 # nonproportional growth is refused when the config is composed (it would equal proportional)
 COMBOS = [(b, g) for b, g in itertools.product(BODIES, GROWTHS)
           if (b, g) not in {("arm2", "nonproportional"), ("icub", "nonproportional")}]
-# the URDF bodies: their postures are drawn through the general chain (figures.link_points)
+# the URDF bodies: their postures are drawn through the general chain (Body.frame_points)
 COMBOS += [("icub_urdf", "proximal_first"), ("ergo_jr", "proportional")]
 
 
@@ -66,15 +66,13 @@ def test_the_drawn_links_end_at_the_hand_and_have_the_segments_lengths(name):
     import numpy as np
 
     import gbmodel
-    from pipeline.studies.figures import link_points
-
     body = gbmodel.make_body(name)
     q = body.saturate(body.home + 0.2)
     growth = gbmodel.Growth(pattern="proximal_first", start_size=0.5, period=10)
-    points = link_points(body, q, 0.7, growth)
+    points = body.frame_points(q, growth.scales(body, 0.7))
     assert points.shape == (body.m + 1, 3)
     np.testing.assert_allclose(points[-1][list(body.outputs)],
-                               body.forward(q, size=0.7, pattern=growth), atol=1e-15)
+                               body.forward(q, growth.scales(body, 0.7)), atol=1e-15)
     if body.general:  # a DH row's frames need not lie a segment apart (a d along z)
         np.testing.assert_allclose(np.linalg.norm(np.diff(points, axis=0), axis=1),
                                    body.segment_lengths * growth.scales(body, 0.7), atol=1e-15)

@@ -4,7 +4,7 @@ A learner is one module (or package) in this folder, found by its name (`goal_ba
 `gbmodel/learners/goal_babbling/`). It provides:
 
     Params                 frozen dataclass of hyperparameters, with defaults; its validate()
-                           returns it or raises gbmodel.growth.SpecError naming `learner.<field>`
+                           returns it or raises gbmodel.spec.SpecError naming `learner.<field>`
     init(params, body, size, rng) -> state
                            the initial state with the body at size `size` (the first epoch's)
     draw(params, body, B, rng) -> tuple of arrays
@@ -22,6 +22,20 @@ A learner is one module (or package) in this folder, found by its name (`goal_ba
     samples_per_epoch(params, body) -> int
                            forward-kinematics evaluations (reaching movements) per epoch
 
+and may provide (OPTIONAL; the pipeline falls back where one is missing):
+
+    sample_cost(params) -> float
+                           CPU time per sample and joint relative to Goal Babbling's fast
+                           batch path (1.0 if missing): a run's ETA and its shards' balance
+    notes(params, body) -> list[str]
+                           what a user should know about these settings on this body (printed
+                           once per run, e.g. a learning rate made for another body)
+    predict_model(model, params, body, x) -> q
+                           predict from what `model(state)` stored (the report draws with it;
+                           a learner without it is not drawn)
+    distances(state, params, body, scale, xs) -> (N,)
+                           |f(g(x*)) - x*| per point, computed its own (faster) way
+
 The trial loop (gbmodel.trial) owns the body, its growth, the draws, the evaluation and the
 snapshots; a learner only learns. `register` adds a module under a name at run time (tests).
 """
@@ -35,6 +49,7 @@ from types import ModuleType
 
 _REGISTERED: dict[str, ModuleType] = {}
 REQUIRED = ("Params", "init", "draw", "train", "predict", "model", "samples_per_epoch")
+OPTIONAL = ("sample_cost", "notes", "predict_model", "distances")
 
 
 def available() -> list[str]:

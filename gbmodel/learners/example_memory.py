@@ -21,7 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..growth import check_int, check_number
+from ..growth import factors
+from ..spec import check_int, check_number
 from ..nearest import Nearest
 
 
@@ -29,15 +30,11 @@ from ..nearest import Nearest
 class Params:
     # goals per epoch: Goal Babbling's sample budget on arm5, V (K L + 1) = 2120
     goals: int = 2120
-    # exploration noise [command units] (explauto's default: 0.1 of the motor range). On arm5
-    # (seed 0, 100 epochs), error on the grid / between its points (cell centres): 0.02 rad ->
-    # 0.8 / 25 mm (it learns the grid points only), 0.05 -> 2.1 / 5.1, 0.1 -> 2.8 / 3.0,
-    # 0.2 -> 3.0 / 3.1 mm; on the iCub after 50 epochs 0.05 -> 3.4, 0.1 -> 5.3, 0.2 -> 7.0 mm
+    # exploration noise [command units] (explauto's default: 0.1 of the motor range; too little
+    # learns the grid points only: docs/baselines.md, "Why the alternatives' defaults")
     sigma: float = 0.1
-    # epochs whose examples are kept (memory <= 1 + window * goals). Under growth (arm5, 0.5 ->
-    # 1.0 over 100 epochs) the relative error at epoch 50 is 1.0 % (window 1), 1.9 % (10) and
-    # 8.6 % (50): stale outcomes mislead. Without growth more memory is better (30 epochs:
-    # 1 -> 8.4, 10 -> 2.9, 50 -> 1.5 mm). 0: keep every example (gbmodel.nearest)
+    # epochs whose examples are kept (memory <= 1 + window * goals): under growth stale outcomes
+    # mislead, without growth more memory is better. 0: keep every example (gbmodel.nearest)
     window: int = 10
 
     def validate(self) -> "Params":
@@ -70,7 +67,7 @@ class Everything:
 
 def init(params: Params, body, size: float, rng: np.random.Generator):
     q_home = body.saturate(body.home)
-    x_home = body.forward(q_home, size=size)
+    x_home = body.forward(q_home, factors(body, size))
     if params.window == 0:
         store = Nearest(body.n, body.m)
         store.add(x_home[None], q_home[None])
@@ -105,7 +102,7 @@ def train(state, params: Params, body, sizes, scales, draws, epochs=None):
         for e in range(len(sizes)):
             goals = body.target_set(sizes[e])[idx[e]]
             q = body.saturate(store.values[store.query(goals)] + params.sigma * noise[e])
-            store.add(body.forward(q, scale=scales[e]), q)
+            store.add(body.forward(q, scales[e]), q)
         return Everything(store, store.count, state.epochs + len(sizes))
     outcomes, commands, done = state.outcomes.copy(), state.commands.copy(), state.epochs
     for e in range(len(sizes)):
@@ -114,7 +111,7 @@ def train(state, params: Params, body, sizes, scales, draws, epochs=None):
         _, nearest = cKDTree(known_x).query(goals)
         q = body.saturate(known_q[nearest] + params.sigma * noise[e])
         slot = done % params.window
-        outcomes[slot], commands[slot] = body.forward(q, scale=scales[e]), q
+        outcomes[slot], commands[slot] = body.forward(q, scales[e]), q
         done += 1
     return State(outcomes, commands, state.home, done)
 
@@ -135,3 +132,9 @@ def model(state: State) -> None:
 
 def samples_per_epoch(params: Params, body) -> int:
     return params.goals
+
+
+def sample_cost(params: Params) -> float:
+    """CPU time per sample and joint, relative to Goal Babbling's fast batch path (a k-d tree
+    query and insertion per sample)."""
+    return 300.0

@@ -23,8 +23,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..features import exponents, features
-from ..growth import check_choice, check_int, check_number
-from .goal_babbling.reference import init_inverse, predict as predict_inverse
+from ..spec import check_choice, check_int, check_number
+from ..inverse import init_inverse, predict as predict_inverse
 
 
 @dataclass(frozen=True)
@@ -32,15 +32,11 @@ class Params:
     # examples per epoch: Goal Babbling's budget on arm5 at the paper's settings,
     # V (K L + 1) = 20 (15 * 7 + 1) = 2120 forward-kinematics evaluations
     samples: int = 2120
-    # half-width of the uniform posture range around home [command units], the best of those
-    # measured on arm5 (error after 10 epochs, mean of 3 seeds; 1.0 and 1.5 one seed): 0.3 rad
-    # -> 37 mm, 0.4 -> 30, 0.5 -> 33, 0.6 -> 32, 0.8 -> 34, 1.0 -> 54, 1.5 -> 129, 2.0 -> 247,
-    # pi -> 417 mm. Locally the arm is near linear and averaging postures does little harm; over
-    # the whole joint range it ruins the fit. iCub (one seed): 0.1 -> 23, 0.2 -> 14, 0.3 -> 14,
-    # 0.5 -> 15, 0.8 -> 20, 1.0 -> 27 mm.
+    # half-width of the uniform posture range around home [command units]: locally the arm is
+    # near linear and averaging postures does little harm; over the whole joint range it ruins
+    # the fit (docs/baselines.md, "Why the alternatives' defaults")
     spread: float = 0.4
-    # epochs whose examples the fit uses; 0 = all so far. Under growth (arm5, 0.5 -> 1.0 over
-    # 100 epochs) the relative error at epoch 100: window 1 -> 2.9 %, 10 -> 3.8 %, all -> 21 %
+    # epochs whose examples the fit uses; 0 = all so far (stale examples mislead under growth)
     window: int = 10
     fit: str = "lstsq"  # lstsq | gradient
     ridge: float = 1e-6  # per-example ridge of fit=lstsq
@@ -99,7 +95,7 @@ def train(state: State, params: Params, body, sizes, scales, draws, epochs=None)
     M, gram, cross, count = state.M, state.gram.copy(), state.cross.copy(), state.count.copy()
     for e in range(len(sizes)):
         q = body.saturate(body.home + params.spread * offsets[e])
-        x = body.forward(q, scale=scales[e])
+        x = body.forward(q, scales[e])
         phi = features(x, exps)
         slot = (state.epochs + e) % len(count)
         keep = 1.0 if params.window == 0 else 0.0  # window 0: the one slot accumulates
@@ -121,3 +117,13 @@ def model(state: State) -> np.ndarray:
 
 def samples_per_epoch(params: Params, body) -> int:
     return params.samples
+
+
+def sample_cost(params: Params) -> float:
+    """CPU time per sample and joint, relative to Goal Babbling's fast batch path."""
+    return 60.0
+
+
+def predict_model(model, params: Params, body, x) -> np.ndarray:
+    """predict from what `model` stored (M)."""
+    return predict_inverse(np.asarray(model, np.float64), x, _exps(params, body))

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-import gbmodel
+from gbmodel.growth import factors
 
 from .figures import final_body
 
@@ -167,12 +167,12 @@ def stage_claims(figure: str, spec: dict, stages: list) -> list[dict]:
     For each stage: the largest joint deviation from home over the target set, the mean error,
     and the error at the two extreme targets (heights -1 and +1 m).
     """
-    body, size, pattern, exps = final_body(spec)
+    body, size, pattern, predict = final_body(spec)
     xs = body.target_set(size)
     parts, spreads, extremes = [], [], []
     for label, M in stages:
-        q = gbmodel.predict(np.asarray(M), xs, exps)
-        err = np.linalg.norm(body.forward(q, size, pattern) - xs, axis=-1)
+        q = predict(M, xs)
+        err = np.linalg.norm(body.forward(q, factors(body, size, pattern)) - xs, axis=-1)
         spreads.append(float(np.abs(q - body.home).max()))
         extremes.append(float(max(err[0], err[-1])))
         parts.append(f"{label}: largest joint deviation from home {spreads[-1]:.2f} rad, mean error "

@@ -8,7 +8,7 @@ their alternatives need no new simulation. This module measures them on the pape
 - failed to bootstrap: the trials flagged at other factors than aggregate.fail_factor, and the
   largest final / median ratio of any condition;
 - Fig. 3 / 6 postures: where trial 0, whose final model is drawn, ranks in its condition;
-- learning-curve sampling: the rise of the error during growth (aggregate.growth_peak) read from
+- learning-curve sampling: the rise of the error during growth (measures.growth_peak) read from
   the stored mean curves subsampled to every 2nd and every 4th evaluation point;
 - relative error (eq. 11): the size factor S against the current total length of the arm's
   segments over the full one, at every evaluation epoch of each condition's spec.
@@ -24,8 +24,7 @@ import pandas as pd
 import gbmodel
 from gbmodel import evaluation
 
-from ..aggregate import finals as aggregate_finals
-from ..aggregate import growth_peak
+from ..measures import finals as trial_finals, growth_peak
 from .choices import escape
 
 FIGURES = ("fig2", "fig4", "fig5", "fig7")
@@ -42,8 +41,8 @@ def read_trials(folder, figures) -> dict:
 
 
 def finals(trials: dict) -> pd.DataFrame:
-    """Each trial's final row, of every figure (aggregate.finals, as the summary takes them)."""
-    frames = [aggregate_finals(t) for t in trials.values()]
+    """Each trial's final row, of every figure (measures.finals, as the aggregate stage takes them)."""
+    frames = [trial_finals(t) for t in trials.values()]
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
 
 
@@ -99,7 +98,7 @@ def trial0_rank(fin: pd.DataFrame, wanted) -> list[dict]:
 
 
 def rise_pct(curve: pd.DataFrame) -> float:
-    """The rise of the mean absolute error during growth (aggregate.growth_peak) in % of the
+    """The rise of the mean absolute error during growth (measures.growth_peak) in % of the
     lowest error before it."""
     _, peak, rise = growth_peak(curve)
     before = peak - rise
@@ -129,7 +128,7 @@ def length_ratio(body, scales) -> np.ndarray:
     """Total length of the chain's segments at per-joint length factors `scales` (..., m) over
     the full-size total."""
     def total(k):
-        ch = body.chain(scale=k)
+        ch = body.chain(k)
         return np.hypot(ch["a"], ch["d"]).sum(axis=-1)
 
     return total(np.asarray(scales, np.float64)) / total(np.ones(body.m))

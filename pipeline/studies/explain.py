@@ -18,36 +18,36 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import least_squares
 
-import gbmodel
+from gbmodel.growth import factors
 
 from .figures import final_body
 
 
-def _errors(body, size, pattern, exps, M, xs):
-    q = gbmodel.predict(M, xs, exps)
-    return np.linalg.norm(body.forward(q, size, pattern) - xs, axis=-1)
+def _errors(body, size, pattern, predict, M, xs):
+    q = predict(M, xs)
+    return np.linalg.norm(body.forward(q, factors(body, size, pattern)) - xs, axis=-1)
 
 
 def best_cubic(spec: dict, M0) -> dict:
     """The degree-3 inverse fitted directly to the targets (scipy least squares from M0)."""
-    body, size, pattern, exps = final_body(spec)
+    body, size, pattern, predict = final_body(spec)
     xs = body.target_set(size)
     M0 = np.asarray(M0, float)
 
     def residuals(flat):
-        q = gbmodel.predict(flat.reshape(M0.shape), xs, exps)
-        return (body.forward(q, size, pattern) - xs).ravel()
+        q = predict(flat.reshape(M0.shape), xs)
+        return (body.forward(q, factors(body, size, pattern)) - xs).ravel()
 
     fit = least_squares(residuals, M0.ravel(), method="trf", max_nfev=200 * M0.size)
-    d = _errors(body, size, pattern, exps, fit.x.reshape(M0.shape), xs)
-    learned = _errors(body, size, pattern, exps, M0, xs)
+    d = _errors(body, size, pattern, predict, fit.x.reshape(M0.shape), xs)
+    learned = _errors(body, size, pattern, predict, M0, xs)
     return dict(M=fit.x.reshape(M0.shape), best_mean_mm=1e3 * d.mean(), best_worst_mm=1e3 * d.max(),
                 learned_mean_mm=1e3 * learned.mean(), learned_worst_mm=1e3 * learned.max())
 
 
 def _extremes(spec, M) -> float:
-    body, size, pattern, exps = final_body(spec)
-    d = _errors(body, size, pattern, exps, np.asarray(M, float), body.target_set(size))
+    body, size, pattern, predict = final_body(spec)
+    d = _errors(body, size, pattern, predict, np.asarray(M, float), body.target_set(size))
     return 1e3 * float(max(d[0], d[-1]))
 
 

@@ -6,6 +6,7 @@ no timestamps or software versions in the metadata, a fixed SVG hash salt.
 from __future__ import annotations
 
 import re
+import textwrap
 
 from pathlib import Path
 
@@ -16,7 +17,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import gbmodel  # noqa: E402
-from gbmodel.kinematics import chain_position, hand_position  # noqa: E402
+from gbmodel.growth import factors  # noqa: E402
 
 RC = {
     "font.family": "DejaVu Sans",
@@ -50,6 +51,7 @@ def save(fig, stem: Path, dpi: int) -> list[Path]:
     return paths
 
 
+TITLE_CHARS = 36  # a posture panel's title is wrapped at this width (fontsize 8, 3.6 in)
 GROWTH_LABEL = re.compile(r"(TG\d+|const[\d.]+)")  # a condition named by its growth alone
 
 
@@ -68,12 +70,81 @@ def condition_label(row) -> str:
     return f"T_G = {row['growth_period']}"
 
 
+FACTOR = re.compile(r"([^=,|]+)=(.*)")
+LINE_STYLES = ("-", "--", ":", "-.")
+MARKERS = ("o", "s", "^", "D", "v", "P", "X")
+
+
+def label_levels(labels) -> list[dict]:
+    """Each condition label as {factor: level}: `R=0.1, L=5 | TG100` is {R: 0.1, L: 5,
+    growth: TG100} (pipeline.plan.condition_labels: `key=value` parts, joined by ", ", and the
+    growth label or a variant's name after " | "); a part without `=` is a level of its own factor,
+    named by its position."""
+    out = []
+    for label in labels:
+        levels = {}
+        for i, part in enumerate(str(label).split(" | ")):
+            for j, item in enumerate(re.split(r", (?=[^=,|]+=)", part)):
+                m = FACTOR.fullmatch(item.strip())
+                if m:
+                    levels[m.group(1).strip()] = m.group(2).strip()
+                else:
+                    levels["growth" if GROWTH_LABEL.fullmatch(item) else f"part {i + 1}"] = item
+        out.append(levels)
+    return out
+
+
+def sweep_channels(labels) -> dict:
+    """factor -> (channel, {level: value}) for the factors that vary between `labels`, each on its
+    own channel in order: colour, line style, marker (levels in order of appearance). More than
+    three varied factors: every condition its own colour (one channel, "condition")."""
+    levels = label_levels(labels)
+    names = [k for k in dict.fromkeys(k for lv in levels for k in lv)
+             if len({lv.get(k) for lv in levels}) > 1]
+    if len(names) > 3 or any(set(lv) != set(levels[0]) for lv in levels):
+        names, levels = ["condition"], [dict(condition=str(c)) for c in labels]
+    out = {}
+    for name, channel in zip(names, ("color", "ls", "marker")):
+        vals = list(dict.fromkeys(lv[name] for lv in levels))
+        if channel == "color":
+            cmap = plt.get_cmap("tab10" if len(vals) <= 10 else "viridis")
+            colors = (cmap(np.arange(len(vals))) if len(vals) <= 10
+                      else cmap(np.linspace(0.0, 0.85, len(vals))))
+            out[name] = (channel, dict(zip(vals, colors)))
+        else:
+            pool = LINE_STYLES if channel == "ls" else MARKERS
+            out[name] = (channel, {v: pool[i % len(pool)] for i, v in enumerate(vals)})
+    return out
+
+
+def sweep_handles(labels) -> list:
+    """Legend entries of sweep_channels: one per level of each factor, in its channel only."""
+    handles = []
+    for name, (channel, values) in sweep_channels(labels).items():
+        for level, value in values.items():
+            style = dict(color="0.35", ls="-", lw=1.3)
+            style["marker" if channel == "marker" else channel] = value
+            handles.append(plt.Line2D([], [], label=f"{name}={level}" if name != "condition"
+                                      else level, **style))
+    return handles
+
+
 def condition_styles(summary) -> dict:
-    """Colour per growing condition (by period), grey/black dashes for the references; a colour
-    per condition where they differ by more than their growth (a sweep of your own)."""
+    """Colour per growing condition (by period), grey/black dashes for the references; where the
+    conditions differ by more than their growth (a sweep of your own), each varied factor on its
+    own channel (sweep_channels: colour, line style, marker)."""
     if not by_growth(summary):
-        colors = plt.get_cmap("viridis")(np.linspace(0.0, 0.85, max(len(summary), 1)))
-        return {c: dict(color=col, ls="-") for c, col in zip(summary["condition"], colors)}
+        channels = sweep_channels(summary["condition"])
+        styles = {}
+        for c, lv in zip(summary["condition"], label_levels(summary["condition"])):
+            st = dict(color="0.35", ls="-")
+            for name, (channel, values) in channels.items():
+                level = c if name == "condition" else lv[name]
+                st[channel] = values[level]
+            if "marker" in st:
+                st.update(markevery=0.1, ms=4)
+            styles[c] = st
+        return styles
     growing = summary[summary["growth"] != "none"]
     colors = plt.get_cmap("viridis")(np.linspace(0.0, 0.85, max(len(growing), 1)))
     styles = {c: dict(color=col, ls="-") for c, col in zip(growing["condition"], colors)}
@@ -87,8 +158,18 @@ def condition_styles(summary) -> dict:
 def learning_curves(curves, summary, title: str, log_y: bool = True, paper_abs=None):
     """Fig. 4/5/7: (a) absolute and (b) relative error against epochs, mean over trials with the
     inter-quartile band, one line per growth period and per reference; the paper's stated final
-    accuracy, if given, as a horizontal line in (a)."""
+    accuracy, if given, as a horizontal line in (a). The legend lies below the panels, never over
+    the data; a sweep's legend has one entry per level of each varied factor (sweep_handles)."""
     styles = condition_styles(summary)
+    sweep = not by_growth(summary)
+    handles = (sweep_handles(summary["condition"]) if sweep else
+               [plt.Line2D([], [], lw=1.3, label=condition_label(row),
+                           **styles[row["condition"]]) for _, row in summary.iterrows()])
+    if (summary["growth"] != "none").any():
+        handles.append(growth_end_handle())
+    if paper_abs is not None:
+        handles.append(plt.Line2D([], [], color="tab:red", lw=0.9, ls="-.",
+                                  label=f"paper: final error ≈ {1000 * paper_abs:g} mm"))
     fig, axes = plt.subplots(1, 2, figsize=(9.0, 3.6))
     for ax, col, ylabel in ((axes[0], "abs_error", "absolute error [m]"),
                             (axes[1], "rel_error", "relative error [m / size factor]")):
@@ -107,19 +188,28 @@ def learning_curves(curves, summary, title: str, log_y: bool = True, paper_abs=N
         ax.set_xlabel("epoch")
         ax.set_ylabel(ylabel)
     if paper_abs is not None:
-        line = axes[0].axhline(paper_abs, color="tab:red", lw=0.9, ls="-.",
-                               label=f"paper: final error ≈ {1000 * paper_abs:g} mm")
-        axes[0].legend(handles=[line], loc="lower left", frameon=False)
+        axes[0].axhline(paper_abs, color="tab:red", lw=0.9, ls="-.")
     axes[0].set_title("(a) absolute error")
     axes[1].set_title("(b) relative error")
-    handles = axes[1].get_legend_handles_labels()[0]
-    if (summary["growth"] != "none").any():
-        handles.append(growth_end_handle())
-    axes[1].legend(handles=handles, loc="best", frameon=False)
     n = int(summary["n_trials"].max()) if len(summary) else 0
     fig.suptitle(f"{title} (mean and quartiles over {n} trials)")
-    fig.tight_layout()
+    legend_below(fig, handles, 3.6)
     return fig
+
+
+def legend_below(fig, handles, height: float, max_cols: int = 4) -> None:
+    """A figure legend under the panels, in as many columns (at most max_cols) as fit the
+    figure's width; the figure grows by the legend's height so the panels keep theirs (height:
+    the panels' part [in]) and tight_layout keeps them clear of it."""
+    r = fig.canvas.get_renderer()
+    for ncol in range(min(len(handles), max_cols) or 1, 0, -1):
+        legend = fig.legend(handles=handles, loc="lower center", ncol=ncol, frameon=False)
+        if legend.get_window_extent(r).width <= 0.98 * fig.bbox.width or ncol == 1:
+            break
+        legend.remove()
+    below = legend.get_window_extent(r).height / fig.dpi + 0.1  # [in]
+    fig.set_size_inches(fig.get_size_inches()[0], height + below)
+    fig.tight_layout(rect=(0, below / (height + below), 1, 1))
 
 
 def mark_growth_end(ax, summary, styles) -> None:
@@ -138,24 +228,30 @@ def growth_end_handle():
 
 
 def final_body(spec: dict) -> tuple:
-    """(body, size, growth, exps) of a trial's spec: the body (variant) at its final size, its
-    gbmodel.Growth (which Body.forward and link_points take as the pattern: every pattern) and
-    the feature exponents of its polynomial inverse."""
-    body, growth = gbmodel.make_body(spec["body"]), gbmodel.Growth(**spec["growth"])
-    return body, growth.end_size, growth, gbmodel.exponents(body.n, spec["learner"]["degree"])
+    """(body, size, growth, predict) of a trial's spec: the body (variant) at its final size, its
+    gbmodel.Growth (gbmodel.growth.factors maps it to the body's per-segment factors) and
+    predict(model, x), the commands its learner's stored model (M) chooses for positions x
+    (the learner's predict_model)."""
+    spec = gbmodel.TrialSpec.from_dict(spec)
+    body, growth = spec.make_body(), spec.make_growth()
+    learner, params = spec.make_learner()
+    if not hasattr(learner, "predict_model"):
+        raise ValueError(f"learner {spec.learner.get('name')!r} has no predict_model: its "
+                         "stored model cannot be drawn")
+    return body, growth.end_size, growth, lambda M, x: learner.predict_model(M, params, body, x)
 
 
 def joint_space_stages(spec: dict, stages: list[tuple[str, list]], title: str):
     """Fig. 2: the inverse estimate of the 2-DOF arm in its joint space over the contours of
     equal hand height, one panel per stage. stages: (label, M) pairs."""
-    body, size, pattern, exps = final_body(spec)
+    body, size, pattern, predict = final_body(spec)
     targets = body.target_set(size)[:, 0]
     xs = np.linspace(targets.min(), targets.max(), 401)[:, None]
-    curves = [gbmodel.predict(np.asarray(M), xs, exps) for _, M in stages]
+    curves = [predict(M, xs) for _, M in stages]
     lim = max(np.pi, *(np.abs(c).max() for c in curves))
     grid = np.linspace(-lim, lim, 301)
     Q = np.stack(np.meshgrid(grid, grid, indexing="xy"), axis=-1)
-    height = body.forward(Q, size, pattern)[..., 0]
+    height = body.forward(Q, factors(body, size, pattern))[..., 0]
     cmap = plt.get_cmap("coolwarm")
     norm = matplotlib.colors.Normalize(targets.min(), targets.max())
 
@@ -164,7 +260,7 @@ def joint_space_stages(spec: dict, stages: list[tuple[str, list]], title: str):
         ax.contour(grid, grid, height, levels=np.sort(targets), cmap=cmap, norm=norm,
                    linewidths=0.7)
         ax.plot(g[:, 0], g[:, 1], color="black", lw=1.2)
-        q_t = gbmodel.predict(np.asarray(M), targets[:, None], exps)
+        q_t = predict(M, targets[:, None])
         ax.scatter(q_t[:, 0], q_t[:, 1], c=targets, cmap=cmap, norm=norm, s=14,
                    edgecolors="black", linewidths=0.4, zorder=3)
         ax.plot(*body.home, marker="+", color="black", ms=8)
@@ -175,22 +271,6 @@ def joint_space_stages(spec: dict, stages: list[tuple[str, list]], title: str):
     fig.suptitle(title)
     fig.tight_layout()
     return fig
-
-
-def link_points(body, q, size, pattern) -> np.ndarray:
-    """Root-frame points (m + 1, 3) of the chain's frames, base to hand, for command q (m,);
-    pattern: a growth pattern's name or a gbmodel.Growth. A general (URDF) chain: each joint's
-    origin, then the tool point (the hand of Body.forward)."""
-    theta = body.joint_angles(np.asarray(q, float))
-    if body.general:
-        k = body._scale(size, pattern, None)  # the per-segment factors Body.forward applies
-        joints = [chain_position(theta[:j], body.frames[:j], body.frames[j][:, 3], k[:j])
-                  for j in range(1, body.m)]
-        return np.stack([body.frames[0][:, 3], *joints,
-                         chain_position(theta, body.frames, body.tool, k)])
-    ch = body.chain(size, pattern)
-    return np.stack([hand_position(theta[:k], ch["a"][:k], ch["d"][:k], ch["cos_alpha"][:k],
-                                   ch["sin_alpha"][:k], ch["base"]) for k in range(body.m + 1)])
 
 
 def _grid_shape(targets) -> tuple | None:
@@ -221,11 +301,11 @@ def postures(panels: list[tuple[str, dict, list]], title: str, n_postures: int =
     three_d = any(final_body(spec)[0].n == 3 for _, spec, _ in panels)
     fig = plt.figure(figsize=(max(3.6 * len(panels), 6.0), 4.0))
     for k, (label, spec, M) in enumerate(panels):
-        body, size, pattern, exps = final_body(spec)
+        body, size, pattern, predict = final_body(spec)
         M = np.asarray(M, dtype=float)
         targets = body.target_set(size)
-        q = gbmodel.predict(M, targets, exps)
-        reached = body.forward(q, size, pattern)
+        q = predict(M, targets)
+        reached = body.forward(q, factors(body, size, pattern))
         shape = _grid_shape(targets)
         ax = fig.add_subplot(1, len(panels), k + 1, projection="3d" if three_d else None)
         picks = np.linspace(0, len(targets) - 1, n_postures).round().astype(int)
@@ -236,16 +316,18 @@ def postures(panels: list[tuple[str, dict, list]], title: str, n_postures: int =
             _draw_grid(ax, targets, shape, color="0.7", lw=0.8)
             _draw_grid(ax, reached, shape, color="black", lw=0.8)
             for c, i in zip(cols, picks):
-                pts = link_points(body, q[i], size, pattern)[:, list(body.outputs)]
+                pts = body.frame_points(q[i], factors(body, size, pattern))[:, list(body.outputs)]
                 ax.plot(*pts.T, color=c, lw=1.6, marker="o", ms=2.5)
         err = np.linalg.norm(reached - targets, axis=-1).mean()
-        ax.set_title(f"{label}\nsize {size:g}, mean error {1000 * err:.1f} mm", fontsize=8)
+        ax.set_title(f"{textwrap.fill(label, TITLE_CHARS)}\nsize {size:g}, mean error "
+                     f"{1000 * err:.1f} mm", fontsize=8)
         if three_d:
             spans = [np.ptp(lim) for lim in (ax.get_xlim3d(), ax.get_ylim3d(), ax.get_zlim3d())]
             ax.set_box_aspect(spans, zoom=0.85)  # the same scale on all three axes
             ax.grid(False)  # the target grid is the only grey grid
             ax.set(xlabel="x [m]", ylabel="y [m]", zlabel="z [m]")
             ax.view_init(elev=20, azim=-60)
+            sparse_3d_ticks(ax)
         elif body.n != 1:
             ax.set(aspect="equal", xlabel="x [m]", ylabel="y [m]")
     fig.legend(handles=[plt.Line2D([], [], color="0.7", lw=0.8, label="targets"),
@@ -258,11 +340,20 @@ def postures(panels: list[tuple[str, dict, list]], title: str, n_postures: int =
     return fig
 
 
+def sparse_3d_ticks(ax, n: int = 4) -> None:
+    """At most n ticks per axis of a 3-D panel, in a smaller font: the default crowds the
+    foreshortened axes until their labels overlap."""
+    for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
+        axis.set_major_locator(matplotlib.ticker.MaxNLocator(n))
+    ax.tick_params(labelsize=7, pad=1)
+
+
 def _height_postures(ax, body, q, targets, reached, size, pattern, picks, cols):
     """A body with one target coordinate: the postures in the plane of the output axis and the
     root axis along which the arm extends most; targets and reached heights beside the hand."""
     out = body.outputs[0]
-    pts = np.stack([link_points(body, q[i], size, pattern) for i in range(len(q))])
+    k = factors(body, size, pattern)
+    pts = np.stack([body.frame_points(q[i], k) for i in range(len(q))])
     other = max((j for j in range(3) if j != out), key=lambda j: np.ptp(pts[..., j]))
     hand = pts[:, -1, other]
     ax.scatter(hand, targets[:, 0], s=10, color="0.7", zorder=2)

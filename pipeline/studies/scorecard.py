@@ -34,7 +34,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-import gbmodel
+from gbmodel.growth import factors
 
 from .claims import EXCESS, FACTOR, RISE
 from .figures import final_body
@@ -235,15 +235,15 @@ def stage_tests(figure: str, spec: dict, trials: list[list]) -> list[Test]:
     """Fig. 2 (claims.stage_claims) over trials: `trials` holds each trial's M per stage. The
     mean over trials of the start's deviation from home <= 0.2 rad, of the growth of the spread
     from stage to stage > 0, and of the error at the worst extreme < 5 cm."""
-    body, size, pattern, exps = final_body(spec)
+    body, size, pattern, predict = final_body(spec)
     xs = body.target_set(size)
     spread, extreme = [], []
     for stages in trials:
         s = []
         for M in stages:
-            q = gbmodel.predict(np.asarray(M), xs, exps)
+            q = predict(M, xs)
             s.append(float(np.abs(q - body.home).max()))
-        err = np.linalg.norm(body.forward(q, size, pattern) - xs, axis=-1)
+        err = np.linalg.norm(body.forward(q, factors(body, size, pattern)) - xs, axis=-1)
         spread.append(s)
         extreme.append(float(max(err[0], err[-1])))
     spread, extreme = np.array(spread), np.array(extreme)

@@ -2,8 +2,8 @@
 
 `reference.py` states one epoch in plain numpy, step by step as the paper writes it; `fast.py`
 computes the same epoch in compiled float32 loops (numba) and is tested against it with the same
-random draws. `Params.fast` picks the path. `goals.py`: which targets it aims at (goal_selection:
-random, the paper's, or progress).
+random draws. `Params.fast` picks the path. gbmodel/goals.py: which targets it aims at
+(goal_selection: random, the paper's, or progress).
 """
 from __future__ import annotations
 
@@ -11,10 +11,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ... import evaluation
+from ... import evaluation, goals
 from ...features import exponents
-from ...growth import SpecError, check_choice, check_int, check_number
-from . import goals, reference
+from ...spec import SpecError, check_choice, check_int, check_number
+from . import reference
 
 
 @dataclass(frozen=True)
@@ -60,7 +60,7 @@ class Params:
     # successive path targets: distinct (each differs from the one before) or any (uniform
     # over all targets, repeats allowed: a repeat is a still segment whose samples weigh 0)
     targets: str = "distinct"
-    # goal_selection: random (the paper's: the path targets as above) or progress (goals.py:
+    # goal_selection: random (the paper's: the path targets as above) or progress (gbmodel/goals.py:
     # drawn by the regions' recent change of error; not the paper's)
     goal_selection: str = "random"
     progress_period: int = 10  # epochs between measurements of the error at every target
@@ -145,7 +145,7 @@ def draw(params: Params, body, B: int, rng: np.random.Generator) -> tuple:
     With targets=distinct, successive targets of a path differ (the next is uniform over the
     other targets), so that every path step is a movement with a direction; with targets=any
     the next is uniform over all targets. With goal_selection=progress the first array holds
-    uniform numbers (B, K+1) in [0, 1), turned into targets in train (goals.py).
+    uniform numbers (B, K+1) in [0, 1), turned into targets in train (gbmodel/goals.py).
     """
     n_targets, K = len(body.targets), params.targets_per_epoch
     if params.goal_selection == "progress":
@@ -220,13 +220,37 @@ def samples_per_epoch(params: Params, body) -> int:
     return params.variations * (params.targets_per_epoch * params.steps + 1) + extra
 
 
+def sample_cost(params: Params) -> float:
+    """CPU time per sample and joint, relative to the fast batch path (for a run's ETA and its
+    shards' balance; `python -m pipeline.tools.bench_costs` measures them): the numpy reference
+    about 60 times, one step per sample (updates=online) about 7 times the batch step."""
+    return (1.0 if params.fast else 60.0) * (7.0 if params.updates == "online" else 1.0)
+
+
+def notes(params: Params, body) -> list[str]:
+    """What a user should know about these settings on this body: a body other than arm5 whose
+    plain step runs at the default rate, which the 1 / W rule fixed for arm5 (nothing wrong,
+    but a rate not made for it)."""
+    if params.step == "plain" and params.learning_rate == Params().learning_rate \
+            and body.name != "arm5":
+        return [f"body {body.name} learns at the 5-DOF arm's plain-step rate (learner."
+                "learning_rate = 1 / W fixed for arm5); `python -m pipeline.tools.rate "
+                f"body={body.name}` prints its own"]
+    return []
+
+
+def predict_model(model, params: Params, body, x) -> np.ndarray:
+    """predict from what `model` stored (M)."""
+    return reference.predict(np.asarray(model, np.float64), x, _exps(params, body))
+
+
 
 def weight_sum(body, params: dict, seeds=(0, 1, 2), epochs: int = 20_000, probe: int = 50) -> float:
     """W, the rule that fixed the plain step's rates (eta = 1 / W): the median sum of the weights
     per epoch at full size after `epochs` epochs of the normalised step at rate 1.0 (one trial per
     seed, then `probe` epochs each of new draws, not learned from). It makes the plain step equal
     to the normalised one at full-size convergence. body: a body description (make_body);
-    params: this learner's Params fields (V, R, K, L ...). `python -m pipeline.rate` prints it."""
+    params: this learner's Params fields (V, R, K, L ...). `python -m pipeline.tools.rate` prints it."""
     from ...trial import TrialSpec, run_trial
 
     params = {**params, "step": "normalised", "learning_rate": 1.0}

@@ -16,7 +16,7 @@ float32 vector loops over the samples of an epoch:
   tolerances);
 - the hand is carried backwards through the chain, one rotation about z per joint, in
   registers, LANES samples at a time: DH rows, or a general (URDF) chain's fixed rotation and
-  translation per joint (`_chain`);
+  translation per joint (gbmodel.kinematics.chain_layout, simd.chain_kinematics);
 - sin and cos are a branch-free polynomial (Cephes' kernels after a Cody-Waite reduction);
 - features are built monomial by monomial, each a parent monomial times one coordinate;
 - the gradient sum_t w (M Phi - q) Phi^T: the weighted residuals (rows in register tiles of 5),
@@ -42,82 +42,16 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ...simd import (  # noqa: F401 (sincos_array: the tests reach it through this module)
-    F4, LANES, _1, _HALF, sincos, sincos_array, vadd, vdiv, vfma, vload, vload1, vmul,
-    vneg, vsplat, vsqrt, vstore, vstore1, vsub, vsum, vwhere,
+from ...features import monomial_tree
+from ...kinematics import chain_layout
+from ...simd import (
+    F4, LANES, _1, _HALF, chain_kinematics, vadd, vclip, vdiv, vfma, vload, vload1, vmul, vsplat,
+    vsqrt, vstore, vstore1, vsub, vsum, vwhere,
 )
 from .reference import NO_MOVEMENT
 
 _BLOCK = 512  # columns per block of features, residuals and gradient (multiple of LANES)
 _TILE = 5  # rows of a register tile of M Phi and of the gradient (m = 5, 10; p = 10, 20)
-
-# ---- kinematics ----------------------------------------------------------------------------------
-
-
-@njit(inline="always")
-def _clip(q):
-    """q clipped to [-1, 1] lane by lane (a NaN stays NaN)."""
-    one, minus_one = vsplat(_1), vsplat(-_1)
-    return vwhere(minus_one, q, minus_one, vwhere(q, one, one, q))
-
-
-@njit(cache=True)
-def _kinematics(Q, X, C, joints, body):
-    """Hand positions X[:, :C] of the commands Q[:, :C] (C a multiple of LANES),
-    saturating Q in place where the body does. Joint angles theta = q (span / 2) + offset + lo +
-    span / 2 for normalised commands, else offset + q. The hand point is carried from the last
-    joint to the base, LANES samples at a time in registers: p <- Rz(theta) (p_x + a,
-    cos(alpha) p_y - sin(alpha) p_z, sin(alpha) p_y + cos(alpha) p_z + d); for the twists 0 and
-    +-90 degrees (every joint of our bodies) without the products by 0 and +-1 (the same
-    values, up to the sign of a zero)."""
-    normalized, saturates, q_lo, q_span, offset = joints
-    a, d, ca, sa, base, outputs, ty, R, general = body
-    m = Q.shape[0]
-    for c in range(0, C, LANES):
-        px = py = pz = vsplat(0)
-        for ii in range(m):
-            i = m - 1 - ii
-            q = vload(Q, i, c)
-            if normalized:
-                if saturates:
-                    q = _clip(q)
-                    vstore(Q, i, c, q)
-                half_span = _HALF * q_span[i]
-                theta = vfma(q, vsplat(half_span), vsplat(offset[i] + q_lo[i] + half_span))
-            else:
-                theta = vadd(q, vsplat(offset[i]))
-            s, co = sincos(theta)
-            if general:  # a URDF's chain: p <- Rz(theta) (R_i p + (a, ty, d)_i)
-                u = vfma(vsplat(R[i, 0, 0]), px, vfma(vsplat(R[i, 0, 1]), py, vfma(
-                    vsplat(R[i, 0, 2]), pz, vsplat(a[i]))))
-                v = vfma(vsplat(R[i, 1, 0]), px, vfma(vsplat(R[i, 1, 1]), py, vfma(
-                    vsplat(R[i, 1, 2]), pz, vsplat(ty[i]))))
-                pz = vfma(vsplat(R[i, 2, 0]), px, vfma(vsplat(R[i, 2, 1]), py, vfma(
-                    vsplat(R[i, 2, 2]), pz, vsplat(d[i]))))
-                px = vfma(co, u, vmul(vneg(s), v))
-                py = vfma(s, u, vmul(co, v))
-                continue
-            u = vadd(px, vsplat(a[i]))
-            if sa[i] == 0 and ca[i] == 1:
-                v = py
-                pz = vadd(pz, vsplat(d[i]))
-            elif ca[i] == 0 and sa[i] == 1:
-                v = vneg(pz)
-                pz = vadd(py, vsplat(d[i]))
-            elif ca[i] == 0 and sa[i] == -1:
-                v = pz
-                pz = vsub(vsplat(d[i]), py)
-            else:
-                v = vfma(vsplat(ca[i]), py, vmul(vsplat(-sa[i]), pz))
-                pz = vadd(vfma(vsplat(sa[i]), py, vmul(vsplat(ca[i]), pz)), vsplat(d[i]))
-            px = vfma(co, u, vmul(vneg(s), v))
-            py = vfma(s, u, vmul(co, v))
-        for j in range(len(outputs)):
-            o = outputs[j]
-            x = vfma(vsplat(base[o, 0]), px, vsplat(base[o, 3]))
-            x = vfma(vsplat(base[o, 1]), py, x)
-            vstore(X, j, c, vfma(vsplat(base[o, 2]), pz, x))
-
 
 @njit(cache=True)
 def _features(X, c0, C, parent, var, Phi):
@@ -335,7 +269,7 @@ def _weights(dxs, nxs, X, Q, V, T, Npad, w):
             nxs_u = vload1(nxs, u)
             den = vsqrt(vmul(nxs_u, nx))
             cos = vwhere(den, zero, vdiv(dot, den), zero)
-            cos = _clip(cos)
+            cos = vclip(cos)
             w_dir = vwhere(nxs_u, no_move2, vmul(half, vadd(one, cos)), zero)
             w_eff = vwhere(nq, zero, vsqrt(vdiv(nx, nq)), zero)
             vstore1(w, c + 1, vmul(w_dir, w_eff))
@@ -415,7 +349,7 @@ def _epoch(M, idx, raw, amp, s, body, targets, home, parent, var, joints, radius
     # the home posture and where it puts the hand (every lane the same)
     for i in range(m):
         vstore(Qh, i, 0, vsplat(home[i]))
-    _kinematics(Qh, Xh, LANES, joints, body)
+    chain_kinematics(Qh, Xh, LANES, joints, body)
     # the target path (eq. 9) at the current size in columns 1 ... T, the hand at home in
     # column 0, the last target in the rest
     for j in range(n):
@@ -447,7 +381,7 @@ def _epoch(M, idx, raw, amp, s, body, targets, home, parent, var, joints, radius
     # the variations' disturbances (eq. 8), their rollouts, weights, residuals, gradient lanes
     _disturbances(raw, amp, s, box[0], box[1], radius, A, b)
     _commands(gpath, path, A, b, home, T, Npad, Q)
-    _kinematics(Q, X, Npad, joints, body)
+    chain_kinematics(Q, X, Npad, joints, body)
     _weights(dxs, nxs, X, Q, V, T, Npad, w)
     # gradient descent on the weighted command error (eq. 6), plain or normalised by sum w
     eta = rate if plain else rate / _lane_sum(w, Npad)
@@ -534,41 +468,13 @@ def _distances(M, scale, chain, xs, parent, var, joints, out):
             X[j, t] = xs[min(t, NT - 1), j]
     _features(X, 0, C, parent, var, Phi)
     _predict(M32, Phi, C, Q, Q, np.empty(0, np.float32), 0)
-    _kinematics(Q, X, C, joints, body)
+    chain_kinematics(Q, X, C, joints, body)
     for t in range(NT):
         d2 = 0.0
         for j in range(n):
             dx = float(X[j, t]) - xs[t, j]
             d2 += dx * dx
         out[t] = np.sqrt(d2)
-
-
-def monomial_tree(exps: np.ndarray):
-    """parent[k], var[k] with exps[k] = exps[parent[k]] + unit(var[k]) (parent[0] = var[0] = 0)."""
-    rows = {tuple(e): k for k, e in enumerate(exps)}
-    parent = np.zeros(len(exps), np.int64)
-    var = np.zeros(len(exps), np.int64)
-    for k, e in enumerate(exps[1:], start=1):
-        j = int(np.flatnonzero(e)[0])
-        lower = e.copy()
-        lower[j] -= 1
-        parent[k], var[k] = rows[tuple(lower)], j
-    return parent, var
-
-
-def _chain(body) -> dict:
-    """The chain at full size as the kernel steps through it, p <- Rz(theta_i) (R_i p + t_i),
-    t_i = (a_i, ty_i, d_i) scaled by segment i's growth, then the base. DH rows: R_i = Rx(alpha_i)
-    (cos/sin alpha, the rows' own branch), ty = 0. A general chain (a URDF's: hand =
-    F_0 Rz(q_0) F_1 ... Rz(q_{m-1}) tool): the base is F_0, (R_i | t_i) is F_{i+1}, and the tool
-    the last joint's translation (R = I)."""
-    m = body.m
-    if not body.general:
-        ch = body.chain(1.0)
-        return dict(ch, ty=np.zeros(m), R=np.zeros((m, 3, 3)), general=False)
-    after = np.concatenate([body.frames[1:], np.hstack([np.eye(3), body.tool[:, None]])[None]])
-    return dict(a=after[:, 0, 3], d=after[:, 2, 3], ty=after[:, 1, 3], R=after[:, :, :3],
-                cos_alpha=np.ones(m), sin_alpha=np.zeros(m), base=body.frames[0], general=True)
 
 
 _ARRAYS: dict = {}  # (id(body), exps) -> (body, arrays); the body is kept so its id stays its own
@@ -583,7 +489,7 @@ def _arrays(body, exps):
     if hit is not None and hit[0] is body:
         return hit[1]
     f4 = lambda x: np.ascontiguousarray(x, np.float32)  # noqa: E731
-    chain = _chain(body)
+    chain = chain_layout(body)
     normalized = body.normalized
     joints = (normalized, body.saturates,
               f4(body.q_min if normalized else np.zeros(body.m)),

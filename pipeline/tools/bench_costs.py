@@ -1,8 +1,8 @@
 """Benchmark: CPU time per sample and joint of every learner's path, relative to Goal Babbling's
-fast batch path, on arm5 and the iCub: the measurements behind pipeline.plan.SAMPLE_COST (the
+fast batch path, on arm5 and the iCub: the measurements behind each learner's sample_cost (the
 progress ETA's and the shards' weights).
 
-    python -m pipeline.bench_costs
+    python -m pipeline.tools.bench_costs
 
 Each case runs one trial without growth, its epochs quadrupled until it takes a second of CPU
 time, and divides by the trial's unweighted cost (epochs x samples per epoch x joints).
@@ -15,8 +15,8 @@ import numpy as np
 
 import gbmodel
 
-from .config import compose
-from .plan import cost, plan
+from ..config import compose
+from ..plan import cost, plan
 
 CASES = [("goal_babbling", []), ("goal_babbling", ["learner.fast=false"]),
          ("goal_babbling", ["learner.updates=online"]), ("online_goal_babbling", []),

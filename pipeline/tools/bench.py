@@ -1,7 +1,7 @@
 """Benchmark: microseconds per trial-epoch, fast path against the numpy reference path, and online
 Goal Babbling's epoch against a batch epoch.
 
-    python -m pipeline.bench [bench.repeats=5] [bench.parallel=false]     (make bench)
+    python -m pipeline.tools.bench [bench.repeats=5] [bench.parallel=false]     (make bench)
 
 For arm5 and the iCub at the paper's settings (the configs `body=arm5` and `body=icub` compose)
 it times whole trials (draws, epochs and the evaluation schedule) on one core, divides by the
@@ -9,7 +9,7 @@ number of epochs, and reports the median over repeats for both paths, measured i
 and their ratio. Then the same for online Goal Babbling's compiled path (its epoch: K L path
 samples and the returns home, its random walk drawn with it) and the ratio of its median to the
 batch fast path's median of the same run (the target: at most 2), in wall-clock and in CPU
-time. The three paths' trials are interleaved (pipeline.bench.paired), so that a shared
+time. The three paths' trials are interleaved (pipeline.tools.bench.paired), so that a shared
 machine's drifting speed moves them alike. With bench.parallel, it also times the same batch of arm5 trials on one and on
 two worker processes of the pipeline's executor. Writes paths.bench/bench.json.
 """
@@ -26,9 +26,9 @@ from omegaconf import DictConfig
 
 import gbmodel
 
-from . import cli, execute, io
-from .config import compose
-from .plan import plan
+from .. import cli, execute, io
+from ..config import compose
+from ..plan import plan
 
 # epochs per timed trial: long enough to swamp timer noise, short enough for the reference path
 EPOCHS = {"fast": {"arm5": 5000, "icub": 1000}, "reference": {"arm5": 100, "icub": 20},

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...growth import SpecError, check_choice, check_int, check_number
+from .spec import SpecError, check_choice, check_int, check_number
 
 SELECTIONS = ("random", "progress")
 
@@ -89,7 +89,7 @@ def start(targets: np.ndarray) -> Tracker:
 def reaching_errors(predict, body, size: float, scale) -> np.ndarray:
     """|f(g(x*)) - x*| at every target of the set at `size` (the unperturbed inverse)."""
     xs = body.target_set(size)
-    return np.linalg.norm(body.forward(predict(xs), scale=scale) - xs, axis=-1)
+    return np.linalg.norm(body.forward(predict(xs), scale) - xs, axis=-1)
 
 
 def chunks(epochs: np.ndarray, period: int) -> list[tuple[int, int, bool]]:

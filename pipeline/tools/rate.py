@@ -1,7 +1,7 @@
 """The rule that fixed the paper's plain-step rates, for any body and setting.
 
-    python -m pipeline.rate body=icub                       # W and eta = 1 / W for the iCub
-    python -m pipeline.rate body=arm5 learner.variations=40 # at other V, K, L, R
+    python -m pipeline.tools.rate body=icub                       # W and eta = 1 / W for the iCub
+    python -m pipeline.tools.rate body=arm5 learner.variations=40 # at other V, K, L, R
 
 W is the median sum of the weights per epoch at full size after 20,000 epochs of the normalised
 step at rate 1.0 (3 seeds; gbmodel.learners.goal_babbling.weight_sum): the plain step at
@@ -17,7 +17,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from gbmodel.learners import goal_babbling as gb
 
-from . import cli
+from .. import cli
 
 EPOCHS, SEEDS, PROBE = 20_000, (0, 1, 2), 50  # the rule, as it was fixed before the runs
 
@@ -25,7 +25,7 @@ EPOCHS, SEEDS, PROBE = 20_000, (0, 1, 2), 50  # the rule, as it was fixed before
 def rate(cfg: DictConfig, epochs: int = EPOCHS, seeds=SEEDS) -> dict:
     """W, eta = 1 / W and the samples per epoch it holds for, for cfg's body and learner."""
     if cfg.learner.name != "goal_babbling":
-        from .config import ConfigError
+        from ..config import ConfigError
 
         raise ConfigError(f"learner={cfg.learner.name}: the rate rule is Goal Babbling's plain "
                           "step (learner=goal_babbling)")

@@ -1,12 +1,12 @@
 """Side by side in one run: the fast path's time per trial-epoch of arm5 and the iCub at the
-paper's settings (pipeline.bench's specs), a baseline checkout against this one, each in child
+paper's settings (pipeline.tools.bench's specs), a baseline checkout against this one, each in child
 processes timed in CPU seconds (less sensitive to a shared machine than wall time), interleaved
 A B B A ...; prints medians and the ratio this / baseline.
 
-    python -m pipeline.bench_compare BASELINE_DIR [ROUNDS] [REPEATS] [LEARNER]
+    python -m pipeline.tools.bench_compare BASELINE_DIR [ROUNDS] [REPEATS] [LEARNER]
 
 BASELINE_DIR: another checkout, e.g. `git archive <commit> | tar -x -C /tmp/base`; LEARNER:
-goal_babbling (the default: the batch fast path) or online_goal_babbling (pipeline.bench's
+goal_babbling (the default: the batch fast path) or online_goal_babbling (pipeline.tools.bench's
 online trials).
 """
 from __future__ import annotations
@@ -17,11 +17,11 @@ import subprocess
 import sys
 from pathlib import Path
 
-HERE = str(Path(__file__).resolve().parents[1])
+HERE = str(Path(__file__).resolve().parents[2])
 CHILD = r'''
 import json, sys, time
 import numpy as np, gbmodel
-from pipeline.bench import EPOCHS, paper_spec
+from pipeline.tools.bench import EPOCHS, paper_spec
 
 
 def time_trial(spec, seed=0):

@@ -1,7 +1,7 @@
 """Benchmark: the pipeline's stages on a fully cached tree, as whole commands.
 
-    python -m pipeline.bench_stages                 # make smoke's three stages, 3 times
-    python -m pipeline.bench_stages --profile full  # make reproduce's (needs its cache)
+    python -m pipeline.tools.bench_stages                 # make smoke's three stages, 3 times
+    python -m pipeline.tools.bench_stages --profile full  # make reproduce's (needs its cache)
 
 It runs `make smoke` (or the full pipeline without publishing) once to fill or confirm the cache,
 then times each stage command of the Makefile `--repeats` times and prints the median (and
@@ -16,7 +16,7 @@ import subprocess
 import sys
 import time
 
-from .config import REPO_ROOT
+from ..config import REPO_ROOT
 
 STAGES = ("simulate", "aggregate", "report")
 

@@ -1,0 +1,29 @@
+"""The measures of a learning curve that the aggregate stage and the studies share: the
+temporary rise of the error during growth (the paper's "significant temporary increase", sec.
+3.1) and each trial's final row."""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+
+def rise(values: np.ndarray) -> tuple[int, float]:
+    """(index, rise) of the point rising most above the lowest value before it (0, 0 if none):
+    the paper's "significant temporary increase" of the error during growth (sec. 3.1)."""
+    r = values - np.minimum.accumulate(values)
+    i = int(np.argmax(r))
+    return i, float(r[i])
+
+
+def growth_peak(curve: pd.DataFrame) -> tuple[int, float, float]:
+    """(epoch, value, rise) of the temporary increase of the mean absolute error during growth."""
+    c = curve.sort_values("epoch")
+    err = c["abs_error_mean"].to_numpy()
+    i, r = rise(err)
+    return int(c["epoch"].iloc[i]), float(err[i]), r
+
+
+def finals(trials: pd.DataFrame) -> pd.DataFrame:
+    """Each trial's final row: the rows of every condition at that condition's last epoch."""
+    last = trials.groupby("condition", sort=False)["epoch"].transform("max")
+    return trials[trials["epoch"] == last]

@@ -1,0 +1,118 @@
+"""Results you can pick up (pipeline/studies/provenance.py): the trained models beside the
+report, the provenance block and the credits; and the examples/ scripts, each run at tiny scale
+on the same smoke run."""
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import run_cli, tiny_overrides
+from pipeline import models
+from pipeline.config import REPO_ROOT
+from pipeline.studies import provenance
+
+EXAMPLES = REPO_ROOT / "examples"
+
+
+@pytest.fixture(scope="module")
+def smoke(tmp_path_factory):
+    """A two-condition figure (growing, constant), simulated, aggregated and reported."""
+    root = tmp_path_factory.mktemp("prov")
+    args = tiny_overrides(root, "figure=prov", "growth.period=10", "conditions.references=[0.5]",
+                          "trials.count=2")
+    for stage in ("pipeline.simulate", "pipeline.aggregate", "pipeline.report"):
+        r = run_cli(stage, *args)
+        assert r.returncode == 0, r.stderr[-2000:]
+    out = root / "outputs" / "smoke"
+    return dict(root=root, report=out / "latest", aggregate=out / "aggregate")
+
+
+def test_report_holds_the_final_models_and_they_reach_as_the_aggregate(smoke):
+    path = smoke["report"] / "models" / "prov.json"
+    data = json.loads(path.read_text())
+    assert sorted(data["conditions"]) == ["TG10", "const0.5"]
+    assert path.stat().st_size < 8000 * 2 * 2  # a few kB per condition and trial
+    assert "models/prov.json" in (smoke["report"] / "report.md").read_text()
+    full, compact = models.load("prov", smoke["aggregate"]), models.load("prov", smoke["report"])
+    assert compact.labels == full.labels
+    for label in full.labels:
+        x = full[label].body.target_set(full[label].size)
+        for trial in (0, 1):
+            np.testing.assert_allclose(compact[label].posture(x, trial),
+                                       full[label].posture(x, trial), atol=1e-6)
+            np.testing.assert_allclose(compact[label].reach(x, trial),
+                                       full[label].reach(x, trial), atol=1e-6)
+
+
+def test_report_has_the_provenance_block_and_credits(smoke):
+    md = (smoke["report"] / "report.md").read_text()
+    block = md[md.index("## Provenance"):md.index("## Files")]
+    assert f"commit: `{provenance.commit()}`" in block and len(provenance.commit()) >= 40
+    import hashlib
+    lock = hashlib.sha256((REPO_ROOT / "requirements.lock").read_bytes()).hexdigest()[:16]
+    assert f"sha256 `{lock}`" in block
+    import numpy
+    assert f"numpy {numpy.__version__}" in block and f"python {sys.version.split()[0]}" in block
+    assert f"CPU: {provenance.cpu_model()}" in block
+    assert "| prov | 4 |" in block  # 2 conditions x 2 trials
+    assert "## Credits" in block and "CC-BY-SA" not in block  # arm5 only: nothing to credit
+
+
+def test_credits_name_the_third_party_robots_used():
+    aggs = {f: dict(models=dict(conditions={"c": dict(spec=dict(body=dict(name=b)))}))
+            for f, b in (("a", "icub_urdf"), ("b", "ergo_jr"), ("c", "arm5"))}
+    lines = provenance.credits(aggs)
+    assert any("iCub" in ln and "CC-BY-SA-4.0" in ln for ln in lines)
+    assert any("Ergo Jr" in ln and "GPL-3.0" in ln for ln in lines) and len(lines) == 2
+    assert provenance.credits({"c": aggs["c"]}) == []
+
+
+def test_estimated_cpu_time_follows_the_cost_model():
+    from pipeline.plan import cost
+    spec = dict(body={"name": "arm5"}, growth={}, learner={"name": "goal_babbling"},
+                evaluation={}, epochs=1000, evals_per_decade=20, snapshots=[])
+    aggs = {"f": dict(models=dict(conditions={"c": dict(spec=spec, trials={"0": {}, "1": {}})}))}
+    n, seconds = provenance.figure_costs(aggs)["f"]
+    assert n == 2 and seconds == pytest.approx(2 * cost(dict(spec=spec)) * provenance.SECONDS_PER_COST)
+
+
+def _example(name, tmp_path, **env):
+    e = dict(os.environ, MPLBACKEND="Agg", GBGROWTH_EXAMPLE_OUT=str(tmp_path),
+             PYTHONPATH=str(REPO_ROOT), **env)
+    r = subprocess.run([sys.executable, str(EXAMPLES / name)], capture_output=True, text=True,
+                       cwd=tmp_path, env=e, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    return r.stdout
+
+
+def test_example_committed_curves(smoke, tmp_path):
+    out = _example("01_committed_curves.py", tmp_path,
+                   GBGROWTH_CURVES=str(smoke["report"] / "curves.parquet"), GBGROWTH_FIGURE="prov")
+    assert (tmp_path / "prov_abs_error.png").stat().st_size and "TG10" in out
+
+
+def test_example_reach_with_a_model(smoke, tmp_path):
+    out = _example("02_reach_with_a_model.py", tmp_path, GBGROWTH_FIGURE="prov",
+                   GBGROWTH_MODELS=str(smoke["report"]))
+    assert "mean miss over the grid" in out
+
+
+def test_example_grow_your_own_urdf_arm(tmp_path):
+    out = _example("03_grow_your_own_urdf_arm.py", tmp_path, GBGROWTH_EPOCHS="40")
+    assert (tmp_path / "arm3_urdf_growth.png").stat().st_size and "final error" in out
+
+
+def test_example_compare_two_learners(tmp_path):
+    out = _example("04_compare_two_learners.py", tmp_path, GBGROWTH_EPOCHS="30",
+                   GBGROWTH_TRIALS="1")
+    assert (tmp_path / "learners.png").stat().st_size and "online_goal_babbling" in out
+
+
+def test_examples_are_jupytext_percent_scripts():
+    for p in sorted(EXAMPLES.glob("*.py")):
+        text = p.read_text()
+        assert text.startswith("# %% [markdown]") and text.count("# %%") >= 3, p.name
