@@ -12,7 +12,7 @@ PROFILE ?= full
 ARGS    ?=
 
 .DEFAULT_GOAL := help
-.PHONY: help setup reproduce smoke simulate aggregate choices report pipeline bench test test-slow test-cluster clean
+.PHONY: help setup reproduce smoke simulate aggregate choices report pipeline bench scale test test-slow test-cluster clean
 
 help: ## list the targets
 	@awk 'BEGIN {FS = ":.*## "} /^[a-z-]+:.*## / {printf "  make %-10s %s\n", $$1, $$2}' $(MAKEFILE_LIST)
@@ -61,6 +61,9 @@ choices: ## the open-choices experiments only (choices_*), then aggregate and re
 
 bench: $(STAMP) ## time the fast path against the numpy reference (outputs/bench/bench.json)
 	$(PY) -m pipeline.tools.bench $(ARGS)
+
+scale: $(STAMP) ## time sweeps of 1,000 and 10,000 short trials stage by stage (outputs/bench/scale.json; ARGS="--baseline DIR")
+	$(PY) -m pipeline.tools.scale $(ARGS)
 
 test: $(STAMP) ## run the test suite (slow tests excluded)
 	$(PY) -m pytest

@@ -82,10 +82,12 @@ def error(d: np.ndarray, formula: str = "mean") -> float:
 
 
 def evaluate(learner, state, params, body: Body, size: float, scale, points: str = "grid",
-             formula: str = "mean", path_steps: int = 7) -> float:
+             formula: str = "mean", path_steps: int = 7, xs: np.ndarray | None = None) -> float:
     """The absolute error of a learner's state, with the body at size `size` (per-joint length
-    factors `scale`): the learner's own `distances` if it has one, else f(predict(x*)) here."""
-    xs = eval_points(body, size, points, path_steps)
+    factors `scale`): the learner's own `distances` if it has one, else f(predict(x*)) here.
+    xs: the points of `points` at size 1, built once by the caller (eval_points(body, 1.0, ...)),
+    scaled here to `size`: the same values as eval_points(body, size, ...) builds."""
+    xs = eval_points(body, size, points, path_steps) if xs is None else xs * size
     if hasattr(learner, "distances"):
         d = learner.distances(state, params, body, scale, xs)
     else:

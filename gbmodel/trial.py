@@ -63,9 +63,10 @@ class TrialSpec:
             raise SpecError("learner", sorted(kw), str(err)) from None
         return module, params.validate()
 
-    def validate(self) -> "TrialSpec":
-        """Raise SpecError (a ValueError) naming the first bad value as `<section>.<field>`."""
-        body = self.make_body()
+    def validate(self, body: Body | None = None) -> "TrialSpec":
+        """Raise SpecError (a ValueError) naming the first bad value as `<section>.<field>`.
+        body: this spec's body if the caller built it already (it is then not built again)."""
+        body = self.make_body() if body is None else body
         self.make_growth().validate(body)
         self.make_learner()
         check_epochs("learner.epochs", self.epochs)
@@ -104,10 +105,12 @@ class TrialResult:
 
 def run_trial(spec: TrialSpec, rng: np.random.Generator) -> TrialResult:
     """Run one trial and return its learning curve; raises Diverged on a non-finite error."""
-    spec.validate()
-    body, growth = spec.make_body(), spec.make_growth()
+    body = spec.make_body()
+    spec.validate(body)
+    growth = spec.make_growth()
     learner, params = spec.make_learner()
     ev = {**evaluation.DEFAULTS, **spec.evaluation}
+    unit_heldout = evaluation.heldout_points(body)  # at each evaluation: scaled, not rebuilt
     # Sizes and scales are built per block of DRAW_BLOCK epochs, never for every epoch at once,
     # so a trial's memory does not grow with its epochs (each value is computed elementwise:
     # the same bytes as from the whole array).
@@ -137,7 +140,7 @@ def run_trial(spec: TrialSpec, rng: np.random.Generator) -> TrialResult:
                 abs_error[k], size[k] = err, sizes[hi - 1 - start]
                 heldout[k] = evaluation.evaluate(learner, state, params, body,
                                                  sizes[hi - 1 - start], scales[hi - 1 - start],
-                                                 **{**ev, "points": "heldout"})
+                                                 **{**ev, "points": "heldout"}, xs=unit_heldout)
                 k += 1
     jump = evaluation.largest_jump(lambda x: learner.predict(state, params, body, x), body,
                                    sizes[-1])

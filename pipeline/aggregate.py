@@ -13,6 +13,9 @@ paths.aggregate/<figure>/:
     models.json       per condition and trial: the final model M and its snapshots
     manifest.json     the digest of the inputs (conditions, trials' seals, code): unchanged
                       inputs leave the figure as it is
+    index.parquet     per trial: its files' signature (pipeline.cache.signature), seal, status
+                      and rows in trials.parquet; the next run reads only the trials whose
+                      files changed and takes the others from this set
 Only the trials of the plan are read, so stale cache entries never mix in. A trial that diverged
 or failed is counted as such and left out of every mean; a damaged or missing file is named.
 """
@@ -60,42 +63,172 @@ def figure_conditions(cache_dir, figure: str) -> tuple[list[dict], dict, list[st
     return conds, paper, problems
 
 
-def load_trials(cache_dir, figure: str, curves: bool = True):
-    """(curves of the figure's finished trials, conditions by label, paper, problems found).
-    curves=False: the sidecars only (enough for the inputs' digest); the curves are then None."""
+INDEX = "index.parquet"  # per trial of the aggregate: what was read, to reuse it next time
+INDEX_SCHEMA = pa.schema([("key", pa.string()), ("condition", pa.string()),
+                          ("trial", pa.int64()), ("status", pa.string()),
+                          ("epoch", pa.int64()), ("seal", pa.string()),
+                          ("signature", pa.string()), ("largest_jump", pa.float64()),
+                          ("row", pa.int64()), ("rows", pa.int64())])
+
+
+class Previous:
+    """The figure's current aggregate, made by this stage's code: for each trial it read, the
+    signature of the trial's files (pipeline.cache.signature), its seal, its model and its rows.
+    A trial whose files still have that signature is taken from here instead of being read and
+    checked again, so a rebuild reads only what changed. Anything unreadable here: nothing is
+    reused (every trial is read from the cache)."""
+
+    def __init__(self, folder: Path | None = None):
+        self.index, self.where, self._table, self._models = {}, None, None, None
+        if folder is None or not folder.exists():
+            return
+        try:
+            where = io.set_of(folder)
+            manifest = io.read_json(where / "manifest.json")
+            if manifest.get("code") != code_of_stage():
+                return
+            rows = io.read_table(where / INDEX, schema=INDEX_SCHEMA).to_pylist()
+        except (OSError, ValueError):
+            return
+        self.index, self.where = {r["key"]: r for r in rows}, where
+
+    def table(self) -> pa.Table:
+        if self._table is None:
+            self._table = io.read_table(self.where / "trials.parquet", schema=io.CURVE)
+        return self._table
+
+    def model(self, entry: dict) -> dict:
+        if self._models is None:
+            self._models = io.read_json(self.where / "models.json",
+                                        need=("conditions",))["conditions"]
+        return self._models[entry["condition"]]["trials"][str(entry["trial"])]
+
+
+def load_trials(cache_dir, figure: str, previous: Previous | None = None):
+    """(conditions by label, paper, problems found) of the figure's trials: each trial's files
+    read and checked once, or, where they did not change since `previous`, taken from there.
+    Each condition lists its trials' entries (seal, status, and the curve table or the rows of
+    the previous aggregate); curves_table and models() turn them into the figure's files."""
+    previous = previous or Previous()
     conditions, paper, problems = figure_conditions(cache_dir, figure)
-    frames, conds = [], {}
+    conds = {}
     for cond in conditions:
         name, spec = cond["label"], cond["spec"]
         labels = dict(figure=figure, body=spec["body"]["name"], learner=spec["learner"]["name"],
                       growth=cond["growth"], growth_period=cond["growth_period"], condition=name)
         c = conds[name] = dict(labels=labels, spec=spec, variant=cond.get("variant"), id=cond["id"],
-                               trials={}, diverged={}, missing=[], seals=[])
+                               trials={}, diverged={}, missing=[], seals=[], entries=[])
         for t in sorted(cond["trials"], key=lambda t: t["trial"]):
-            side, damaged = cache.check(cache_dir, t)
             i = str(t["trial"])
-            if side is None:
-                why = damaged or "not computed (run pipeline.simulate)"
+            signature = cache.signature(cache_dir, t)  # before reading: a later write shows
+            entry = previous.index.get(t["key"])
+            if signature is None or entry is None or entry["signature"] != signature:
+                entry = _read(cache_dir, t, signature)
+            if isinstance(entry, str) or entry is None:
+                why = entry or "not computed (run pipeline.simulate)"
                 c["missing"].append(i)
                 problems.append(f"{name} trial {i}: {why}")
                 continue
-            c["seals"].append(side["seal"])
-            if side["status"] == "diverged":
-                c["diverged"][i] = side["epoch"]
-                continue
-            c["trials"][i] = {"key": t["key"], "M": side["M"], "snapshots": side["snapshots"],
-                              "largest_jump": side["largest_jump"]}
-            if curves:
-                curve = cache.read_curve(cache_dir, t)
-                for col, value in labels.items():
-                    curve[col] = value
-                curve["trial"] = t["trial"]
-                frames.append(curve[io.CURVE_COLUMNS])
-    if not curves:
-        return None, conds, paper, problems
-    empty = io.CURVE.empty_table().to_pandas()
-    df = pd.concat(frames, ignore_index=True) if frames else empty
-    return df, conds, paper, problems
+            entry = dict(entry, trial=t["trial"], key=t["key"])
+            c["seals"].append(entry["seal"])
+            c["entries"].append(entry)
+            if entry["status"] == "diverged":
+                c["diverged"][i] = entry["epoch"]
+            else:
+                c["trials"][i] = entry
+    return conds, paper, problems
+
+
+def _read(cache_dir, t: dict, signature: str | None):
+    """A trial's entry read from the cache; the reason if it is damaged, None if not run."""
+    side, table, damaged = cache.read_trial(cache_dir, t)
+    if side is None:
+        return damaged
+    entry = dict(seal=side["seal"], status=side["status"], epoch=side.get("epoch"),
+                 signature=signature, table=table)
+    if side["status"] != "diverged":
+        entry["largest_jump"] = side["largest_jump"]
+        entry["model"] = {"key": t["key"], "M": side["M"], "snapshots": side["snapshots"],
+                          "largest_jump": side["largest_jump"]}
+    return entry
+
+
+def _fill(cache_dir, entries: list[dict]) -> None:
+    """Read from the cache the entries that were to come from a previous aggregate that turned
+    out unreadable (their files are checked again)."""
+    for e in entries:
+        if "table" not in e:
+            fresh = _read(cache_dir, e, e["signature"])
+            if not isinstance(fresh, dict):
+                raise io.DamagedFile(f"trial {e['key']}: {fresh or 'gone'} while aggregating; "
+                                     "run the stage again")
+            e.update(fresh)
+
+
+def curves_table(conds: dict, previous: Previous) -> pa.Table:
+    """Every finished trial's curve in io.CURVE, in condition and trial order, with the labels
+    of its condition (set once per condition). Each entry's row range in it is recorded."""
+    parts, row = [], 0
+    for c in conds.values():
+        pieces, counts, trials = [], [], []
+        for e in c["trials"].values():
+            if "table" in e:
+                piece = e["table"].select(io.TRIAL_CURVE.names)
+            else:  # consecutive rows of the previous aggregate are taken as one slice
+                piece = ("slice", e["row"], e["rows"])
+                if pieces and isinstance(pieces[-1], tuple) and sum(pieces[-1][1:]) == e["row"]:
+                    piece = ("slice", pieces[-1][1], pieces[-1][2] + e["rows"])
+                    pieces.pop()
+            pieces.append(piece)
+            e["row"], e["rows"] = row, len(e["table"]) if "table" in e else e["rows"]
+            row += e["rows"]
+            counts.append(e["rows"])
+            trials.append(e["trial"])
+        if not pieces:
+            continue
+        old = previous.table().select(io.TRIAL_CURVE.names) if any(
+            isinstance(p, tuple) for p in pieces) else None
+        body = pa.concat_tables([old.slice(p[1], p[2]) if isinstance(p, tuple) else p
+                                 for p in pieces])
+        n = len(body)
+        cols = {k: pa.repeat(pa.scalar(v, io.CURVE.field(k).type), n)
+                for k, v in c["labels"].items()}
+        cols["trial"] = pa.array(np.repeat(np.asarray(trials, dtype=np.int64), counts))
+        cols.update({k: body.column(k) for k in io.TRIAL_CURVE.names})
+        parts.append(pa.Table.from_pydict({k: cols[k] for k in io.CURVE_COLUMNS},
+                                          schema=io.CURVE))
+    return pa.concat_tables(parts) if parts else io.CURVE.empty_table()
+
+
+def models(conds: dict, previous: Previous) -> dict:
+    """Per condition: its spec, id and each finished trial's model (key, M, snapshots, largest
+    jump), from the trial's sidecar or the previous aggregate."""
+    return {k: {"spec": c["spec"], "id": c["id"],
+                "trials": {i: e["model"] if "model" in e else previous.model(e)
+                           for i, e in c["trials"].items()}}
+            for k, c in conds.items()}
+
+
+def refresh_index(conds: dict, previous: Previous) -> None:
+    """Inputs unchanged, but some trials' files were rewritten with the same content (their
+    seals match): record their new signatures, so that the next run does not read them again.
+    The index is replaced alone, in place: no other file of the set depends on signatures."""
+    fresh = [e for c in conds.values() for e in c["entries"] if "table" in e]
+    for e in fresh:
+        known = previous.index.get(e["key"])
+        if known is None or known["seal"] != e["seal"]:
+            return
+        e["row"], e["rows"] = known["row"], known["rows"]
+    if fresh:
+        io.write_table(previous.where / INDEX, index_table(conds))
+
+
+def index_table(conds: dict) -> pa.Table:
+    rows = [{"key": e["key"], "condition": name, "trial": e["trial"], "status": e["status"],
+             "epoch": e["epoch"], "seal": e["seal"], "signature": e["signature"],
+             "largest_jump": e.get("largest_jump"), "row": e.get("row", -1), "rows": e.get("rows", 0)}
+            for name, c in conds.items() for e in c["entries"]]
+    return pa.Table.from_pylist(rows, schema=INDEX_SCHEMA)
 
 
 def curve_stats(trials: pd.DataFrame) -> pd.DataFrame:
@@ -171,11 +304,13 @@ def inputs_digest(figure: str, conds: dict, fail_factor: float) -> str:
 
 def aggregate_figure(cfg: DictConfig, fig: str) -> tuple[list[str], bool]:
     """Aggregate one figure, unless its aggregate is already made of the same inputs; (problems,
-    whether it was rebuilt). The figure's files are replaced as one set (pipeline.io.new_set); a
-    damaged plan record, or no trial at all where the aggregate had some, leaves it as it was."""
+    whether it was rebuilt). Only the trials whose files changed since the current aggregate are
+    read (Previous). The figure's files are replaced as one set (pipeline.io.new_set); a damaged
+    plan record, or no trial at all where the aggregate had some, leaves it as it was."""
     folder = Path(cfg.paths.aggregate) / io.safe_name("figure", fig)
+    previous = Previous(folder)
     try:
-        _, conds, paper, problems = load_trials(cfg.paths.cache, fig, curves=False)
+        conds, paper, problems = load_trials(cfg.paths.cache, fig, previous)
     except io.DamagedFile as err:
         return [f"{err}; the figure's aggregate is left as it was"], False
     digest = inputs_digest(fig, conds, cfg.aggregate.fail_factor)
@@ -183,12 +318,21 @@ def aggregate_figure(cfg: DictConfig, fig: str) -> tuple[list[str], bool]:
         old = io.read_json(folder / "manifest.json")
     except (OSError, ValueError):
         old = {}
-    if old.get("inputs") == digest:
+    if old.get("inputs") == digest and previous.where is not None:
+        refresh_index(conds, previous)
         return problems, False
     if not any(c["trials"] for c in conds.values()) and old.get("trials"):
         return problems + ["no trial of the figure is readable; its aggregate is left as it "
                            "was"], False
-    trials, conds, paper, problems = load_trials(cfg.paths.cache, fig)
+    try:
+        table = curves_table(conds, previous)
+        model_of = models(conds, previous)
+    except (OSError, ValueError, KeyError, IndexError):  # the previous aggregate is damaged
+        previous = Previous()
+        for c in conds.values():
+            _fill(cfg.paths.cache, c["entries"])
+        table, model_of = curves_table(conds, previous), models(conds, previous)
+    trials = table.to_pandas()
     curves = curve_stats(trials)
     summary = summarize(trials, curves, conds, paper, cfg.aggregate.fail_factor)
     with io.new_set(folder) as tmp:
@@ -196,14 +340,13 @@ def aggregate_figure(cfg: DictConfig, fig: str) -> tuple[list[str], bool]:
                        pa.Table.from_pandas(trials, schema=io.CURVE, preserve_index=False))
         io.write_table(tmp / "curves.parquet", io.frame_to_table(curves))
         io.write_table(tmp / "summary.parquet", io.frame_to_table(summary))
-        io.write_json(tmp / "models.json", {
-            "figure": fig, "paper": paper,
-            "conditions": {k: {"spec": c["spec"], "id": c["id"], "trials": c["trials"]}
-                           for k, c in conds.items()}})
-        io.write_json(tmp / "manifest.json", dict(figure=fig, inputs=digest,
+        io.write_json(tmp / "models.json", {"figure": fig, "paper": paper,
+                                            "conditions": model_of})
+        io.write_table(tmp / INDEX, index_table(conds))
+        io.write_json(tmp / "manifest.json", dict(figure=fig, inputs=digest, code=code_of_stage(),
                                                   trials=int(len(trials))))
     log.info("[%s] %d conditions, %d trial curves -> %s", fig, len(summary),
-             trials.groupby(["condition", "trial"]).ngroups if len(trials) else 0, folder)
+             sum(len(c["trials"]) for c in conds.values()), folder)
     return problems, True
 
 

@@ -38,8 +38,8 @@ TRIALS, PLANS, FAILED = "trials", "plans", "failed"
 
 def trial_paths(cache_dir, trial: dict) -> tuple[Path, Path]:
     key = trial["key"]
-    folder = Path(cache_dir) / TRIALS / key[:2]
-    return folder / f"{key}.parquet", folder / f"{key}.json"
+    stem = os.path.join(cache_dir, TRIALS, key[:2], key)  # strings first: pathlib's joins cost
+    return Path(f"{stem}.parquet"), Path(f"{stem}.json")
 
 
 def failure_path(cache_dir, trial: dict) -> Path:
@@ -49,22 +49,57 @@ def failure_path(cache_dir, trial: dict) -> Path:
 def check(cache_dir, trial: dict) -> tuple[dict | None, str | None]:
     """(sidecar, None) for a finished trial whose files are intact; (None, None) for one not
     run yet; (None, why) for one whose files are damaged (they are then recomputed)."""
-    curve, side = trial_paths(cache_dir, trial)
-    if not side.exists():
-        return None, None
+    side, _, why = read_trial(cache_dir, trial, curve=False)
+    return side, why
+
+
+def read_trial(cache_dir, trial: dict, curve: bool = True):
+    """(sidecar, curve table or None, None) for a finished trial whose files are intact, each
+    file read once: its checksum and its table come from the same bytes (curve=False: checked,
+    not parsed); (None, None, None) for one not run yet; (None, None, why) for a damaged one."""
+    curve_path, side = trial_paths(cache_dir, trial)
     try:
-        s = io.check_seal(io.read_json(side), side.name)  # the model, snapshots, status too
+        raw = side.read_bytes()
+    except FileNotFoundError:
+        return None, None, None
+    except IsADirectoryError:
+        return None, None, f"{side}: a folder, not a JSON file"
+    except OSError as err:
+        return None, None, str(err)
+    try:
+        s = io.check_seal(io.parse_json(raw, side), side.name)  # model, snapshots, status too
         if s.get("key") != trial["key"]:
-            return None, f"{side.name} belongs to another trial"
+            return None, None, f"{side.name} belongs to another trial"
         if s.get("status") == "diverged":
-            return s, None
-        if not curve.exists():
-            return None, f"{curve.name} is missing"
-        if io.sha256_file(curve) != s.get("curve_sha256"):
-            return None, f"{curve.name} does not match its checksum (truncated or changed)"
+            return s, None, None
+        try:
+            data = curve_path.read_bytes()
+        except FileNotFoundError:
+            return None, None, f"{curve_path.name} is missing"
+        if hashlib.sha256(data).hexdigest() != s.get("curve_sha256"):
+            return None, None, (f"{curve_path.name} does not match its checksum (truncated or "
+                                "changed)")
+        table = io.parse_table(data, curve_path, schema=io.TRIAL_CURVE) if curve else None
     except (OSError, ValueError) as err:
-        return None, str(err)
-    return s, None
+        return None, None, str(err)
+    return s, table, None
+
+
+def signature(cache_dir, trial: dict) -> str | None:
+    """What the file system says about a trial's files (size, inode, modification and change
+    times of the sidecar and the curve): any write or replacement changes it, so an unchanged
+    signature lets a reader reuse what it checked before. None: no sidecar."""
+    parts = []
+    for path in trial_paths(cache_dir, trial)[::-1]:
+        try:
+            st = os.stat(path)
+        except FileNotFoundError:
+            if not parts:
+                return None
+            parts.append("-")
+            continue
+        parts.append(f"{st.st_size}:{st.st_ino}:{st.st_mtime_ns}:{st.st_ctime_ns}")
+    return "/".join(parts)
 
 
 CONTENT = ("key", "spec", "seed", "code", "labels")  # what a sidecar keeps of the planned trial
@@ -78,14 +113,14 @@ def write_trial(cache_dir, trial: dict, result: dict) -> None:
         record.update(error=result["error"], epoch=result["epoch"])
         curve.unlink(missing_ok=True)
     else:
-        io.write_table(curve, io.trial_curve_table(result))
-        record["curve_sha256"] = io.sha256_file(curve)
+        record["curve_sha256"] = io.write_table(curve, io.trial_curve_table(result))
         record["largest_jump"] = float(result["largest_jump"])
         M = result["M"]
         record["M"] = None if M is None else np.asarray(M).tolist()
         record["snapshots"] = {str(e): np.asarray(m).tolist()
                                for e, m in sorted(result["snapshots"].items())}
-    io.write_json(side, io.seal(record))  # timing is left out: the sidecar's bytes must not vary
+    # compact: the sidecar is read by programs; timing is left out: its bytes must not vary
+    io.write_json(side, io.seal(record), compact=True)
 
 
 def read_curve(cache_dir, trial: dict):

@@ -2,7 +2,7 @@
 
 The executor takes plain-data trials, runs them longest first and yields each result as soon as
 it is there, so the driver can write it to the cache at once: an interrupted run loses only the
-trials in flight. Locally it is a `concurrent.futures.ProcessPoolExecutor` of spawned workers with
+trials in flight. Short trials travel to a worker in batches (batches), long ones alone. Locally it is a `concurrent.futures.ProcessPoolExecutor` of spawned workers with
 one BLAS/OpenMP/numba thread each. Ctrl-C, SIGTERM and SIGHUP reach the driver only (workers
 ignore them, pipeline.worker.quiet_worker), which kills every worker at once (stop_pools), so
 neither a worker nor multiprocessing's resource tracker outlives it; a worker whose driver died
@@ -15,7 +15,8 @@ import os
 import sys
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
-from .worker import THREAD_VARS, quiet_worker, run_one, single_threaded_children  # noqa: F401
+from .worker import (THREAD_VARS, quiet_worker, run_batch, run_one,  # noqa: F401
+                     single_threaded_children)
 
 _POOLS: set = set()  # the pools of this process that are running
 
@@ -76,14 +77,37 @@ def local(todo: list[dict], workers: int, fn=run_one):
                                    initializer=quiet_worker, initargs=(os.getpid(),))
     _POOLS.add(pool)
     try:
-        pending = {pool.submit(fn, t): t for t in todo}
+        pending = {pool.submit(run_batch, fn, b): b for b in batches(todo, workers)}
         while pending:
             done, _ = wait(pending, return_when=FIRST_COMPLETED)
             for fut in done:
-                yield pending.pop(fut), fut.result()
+                yield from zip(pending.pop(fut), fut.result())
     finally:
         # idle workers after the last result; on a signal, an error or a dropped generator: now
         _stop(pool)
+
+
+BATCH_SHARE = 16  # a batch holds at most 1/BATCH_SHARE of one worker's share of the work
+MAX_BATCH = 64  # trials
+
+
+def batches(todo: list[dict], workers: int) -> list[list[dict]]:
+    """`todo` in order, cut into batches that one worker task runs: consecutive trials while
+    their estimated cost (pipeline.plan.cost) stays within 1/BATCH_SHARE of a worker's share,
+    at most MAX_BATCH. Short trials then share one task's pickling and round trip; a long trial
+    is a batch of its own, so the workers stay balanced and a stopped run loses little."""
+    from .plan import cost
+
+    costs = [cost(t) for t in todo]
+    limit = sum(costs) / (workers * BATCH_SHARE)
+    out, batch, total = [], [], 0.0
+    for t, c in zip(todo, costs):
+        if batch and (total + c > limit or len(batch) == MAX_BATCH):
+            out.append(batch)
+            batch, total = [], 0.0
+        batch.append(t)
+        total += c
+    return out + [batch] if batch else out
 
 
 def results(todo: list[dict], workers: int, backend: str = "local", address=None, fn=run_one,

@@ -196,6 +196,37 @@ def check_reach(body_json: str) -> None:
                     body.name, np.round(body.targets[missed[0]], 3).tolist())
 
 
+# ---- planned runs: a fully planned command plans nothing again ----------------------------------
+PLANNED = "planned"  # paths.out/planned/<digest>.json: a command's jobs (the cache holds trials)
+_PLAN_SOURCES = (("conf", ("*.yaml",)), ("pipeline", ("*.py",)),
+                 ("gbmodel", ("*.py", "*.yaml", "*.urdf", "*.json")))
+
+
+@lru_cache(maxsize=1)
+def planning_sources() -> str:
+    """The hash of every file a plan is made from (config files, pipeline's and gbmodel's code
+    and data) and of the versions of Hydra and OmegaConf that compose the config."""
+    import hydra
+    import omegaconf
+
+    root = Path(__file__).resolve().parents[1]
+    h = hashlib.sha256(f"{hydra.__version__} {omegaconf.__version__}".encode())
+    for folder, patterns in _PLAN_SOURCES:
+        files = sorted({p for pat in patterns for p in (root / folder).rglob(pat)
+                        if "__pycache__" not in p.parts})
+        for p in files:
+            h.update(str(p.relative_to(root)).encode() + b"\0" + p.read_bytes() + b"\0")
+    return h.hexdigest()
+
+
+def plan_digest(cfg: DictConfig, overrides) -> str:
+    """What a command's plan is made of: its config (resolved), its overrides and
+    planning_sources(). The same digest, the same trials."""
+    body = dict(config=OmegaConf.to_container(cfg, resolve=True), overrides=list(overrides),
+                sources=planning_sources())
+    return hashlib.sha256(_canonical(body).encode()).hexdigest()[:24]
+
+
 def check_paths(cfg: DictConfig) -> None:
     """Every output folder is a folder (or can become one)."""
     for key in ("root", "out", "cache", "aggregate", "report", "published", "bench"):
@@ -222,6 +253,22 @@ def trial_key(spec: dict, seed: dict, code: str) -> str:
     return hashlib.sha256(_canonical(dict(spec=spec, seed=seed, code=code)).encode()).hexdigest()[:20]
 
 
+def check_run(cfg: DictConfig) -> None:
+    """The checks of a run's own settings (not of its trials'): cheap, so that they are made
+    on every run, a planned one (planned) too."""
+    check_int("trials.count", cfg.trials.count, 1)
+    check_int("trials.root_seed", cfg.trials.root_seed, 0)
+    check_int("workers", cfg.workers, 1)
+    check_backend(cfg.executor.backend, package=False)  # an unknown engine (its package:
+    # simulate, the stage that submits)
+    if not cfg.figure or "/" in cfg.figure or cfg.figure.startswith("."):
+        _bad("figure", cfg.figure, "must be a plain name (it names a folder)")
+    check_root(cfg)
+    check_names(cfg)
+    check_stamp(cfg)
+    check_paths(cfg)
+
+
 def plan(cfg: DictConfig) -> list[dict]:
     """Every trial of the config as plain data, in order (variant, condition, trial index).
 
@@ -231,16 +278,7 @@ def plan(cfg: DictConfig) -> list[dict]:
     trials = []
     try:
         check_int("trials.count", cfg.trials.count, 1)
-        check_int("trials.root_seed", cfg.trials.root_seed, 0)
-        check_int("workers", cfg.workers, 1)
-        check_backend(cfg.executor.backend, package=False)  # an unknown engine (its package:
-        # simulate, the stage that submits)
-        if not cfg.figure or "/" in cfg.figure or cfg.figure.startswith("."):
-            _bad("figure", cfg.figure, "must be a plain name (it names a folder)")
-        check_root(cfg)
-        check_names(cfg)
-        check_stamp(cfg)
-        check_paths(cfg)
+        check_run(cfg)
         for variant, vcfg in variants(cfg):
             check_limits(vcfg)  # a variant's `set` may change what the command line did not
             for cond in conditions(vcfg):
@@ -372,7 +410,12 @@ def plan_conditions(trials: list[dict]) -> list[dict]:
 def cost(trial: dict) -> float:
     """Rough relative run time of a trial: samples per epoch x joints x epochs x the learner's
     cost per sample and joint (its sample_cost; 1 for a learner without one)."""
-    spec = gbmodel.TrialSpec.from_dict(trial["spec"])
+    return _cost(_canonical(trial["spec"]))
+
+
+@lru_cache(maxsize=1024)
+def _cost(spec_json: str) -> float:  # per condition, not per trial: a body is built for it
+    spec = gbmodel.TrialSpec.from_dict(json.loads(spec_json))
     learner, params = spec.make_learner()
     body = spec.make_body()
     per = learner.sample_cost(params) if hasattr(learner, "sample_cost") else 1.0

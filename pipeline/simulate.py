@@ -24,7 +24,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from . import cache, cli, execute, io
 from .config import check_backend
-from .plan import cost, plan, plan_conditions
+from .plan import PLANNED, check_run, cost, plan, plan_conditions, plan_digest
 from .progress import Progress
 
 log = logging.getLogger("pipeline.simulate")
@@ -64,9 +64,10 @@ def record(cache_dir, trial: dict, result: dict, summary: Summary) -> None:
 
 @dataclass
 class Job:
-    """One figure of a simulate run: its config and planned trials."""
+    """One figure of a simulate run: its name, paper section and planned trials (plain data)."""
 
-    cfg: DictConfig
+    figure: str
+    paper: dict
     trials: list
     experiment: str | None = None
 
@@ -74,11 +75,53 @@ class Job:
 def jobs_of(cfg: DictConfig, overrides: list[str] = ()) -> list[Job]:
     """The figures this run plans: the config's own, or with `experiments=[a, b]` each of those
     experiments composed with the same other overrides (make smoke / make reproduce plan every
-    experiment in one process)."""
+    experiment in one process). A command planned before (the same plan_digest: config,
+    overrides, config files and code) takes its jobs from paths.out/planned/ instead of
+    composing and planning again; the run's own settings are checked either way."""
     check_backend(cfg.executor.backend)  # this stage submits: the engine's package is needed
+    experiment = None if cfg.get("experiments") else _experiment_of(cfg)
+    saved = Path(cfg.paths.out) / PLANNED / f"{plan_digest(cfg, [overrides, experiment])}.json"
+    try:
+        jobs = unpack_jobs(io.read_json(saved, need=("jobs", "specs")))
+    except (OSError, ValueError, TypeError, KeyError, IndexError):
+        jobs = None
+    if jobs is not None:
+        check_run(cfg)
+        return jobs
+    jobs = plan_jobs(cfg, overrides, experiment)
+    io.write_json(saved, pack_jobs(jobs), compact=True)
+    return jobs
+
+
+def pack_jobs(jobs: list[Job]) -> dict:
+    """Jobs as plain data, each distinct trial spec once (a condition's trials share theirs):
+    a sweep of 100,000 trials stores its few conditions' specs, not 100,000 copies."""
+    specs, index, seen = [], {}, {}  # seen: by object (a plan shares a condition's spec)
+    out = []
+    for j in jobs:
+        trials = []
+        for t in j.trials:
+            ix = seen.get(id(t["spec"]))
+            if ix is None:
+                ix = index.setdefault(io.dump_json(t["spec"]), len(specs))
+                seen[id(t["spec"])] = ix
+                if ix == len(specs):
+                    specs.append(t["spec"])
+            trials.append({**{k: v for k, v in t.items() if k != "spec"}, "spec": ix})
+        out.append({**vars(j), "trials": trials})
+    return dict(specs=specs, jobs=out)
+
+
+def unpack_jobs(saved: dict) -> list[Job]:
+    specs = saved["specs"]
+    return [Job(**{**j, "trials": [{**t, "spec": specs[t["spec"]]} for t in j["trials"]]})
+            for j in saved["jobs"]]
+
+
+def plan_jobs(cfg: DictConfig, overrides, experiment: str | None) -> list[Job]:
     names = list(cfg.get("experiments") or [])
     if not names:
-        return [Job(cfg, plan(cfg), _experiment_of(cfg))]
+        return [Job(cfg.figure, OmegaConf.to_container(cfg.paper), plan(cfg), experiment)]
     from .config import compose
 
     rest = [o for o in overrides if not o.lstrip("+~").startswith(("experiments=", "experiment="))]
@@ -87,7 +130,7 @@ def jobs_of(cfg: DictConfig, overrides: list[str] = ()) -> list[Job]:
         ecfg = compose([f"experiment={name}", *rest])
         trials = plan(ecfg)
         cli.keeps_experiment([f"experiment={name}", *rest], trials)
-        jobs.append(Job(ecfg, trials, name))
+        jobs.append(Job(ecfg.figure, OmegaConf.to_container(ecfg.paper), trials, name))
     return jobs
 
 
@@ -110,7 +153,7 @@ def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = Non
     for note in learner_notes(t for j in jobs for t in j.trials):
         print(f"note: {note}", file=sys.stderr)
     cache_dir = Path(cfg.paths.cache)
-    names = list(dict.fromkeys(j.cfg.figure for j in jobs))
+    names = list(dict.fromkeys(j.figure for j in jobs))
     figure = ", ".join(names) if len(names) <= 3 else f"{len(names)} figures"
     unique = {}
     for j in jobs:
@@ -206,12 +249,11 @@ def _where(t: dict) -> str:
 
 def write_figure(cache_dir, j: Job, group: str | None, job: int) -> None:
     """The plan record of one figure; says so when it replaces the figure's earlier group."""
-    record = cache.plan_record(j.cfg.figure, plan_conditions(j.trials),
-                               OmegaConf.to_container(j.cfg.paper), j.experiment)
+    record = cache.plan_record(j.figure, plan_conditions(j.trials), j.paper, j.experiment)
     record["job"] = job
     _, replaced = cache.write_plan(cache_dir, record, group)
     if replaced and group is None:
-        print(f"[{j.cfg.figure}] now the {len(record['conditions'])} condition(s) of this run; it "
+        print(f"[{j.figure}] now the {len(record['conditions'])} condition(s) of this run; it "
               f"replaces an earlier run's {replaced['conditions']} (name a run figure=NAME to "
               "keep both)", file=sys.stderr)
 

@@ -52,6 +52,11 @@ def run_one(trial: dict) -> dict:
     return out
 
 
+def run_batch(fn, trials: list[dict]) -> list[dict]:
+    """fn (run_one) on each trial of a batch, in order: one task of a worker."""
+    return [fn(t) for t in trials]
+
+
 PR_SET_PDEATHSIG = 1  # linux/prctl.h
 
 

@@ -1,0 +1,226 @@
+"""Benchmark: the pipeline on sweeps of many short trials, from nothing, stage by stage.
+
+    python -m pipeline.tools.scale                           # 1,000 and 10,000 trials
+    python -m pipeline.tools.scale --sizes 100000            # the large one (about an hour)
+    python -m pipeline.tools.scale --baseline /tmp/base      # the same, beside another checkout
+
+A sweep is arm5 trials of `--epochs` (10) epochs, over ten conditions (growth periods 1 ... 10,
+trials.count = size / 10), in its own temporary root. Each stage runs as the command a user
+types (`python -m pipeline.<stage> ...`, in the checkout under test), and each is recorded with
+its wall time, CPU time (its processes and their workers), peak memory (the largest process)
+and the files under the cache afterwards:
+
+    simulate          from nothing
+    simulate_cached   again: every trial cached
+    aggregate         the first build
+    aggregate_cached  again: nothing changed
+    aggregate_one     after one trial changed (its sidecar's content, sealed again)
+
+With --baseline, every size runs on the baseline checkout right after this one (paired: the
+load of a shared machine falls on both alike). The results go to --out as JSON and are printed as
+a table; per-trial figures (ms CPU per trial) make sizes comparable.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from pipeline import io
+
+REPO = Path(__file__).resolve().parents[2]
+CONDITIONS = 10  # growth periods 1 ... 10: trials.count = size / CONDITIONS
+STAGES = ("simulate", "simulate_cached", "aggregate", "aggregate_cached", "aggregate_one")
+
+
+def overrides(root: Path, size: int, epochs: int, workers: int) -> list[str]:
+    periods = ",".join(str(p) for p in range(1, CONDITIONS + 1))
+    return [f"paths.root={root}", "figure=scale", "body=arm5", f"learner.epochs={epochs}",
+            f"conditions.periods=[{periods}]", f"trials.count={size // CONDITIONS}",
+            f"workers={workers}"]
+
+
+def run_stage(code: Path, stage: str, args: list[str]) -> dict:
+    """Run `python -m pipeline.<stage> args` in checkout `code`: wall, CPU (the process and the
+    children it waited for) and peak resident memory of its largest process."""
+    env = dict(os.environ, PYTHONPATH=str(code))
+    start = time.perf_counter()
+    proc = subprocess.Popen([sys.executable, "-m", f"pipeline.{stage}", *args], cwd=code,
+                            env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    err = proc.stderr.read()
+    _, status, usage = os.wait4(proc.pid, 0)
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    wall = time.perf_counter() - start
+    if proc.returncode not in (0, 1):
+        raise RuntimeError(f"{stage} in {code} exited {proc.returncode}: "
+                           f"{err.decode(errors='replace')[-2000:]}")
+    return dict(wall_s=round(wall, 3), cpu_s=round(usage.ru_utime + usage.ru_stime, 3),
+                peak_mb=round(usage.ru_maxrss / 1024, 1))
+
+
+def change_one_trial(cache: Path) -> str:
+    """Give one finished trial other content (its largest jump, by a tiny amount) and seal its
+    sidecar again: what a recomputed trial with other results looks like to aggregate."""
+    side = min((cache / "trials").rglob("*.json"))
+    record = io.read_json(side)
+    record["largest_jump"] = record["largest_jump"] * (1 + 1e-12) + 1e-300
+    io.write_json(side, io.seal(record))
+    return side.stem
+
+
+def files_under(folder: Path) -> int:
+    return sum(len(files) for _, _, files in os.walk(folder))
+
+
+def sweep(code: Path, size: int, epochs: int, workers: int, keep: bool) -> dict:
+    """Every stage of one sweep of `size` trials on checkout `code`, in a new temporary root."""
+    root = Path(tempfile.mkdtemp(prefix=f"scale-{size}-"))
+    try:
+        args = overrides(root, size, epochs, workers)
+        out = dict(code=str(code), size=size)
+        out["simulate"] = run_stage(code, "simulate", args)
+        cache = root / "outputs" / "cache"
+        out["files"] = files_under(cache / "trials")
+        out["cache_mb"] = round(sum(p.stat().st_size for p in (cache / "trials").rglob("*")
+                                    if p.is_file()) / 2**20, 1)
+        out["simulate_cached"] = run_stage(code, "simulate", args)
+        agg = [a for a in args if not a.startswith("workers=")]
+        out["aggregate"] = run_stage(code, "aggregate", agg)
+        out["aggregate_cached"] = run_stage(code, "aggregate", agg)
+        change_one_trial(cache)
+        out["aggregate_one"] = run_stage(code, "aggregate", agg)
+        for stage in STAGES:
+            out[stage]["cpu_ms_per_trial"] = round(1000 * out[stage]["cpu_s"] / size, 3)
+        return out
+    finally:
+        if not keep:
+            shutil.rmtree(root, ignore_errors=True)
+
+
+def packing(n: int, rows: int = 11) -> dict:
+    """The cache's file layout against a packed one, on `n` synthetic trial curves of `rows`
+    epochs (TRIAL_CURVE) and their sidecars: files, bytes, and ms per trial to write them and to
+    read and checksum them back. per_trial: a Parquet curve and a JSON sidecar each (the cache);
+    packed: one Parquet of every curve (a key column) and one JSON of every sidecar."""
+    import hashlib
+
+    import numpy as np
+    import pyarrow as pa
+
+    rng = np.random.default_rng(0)
+    curves = [pa.table({f.name: pa.array(rng.integers(1, 10, rows) if pa.types.is_integer(
+        f.type) else rng.random(rows), f.type) for f in io.TRIAL_CURVE}) for _ in range(n)]
+    keys = [f"{i:020x}" for i in range(n)]
+    sides = [dict(key=k, M=rng.random((2, 5)).tolist(), status="ok") for k in keys]
+    out = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        one = Path(tmp) / "per_trial"
+        t0 = time.process_time()
+        for k, c, side in zip(keys, curves, sides):
+            side = dict(side, curve_sha256=io.write_table(one / k[:2] / f"{k}.parquet", c))
+            io.write_json(one / k[:2] / f"{k}.json", io.seal(side), compact=True)
+        t1 = time.process_time()
+        for k in keys:
+            data = (one / k[:2] / f"{k}.parquet").read_bytes()
+            side = io.check_seal(io.parse_json((one / k[:2] / f"{k}.json").read_bytes(), k))
+            assert hashlib.sha256(data).hexdigest() == side["curve_sha256"]
+            io.parse_table(data, k)
+        t2 = time.process_time()
+        out["per_trial"] = dict(files=files_under(one), write_ms=1e3 * (t1 - t0) / n,
+                                read_ms=1e3 * (t2 - t1) / n)
+        packed = Path(tmp) / "packed"
+        t0 = time.process_time()
+        table = pa.concat_tables([c.append_column("key", pa.array([k] * rows))
+                                  for k, c in zip(keys, curves)])
+        digest = io.write_table(packed / "curves.parquet", table)
+        io.write_json(packed / "sidecars.json", io.seal(dict(curves_sha256=digest, trials=sides)),
+                      compact=True)
+        t1 = time.process_time()
+        data = (packed / "curves.parquet").read_bytes()
+        side = io.check_seal(io.parse_json((packed / "sidecars.json").read_bytes(), "pack"))
+        assert hashlib.sha256(data).hexdigest() == side["curves_sha256"]
+        io.parse_table(data, "pack")
+        t2 = time.process_time()
+        out["packed"] = dict(files=files_under(packed), write_ms=1e3 * (t1 - t0) / n,
+                             read_ms=1e3 * (t2 - t1) / n)
+        for name, folder in (("per_trial", one), ("packed", packed)):
+            out[name]["mb"] = round(sum(p.stat().st_size for p in folder.rglob("*")
+                                        if p.is_file()) / 2**20, 2)
+            out[name] = {k: round(v, 4) if isinstance(v, float) else v
+                         for k, v in out[name].items()}
+    return out
+
+
+def table(results: list[dict]) -> str:
+    head = f"{'checkout':<28} {'trials':>7} {'stage':<17} {'wall s':>8} {'CPU s':>8} " \
+           f"{'ms CPU/trial':>12} {'peak MB':>8} {'files':>7}"
+    lines = [head, "-" * len(head)]
+    for r in results:
+        for stage in STAGES:
+            s = r[stage]
+            lines.append(f"{r['code'][-28:]:<28} {r['size']:>7} {stage:<17} {s['wall_s']:>8.2f} "
+                         f"{s['cpu_s']:>8.2f} {s['cpu_ms_per_trial']:>12.3f} "
+                         f"{s['peak_mb']:>8.1f} {r['files'] if stage == 'simulate' else '':>7}")
+    return "\n".join(lines)
+
+
+def load() -> str:
+    one, five, fifteen = os.getloadavg()
+    return f"load average {one:.2f} {five:.2f} {fifteen:.2f} on {os.cpu_count()} CPUs"
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m pipeline.tools.scale", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--sizes", default="1000,10000", help="trials per sweep, comma-separated")
+    ap.add_argument("--epochs", type=int, default=10, help="epochs per trial (default 10)")
+    ap.add_argument("--workers", type=int, default=2, help="simulate's workers (default 2)")
+    ap.add_argument("--baseline", type=Path, help="another checkout to run beside this one")
+    ap.add_argument("--out", type=Path, default=REPO / "outputs" / "bench" / "scale.json")
+    ap.add_argument("--keep", action="store_true", help="keep the temporary roots")
+    ap.add_argument("--packing", type=int, metavar="N",
+                    help="instead: the cache's files against one packed file, for N trials")
+    a = ap.parse_args(argv)
+    if a.packing is not None:
+        if a.packing < 1:
+            print(f"error: --packing={a.packing}: at least 1 trial", file=sys.stderr)
+            return 2
+        print(json.dumps(dict(trials=a.packing, **packing(a.packing), machine=load()), indent=1))
+        return 0
+    try:
+        sizes = [int(s) for s in a.sizes.split(",")]
+    except ValueError:
+        sizes = []
+    if not sizes or any(s < CONDITIONS or s % CONDITIONS for s in sizes):
+        print(f"error: --sizes={a.sizes}: positive multiples of {CONDITIONS}", file=sys.stderr)
+        return 2
+    if a.baseline is not None and not (a.baseline / "pipeline" / "simulate.py").is_file():
+        print(f"error: --baseline={a.baseline}: not a checkout of this project", file=sys.stderr)
+        return 2
+    if a.epochs < 1 or a.workers < 1:
+        print("error: --epochs and --workers: at least 1", file=sys.stderr)
+        return 2
+    codes = [REPO] + ([a.baseline.resolve()] if a.baseline else [])
+    results, loads = [], [load()]
+    for size in sizes:
+        for code in codes:
+            results.append(sweep(code, size, a.epochs, a.workers, a.keep))
+            loads.append(load())
+            print("\n".join(table(results[-1:]).splitlines()[2:]), file=sys.stderr)
+    record = dict(epochs=a.epochs, workers=a.workers, conditions=CONDITIONS, loads=loads,
+                  results=results)
+    a.out.parent.mkdir(parents=True, exist_ok=True)
+    a.out.write_text(json.dumps(record, indent=1) + "\n")
+    print(table(results))
+    print(f"machine: {loads[0]} before, {loads[-1]} after; written to {a.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

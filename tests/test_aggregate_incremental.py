@@ -1,0 +1,118 @@
+"""aggregate reads only what changed: each trial file once, nothing when nothing changed, one
+trial when one changed; and the files it writes are those of a build from nothing."""
+import os
+from pathlib import Path
+
+import pytest
+
+from pipeline import aggregate, cache, io, simulate
+from conftest import files_of
+
+
+@pytest.fixture
+def sweep(tmp_path, compose_tiny):
+    """A figure of two conditions (a growth period and a reference) x 3 trials, simulated."""
+    cfg = compose_tiny(tmp_path, "trials.count=3", "conditions.references=[0.5]")
+    assert simulate.simulate(cfg).failed == {}
+    return cfg
+
+
+@pytest.fixture
+def reads(monkeypatch):
+    """The trials whose files aggregate reads (pipeline.cache.read_trial), in order."""
+    seen, real = [], cache.read_trial
+
+    def counting(cache_dir, trial, curve=True):
+        seen.append(trial["key"])
+        return real(cache_dir, trial, curve)
+
+    monkeypatch.setattr(cache, "read_trial", counting)
+    return seen
+
+
+def built_from_nothing(cfg, tmp_path) -> dict:
+    fresh = cfg.copy()
+    fresh.paths.aggregate = str(tmp_path / "fresh")
+    assert aggregate.aggregate(fresh) == []
+    return files_of(Path(fresh.paths.aggregate) / "custom")
+
+
+def trial_files(cfg) -> list[Path]:
+    return sorted((Path(cfg.paths.cache) / cache.TRIALS).rglob("*.json"))
+
+
+def test_each_trial_file_is_read_once_and_unchanged_inputs_read_none(sweep, reads):
+    assert aggregate.aggregate(sweep) == []
+    assert len(reads) == 6 and len(set(reads)) == 6  # one read per trial, not a check and a read
+    reads.clear()
+    assert aggregate.aggregate(sweep) == []
+    assert reads == []
+
+
+def test_a_rewritten_trial_is_read_once_and_the_files_match_a_fresh_build(
+        sweep, reads, tmp_path):
+    assert aggregate.aggregate(sweep) == []
+    side = trial_files(sweep)[2]
+    side.write_bytes(side.read_bytes())  # rewritten (the same content, a new write)
+    os.utime(side, ns=(1, 1))
+    reads.clear()
+    assert aggregate.aggregate(sweep) == []
+    assert reads == [side.stem]
+    reads.clear()
+    assert aggregate.aggregate(sweep) == []
+    assert reads == []
+    folder = Path(sweep.paths.aggregate) / "custom"
+    assert files_of(folder) == built_from_nothing(sweep, tmp_path)
+
+
+def test_a_recomputed_trial_changes_the_aggregate_like_a_fresh_build(sweep, reads, tmp_path):
+    assert aggregate.aggregate(sweep) == []
+    curve = trial_files(sweep)[0].with_suffix(".parquet")
+    curve.unlink()  # lost, then computed again
+    problems = aggregate.aggregate(sweep)
+    assert len(problems) == 1 and curve.name in problems[0]
+    assert simulate.simulate(sweep).ran == 1
+    reads.clear()
+    assert aggregate.aggregate(sweep) == []
+    assert reads == [curve.stem]
+    assert files_of(Path(sweep.paths.aggregate) / "custom") == built_from_nothing(sweep, tmp_path)
+
+
+def test_a_file_damaged_after_aggregating_is_named_not_reused(sweep):
+    assert aggregate.aggregate(sweep) == []
+    curve = trial_files(sweep)[1].with_suffix(".parquet")
+    curve.write_bytes(curve.read_bytes()[:20])
+    problems = aggregate.aggregate(sweep)
+    assert len(problems) == 1 and curve.name in problems[0] and "checksum" in problems[0]
+
+
+@pytest.mark.parametrize("name", ["trials.parquet", "models.json", aggregate.INDEX])
+def test_a_damaged_previous_aggregate_is_rebuilt_from_the_cache(sweep, tmp_path, name):
+    assert aggregate.aggregate(sweep) == []
+    folder = Path(sweep.paths.aggregate) / "custom"
+    (io.set_of(folder) / name).write_bytes(b"garbage")
+    sweep.trials.count = 4  # two trials more to read, six to reuse from the damaged set
+    assert simulate.simulate(sweep).ran == 2
+    assert aggregate.aggregate(sweep) == []
+    assert files_of(folder) == built_from_nothing(sweep, tmp_path)
+
+
+def test_labels_follow_the_plan_when_reused_rows_change_condition(tmp_path, compose_tiny):
+    """A reused trial's rows take the labels of the condition that uses it now."""
+    one = compose_tiny(tmp_path, "trials.count=2")
+    assert simulate.simulate(one).failed == {}
+    assert aggregate.aggregate(one) == []
+    two = compose_tiny(tmp_path, "trials.count=2", "conditions.references=[0.5]")
+    assert simulate.simulate(two).failed == {}
+    assert aggregate.aggregate(two) == []
+    assert files_of(Path(two.paths.aggregate) / "custom") == built_from_nothing(two, tmp_path)
+
+
+def test_added_trials_are_the_only_ones_read(sweep, reads, tmp_path):
+    assert aggregate.aggregate(sweep) == []
+    sweep.trials.count = 4
+    assert simulate.simulate(sweep).ran == 2
+    reads.clear()
+    assert aggregate.aggregate(sweep) == []
+    assert len(reads) == 2
+    assert files_of(Path(sweep.paths.aggregate) / "custom") == built_from_nothing(sweep, tmp_path)

@@ -1,0 +1,33 @@
+"""The scale benchmark (pipeline/tools/scale.py): its input checks, the packing measurement, and
+one tiny sweep through every stage (slow: five commands)."""
+import json
+
+import pytest
+
+from pipeline.tools import scale
+
+
+@pytest.mark.parametrize("args", [["--sizes", "15"], ["--sizes", "x"], ["--epochs", "0"],
+                                  ["--packing", "0"], ["--baseline", "/nonexistent"]])
+def test_bad_input_is_exit_2(args, tmp_path, capsys):
+    assert scale.main([*args, "--out", str(tmp_path / "s.json")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ")
+    assert not (tmp_path / "s.json").exists()
+
+
+def test_packing_counts_files_and_reads_back_what_it_wrote():
+    out = scale.packing(30)
+    assert out["per_trial"]["files"] == 60 and out["packed"]["files"] == 2
+    assert all(out[k]["write_ms"] > 0 and out[k]["read_ms"] > 0 for k in out)
+
+
+@pytest.mark.slow
+def test_a_tiny_sweep_records_every_stage(tmp_path):
+    out = tmp_path / "scale.json"
+    assert scale.main(["--sizes", "10", "--epochs", "2", "--workers", "1", "--out",
+                       str(out)]) == 0
+    (r,) = json.loads(out.read_text())["results"]
+    assert r["size"] == 10 and r["files"] == 20
+    for stage in scale.STAGES:
+        assert r[stage]["wall_s"] > 0 and r[stage]["cpu_s"] > 0 and r[stage]["peak_mb"] > 0
