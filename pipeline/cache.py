@@ -56,6 +56,8 @@ def check(cache_dir, trial: dict) -> tuple[dict | None, str | None]:
         s = io.check_seal(io.read_json(side), side.name)  # the model, snapshots, status too
         if s.get("key") != trial["key"]:
             return None, f"{side.name} belongs to another trial"
+        if not _keyed(s):
+            return None, f"{side.name}: its spec, seed and code do not hash to its key"
         if s.get("status") == "diverged":
             return s, None
         if not curve.exists():
@@ -65,6 +67,17 @@ def check(cache_dir, trial: dict) -> tuple[dict | None, str | None]:
     except (OSError, ValueError) as err:
         return None, str(err)
     return s, None
+
+
+def _keyed(s: dict) -> bool:
+    """Whether a sidecar's own spec, seed and code hash to its key (a sidecar copied or edited
+    under another trial's name is not that trial)."""
+    from .plan import trial_key
+
+    try:
+        return trial_key(s["spec"], s["seed"], s["code"]) == s["key"]
+    except (KeyError, TypeError, ValueError):
+        return False
 
 
 CONTENT = ("key", "spec", "seed", "code", "labels")  # what a sidecar keeps of the planned trial
