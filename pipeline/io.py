@@ -14,6 +14,7 @@ import os
 import re
 import shutil
 import socket
+import unicodedata
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -49,13 +50,15 @@ class UnsafeName(BadInput):
     """A name from the config or from a file on disk that cannot become one path component."""
 
 
-MAX_NAME = 200  # characters of one path component built from a name (file systems allow 255)
+MAX_NAME = 100  # characters of one path component built from a name
+MAX_NAME_BYTES = 200  # its UTF-8 bytes (file systems allow 255; temporary names add some)
 
 
 def safe_name(key: str, value) -> str:
     """`value` if it can name one file or folder inside an output folder, else UnsafeName naming
     `key`: no path separator, NUL or control character, not `.`, `..` or hidden (a leading dot is
-    how temporary files are named), not empty, at most MAX_NAME characters. Call it on every name
+    how temporary files are named), not empty, at most MAX_NAME characters and MAX_NAME_BYTES
+    bytes, no format character (a bidirectional override shows a name other than it is). Call it on every name
     from the config (figure, labels, posture panels) or from files on disk (plan records) before
     it becomes part of a path, so that no write leaves paths.root."""
     why = None
@@ -63,12 +66,13 @@ def safe_name(key: str, value) -> str:
         why = "must be a non-empty name"
     elif "/" in value or "\\" in value:
         why = "must not contain a path separator"
-    elif any(ord(c) < 32 or ord(c) == 127 for c in value):
-        why = "must not contain control characters"
+    elif any(unicodedata.category(c) in ("Cc", "Cf", "Cs", "Co", "Cn", "Zl", "Zp")
+             for c in value):
+        why = "must not contain control, format (bidirectional) or unassigned characters"
     elif value.startswith("."):
         why = "must not start with a dot"
-    elif len(value) > MAX_NAME:
-        why = f"must be at most {MAX_NAME} characters"
+    elif len(value) > MAX_NAME or len(value.encode()) > MAX_NAME_BYTES:
+        why = f"must be at most {MAX_NAME} characters and {MAX_NAME_BYTES} bytes (UTF-8)"
     if why:
         raise UnsafeName(f"{key}={value!r}: {why} (it names a file or folder)")
     return value
