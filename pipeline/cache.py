@@ -6,7 +6,7 @@ Layout under paths.cache:
     trials/<kk>/<key>.json        the trial's spec, seed, code fingerprint, status, final model,
                                   snapshots, the SHA-256 of the Parquet file, and a seal (the
                                   SHA-256 of everything else in the sidecar)
-    trials/<kk>/<key>.lock        held (flock) by the process computing the trial
+    claims                        a one-byte lock per trial being computed (Claim)
     failed/<key>.json             the error of a trial that failed (not cached: it runs again)
     plans/<figure>/<group>/<hash>.json   the conditions one simulate run planned for a figure
     plans/<figure>/current.json   the group that makes the figure now
@@ -24,9 +24,11 @@ conditions are the union of its records' (one per distinct setting).
 """
 from __future__ import annotations
 
+import errno
 import fcntl
 import hashlib
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -36,14 +38,22 @@ from . import io
 TRIALS, PLANS, FAILED = "trials", "plans", "failed"
 
 
+KEY = re.compile(r"[0-9a-f]{20}")  # pipeline.plan.trial_key
+
+
 def trial_paths(cache_dir, trial: dict) -> tuple[Path, Path]:
+    """(curve, sidecar) of a trial; its key (from a plan record on disk, too) must be a key, so
+    that no name read from a file becomes a path elsewhere."""
     key = trial["key"]
-    folder = Path(cache_dir) / TRIALS / key[:2]
+    if not isinstance(key, str) or not KEY.fullmatch(key):
+        raise io.DamagedFile(f"trial key {key!r}: not a trial key (20 hexadecimal digits)")
+    folder = io.check_inside(Path(cache_dir) / TRIALS / key[:2])
     return folder / f"{key}.parquet", folder / f"{key}.json"
 
 
 def failure_path(cache_dir, trial: dict) -> Path:
-    return Path(cache_dir) / FAILED / f"{trial['key']}.json"
+    trial_paths(cache_dir, trial)  # the key checked
+    return io.check_inside(Path(cache_dir) / FAILED / f"{trial['key']}.json")
 
 
 def check(cache_dir, trial: dict) -> tuple[dict | None, str | None]:
@@ -105,31 +115,61 @@ def read_curve(cache_dir, trial: dict):
     return io.read_table(trial_paths(cache_dir, trial)[0], schema=io.TRIAL_CURVE).to_pandas()
 
 
+CLAIMS = "claims"  # the one lock file of a cache: a byte-range lock per trial being computed
+_claim_files: dict[tuple[int, Path], int] = {}  # (pid, lock file) -> this process's descriptor
+_held: dict[tuple[int, Path], set[int]] = {}  # offsets this process holds, per lock file
+
+
+def _claims_fd(cache_dir) -> tuple[tuple[int, Path], int]:
+    """This process's descriptor of the cache's lock file, opened once and kept open (closing
+    any descriptor of it would drop every lock this process holds on it)."""
+    path = Path(cache_dir).absolute() / CLAIMS
+    key = (os.getpid(), path)  # a forked child holds none of its parent's locks
+    if key not in _claim_files:
+        io.check_inside(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        flags = os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC
+        try:
+            fd = os.open(path, flags, 0o644)
+        except OSError as err:
+            if err.errno == errno.ELOOP:
+                raise io.UnsafeName(f"{path}: a link; remove it (the claims file is never "
+                                    "followed)") from None
+            raise
+        _claim_files[key], _held[key] = fd, set()
+    return key, _claim_files[key]
+
+
 class Claim:
-    """An exclusive, non-blocking claim on a trial (flock on <key>.lock): two runs on one cache
-    do not compute the same trial. The operating system drops the lock when its process dies,
-    so a killed run leaves nothing stuck."""
+    """An exclusive, non-blocking claim on a trial: two runs on one cache do not compute the
+    same trial. Every claim of a cache is a one-byte lock (fcntl) at the trial's offset in one
+    file, cache/claims, held through one descriptor per process: however many trials a run
+    claims, it holds one open file. The operating system drops the locks when their process
+    dies, so a killed run leaves nothing stuck; file systems that share fcntl locks between hosts
+    (NFS with lockd) share the claims too."""
 
     def __init__(self, cache_dir, trial: dict):
-        self.path = trial_paths(cache_dir, trial)[1].with_suffix(".lock")
-        self.fh = None
+        trial_paths(cache_dir, trial)  # the key checked
+        self.cache_dir = cache_dir
+        self.offset = int(trial["key"][:15], 16)  # 60 bits: distinct for distinct keys
+        self.fh = None  # not None while held
 
     def acquire(self) -> bool:
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        fh = open(self.path, "a")
-        try:
-            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            fh.close()
+        key, fd = _claims_fd(self.cache_dir)
+        if self.offset in _held[key]:  # another claim of this process holds it
             return False
-        self.fh = fh
+        try:
+            fcntl.lockf(fd, fcntl.LOCK_EX | fcntl.LOCK_NB, 1, self.offset)
+        except (BlockingIOError, PermissionError):  # held by another process
+            return False
+        _held[key].add(self.offset)
+        self.fh = key
         return True
 
     def release(self) -> None:
-        if self.fh is not None:  # a run that opened the old file meanwhile re-checks the cache
-            self.path.unlink(missing_ok=True)
-            fcntl.flock(self.fh, fcntl.LOCK_UN)
-            self.fh.close()
+        if self.fh is not None:
+            fcntl.lockf(_claim_files[self.fh], fcntl.LOCK_UN, 1, self.offset)
+            _held[self.fh].discard(self.offset)
             self.fh = None
 
 
@@ -148,7 +188,7 @@ def write_plan(cache_dir, record: dict, group: str | None = None) -> tuple[str, 
     group: the multirun this run is a job of (its jobs' records form one figure); None: this run
     alone. Nothing is rewritten when the same record is there already. Returns (group, the
     previous current group's summary when this run replaced another group, else None)."""
-    folder = Path(cache_dir) / PLANS / record["figure"]
+    folder = io.check_inside(Path(cache_dir) / PLANS / io.safe_name("figure", record["figure"]))
     digest = record_digest(record)
     group = group or f"run-{digest}"
     path = folder / group / f"{digest}.json"

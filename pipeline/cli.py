@@ -16,7 +16,7 @@ import sys
 
 from hydra.core.override_parser.overrides_parser import OverridesParser
 
-from . import execute, stop
+from . import execute, io, stop
 from .fingerprint import CodeChanged
 from .io import BadInput
 from .config import (ConfigError, check_experiments, check_hydra, check_keys, check_limits, check_names,
@@ -215,6 +215,7 @@ def finish(run, cfg) -> None:
     `finally`) and exit 130, 143, 129 (finished trials are cached: the same command resumes)."""
     with stop.armed():
         try:
+            io.confine(cfg.paths.root)  # no write or delete through a link leading elsewhere
             rc = run(cfg)
         except (ConfigError, FileNotFoundError, NotADirectoryError) as err:
             print(f"error: {err}", file=sys.stderr)

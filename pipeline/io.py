@@ -86,6 +86,33 @@ def inside(root, path, key: str = "paths.root") -> Path:
     return path
 
 
+# ---- every write and delete stays under paths.root ------------------------------------------
+_ROOT: list[Path] = []  # the root a stage confines its writes to (pipeline.cli.finish)
+
+
+def confine(root) -> None:
+    """Confine every later write and delete of this process (through this module, and
+    pipeline.cache's) to `root`: a path whose existing part resolves elsewhere (a link planted
+    inside the outputs) is UnsafeName. None: no confinement (the API's default)."""
+    _ROOT[:] = [] if root is None else [Path(root).resolve()]
+
+
+def check_inside(path) -> Path:
+    """`path` if the part of it that exists resolves under the confined root (confine), else
+    UnsafeName: a link inside the outputs that leads elsewhere is never followed."""
+    path = Path(path)
+    if not _ROOT:
+        return path
+    p = path.absolute()
+    while not (p.exists() or p.is_symlink()) and p != p.parent:
+        p = p.parent
+    real = p.resolve()
+    if real != _ROOT[0] and _ROOT[0] not in real.parents:
+        raise UnsafeName(f"{path}: leads outside paths.root={_ROOT[0]} (through {p} -> {real}); "
+                         "remove that link")
+    return path
+
+
 # ---- temporary files: exclusive, never through a symlink, named by host and pid ----------------
 _HOST = re.sub(r"[^A-Za-z0-9.-]", "_", socket.gethostname()) or "host"
 _serial = itertools.count()
@@ -121,6 +148,7 @@ def _atomic(path):
     names `path`."""
     path = Path(path)
     tmp = None
+    check_inside(path.parent)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp, fd = _exclusive(path)
@@ -159,6 +187,7 @@ def new_dir(final):
     import shutil
 
     final = Path(final)
+    check_inside(final)
     final.parent.mkdir(parents=True, exist_ok=True)
     for stale in final.parent.glob(f".{final.name}.*.dir"):
         pid = stale.name.rsplit(".", 2)[-2].rsplit("-", 1)[-1]
@@ -256,6 +285,7 @@ def remove_stale_tmp(folder, recursive: bool = False) -> list[Path]:
     folder = Path(folder)
     if not folder.is_dir():
         return gone
+    check_inside(folder)
     for tmp in (folder.rglob if recursive else folder.glob)(".*~*~*~*.tmp"):
         parts = tmp.name[:-len(".tmp")].rsplit("~", 3)
         if len(parts) != 4 or not parts[2].isdigit() or parts[1] != _HOST:
@@ -292,6 +322,11 @@ def new_set(folder):
     folder first: the one moment `folder` is missing, once."""
     folder = Path(folder)
     sets = folder.parent / f".{folder.name}.sets"
+    check_inside(folder)
+    if sets.is_symlink():
+        raise UnsafeName(f"{sets}: a link; the sets of {folder.name} are a folder of their own "
+                         "(remove the link)")
+    check_inside(sets)
     sets.mkdir(parents=True, exist_ok=True)
     fresh = _tmp_name(sets / "set")
     fresh.mkdir()
