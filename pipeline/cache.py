@@ -195,7 +195,10 @@ def write_plan(cache_dir, record: dict, group: str | None = None) -> tuple[str, 
     if not path.exists():
         io.write_json(path, record)
     current = folder / "current.json"
-    before = read_current(folder)
+    try:
+        before = read_current(folder)
+    except io.DamagedFile:  # a damaged pointer: this run's group replaces it
+        before = None
     if before != group:
         replaced = None
         if before is not None:
@@ -211,7 +214,11 @@ def read_current(folder: Path) -> str | None:
     path = Path(folder) / "current.json"
     if not path.exists():
         return None
-    return io.safe_name(f"{path}: group", io.read_json(path).get("group"))
+    group = io.safe_name(f"{path}: group", io.read_json(path).get("group"))
+    if not (Path(folder) / group).is_dir():
+        raise io.DamagedFile(f"{path}: names the group {group!r}, which is not there; run "
+                             "pipeline.simulate for this figure again")
+    return group
 
 
 def _group_experiment(folder: Path, group: str) -> str | None:
@@ -223,6 +230,20 @@ def _group_experiment(folder: Path, group: str) -> str | None:
     return None
 
 
+SPEC_KEYS = {"body", "growth", "learner", "evaluation", "epochs"}  # of gbmodel.TrialSpec.to_dict
+
+
+def _condition_ok(c) -> bool:
+    """Whether a plan record's condition has what the stages read: an id, a spec, a growth
+    label and trials with a key (a trial key, checked before it becomes a path) and an index."""
+    return (isinstance(c, dict) and {"id", "spec", "trials", "growth_label"} <= set(c)
+            and isinstance(c["spec"], dict) and SPEC_KEYS <= set(c["spec"])
+            and isinstance(c["trials"], list)
+            and all(isinstance(t, dict) and isinstance(t.get("key"), str)
+                    and KEY.fullmatch(t["key"]) and isinstance(t.get("trial"), int)
+                    for t in c["trials"]))
+
+
 def group_conditions(folder: Path, group: str) -> tuple[list[dict], dict, list[str]]:
     """(conditions, paper, problems) of one group: the union of its records' conditions, one per
     (variant, settings), in the order of the records' writing (file names are content hashes, so
@@ -230,9 +251,7 @@ def group_conditions(folder: Path, group: str) -> tuple[list[dict], dict, list[s
     records, problems = [], []
     for p in sorted((Path(folder) / group).glob("*.json")):  # DamagedFile names a bad one
         r = io.read_json(p, need=("figure", "conditions"))
-        if not isinstance(r["conditions"], list) or not all(
-                isinstance(c, dict) and {"id", "spec", "trials", "growth_label"} <= set(c)
-                for c in r["conditions"]):
+        if not isinstance(r["conditions"], list) or not all(map(_condition_ok, r["conditions"])):
             raise io.DamagedFile(f"{p}: not a plan record (its conditions are malformed)")
         records.append(r)
     records.sort(key=lambda r: (r.get("job", 0), record_digest(r)))
@@ -255,7 +274,8 @@ def figure_conditions(cache_dir, figure: str) -> tuple[list[dict], dict, list[st
         raise FileNotFoundError(f"figure={figure}: not simulated (no plan under {folder})")
     conds, paper, problems = group_conditions(folder, group)
     if not conds:
-        raise ValueError(f"figure={figure}: its plan records under {folder / group} are unreadable")
+        raise io.DamagedFile(f"figure={figure}: no plan record under {folder / group}; run "
+                             "pipeline.simulate for this figure again")
     return conds, paper, problems
 
 

@@ -7,6 +7,7 @@ same content gives the same bytes.
 """
 from __future__ import annotations
 
+import errno
 import hashlib
 import itertools
 import json
@@ -182,26 +183,29 @@ def atomic_path(path):
 def new_dir(final):
     """Yield an empty folder beside `final`; if the block succeeds, it replaces `final` as one
     set (two renames: the old set aside, the new one in, then the old one removed). A reader, or a
-    process killed at any moment, sees the old set, the new set or none, never a mix; a leftover
-    folder of a killed run is removed by the next."""
-    import shutil
-
+    process killed at any moment, sees the old set, the new set or none, never a mix. The folders
+    are named `.<final>.new~<host>~<pid>~<n>.tmp` (and `.old~`): what a killed run of this host
+    left is removed by the next (remove_stale_tmp), another host's never; two runs that finish
+    at once each put their set in, the later one's stays."""
     final = Path(final)
     check_inside(final)
     final.parent.mkdir(parents=True, exist_ok=True)
-    for stale in final.parent.glob(f".{final.name}.*.dir"):
-        pid = stale.name.rsplit(".", 2)[-2].rsplit("-", 1)[-1]
-        if not (pid.isdigit() and _alive(int(pid))):
-            shutil.rmtree(stale, ignore_errors=True)
-    tmp = final.with_name(f".{final.name}.new-{os.getpid()}.dir")
-    old = final.with_name(f".{final.name}.old-{os.getpid()}.dir")
-    shutil.rmtree(tmp, ignore_errors=True)
+    remove_stale_tmp(final.parent)
+    tmp, old = _tmp_name(final.with_name(f"{final.name}.new")), _tmp_name(
+        final.with_name(f"{final.name}.old"))
     tmp.mkdir()
     try:
         yield tmp
-        if final.exists():
-            os.rename(final, old)
-        os.rename(tmp, final)
+        for attempt in range(5):
+            try:
+                if final.exists() or final.is_symlink():
+                    os.rename(final, old)
+                os.rename(tmp, final)
+                break
+            except OSError as err:  # another run put its set in between our two renames
+                if err.errno not in (errno.ENOTEMPTY, errno.EEXIST) or attempt == 4:
+                    raise
+                shutil.rmtree(old, ignore_errors=True)
         shutil.rmtree(old, ignore_errors=True)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -328,6 +332,8 @@ def new_set(folder):
                          "(remove the link)")
     check_inside(sets)
     sets.mkdir(parents=True, exist_ok=True)
+    remove_stale_tmp(folder.parent)  # a switching link a killed run left beside the figures
+    remove_leaked_sets(folder)
     fresh = _tmp_name(sets / "set")
     fresh.mkdir()
     try:
@@ -347,6 +353,22 @@ def new_set(folder):
     if old is not None and old.parent.resolve() == sets.resolve():  # never a foreign folder
         shutil.rmtree(old, ignore_errors=True)
     remove_stale_tmp(sets)
+
+
+def remove_leaked_sets(folder) -> list[Path]:
+    """Delete the finished sets of `folder` that a killed process of this host made but never
+    switched to (`set~<host>~<pid>~<n>` in `.<name>.sets/`, its pid gone, not the current set)."""
+    folder = Path(folder)
+    sets = folder.parent / f".{folder.name}.sets"
+    current = set_of(folder) if folder.is_symlink() else None
+    gone = []
+    for d in sets.glob("set~*~*~*"):
+        parts = d.name.split("~")
+        if (len(parts) == 4 and parts[1] == _HOST and parts[2].isdigit() and d.is_dir()
+                and not d.is_symlink() and d.resolve() != current and not _alive(int(parts[2]))):
+            shutil.rmtree(d, ignore_errors=True)
+            gone.append(d)
+    return gone
 
 
 def set_of(folder) -> Path:
