@@ -42,6 +42,24 @@ CRITERIA = f"""Verdicts, with criteria fixed before the full-scale run:
   from stage to stage, and at the end both extreme heights are reached within 5 cm."""
 
 
+DIVERGED = "diverged"  # what a condition all of whose trials diverged is marked with
+# the claims that compare growing bodies with the two constant-size references
+REFERENCE_CLAIMS = (
+    "the absolute error rises above both constant-size references during growth, T_G in "
+    "{10, 100, 1000} (measure added after the full run)",
+    "the absolute error rises above the body growth starts from during growth, T_G in "
+    "{10, 100, 1000} (added)",
+    "the relative error blends between the short and the long reference")
+
+
+def diverged_conditions(summary: pd.DataFrame) -> list[str]:
+    """The conditions none of whose trials left a curve (every one diverged or failed): no mean
+    curve to check a claim on."""
+    if "n_trials" not in summary:
+        return []
+    return [str(c) for c in summary.loc[summary["n_trials"] == 0, "condition"]]
+
+
 def _mm(v: float) -> str:
     return f"{1000 * v:.1f} mm"
 
@@ -74,18 +92,32 @@ def _above(figure, curves, growing, reference: pd.Series, claim: str) -> dict:
 def growth_claims(figure: str, curves: pd.DataFrame, summary: pd.DataFrame) -> list[dict]:
     """Claims of Fig. 4, 5 and 7 (sec. 3.1-3.3) for one figure's conditions."""
     rows = []
-    growing = summary[summary["growth"] != "none"]
+    dead = diverged_conditions(summary)
+    alive = summary[~summary["condition"].isin(dead)]
+    # named in the verdict of every claim on growing bodies
+    lost = [f"{c} {DIVERGED}" for c in summary.loc[(summary["growth"] != "none")
+                                                   & summary["condition"].isin(dead), "condition"]]
+    growing = alive[alive["growth"] != "none"]
     refs = summary[summary["growth"] == "none"].sort_values("end_size")
+    dead_refs = [c for c in refs["condition"] if c in dead]
     paper = summary["paper_final_abs_error"].iloc[0] if len(summary) else np.nan
-    if np.isfinite(paper):
-        finals = summary.set_index("condition")["final_abs_error_mean"]
+    if np.isfinite(paper) and len(alive):
+        finals = alive.set_index("condition")["final_abs_error_mean"]
         ratio = finals / paper
         rows.append(dict(
             figure=figure, claim=f"final error about {_mm(paper)}, with and without growth",
             measured="; ".join(f"{c} {_mm(v)}" for c, v in finals.items())
+            + "".join(f"; {c} {DIVERGED}" for c in dead)
             + f" (ratio to the paper {ratio.min():.2f} ... {ratio.max():.2f})",
             verdict=_verdict([f"{c} ({v:.2f})" for c, v in ratio.items()
-                              if not 1 / FACTOR <= v <= FACTOR])))
+                              if not 1 / FACTOR <= v <= FACTOR] + [f"{c} {DIVERGED}"
+                                                                   for c in dead])))
+    if dead_refs and len(refs) == 2:
+        for claim in REFERENCE_CLAIMS:
+            rows.append(dict(figure=figure, claim=claim,
+                             measured=f"not measured: {', '.join(dead_refs)} {DIVERGED}",
+                             verdict=f"{DIVERGED}: {', '.join(dead_refs)}"))
+    refs = refs[~refs["condition"].isin(dead)]
     if len(growing):
         parts, failing = [], []
         for r in growing.itertuples():
@@ -98,16 +130,13 @@ def growth_claims(figure: str, curves: pd.DataFrame, summary: pd.DataFrame) -> l
         rows.append(dict(figure=figure,
                          claim="the absolute error rises temporarily during growth for "
                                "T_G in {10, 100, 1000}",
-                         measured="; ".join(parts), verdict=_verdict(failing)))
+                         measured="; ".join(parts), verdict=_verdict(failing + lost)))
     if len(growing) and len(refs) == 2:
         upper = np.maximum(*(_curve(curves, c, "abs_error") for c in refs["condition"]))
-        rows.append(_above(figure, curves, growing, upper,
-                           "the absolute error rises above both constant-size references during "
-                           "growth, T_G in {10, 100, 1000} (measure added after the full run)"))
+        rows.append(_above(figure, curves, growing, upper, REFERENCE_CLAIMS[0]))
         rows.append(_above(figure, curves, growing,
                            _curve(curves, refs["condition"].iloc[0], "abs_error"),
-                           "the absolute error rises above the body growth starts from during "
-                           "growth, T_G in {10, 100, 1000} (added)"))
+                           REFERENCE_CLAIMS[1]))
         short, long_ = (_curve(curves, c, "rel_error") for c in refs["condition"])
         upper = np.maximum(short, long_)
         parts, failing = [], []
@@ -119,10 +148,8 @@ def growth_claims(figure: str, curves: pd.DataFrame, summary: pd.DataFrame) -> l
                          f"the upper reference, final {100 * end:+.0f} % vs the long one")
             if excess > EXCESS or abs(end) > EXCESS:
                 failing.append(f"T_G={r.growth_period}")
-        rows.append(dict(figure=figure,
-                         claim="the relative error blends between the short and the long "
-                               "reference", measured="; ".join(parts),
-                         verdict=_verdict(failing)))
+        rows.append(dict(figure=figure, claim=REFERENCE_CLAIMS[2], measured="; ".join(parts),
+                         verdict=_verdict(failing + lost)))
     if len(growing):
         parts, failing = [], []
         for r in growing.itertuples():
@@ -137,7 +164,8 @@ def growth_claims(figure: str, curves: pd.DataFrame, summary: pd.DataFrame) -> l
             if not (after.iloc[-1] < after.iloc[0] and bounce <= EXCESS):
                 failing.append(f"T_G={r.growth_period}")
         rows.append(dict(figure=figure, claim="no degeneration: the error keeps decreasing "
-                         "after growth", measured="; ".join(parts), verdict=_verdict(failing)))
+                         "after growth", measured="; ".join(parts),
+                         verdict=_verdict(failing + lost)))
         parts, failing = [], []
         for r in growing.itertuples():
             g = _curve(curves, r.condition, "rel_error")
@@ -148,7 +176,7 @@ def growth_claims(figure: str, curves: pd.DataFrame, summary: pd.DataFrame) -> l
                 failing.append(f"T_G={r.growth_period}")
         rows.append(dict(figure=figure, claim="no degeneration during growth: the relative error "
                          "does not rebound while the body grows (added)",
-                         measured="; ".join(parts), verdict=_verdict(failing)))
+                         measured="; ".join(parts), verdict=_verdict(failing + lost)))
     fails = int(summary["n_bootstrap_failures"].sum() + summary["n_run_failures"].sum()
                 + summary.get("n_diverged", pd.Series(dtype=int)).sum())
     rows.append(dict(figure=figure, claim="bootstrapping succeeds in every trial",

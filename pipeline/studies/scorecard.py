@@ -36,7 +36,7 @@ from scipy import stats
 
 import gbmodel
 
-from .claims import EXCESS, FACTOR, RISE
+from .claims import EXCESS, FACTOR, RISE, diverged_conditions
 from .figures import final_body
 
 SEED = 2010  # the bootstrap's random draws: fixed, so the same trials give the same bytes
@@ -180,8 +180,13 @@ def growth_tests(figure: str, trials: pd.DataFrame, summary: pd.DataFrame) -> li
     """The tests of every growth claim (Fig. 4, 5, 7) on one figure's trial curves, the same
     measures and criteria as claims.growth_claims, per condition."""
     tests = []
-    growing = summary[summary["growth"] != "none"]
+    dead = diverged_conditions(summary)  # no trial curve to resample: claims.py marks them
     refs = summary[summary["growth"] == "none"].sort_values("end_size")
+    if any(c in dead for c in refs["condition"]):
+        refs = refs.iloc[:0]  # the reference tests need both references
+    summary = summary[~summary["condition"].isin(dead)]
+    refs = refs[refs["condition"].isin(summary["condition"])]
+    growing = summary[summary["growth"] != "none"]
     paper = summary["paper_final_abs_error"].iloc[0] if len(summary) else np.nan
     abs_, rel = {}, {}
     for c in summary["condition"]:
