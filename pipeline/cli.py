@@ -214,8 +214,8 @@ def finish(run, cfg) -> None:
     (CodeChanged) or a full, read-only or forbidden folder (OSError) exits 2; Ctrl-C, SIGTERM and SIGHUP stop the workers, release the claims (the stage's
     `finally`) and exit 130, 143, 129 (finished trials are cached: the same command resumes)."""
     with stop.armed():
-        try:
-            io.confine(cfg.paths.root)  # no write or delete through a link leading elsewhere
+        try:  # no write or delete through a link leading elsewhere
+            io.confine(cfg.paths.root if cfg is not None else None)
             rc = run(cfg)
         except (ConfigError, FileNotFoundError, NotADirectoryError) as err:
             print(f"error: {err}", file=sys.stderr)
@@ -237,6 +237,8 @@ def finish(run, cfg) -> None:
             print(f"{how}: finished work is cached; run the same command again to resume",
                   file=sys.stderr, flush=True)
             rc = stop.exit_status(err)
+        finally:
+            io.confine(None)
     if rc:
         sys.exit(rc)
 

@@ -514,6 +514,7 @@ def findings(summary: pd.DataFrame, claim_rows: list[dict]) -> str:
 
 def stamp_findings(summary: pd.DataFrame, claim_rows: list[dict]) -> None:
     """Record the numbers findings.md was written against (after rereading it against them)."""
+    io.allow(FINDINGS_NUMBERS)  # a committed file of the source tree, wherever paths.root is
     io.write_text(FINDINGS_NUMBERS, findings_numbers(summary, claim_rows)
                   .to_csv(index=False, float_format="%.17g", na_rep="nan"))
 
