@@ -13,7 +13,7 @@ JP = "\u56f3" * 100  # 100 characters, 300 bytes: longer than a file name may be
 
 @pytest.mark.parametrize("args, says", [
     (["body.dh.0.0=1e308"], "body.dh="),
-    (["body.dh.0.1=nan"], "body.dh="),
+    (["body.base.0.3=1e300"], "body.base="),
     (["body.grid.num=[1,1]"], "need num >= 2"),
     (["body.grid.num=[300,300]"], "at most 4,096"),
     (["growth.start_size=1e308"], "growth.start_size=1e+308: must be a number in (0, 100]"),
