@@ -14,6 +14,7 @@ taken (the saturated one): that is the only posture whose outcome was observed.
 """
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import MISSING, dataclass, field, fields
 from pathlib import Path
@@ -23,6 +24,7 @@ import numpy as np
 import yaml
 
 from .kinematics import chain_position, hand_position
+from .urdf import MAX_MAGNITUDE
 
 
 @dataclass(frozen=True)
@@ -154,12 +156,24 @@ def _grid(*axes) -> np.ndarray:
     return np.stack([g.ravel() for g in mesh], axis=-1)
 
 
+MAX_GRID_POINTS = 4096  # targets of one grid (64 x 64, 16 x 16 x 16): memory grows with them
+
+
 def grid_points(lo, hi, num) -> np.ndarray:
-    """The regular target grid with num[j] points from lo[j] to hi[j] along axis j: (prod num, n)."""
+    """The regular target grid with num[j] points from lo[j] to hi[j] along axis j: (prod num, n).
+    At least 2 points per axis (one point has no cells to learn between), at most
+    MAX_GRID_POINTS in all, bounds finite within MAX_MAGNITUDE metres, lo < hi."""
     if not len(lo) == len(hi) == len(num):
         raise ValueError(f"grid: lo, hi and num need one entry per axis, got {lo}, {hi}, {num}")
-    if any(int(k) < 1 for k in num) or any(h < l for l, h in zip(lo, hi)):
-        raise ValueError(f"grid: need num >= 1 and lo <= hi per axis, got {lo}, {hi}, {num}")
+    if any(isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 2 for k in num):
+        raise ValueError(f"grid: need num >= 2 (an integer) per axis, got {num}")
+    if math.prod(int(k) for k in num) > MAX_GRID_POINTS:
+        raise ValueError(f"grid: {math.prod(int(k) for k in num):,} points; at most "
+                         f"{MAX_GRID_POINTS:,}")
+    bounds = np.asarray([lo, hi], dtype=np.float64)
+    if not np.all(np.abs(bounds) <= MAX_MAGNITUDE) or any(h <= l for l, h in zip(lo, hi)):
+        raise ValueError(f"grid: need finite lo < hi within +-{MAX_MAGNITUDE:g} m per axis, got "
+                         f"{lo}, {hi}")
     return _grid(*(np.linspace(l, h, int(k)) for l, h, k in zip(lo, hi, num)))
 
 
@@ -252,9 +266,10 @@ def _matrix(desc, key, rows, cols, default=None):
     except (TypeError, ValueError):
         raise _bad(key, value, "must be a list of numbers") from None
     if arr.ndim != (1 if cols is None else 2) or (rows is not None and len(arr) != rows) or (
-            cols is not None and arr.shape[1] != cols) or not np.all(np.isfinite(arr)):
+            cols is not None and arr.shape[1] != cols) or not np.all(np.abs(arr) <= MAX_MAGNITUDE):
         shape = f"{rows if rows is not None else 'm'} rows of {cols}" if cols else f"{rows} values"
-        raise _bad(key, value, f"needs {shape} finite numbers")
+        raise _bad(key, value, f"needs {shape} finite numbers within +-{MAX_MAGNITUDE:g} "
+                   "(metres, angles)")
     return arr
 
 
@@ -346,9 +361,9 @@ def _urdf_chain(urdf, base, hand) -> tuple[dict, np.ndarray]:
     tip link's frame) as the tool, and the URDF's limits [rad]."""
     from .urdf import read_chain
 
-    keys = ("file", "root", "tip", "joints", "hold")
+    keys = ("file", "root", "tip", "joints", "hold", "sha256")
     if not isinstance(urdf, dict) or not {"file", "root", "tip"} <= set(urdf) <= set(keys):
-        raise _bad("urdf", urdf, "needs file, root, tip (and optionally joints, hold)")
+        raise _bad("urdf", urdf, "needs file, root, tip (and optionally joints, hold, sha256)")
     chain = read_chain(**urdf)
     frames = chain["frames"].copy()
     frames[0] = base[:, :3] @ frames[0] + np.hstack([np.zeros((3, 3)), base[:, 3:]])

@@ -12,16 +12,27 @@ exact for every serial chain (no DH conversion, no tolerances; ../shared/referen
 Only the URDF's kinematic elements are read (joint type, parent, child, origin, axis, limit),
 with the standard library's XML parser; reading a body's description is the one file I/O gbmodel
 does. Prismatic, planar and floating joints are refused.
+
+The file is read once, after checking that it is a regular file (a FIFO would block the read, a
+device never end it) of at most MAX_BYTES; its SHA-256 (digest) belongs to the body's
+description (`sha256`), so that an edited file is another body, and a file that changed since
+that digest was taken is refused. Every number read is finite and at most MAX_MAGNITUDE (metres,
+radians), every axis non-zero, every held angle finite.
 """
 from __future__ import annotations
 
+import hashlib
 import importlib.metadata
+import os
+import stat
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 
 REVOLUTE = ("revolute", "continuous")
+MAX_BYTES = 16 * 2**20  # a URDF's size: the largest robot descriptions are a few hundred kB
+MAX_MAGNITUDE = 1e3  # |origin|, |rpy|, |limit|, |held angle|: metres and radians
 
 
 def _bad(key, value, why):
@@ -48,11 +59,43 @@ def resolve(file) -> Path:
     return Path(file).expanduser()
 
 
+def read_bytes(file) -> bytes:
+    """The bytes of the URDF `file` (a path or {package, path}): a regular file of at most
+    MAX_BYTES, else ValueError naming body.urdf.file."""
+    path = resolve(file)
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)  # a FIFO: opened, never waited on
+    except OSError as err:
+        raise _bad("file", str(file), f"cannot read the URDF: {err.strerror}") from None
+    try:
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            raise _bad("file", str(file), "not a regular file (a FIFO, device or folder)")
+        if info.st_size > MAX_BYTES:
+            raise _bad("file", str(file), f"{info.st_size:,} bytes; a URDF is at most "
+                       f"{MAX_BYTES:,}")
+        with os.fdopen(os.dup(fd), "rb") as fh:
+            data = fh.read(MAX_BYTES + 1)
+    finally:
+        os.close(fd)
+    if len(data) > MAX_BYTES:
+        raise _bad("file", str(file), f"more than {MAX_BYTES:,} bytes")
+    return data
+
+
+def digest(file) -> str:
+    """The SHA-256 of the URDF `file`'s bytes: what makes an edited file another body."""
+    return hashlib.sha256(read_bytes(file)).hexdigest()
+
+
 def _floats(text, n, what):
     vals = [float(x) for x in (text or "").split()]
     if len(vals) != n:
         raise ValueError(what)
-    return np.array(vals)
+    arr = np.array(vals)
+    if not np.all(np.isfinite(arr)) or np.any(np.abs(arr) > MAX_MAGNITUDE):
+        raise ValueError(f"{what} {text!r} (finite numbers within +-{MAX_MAGNITUDE:g} wanted)")
+    return arr
 
 
 def _rpy(r, p, y) -> np.ndarray:
@@ -82,15 +125,20 @@ def _rot_axis(axis, angle) -> np.ndarray:
     return R @ np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]]) @ R.T
 
 
-def read_chain(file, root: str, tip: str, joints=None, hold=None) -> dict:
+def read_chain(file, root: str, tip: str, joints=None, hold=None, sha256=None) -> dict:
     """The chain from link `root` to link `tip` of a URDF: dict(frames (m, 3, 4), tool (3,),
     names (m,), limits (m, 2) [rad], NaN where the URDF gives none). joints: the commanded
     joints (default: every revolute joint on the path); hold: {joint: angle [rad]} for the other
-    revolute joints on the path (default 0). Raises ValueError naming `body.urdf.<key>`."""
+    revolute joints on the path (default 0); sha256: the digest the file must have (a body
+    planned from it). Raises ValueError naming `body.urdf.<key>`."""
     path = resolve(file)
+    data = read_bytes(file)
+    if sha256 is not None and hashlib.sha256(data).hexdigest() != sha256:
+        raise _bad("file", str(file), "changed since this body was planned (its SHA-256 "
+                   "differs); run the command again")
     try:
-        tree = ET.parse(path).getroot()
-    except (OSError, ET.ParseError) as err:
+        tree = ET.fromstring(data)
+    except ET.ParseError as err:
         raise _bad("file", str(file), f"cannot read the URDF: {err}".splitlines()[0]) from None
     links = {l.get("name") for l in tree.findall("link")}
     for key, name in (("root", root), ("tip", tip)):
@@ -127,6 +175,10 @@ def read_chain(file, root: str, tip: str, joints=None, hold=None) -> dict:
     extra = sorted(set(hold) - (set(movable) - set(joints)))
     if extra:
         raise _bad("hold", hold, f"{extra} are not held joints of the chain")
+    for name, angle in hold.items():
+        if (isinstance(angle, bool) or not isinstance(angle, (int, float))
+                or not abs(angle) <= MAX_MAGNITUDE):
+            raise _bad(f"hold.{name}", angle, f"a finite angle [rad] within +-{MAX_MAGNITUDE:g}")
     T = np.eye(4)
     frames, limits = [], []
     for j in chain:
@@ -143,6 +195,9 @@ def read_chain(file, root: str, tip: str, joints=None, hold=None) -> dict:
         T = T @ step
         if j.get("type") == "fixed":
             continue
+        if not np.linalg.norm(axis) > 1e-9:
+            raise _bad("file", str(file), f"joint {j.get('name')!r}: its axis {axis.tolist()} "
+                       "is zero")
         axis = axis / np.linalg.norm(axis)
         if j.get("name") not in joints:  # held at a stated angle
             R = np.eye(4)
@@ -157,7 +212,10 @@ def read_chain(file, root: str, tip: str, joints=None, hold=None) -> dict:
         lim = j.find("limit")
         lo = lim.get("lower") if lim is not None and j.get("type") == "revolute" else None
         hi = lim.get("upper") if lim is not None and j.get("type") == "revolute" else None
-        limits.append([float(lo) if lo is not None else np.nan,
-                       float(hi) if hi is not None else np.nan])
+        try:
+            pair = [_floats(v, 1, "limit")[0] if v is not None else np.nan for v in (lo, hi)]
+        except ValueError as err:
+            raise _bad("file", str(file), f"joint {j.get('name')!r}: bad {err}") from None
+        limits.append(pair)
     return dict(frames=np.array(frames), tool=T[:3, 3].copy(), rest=T[:3, :3].copy(),
                 names=joints, limits=np.array(limits, float))

@@ -335,6 +335,9 @@ def aggregate_figure(cfg: DictConfig, fig: str) -> tuple[list[str], bool]:
     trials = table.to_pandas()
     curves = curve_stats(trials)
     summary = summarize(trials, curves, conds, paper, cfg.aggregate.fail_factor)
+    for c in summary.loc[summary["n_trials"] == 0, "condition"]:
+        print(f"note: [{fig}] {c}: every trial diverged or failed; the report marks it "
+              "diverged", file=sys.stderr)
     with io.new_set(folder) as tmp:
         io.write_table(tmp / "trials.parquet",
                        pa.Table.from_pandas(trials, schema=io.CURVE, preserve_index=False))

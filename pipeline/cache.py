@@ -6,7 +6,7 @@ Layout under paths.cache:
     trials/<kk>/<key>.json        the trial's spec, seed, code fingerprint, status, final model,
                                   snapshots, the SHA-256 of the Parquet file, and a seal (the
                                   SHA-256 of everything else in the sidecar)
-    trials/<kk>/<key>.lock        held (flock) by the process computing the trial
+    claims                        a one-byte lock per trial being computed (Claim)
     failed/<key>.json             the error of a trial that failed (not cached: it runs again)
     plans/<figure>/<group>/<hash>.json   the conditions one simulate run planned for a figure
     plans/<figure>/current.json   the group that makes the figure now
@@ -24,9 +24,12 @@ conditions are the union of its records' (one per distinct setting).
 """
 from __future__ import annotations
 
+import errno
 import fcntl
 import hashlib
 import os
+import re
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -36,14 +39,31 @@ from . import io
 TRIALS, PLANS, FAILED = "trials", "plans", "failed"
 
 
+KEY = re.compile(r"[0-9a-f]{20}")  # pipeline.plan.trial_key
+
+
 def trial_paths(cache_dir, trial: dict) -> tuple[Path, Path]:
+    """(curve, sidecar) of a trial; its key (from a plan record on disk, too) must be a key, so
+    that no name read from a file becomes a path elsewhere."""
     key = trial["key"]
-    stem = os.path.join(cache_dir, TRIALS, key[:2], key)  # strings first: pathlib's joins cost
+    if not isinstance(key, str) or not KEY.fullmatch(key):
+        raise io.DamagedFile(f"trial key {key!r}: not a trial key (20 hexadecimal digits)")
+    folder = _inside(os.path.join(cache_dir, TRIALS, key[:2]), io.confined_root())
+    stem = os.path.join(folder, key)  # strings first: pathlib's joins cost
     return Path(f"{stem}.parquet"), Path(f"{stem}.json")
 
 
+@lru_cache(maxsize=1024)
+def _inside(folder: str, root) -> str:
+    """`folder` checked once per process and confinement (io.check_inside): at most 256 trial
+    folders, each resolved once instead of once per trial."""
+    io.check_inside(folder)
+    return folder
+
+
 def failure_path(cache_dir, trial: dict) -> Path:
-    return Path(cache_dir) / FAILED / f"{trial['key']}.json"
+    trial_paths(cache_dir, trial)  # the key checked
+    return io.check_inside(Path(cache_dir) / FAILED / f"{trial['key']}.json")
 
 
 def check(cache_dir, trial: dict) -> tuple[dict | None, str | None]:
@@ -70,6 +90,8 @@ def read_trial(cache_dir, trial: dict, curve: bool = True):
         s = io.check_seal(io.parse_json(raw, side), side.name)  # model, snapshots, status too
         if s.get("key") != trial["key"]:
             return None, None, f"{side.name} belongs to another trial"
+        if not _keyed(s):
+            return None, None, f"{side.name}: its spec, seed and code do not hash to its key"
         if s.get("status") == "diverged":
             return s, None, None
         try:
@@ -102,6 +124,17 @@ def signature(cache_dir, trial: dict) -> str | None:
     return "/".join(parts)
 
 
+def _keyed(s: dict) -> bool:
+    """Whether a sidecar's own spec, seed and code hash to its key (a sidecar copied or edited
+    under another trial's name is not that trial)."""
+    from .plan import trial_key
+
+    try:
+        return trial_key(s["spec"], s["seed"], s["code"]) == s["key"]
+    except (KeyError, TypeError, ValueError):
+        return False
+
+
 CONTENT = ("key", "spec", "seed", "code", "labels")  # what a sidecar keeps of the planned trial
 
 
@@ -127,31 +160,61 @@ def read_curve(cache_dir, trial: dict):
     return io.read_table(trial_paths(cache_dir, trial)[0], schema=io.TRIAL_CURVE).to_pandas()
 
 
+CLAIMS = "claims"  # the one lock file of a cache: a byte-range lock per trial being computed
+_claim_files: dict[tuple[int, Path], int] = {}  # (pid, lock file) -> this process's descriptor
+_held: dict[tuple[int, Path], set[int]] = {}  # offsets this process holds, per lock file
+
+
+def _claims_fd(cache_dir) -> tuple[tuple[int, Path], int]:
+    """This process's descriptor of the cache's lock file, opened once and kept open (closing
+    any descriptor of it would drop every lock this process holds on it)."""
+    path = Path(cache_dir).absolute() / CLAIMS
+    key = (os.getpid(), path)  # a forked child holds none of its parent's locks
+    if key not in _claim_files:
+        io.check_inside(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        flags = os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC
+        try:
+            fd = os.open(path, flags, 0o644)
+        except OSError as err:
+            if err.errno == errno.ELOOP:
+                raise io.UnsafeName(f"{path}: a link; remove it (the claims file is never "
+                                    "followed)") from None
+            raise
+        _claim_files[key], _held[key] = fd, set()
+    return key, _claim_files[key]
+
+
 class Claim:
-    """An exclusive, non-blocking claim on a trial (flock on <key>.lock): two runs on one cache
-    do not compute the same trial. The operating system drops the lock when its process dies,
-    so a killed run leaves nothing stuck."""
+    """An exclusive, non-blocking claim on a trial: two runs on one cache do not compute the
+    same trial. Every claim of a cache is a one-byte lock (fcntl) at the trial's offset in one
+    file, cache/claims, held through one descriptor per process: however many trials a run
+    claims, it holds one open file. The operating system drops the locks when their process
+    dies, so a killed run leaves nothing stuck; file systems that share fcntl locks between hosts
+    (NFS with lockd) share the claims too."""
 
     def __init__(self, cache_dir, trial: dict):
-        self.path = trial_paths(cache_dir, trial)[1].with_suffix(".lock")
-        self.fh = None
+        trial_paths(cache_dir, trial)  # the key checked
+        self.cache_dir = cache_dir
+        self.offset = int(trial["key"][:15], 16)  # 60 bits: distinct for distinct keys
+        self.fh = None  # not None while held
 
     def acquire(self) -> bool:
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        fh = open(self.path, "a")
-        try:
-            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            fh.close()
+        key, fd = _claims_fd(self.cache_dir)
+        if self.offset in _held[key]:  # another claim of this process holds it
             return False
-        self.fh = fh
+        try:
+            fcntl.lockf(fd, fcntl.LOCK_EX | fcntl.LOCK_NB, 1, self.offset)
+        except (BlockingIOError, PermissionError):  # held by another process
+            return False
+        _held[key].add(self.offset)
+        self.fh = key
         return True
 
     def release(self) -> None:
-        if self.fh is not None:  # a run that opened the old file meanwhile re-checks the cache
-            self.path.unlink(missing_ok=True)
-            fcntl.flock(self.fh, fcntl.LOCK_UN)
-            self.fh.close()
+        if self.fh is not None:
+            fcntl.lockf(_claim_files[self.fh], fcntl.LOCK_UN, 1, self.offset)
+            _held[self.fh].discard(self.offset)
             self.fh = None
 
 
@@ -170,14 +233,17 @@ def write_plan(cache_dir, record: dict, group: str | None = None) -> tuple[str, 
     group: the multirun this run is a job of (its jobs' records form one figure); None: this run
     alone. Nothing is rewritten when the same record is there already. Returns (group, the
     previous current group's summary when this run replaced another group, else None)."""
-    folder = Path(cache_dir) / PLANS / record["figure"]
+    folder = io.check_inside(Path(cache_dir) / PLANS / io.safe_name("figure", record["figure"]))
     digest = record_digest(record)
     group = group or f"run-{digest}"
     path = folder / group / f"{digest}.json"
     if not path.exists():
         io.write_json(path, record)
     current = folder / "current.json"
-    before = read_current(folder)
+    try:
+        before = read_current(folder)
+    except io.DamagedFile:  # a damaged pointer: this run's group replaces it
+        before = None
     if before != group:
         replaced = None
         if before is not None:
@@ -193,7 +259,11 @@ def read_current(folder: Path) -> str | None:
     path = Path(folder) / "current.json"
     if not path.exists():
         return None
-    return io.safe_name(f"{path}: group", io.read_json(path).get("group"))
+    group = io.safe_name(f"{path}: group", io.read_json(path).get("group"))
+    if not (Path(folder) / group).is_dir():
+        raise io.DamagedFile(f"{path}: names the group {group!r}, which is not there; run "
+                             "pipeline.simulate for this figure again")
+    return group
 
 
 def _group_experiment(folder: Path, group: str) -> str | None:
@@ -205,6 +275,20 @@ def _group_experiment(folder: Path, group: str) -> str | None:
     return None
 
 
+SPEC_KEYS = {"body", "growth", "learner", "evaluation", "epochs"}  # of gbmodel.TrialSpec.to_dict
+
+
+def _condition_ok(c) -> bool:
+    """Whether a plan record's condition has what the stages read: an id, a spec, a growth
+    label and trials with a key (a trial key, checked before it becomes a path) and an index."""
+    return (isinstance(c, dict) and {"id", "spec", "trials", "growth_label"} <= set(c)
+            and isinstance(c["spec"], dict) and SPEC_KEYS <= set(c["spec"])
+            and isinstance(c["trials"], list)
+            and all(isinstance(t, dict) and isinstance(t.get("key"), str)
+                    and KEY.fullmatch(t["key"]) and isinstance(t.get("trial"), int)
+                    for t in c["trials"]))
+
+
 def group_conditions(folder: Path, group: str) -> tuple[list[dict], dict, list[str]]:
     """(conditions, paper, problems) of one group: the union of its records' conditions, one per
     (variant, settings), in the order of the records' writing (file names are content hashes, so
@@ -212,9 +296,7 @@ def group_conditions(folder: Path, group: str) -> tuple[list[dict], dict, list[s
     records, problems = [], []
     for p in sorted((Path(folder) / group).glob("*.json")):  # DamagedFile names a bad one
         r = io.read_json(p, need=("figure", "conditions"))
-        if not isinstance(r["conditions"], list) or not all(
-                isinstance(c, dict) and {"id", "spec", "trials", "growth_label"} <= set(c)
-                for c in r["conditions"]):
+        if not isinstance(r["conditions"], list) or not all(map(_condition_ok, r["conditions"])):
             raise io.DamagedFile(f"{p}: not a plan record (its conditions are malformed)")
         records.append(r)
     records.sort(key=lambda r: (r.get("job", 0), record_digest(r)))
@@ -237,7 +319,8 @@ def figure_conditions(cache_dir, figure: str) -> tuple[list[dict], dict, list[st
         raise FileNotFoundError(f"figure={figure}: not simulated (no plan under {folder})")
     conds, paper, problems = group_conditions(folder, group)
     if not conds:
-        raise ValueError(f"figure={figure}: its plan records under {folder / group} are unreadable")
+        raise io.DamagedFile(f"figure={figure}: no plan record under {folder / group}; run "
+                             "pipeline.simulate for this figure again")
     return conds, paper, problems
 
 

@@ -10,15 +10,17 @@ from __future__ import annotations
 
 import errno
 import itertools
+import math
 import re
 import sys
 
 from hydra.core.override_parser.overrides_parser import OverridesParser
 
-from . import execute, stop
+from . import execute, io, stop
 from .fingerprint import CodeChanged
 from .io import BadInput
-from .config import ConfigError, check_keys, compose, config_notes
+from .config import (ConfigError, check_experiments, check_hydra, check_keys, compose,
+                     config_notes)
 from .plan import condition_labels, plan, plan_conditions
 
 # Hydra's command-line flags that take a value as the next argument
@@ -26,6 +28,35 @@ _FLAGS_WITH_VALUE = {"--cfg", "-c", "--config-path", "-cp", "--config-name", "-c
                      "--config-dir", "-cd", "--package", "-p", "--info", "-i",
                      "--experimental-rerun"}
 _MAX_COMBINATIONS = 256  # a sweep larger than this is checked on its first combinations only
+MAX_SWEEP_JOBS = 10_000  # jobs of one multirun: each is a Hydra job with its own folder
+
+
+def sweep_size(override) -> int | None:
+    """How many values a sweep override has, counted without building them (a range of 10^8
+    values would fill the memory); None for a glob (its size depends on the config)."""
+    from hydra.core.override_parser.types import ChoiceSweep, RangeSweep
+
+    v = override.value()
+    if isinstance(v, RangeSweep):
+        if not v.step:
+            return 0
+        return max(0, math.ceil((v.stop - v.start) / v.step))
+    if isinstance(v, ChoiceSweep):
+        return len(v.list)
+    return None
+
+
+def check_sweep_size(parsed) -> str | None:
+    """One line when the sweeps of a command line make more than MAX_SWEEP_JOBS jobs."""
+    total = 1
+    for o in parsed:
+        if o.is_sweep_override():
+            n = sweep_size(o)
+            total *= 1 if n is None else n
+            if total > MAX_SWEEP_JOBS:
+                return (f"{o.input_line}: the sweep makes more than {MAX_SWEEP_JOBS:,} jobs; "
+                        "sweep fewer values (or list the conditions in one experiment)")
+    return None
 
 
 def _overrides(argv: list[str]) -> list[str]:
@@ -73,6 +104,9 @@ def check(argv: list[str]) -> str | None:
     except Exception as err:  # a syntax error in an override
         return _one_line(err)
     multirun = "-m" in argv or "--multirun" in argv
+    too_many = check_sweep_size(parsed)
+    if too_many:
+        return too_many
     choices = []
     for o in parsed:
         if o.is_hydra_override():
@@ -82,13 +116,21 @@ def check(argv: list[str]) -> str | None:
         if o.is_sweep_override():
             if not multirun:
                 return f"{o.input_line}: a sweep over several values needs -m (--multirun)"
-            choices.append([f"{o.get_key_element()}={v}" for v in o.sweep_string_iterator()])
+            choices.append(itertools.islice(o.sweep_string_iterator(), _MAX_COMBINATIONS))
+            choices[-1] = [f"{o.get_key_element()}={v}" for v in choices[-1]]
         else:
             choices.append([o.input_line])
+    hydra_own = [o.input_line for o in parsed if o.is_hydra_override()
+                 and not o.is_sweep_override() and o.get_key_element() != "hydra.searchpath"]
     planned, notes = {}, []
-    for combination in itertools.islice(itertools.product(*choices), _MAX_COMBINATIONS):
+    for n, combination in enumerate(itertools.islice(itertools.product(*choices),
+                                                     _MAX_COMBINATIONS)):
         try:  # values too: every sweep job is checked up front
+            if n == 0:  # Hydra's own section: callbacks, launcher, logging (check_hydra)
+                check_hydra(compose(list(combination) + hydra_own, hydra=True))
             cfg = compose(list(combination))
+            if n == 0:
+                check_experiments(cfg, list(combination))
             check_keys(cfg)
             trials = plan(cfg)  # checks the values, the limits before planning
             notes += [n for n in config_notes(cfg) if n not in notes]
@@ -169,7 +211,8 @@ def finish(run, cfg) -> None:
     (CodeChanged) or a full, read-only or forbidden folder (OSError) exits 2; Ctrl-C, SIGTERM and SIGHUP stop the workers, release the claims (the stage's
     `finally`) and exit 130, 143, 129 (finished trials are cached: the same command resumes)."""
     with stop.armed():
-        try:
+        try:  # no write or delete through a link leading elsewhere
+            io.confine(cfg.paths.root if cfg is not None else None)
             rc = run(cfg)
         except (ConfigError, FileNotFoundError, NotADirectoryError) as err:
             print(f"error: {err}", file=sys.stderr)
@@ -191,6 +234,8 @@ def finish(run, cfg) -> None:
             print(f"{how}: finished work is cached; run the same command again to resume",
                   file=sys.stderr, flush=True)
             rc = stop.exit_status(err)
+        finally:
+            io.confine(None)
     if rc:
         sys.exit(rc)
 

@@ -242,8 +242,9 @@ if not OmegaConf.has_resolver("repo_root"):
 register_schemas()
 
 
-def compose(overrides: list[str] | tuple = ()) -> DictConfig:
-    """The config `python -m pipeline.<stage> OVERRIDES` would get (Hydra's compose API).
+def compose(overrides: list[str] | tuple = (), hydra: bool = False) -> DictConfig:
+    """The config `python -m pipeline.<stage> OVERRIDES` would get (Hydra's compose API); with
+    `hydra`, Hydra's own section too (callbacks, launcher, logging: check_hydra).
 
     Used by the tests and by callers that want a config without the command line."""
     from hydra import compose as hydra_compose
@@ -252,13 +253,63 @@ def compose(overrides: list[str] | tuple = ()) -> DictConfig:
 
     GlobalHydra.instance().clear()
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
-        return hydra_compose(config_name="config", overrides=list(overrides))
+        return hydra_compose(config_name="config", overrides=list(overrides),
+                             return_hydra_config=hydra)
+
+
+def check_experiments(cfg, overrides: list[str] | tuple = ()) -> None:
+    """Every name of `experiments=[...]` is an experiment (conf/experiment/, or a folder on
+    hydra.searchpath given in `overrides`)."""
+    names = list(cfg.get("experiments") or [])
+    if not names:
+        return
+    from hydra import initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+
+    GlobalHydra.instance().clear()
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+        search = [o for o in overrides if o.startswith("hydra.searchpath=")]
+        if search:  # the options a searchpath adds: compose once to load it
+            from hydra import compose as hydra_compose
+            hydra_compose(config_name="config", overrides=search)
+        options = GlobalHydra.instance().config_loader().get_group_options("experiment")
+    for name in names:
+        if name not in options:
+            raise ConfigError(f"experiments={names}: {name!r} is not an experiment; choose "
+                              f"from {', '.join(options)}")
 
 
 # ---- limits, checked by plan() before it plans a variant's trials ---------------------------------
 MAX_TRIALS = 10_000  # trials.count: independent trials per condition (the paper's figures use 20)
 MAX_PLANNED = 100_000  # trials of one run in all (conditions x variants x trials.count)
 MAX_INT64 = 2**63 - 1  # growth periods are stored as int64 (the curve table's growth_period)
+
+
+MAX_SIZE = 100.0  # a growth size factor (1 = the body's full size)
+# (key, low, high, low included): a number of the config that has a range; one line when outside
+RANGES = (("aggregate.fail_factor", 1.0, 1e3, False),  # x the median: <= 1 flags half or all
+          ("conditions.budget_scale", 0.0, 1e3, False),
+          ("conditions.growth_share", 0.0, 1.0, False),
+          ("report.dpi", 10, 1200, True),
+          ("growth.start_size", 0.0, MAX_SIZE, False), ("growth.end_size", 0.0, MAX_SIZE, False),
+          ("growth.fixed_scale", 0.0, MAX_SIZE, False))
+
+
+def check_ranges(cfg) -> None:
+    """Refuse (one line naming the key and its range) a number outside RANGES, or not finite."""
+    for key, lo, hi, closed in RANGES:
+        value = OmegaConf.select(cfg, key, default=None)
+        if value is None:
+            continue
+        ok = (not isinstance(value, bool) and isinstance(value, (int, float))
+              and (lo <= value if closed else lo < value) and value <= hi)
+        if not ok:
+            raise ConfigError(f"{key}={value!r}: must be a number in {'[' if closed else '('}"
+                              f"{lo:g}, {hi:g}]")
+    for s in cfg.conditions.references:
+        if isinstance(s, (int, float)) and not isinstance(s, bool) and not s <= MAX_SIZE:
+            raise ConfigError(f"conditions.references={s!r}: a size factor of at most "
+                              f"{MAX_SIZE:g}")
 
 
 def _too_big(key, value, limit, unit, shown=None):
@@ -273,6 +324,7 @@ def check_limits(cfg) -> None:
     _too_big("trials.count", cfg.trials.count, MAX_TRIALS, "trials per condition")
     _too_big("learner.epochs", cfg.learner.epochs, MAX_EPOCHS, "epochs per trial",
              f"{MAX_EPOCHS:.0e}")  # before planning multiplies the trials
+    check_ranges(cfg)
     growth = cfg.growth
     _too_big("growth.period", growth.get("period"), MAX_INT64, "epochs (int64)")
     for p in cfg.conditions.periods:
@@ -352,3 +404,60 @@ def check_stamp(cfg) -> None:
         raise ConfigError("report.stamp_findings=true: only with report.publish=true (make "
                           "reproduce ARGS=report.stamp_findings=true); this run's numbers are not "
                           "the committed report's")
+
+
+# ---- what Hydra would run or write on the config's behalf ---------------------------------------
+OWN_TARGETS = ("pipeline.",)  # a `_target_` the project's config may name
+HYDRA_TARGETS = ("hydra._internal.", "hydra_plugins.")  # Hydra's own launchers and sweepers
+
+
+def _targets(node, where: str):
+    """(key, value) of every `_target_` in a plain config tree."""
+    if isinstance(node, dict):
+        for k, v in node.items():
+            key = f"{where}.{k}" if where else str(k)
+            if k == "_target_":
+                yield key, v
+            else:
+                yield from _targets(v, key)
+    elif isinstance(node, list):
+        for i, v in enumerate(node):
+            yield from _targets(v, f"{where}[{i}]")
+
+
+def check_hydra(cfg) -> None:
+    """Refuse what would make Hydra call or write something the project did not choose: a
+    callback (hydra.callbacks: any function, run before and after each job), a `_target_` that is
+    not the project's own (in the config) or Hydra's (its launcher and sweeper), a logging handler
+    that writes a file or is built by a factory, a launcher with n_jobs=0. `cfg` is composed with
+    hydra=True; the command line and every config file (a body YAML on hydra.searchpath) count."""
+    tree = OmegaConf.to_container(cfg, resolve=False)
+    hydra = tree.pop("hydra", None) or {}
+    for key, target in _targets(tree, ""):
+        if not (isinstance(target, str) and target.startswith(OWN_TARGETS)):
+            raise ConfigError(f"{key}={target!r}: the config names no code to run (only "
+                              "pipeline's own)")
+    for name in hydra.get("callbacks") or {}:
+        raise ConfigError(f"hydra.callbacks.{name}: Hydra callbacks run code on every job; the "
+                          "stages take none")
+    for section in ("launcher", "sweeper"):
+        target = (hydra.get(section) or {}).get("_target_")
+        if target is not None and not (isinstance(target, str)
+                                       and target.startswith(HYDRA_TARGETS)):
+            raise ConfigError(f"hydra.{section}._target_={target!r}: only Hydra's own "
+                              f"{section}s (hydra/{section}=...)")
+    n_jobs = (hydra.get("launcher") or {}).get("n_jobs")
+    if n_jobs is not None and (isinstance(n_jobs, bool) or not isinstance(n_jobs, int)
+                               or n_jobs == 0):
+        raise ConfigError(f"hydra.launcher.n_jobs={n_jobs!r}: a non-zero integer (-1: one "
+                          "job per core)")
+    for section in ("job_logging", "hydra_logging"):
+        for name, handler in ((hydra.get(section) or {}).get("handlers") or {}).items():
+            if not isinstance(handler, dict):
+                continue
+            cls = handler.get("class", "")
+            if ("()" in handler or "filename" in handler
+                    or cls not in ("logging.StreamHandler", "logging.NullHandler")):
+                raise ConfigError(f"hydra.{section}.handlers.{name}: writes a log file or builds "
+                                  "its own handler; the stages log to the terminal "
+                                  f"(hydra/{section}=stdout)")

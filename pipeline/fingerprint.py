@@ -5,8 +5,10 @@ The cache key holds it, so a trial is recomputed when its code changes and only 
 are read once per learner and process (code_fingerprint is cached), and each file of a module
 this process has imported is checked against that module's code: a file edited between the
 import and the read (the driver imports gbmodel, someone saves a file, the fingerprint reads it)
-would otherwise key old-code results with the new code's fingerprint. Such a file raises
-CodeChanged, a one-line error: run the command again.
+would otherwise key old-code results with the new code's fingerprint. Both the compiled
+functions and the values the module holds (its constants, function defaults, class attributes
+such as a dataclass's defaults: evaluated from the file as read now and compared with what the
+import made) are checked. Such a file raises CodeChanged, a one-line error: run the command again.
 """
 from __future__ import annotations
 
@@ -16,6 +18,8 @@ import inspect
 import sys
 from functools import lru_cache
 from pathlib import Path
+
+import numpy as np
 
 import gbmodel
 import gbmodel.learners
@@ -84,6 +88,99 @@ def _live_codes(module, path: Path):
             yield code
 
 
+_PLAIN = (int, float, complex, str, bytes, bool, type(None))
+
+
+def _plain(value) -> bool:
+    """A value that compares by content (a number, a string, containers and arrays of them)."""
+    if isinstance(value, _PLAIN) or isinstance(value, np.generic):
+        return True
+    if isinstance(value, np.ndarray):
+        return value.dtype.kind in "biufcSUb"
+    if isinstance(value, (tuple, list, frozenset, set)):
+        return all(_plain(v) for v in value)
+    if isinstance(value, dict):
+        return all(_plain(k) and _plain(v) for k, v in value.items())
+    return False
+
+
+def _same(a, b) -> bool:
+    try:
+        if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+            return (type(a) is type(b) and a.shape == b.shape and a.dtype == b.dtype
+                    and bool(np.array_equal(a, b, equal_nan=a.dtype.kind in "fc")))
+        if type(a) is not type(b):
+            return False
+        if isinstance(a, float) and a != a:
+            return b != b
+        if isinstance(a, (tuple, list)):
+            return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+        if isinstance(a, dict):
+            return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+        return bool(a == b)
+    except Exception:
+        return False
+
+
+def _value(node, scope: dict):
+    """The value of expression `node` in `scope` (a copy of the live namespace), or a marker
+    when it cannot be evaluated on its own or is not a plain value (an object, a function)."""
+    try:
+        value = eval(compile(ast.Expression(node), "<fingerprint>", "eval"), dict(scope))
+    except Exception:
+        return _SKIP
+    return value if _plain(value) else _SKIP
+
+
+_SKIP = object()
+
+
+def _values(body: list, scope: dict, live, where: str):
+    """(name, value now in the file, value the import made) of the plain assignments and
+    function defaults in `body` (a module's or class's statements); `live` is its namespace. A
+    private mutable container (`_CACHE = {}`) is state the code fills, not a constant: skipped."""
+    for node in body:
+        targets = ([node.target] if isinstance(node, ast.AnnAssign) and node.value is not None
+                   else node.targets if isinstance(node, ast.Assign) else [])
+        for t in targets:
+            if (isinstance(t, ast.Name) and t.id in live
+                    and not (t.id.startswith("_") and isinstance(live[t.id], (list, dict, set)))):
+                now = _value(node.value, scope)
+                if now is not _SKIP and _plain(live[t.id]):
+                    yield f"{where}{t.id}", now, live[t.id]
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.name in live:
+            func = live[node.name]
+            func = getattr(func, "__func__", func)
+            func = getattr(func, "py_func", func)
+            defaults = getattr(func, "__defaults__", None) or ()
+            exprs = node.args.defaults
+            if len(exprs) == len(defaults):
+                for expr, was in zip(exprs, defaults):
+                    now = _value(expr, scope)
+                    if now is not _SKIP and _plain(was):
+                        yield f"{where}{node.name} (a default)", now, was
+            kw = getattr(func, "__kwdefaults__", None) or {}
+            for arg, expr in zip(node.args.kwonlyargs, node.args.kw_defaults):
+                if expr is not None and arg.arg in kw and _plain(kw[arg.arg]):
+                    now = _value(expr, scope)
+                    if now is not _SKIP:
+                        yield f"{where}{node.name} (a default)", now, kw[arg.arg]
+        if isinstance(node, ast.ClassDef) and inspect.isclass(live.get(node.name)):
+            cls = live[node.name]
+            yield from _values(node.body, {**scope, **vars(cls)}, dict(vars(cls)),
+                               f"{where}{node.name}.")
+
+
+def _changed_value(module, text: str) -> str | None:
+    """The first constant, default or class attribute whose value in `text` differs from the
+    one the imported `module` holds, else None."""
+    scope = dict(vars(module))
+    for name, now, was in _values(ast.parse(text).body, scope, scope, ""):
+        if not _same(now, was):
+            return name
+    return None
+
+
 def _gbmodel_modules() -> dict:
     """Resolved file -> module, for the imported modules of gbmodel."""
     return {Path(m.__file__).resolve(): m for name, m in list(sys.modules.items())
@@ -103,6 +200,10 @@ def as_imported(path: Path, text: str, modules: dict | None = None) -> str:
         if code not in compiled.get(code.co_qualname, ()):
             raise CodeChanged(f"{path}: changed since this process imported it ({code.co_qualname} "
                               "differs); run the command again")
+    name = _changed_value(module, text)
+    if name is not None:
+        raise CodeChanged(f"{path}: changed since this process imported it ({name} differs); "
+                          "run the command again")
     return text
 
 

@@ -7,6 +7,7 @@ same content gives the same bytes.
 """
 from __future__ import annotations
 
+import errno
 import hashlib
 import itertools
 import json
@@ -14,6 +15,7 @@ import os
 import re
 import shutil
 import socket
+import unicodedata
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -49,13 +51,15 @@ class UnsafeName(BadInput):
     """A name from the config or from a file on disk that cannot become one path component."""
 
 
-MAX_NAME = 200  # characters of one path component built from a name (file systems allow 255)
+MAX_NAME = 100  # characters of one path component built from a name
+MAX_NAME_BYTES = 200  # its UTF-8 bytes (file systems allow 255; temporary names add some)
 
 
 def safe_name(key: str, value) -> str:
     """`value` if it can name one file or folder inside an output folder, else UnsafeName naming
     `key`: no path separator, NUL or control character, not `.`, `..` or hidden (a leading dot is
-    how temporary files are named), not empty, at most MAX_NAME characters. Call it on every name
+    how temporary files are named), not empty, at most MAX_NAME characters and MAX_NAME_BYTES
+    bytes, no format character (a bidirectional override shows a name other than it is). Call it on every name
     from the config (figure, labels, posture panels) or from files on disk (plan records) before
     it becomes part of a path, so that no write leaves paths.root."""
     why = None
@@ -63,12 +67,13 @@ def safe_name(key: str, value) -> str:
         why = "must be a non-empty name"
     elif "/" in value or "\\" in value:
         why = "must not contain a path separator"
-    elif any(ord(c) < 32 or ord(c) == 127 for c in value):
-        why = "must not contain control characters"
+    elif any(unicodedata.category(c) in ("Cc", "Cf", "Cs", "Co", "Cn", "Zl", "Zp")
+             for c in value):
+        why = "must not contain control, format (bidirectional) or unassigned characters"
     elif value.startswith("."):
         why = "must not start with a dot"
-    elif len(value) > MAX_NAME:
-        why = f"must be at most {MAX_NAME} characters"
+    elif len(value) > MAX_NAME or len(value.encode()) > MAX_NAME_BYTES:
+        why = f"must be at most {MAX_NAME} characters and {MAX_NAME_BYTES} bytes (UTF-8)"
     if why:
         raise UnsafeName(f"{key}={value!r}: {why} (it names a file or folder)")
     return value
@@ -79,6 +84,45 @@ def inside(root, path, key: str = "paths.root") -> Path:
     root, path = Path(root).resolve(), Path(path).resolve()
     if path != root and root not in path.parents:
         raise UnsafeName(f"{key}: {path} is outside {root}")
+    return path
+
+
+# ---- every write and delete stays under paths.root ------------------------------------------
+_ROOT: list[Path] = []  # the root a stage confines its writes to (pipeline.cli.finish)
+_ALSO: set[Path] = set()  # single files outside it a stage writes on purpose (allow)
+
+
+def confine(root) -> None:
+    """Confine every later write and delete of this process (through this module, and
+    pipeline.cache's) to `root`: a path whose existing part resolves elsewhere (a link planted
+    inside the outputs) is UnsafeName. None: no confinement (the API's default)."""
+    _ROOT[:] = [] if root is None else [Path(root).resolve()]
+
+
+def confined_root() -> Path | None:
+    """The root of confine(), None where nothing is confined."""
+    return _ROOT[0] if _ROOT else None
+
+
+def allow(path) -> None:
+    """Let the confined stage write the one file `path` outside the root (the committed numbers
+    report.stamp_findings records in the source tree)."""
+    _ALSO.add(Path(path).absolute())
+
+
+def check_inside(path) -> Path:
+    """`path` if the part of it that exists resolves under the confined root (confine), else
+    UnsafeName: a link inside the outputs that leads elsewhere is never followed."""
+    path = Path(path)
+    if not _ROOT or path.absolute() in _ALSO:
+        return path
+    p = path.absolute()
+    while not (p.exists() or p.is_symlink()) and p != p.parent:
+        p = p.parent
+    real = p.resolve()
+    if real != _ROOT[0] and _ROOT[0] not in real.parents:
+        raise UnsafeName(f"{path}: leads outside paths.root={_ROOT[0]} (through {p} -> {real}); "
+                         "remove that link")
     return path
 
 
@@ -117,6 +161,7 @@ def _atomic(path):
     names `path`."""
     path = Path(path)
     tmp = None
+    check_inside(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp, fd = _exclusive(path)
@@ -151,25 +196,29 @@ def atomic_path(path):
 def new_dir(final):
     """Yield an empty folder beside `final`; if the block succeeds, it replaces `final` as one
     set (two renames: the old set aside, the new one in, then the old one removed). A reader, or a
-    process killed at any moment, sees the old set, the new set or none, never a mix; a leftover
-    folder of a killed run is removed by the next."""
-    import shutil
-
+    process killed at any moment, sees the old set, the new set or none, never a mix. The folders
+    are named `.<final>.new~<host>~<pid>~<n>.tmp` (and `.old~`): what a killed run of this host
+    left is removed by the next (remove_stale_tmp), another host's never; two runs that finish
+    at once each put their set in, the later one's stays."""
     final = Path(final)
+    check_inside(final)
     final.parent.mkdir(parents=True, exist_ok=True)
-    for stale in final.parent.glob(f".{final.name}.*.dir"):
-        pid = stale.name.rsplit(".", 2)[-2].rsplit("-", 1)[-1]
-        if not (pid.isdigit() and _alive(int(pid))):
-            shutil.rmtree(stale, ignore_errors=True)
-    tmp = final.with_name(f".{final.name}.new-{os.getpid()}.dir")
-    old = final.with_name(f".{final.name}.old-{os.getpid()}.dir")
-    shutil.rmtree(tmp, ignore_errors=True)
+    remove_stale_tmp(final.parent)
+    tmp, old = _tmp_name(final.with_name(f"{final.name}.new")), _tmp_name(
+        final.with_name(f"{final.name}.old"))
     tmp.mkdir()
     try:
         yield tmp
-        if final.exists():
-            os.rename(final, old)
-        os.rename(tmp, final)
+        for attempt in range(5):
+            try:
+                if final.exists() or final.is_symlink():
+                    os.rename(final, old)
+                os.rename(tmp, final)
+                break
+            except OSError as err:  # another run put its set in between our two renames
+                if err.errno not in (errno.ENOTEMPTY, errno.EEXIST) or attempt == 4:
+                    raise
+                shutil.rmtree(old, ignore_errors=True)
         shutil.rmtree(old, ignore_errors=True)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -283,6 +332,7 @@ def remove_stale_tmp(folder, recursive: bool = False) -> list[Path]:
     folder = Path(folder)
     if not folder.is_dir():
         return gone
+    check_inside(folder)
     for tmp in (folder.rglob if recursive else folder.glob)(".*~*~*~*.tmp"):
         parts = tmp.name[:-len(".tmp")].rsplit("~", 3)
         if len(parts) != 4 or not parts[2].isdigit() or parts[1] != _HOST:
@@ -319,7 +369,14 @@ def new_set(folder):
     folder first: the one moment `folder` is missing, once."""
     folder = Path(folder)
     sets = folder.parent / f".{folder.name}.sets"
+    check_inside(folder)
+    if sets.is_symlink():
+        raise UnsafeName(f"{sets}: a link; the sets of {folder.name} are a folder of their own "
+                         "(remove the link)")
+    check_inside(sets)
     sets.mkdir(parents=True, exist_ok=True)
+    remove_stale_tmp(folder.parent)  # a switching link a killed run left beside the figures
+    remove_leaked_sets(folder)
     fresh = _tmp_name(sets / "set")
     fresh.mkdir()
     try:
@@ -339,6 +396,22 @@ def new_set(folder):
     if old is not None and old.parent.resolve() == sets.resolve():  # never a foreign folder
         shutil.rmtree(old, ignore_errors=True)
     remove_stale_tmp(sets)
+
+
+def remove_leaked_sets(folder) -> list[Path]:
+    """Delete the finished sets of `folder` that a killed process of this host made but never
+    switched to (`set~<host>~<pid>~<n>` in `.<name>.sets/`, its pid gone, not the current set)."""
+    folder = Path(folder)
+    sets = folder.parent / f".{folder.name}.sets"
+    current = set_of(folder) if folder.is_symlink() else None
+    gone = []
+    for d in sets.glob("set~*~*~*"):
+        parts = d.name.split("~")
+        if (len(parts) == 4 and parts[1] == _HOST and parts[2].isdigit() and d.is_dir()
+                and not d.is_symlink() and d.resolve() != current and not _alive(int(parts[2]))):
+            shutil.rmtree(d, ignore_errors=True)
+            gone.append(d)
+    return gone
 
 
 def set_of(folder) -> Path:

@@ -24,6 +24,7 @@ import numpy as np
 
 import gbmodel
 import gbmodel.bodies
+import gbmodel.urdf
 from gbmodel.spec import check_int
 from omegaconf import DictConfig, OmegaConf
 
@@ -173,7 +174,7 @@ def trial_spec(cfg: DictConfig, growth: dict) -> gbmodel.TrialSpec:
     snaps = tuple(sorted({e for e in [*cfg.conditions.snapshots, *frames]
                           if isinstance(e, int) and e <= epochs}))
     spec = gbmodel.TrialSpec(
-        body=OmegaConf.to_container(cfg.body), growth=growth, learner=learner,
+        body=body_content(OmegaConf.to_container(cfg.body)), growth=growth, learner=learner,
         evaluation=OmegaConf.to_container(cfg.evaluation), epochs=epochs,
         evals_per_decade=per_decade, snapshots=snaps)
     try:
@@ -182,6 +183,19 @@ def trial_spec(cfg: DictConfig, growth: dict) -> gbmodel.TrialSpec:
         raise ConfigError(str(err)) from None
     check_reach(_canonical(spec.body))
     return spec
+
+
+def body_content(body: dict) -> dict:
+    """The body's description with the SHA-256 of every file it reads (a URDF's bytes, as
+    `urdf.sha256`): an edited file is another body, so its trials get other keys."""
+    urdf = body.get("urdf")
+    if isinstance(urdf, dict) and "file" in urdf:
+        try:
+            sha = gbmodel.urdf.digest(urdf["file"])
+        except ValueError as err:
+            raise ConfigError(str(err)) from None
+        body = {**body, "urdf": {**urdf, "sha256": sha}}
+    return body
 
 
 @lru_cache(maxsize=64)

@@ -37,6 +37,7 @@ from pathlib import Path
 import hydra
 import numpy as np
 import pandas as pd
+import pyarrow as pa
 from omegaconf import DictConfig, OmegaConf
 
 from . import cli, io
@@ -56,21 +57,36 @@ def load_aggregates(folder: Path, names=None) -> dict:
     out = {}
     folder = Path(folder)
     for name in sorted(names if names is not None else aggregated(folder)):
-        d = io.set_of(folder / io.safe_name("figure", name))
-        models = io.read_json(d / "models.json", need=("figure", "conditions"))
-        out[name] = dict(
-            curves=io.read_table(d / "curves.parquet").to_pandas(),
-            summary=io.read_table(d / "summary.parquet").to_pandas(),
-            trials=io.read_table(d / "trials.parquet").to_pandas(),
-            models=models, inputs=io.read_json(d / "manifest.json").get("inputs"))
-        if "choice" not in out[name]["summary"]:
-            raise io.DamagedFile(f"{d / 'summary.parquet'}: not an aggregate summary (no choice)")
+        try:
+            out[name] = _load_set(folder / io.safe_name("figure", name))
+        except FileNotFoundError:  # aggregate switched sets and removed the old one meanwhile
+            out[name] = _load_set(folder / name)
+    return out
+
+
+# the columns of an aggregate's curves.parquet the report reads (pipeline.aggregate.curve_stats)
+_CURVES = pa.schema([(c, pa.null()) for c in [
+    *[c for c in io.LABEL_COLUMNS if c != "trial"], "epoch", "samples", "size", "n_trials",
+    *[f"{e}_{s}" for e in ("abs_error", "rel_error") for s in ("mean", "std", "q25", "q75")]]])
+
+
+def _load_set(link: Path) -> dict:
+    """One figure's aggregate, every file from the one set `link` resolves to now."""
+    d = io.set_of(link)
+    models = io.read_json(d / "models.json", need=("figure", "conditions"))
+    out = dict(curves=io.read_table(d / "curves.parquet", schema=_CURVES).to_pandas(),
+               summary=io.read_table(d / "summary.parquet").to_pandas(),
+               trials=io.read_table(d / "trials.parquet", schema=io.CURVE).to_pandas(),
+               models=models, inputs=io.read_json(d / "manifest.json").get("inputs"))
+    if "choice" not in out["summary"]:
+        raise io.DamagedFile(f"{d / 'summary.parquet'}: not an aggregate summary (no choice)")
     return out
 
 
 def aggregated(folder: Path) -> list[str]:
     folder = Path(folder)
-    return sorted(p.name for p in folder.iterdir() if (p / "summary.parquet").exists()) \
+    return sorted(p.name for p in folder.iterdir()  # a dot: a temporary name, never a figure
+                  if not p.name.startswith(".") and (p / "summary.parquet").exists()) \
         if folder.exists() else []
 
 

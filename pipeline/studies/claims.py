@@ -110,6 +110,17 @@ def title(claim: str) -> str:
     return c.words + (" (diagnostic)" if c.diagnostic else "")
 
 
+DIVERGED = "diverged"  # a condition none of whose trials left a curve, and the cells it touches
+
+
+def diverged_conditions(summary: pd.DataFrame) -> list[str]:
+    """The conditions none of whose trials left a curve (every one diverged or failed): no
+    per-trial value to judge a claim on."""
+    if "n_trials" not in summary:
+        return []
+    return [str(c) for c in summary.loc[summary["n_trials"] == 0, "condition"]]
+
+
 @dataclass
 class Test:
     """One measure of one claim on one condition: `values`, the measure on each trial, whose
@@ -124,6 +135,7 @@ class Test:
     unit: str = "%"  # how the value prints: "%" (a fraction), "x" (a ratio), "mm", "rad"
     kind: str = ""
     exact: bool = False  # a count over all trials (the bootstrap claim): judged exactly
+    diverged: bool = False  # the condition (or a reference it needs) left no curve
     result: dict = field(default_factory=dict)
 
 
@@ -183,10 +195,22 @@ def blend(v: np.ndarray, short: np.ndarray, long_: np.ndarray) -> np.ndarray:
 
 def tests(figure: str, trials: pd.DataFrame, summary: pd.DataFrame) -> list[Test]:
     """Every claim's test on one growth figure (Fig. 4, 5, 7): one per condition it covers."""
-    out = []
+    out, every = [], summary
+    paper = summary["paper_final_abs_error"].iloc[0] if len(summary) else np.nan
+    dead = diverged_conditions(summary)
+    n_refs = int((summary["growth"] == "none").sum())
+    for r in summary[summary["condition"].isin(dead)].itertuples():
+        touched = ["final"] if np.isfinite(paper) else []
+        if r.growth != "none":
+            touched += (["rise"] if r.growth_period <= 1000 else []) + ["after", "during"]
+        touched += ["blend"] if n_refs == 2 else []  # a growing one's, or a reference's
+        out += [Test(figure, claim, r.condition, np.array([]), diverged=True)
+                for claim in touched]
+    summary = summary[~summary["condition"].isin(dead)]
     growing = summary[summary["growth"] != "none"]
     refs = summary[summary["growth"] == "none"].sort_values("end_size")
-    paper = summary["paper_final_abs_error"].iloc[0] if len(summary) else np.nan
+    if len(refs) != n_refs:
+        refs = refs.iloc[:0]  # the comparisons with the references need both of them
     abs_ = {c: per_trial(trials, c, "abs_error") for c in summary["condition"]}
     rel = {c: per_trial(trials, c, "rel_error") for c in summary["condition"]}
     if np.isfinite(paper):
@@ -225,10 +249,10 @@ def tests(figure: str, trials: pd.DataFrame, summary: pd.DataFrame) -> list[Test
                             kind="ratio"))
         out.append(Test(figure, "during", c, rebound(smooth(gr[:, during])), hi=EXCESS,
                         kind="rebound"))
-    fails = int(summary["n_bootstrap_failures"].sum() + summary["n_run_failures"].sum()
-                + summary.get("n_diverged", pd.Series(dtype=int)).sum())
-    total = int(summary["n_trials"].sum() + summary["n_run_failures"].sum()
-                + summary.get("n_diverged", pd.Series(dtype=int)).sum())
+    fails = int(every["n_bootstrap_failures"].sum() + every["n_run_failures"].sum()
+                + every.get("n_diverged", pd.Series(dtype=int)).sum())
+    total = int(every["n_trials"].sum() + every["n_run_failures"].sum()
+                + every.get("n_diverged", pd.Series(dtype=int)).sum())
     out.append(Test(figure, "bootstrap", f"{fails} of {total} trials failed",
                     np.array([fails, total]), unit="rate", exact=True))
     return out

@@ -15,6 +15,7 @@ from omegaconf import OmegaConf
 
 from .. import io
 from . import claims, conventions, figures, scorecard, settings
+from .claims import DIVERGED, diverged_conditions
 from .sections import Context, declares_claims, register
 
 MAX_PANELS = 4  # posture panels of a figure that report.postures does not name
@@ -43,14 +44,16 @@ def summary_markdown(summary: pd.DataFrame) -> str:
             "| final rel. error [mm/size] | peak abs. error during growth [mm] (rise, epoch) "
             "| run failures | diverged | failed to bootstrap | paper: final abs. error [mm] |")
     lines = [head, "|" + "---|" * head.count(" | ") + "---|"]
+    dead = set(diverged_conditions(summary))
     for _, r in summary.iterrows():
         peak = (f"{_mm(r['peak_abs_error_growth'])} (+{_mm(r['rise_abs_error_growth'])}, "
                 f"epoch {r['peak_epoch_growth']})" if np.isfinite(r["peak_abs_error_growth"]) else "")
+        gone = DIVERGED if r["condition"] in dead else ""  # no trial left a curve
         lines.append(
             f"| {r['figure']} | {r['condition']} | {r['body']} | {r['growth']} "
             f"| {r['growth_period'] if r['growth'] != 'none' else ''} | {r['n_trials']} "
-            f"| {_pm(r['final_abs_error_mean'], r['final_abs_error_std'])} "
-            f"| {_pm(r['final_rel_error_mean'], r['final_rel_error_std'])} | {peak} "
+            f"| {_pm(r['final_abs_error_mean'], r['final_abs_error_std']) or gone} "
+            f"| {_pm(r['final_rel_error_mean'], r['final_rel_error_std']) or gone} | {peak or gone} "
             f"| {r['n_run_failures']} | {r['n_diverged']} | {r['n_bootstrap_failures']} "
             f"| {_mm(r['paper_final_abs_error'])} |")
     return "\n".join(lines) + "\n"

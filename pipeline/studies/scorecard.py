@@ -32,7 +32,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from .claims import BY_ID, CLAIMS, Test, stage_tests, tests as growth_tests, title
+from .claims import BY_ID, CLAIMS, DIVERGED, Test, stage_tests, tests as growth_tests, title
 
 LEVEL = 0.95
 MIN_COVERAGE = 0.90  # a measure type's interval is trusted to say "not reproduced" from here
@@ -99,6 +99,12 @@ def established(kind: str, n: int, table: pd.DataFrame | None = None) -> bool:
 
 def run_test(t: Test, table: pd.DataFrame | None = None) -> dict:
     """Measure a test and judge it; stores and returns its result."""
+    if t.diverged:  # nothing to measure: the cell says so
+        t.result = dict(figure=t.figure, claim=t.claim, diagnostic=BY_ID[t.claim].diagnostic,
+                        where=t.where, value=np.nan, low=np.nan, high=np.nan, lo=t.lo, hi=t.hi,
+                        unit=t.unit, kind=t.kind, trials=0, verdict=DIVERGED,
+                        trials_to_decide=None, per_trial="")
+        return t.result
     if t.exact:  # a count: the verdict is exact, the interval is the failure rate's
         k, n = (int(v) for v in t.values)
         ci = stats.binomtest(k, n).proportion_ci(LEVEL) if n else None
@@ -137,6 +143,8 @@ def fmt(value: float, unit: str) -> str:
 
 
 def fmt_interval(r: dict) -> str:
+    if r.get("verdict") == DIVERGED:
+        return "(every trial diverged)"
     if not (np.isfinite(r["low"]) and np.isfinite(r["high"])):
         return "no interval (1 trial)" if r["trials"] < 2 else "n/a"
     if r["unit"] == "rate":
@@ -169,7 +177,8 @@ def cells(results: list[dict]) -> pd.DataFrame:
     rows = []
     for (claim, figure), g in df.groupby(["claim", "figure"], sort=False):
         vs = g["verdict"].tolist()
-        v = NOT if NOT in vs else INCONCLUSIVE if INCONCLUSIVE in vs else REPRODUCED
+        v = (DIVERGED if DIVERGED in vs else NOT if NOT in vs else INCONCLUSIVE
+             if INCONCLUSIVE in vs else REPRODUCED)
         pick = g.loc[_margin(g).fillna(-np.inf).idxmin()]
         need = pick["trials_to_decide"]
         rows.append(dict(claim=claim, figure=figure, diagnostic=bool(BY_ID[claim].diagnostic),
@@ -212,7 +221,7 @@ def headline(cards: pd.DataFrame, counted=None) -> dict:
     c = cards[~cards["diagnostic"].astype(bool)]
     if counted is not None:
         c = c[c["figure"].isin(counted)]
-    return {v: int((c["verdict"] == v).sum()) for v in (REPRODUCED, NOT, INCONCLUSIVE)}
+    return {v: int((c["verdict"] == v).sum()) for v in (REPRODUCED, NOT, INCONCLUSIVE, DIVERGED)}
 
 
 def claims_table(cards: pd.DataFrame) -> pd.DataFrame:
@@ -238,7 +247,8 @@ def markdown(cards: pd.DataFrame, results: list[dict], counted=None, readings=No
     n = headline(cards, counted)
     where = "" if counted is None else f" on {', '.join(sorted(counted))}"
     lines = [f"The paper's claims{where}: **{n[REPRODUCED]} reproduced, {n[NOT]} not reproduced, "
-             f"{n[INCONCLUSIVE]} inconclusive** (95 % t intervals of the mean over trials of a "
+             f"{n[INCONCLUSIVE]} inconclusive" + (f", {n[DIVERGED]} diverged" if n[DIVERGED]
+                                                   else "") + "** (95 % t intervals of the mean over trials of a "
              "per-trial measure; diagnostics, marked, are shown and not counted).",
              "", "| claim of the paper | " + " | ".join(figs) + " | our reading |",
              "|---|" + "---|" * (len(figs) + 1)]
@@ -258,7 +268,7 @@ def markdown(cards: pd.DataFrame, results: list[dict], counted=None, readings=No
     return "\n".join(lines)
 
 
-COLOURS = {REPRODUCED: "#b7e1b0", NOT: "#f4b6b0", INCONCLUSIVE: "#fbe3a0"}
+COLOURS = {REPRODUCED: "#b7e1b0", NOT: "#f4b6b0", INCONCLUSIVE: "#fbe3a0", DIVERGED: "#c9c3e6"}
 
 
 def figure(cards: pd.DataFrame, title: str):
@@ -292,7 +302,7 @@ def figure(cards: pd.DataFrame, title: str):
     for s in ax.spines.values():
         s.set_visible(False)
     handles = [plt.Rectangle((0, 0), 1, 1, fc=col) for col in COLOURS.values()]
-    ax.legend(handles, list(COLOURS), loc="upper center", bbox_to_anchor=(0.5, -0.02), ncol=3,
+    ax.legend(handles, list(COLOURS), loc="upper center", bbox_to_anchor=(0.5, -0.02), ncol=len(COLOURS),
               frameon=False, fontsize=8)
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
