@@ -234,6 +234,8 @@ class Growth:
                             "must be <= 1 (beyond, distal segments would shrink for a while)")
         for name in ("start_size", "end_size"):
             check_number(f"growth.{name}", getattr(self, name), 0.0, strict=True)
+        self._validate_table(body)  # before the sizes are mapped through the table
+        for name in ("start_size", "end_size"):
             if self.pattern in ("proportional", "nonproportional"):
                 try:
                     self.scales(body, getattr(self, name))
@@ -244,7 +246,6 @@ class Growth:
             raise SpecError("growth.pattern", self.pattern,
                             f"every segment of {body.name} grows, so non-proportional growth "
                             "would equal proportional growth; use growth=proportional")
-        self._validate_table(body)
         if self.pattern == "per_segment" and self.rates is not None:
             self._validate_rates(body)
         elif self.rates is not None:

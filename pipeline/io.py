@@ -116,10 +116,11 @@ def check_inside(path) -> Path:
     path = Path(path)
     if not _ROOT or path.absolute() in _ALSO:
         return path
-    p = path.absolute()
+    full = Path(os.path.normpath(path.absolute()))
+    p = full
     while not (p.exists() or p.is_symlink()) and p != p.parent:
         p = p.parent
-    real = p.resolve()
+    real = p.resolve() / full.relative_to(p)  # links only in the part that exists
     if real != _ROOT[0] and _ROOT[0] not in real.parents:
         raise UnsafeName(f"{path}: leads outside paths.root={_ROOT[0]} (through {p} -> {real}); "
                          "remove that link")

@@ -68,7 +68,7 @@ def test_report_writes_a_gif_per_condition_with_frames(tmp_path):
     for stage in ("pipeline.simulate", "pipeline.aggregate", "pipeline.report"):
         r = run_cli(stage, *args)
         assert r.returncode == 0, r.stderr[-2000:]
-    out = tmp_path / "outputs" / "smoke" / "latest"
+    out = tmp_path / "outputs" / "smoke" / "latest" / "anim"  # a named figure's own folder
     gifs = sorted(out.glob("*.gif"))
     assert [g.name for g in gifs] == ["anim_TG20.gif"]
     with Image.open(gifs[0]) as im:
