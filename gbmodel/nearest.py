@@ -12,7 +12,7 @@ The answer is defined, so that it is the same however the examples are split int
 example at the smallest distance (as cKDTree computes it), and among equally distant examples the
 one stored first (the lowest index). Within a level the two nearest are asked for, and where they
 tie, more, until the tie is resolved; across levels, which run in index order, a later level wins
-only at a strictly smaller distance (tests/test_baselines.py compares it with a single tree over
+only at a strictly smaller distance (tests/core/test_alternatives.py compares it with a single tree over
 every example and with brute force, ties included).
 """
 from __future__ import annotations

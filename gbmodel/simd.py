@@ -398,7 +398,7 @@ def vmul8(typingctx, a, b):
 # Cody-Waite reduction x = k pi/2 + r with pi/2 in three parts (the first two with trailing zero
 # bits, so k times them is exact for |k| < 2^24), then the quadrant k mod 4 swaps and negates
 # them. Plain float64 operations in a fixed order: the same result on every CPU and C library,
-# within 2 ulp of the C library's (tests/test_learners.py), and without a branch but the (always
+# within 2 ulp of the C library's (tests/core/test_learners.py), and without a branch but the (always
 # taken) range check, as the angles' quadrants are unpredictable.
 _PIO2_64 = (1.57079625129699707031e0, 7.54978941586159635335e-8, 5.39030285815811905290e-15)
 _ROUND64 = 6755399441055744.0  # 1.5 * 2^52: x + _ROUND64 - _ROUND64 rounds x to an integer

@@ -1,4 +1,4 @@
-"""Real engines for the cluster tests (tests/test_engines_cluster.py, `-m cluster`).
+"""Real engines for the cluster tests (tests/pipeline/test_engines_cluster.py, `-m cluster`).
 
 - `Slurm`: a one-host SLURM with accounting (slurmctld, slurmd, slurmdbd and a MariaDB of its
   own), started by hand without systemd, all state, logs and pid files under one folder, and

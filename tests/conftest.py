@@ -4,14 +4,18 @@
 one worker) and rooted in a temporary folder, so a test exercises the real config and code path
 and writes nothing into the repository.
 """
+import dataclasses
 import json
 import os
 import subprocess
 import sys
+import types
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+import gbmodel
 from pipeline.config import REPO_ROOT, compose
 
 TINY = ("profile=smoke", "learner.epochs=30", "trials.count=1", "workers=1")
@@ -55,7 +59,7 @@ def files_of(folder: Path) -> dict[str, bytes]:
     return out
 
 
-# ---- the engines' runs (test_backends_slow, test_engines_cluster): fig4 at smoke scale --------
+# ---- the engines' runs (pipeline/test_backends_slow, pipeline/test_engines_cluster): fig4 at smoke scale --------
 ENGINE_SMOKE = ("experiment=fig4", "profile=smoke", "learner.epochs=200", "trials.count=1")
 
 
@@ -94,3 +98,29 @@ def figure_trials(cache_dir, figure: str) -> tuple[list[dict], list[str]]:
     conds, _, problems = figure_conditions(cache_dir, figure)
     return [dict(condition=c["label"], trial=t["trial"], key=t["key"])
             for c in conds for t in c["trials"]], problems
+
+
+# ---- a learner that never learns (registered at run time by the architecture and trial tests) ---
+@dataclasses.dataclass(frozen=True)
+class StayParams:
+    """A learner that never learns: it commands the home posture for every target."""
+
+    reach: float = 0.0  # unused; a field, to show that the schema is generated from Params
+
+    def validate(self) -> "StayParams":
+        if isinstance(self.reach, bool) or not isinstance(self.reach, (int, float)) \
+                or not self.reach >= 0:
+            raise gbmodel.SpecError("learner.reach", self.reach, "must be >= 0")
+        return self
+
+
+def stay_home_module(name: str = "stay_home") -> types.ModuleType:
+    m = types.ModuleType(name)
+    m.Params = StayParams
+    m.init = lambda params, body, size, rng: None
+    m.draw = lambda params, body, B, rng: (np.zeros(B),)
+    m.train = lambda state, params, body, sizes, scales, draws, epochs: state
+    m.predict = lambda state, params, body, x: np.tile(body.home, (len(x), 1))
+    m.model = lambda state: None
+    m.samples_per_epoch = lambda params, body: 1
+    return m

@@ -1,6 +1,6 @@
 """Two 7-DOF arms the project was not tuned for, as a new user would bring them: a URDF and a
 body file (docs/bodies.md) with the URDF's limits, the middle of every joint's range as home,
-and a target grid in front of the robot. Used by tests/test_new_robot.py and by the measurement
+and a target grid in front of the robot. Used by tests/e2e/test_new_robot.py and by the measurement
 in docs/bodies.md ("A new robot"):
 
     .venv/bin/python tests/new_robots.py             # held-out errors and times, 3 seeds each

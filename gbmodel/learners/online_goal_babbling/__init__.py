@@ -33,7 +33,7 @@ Two paths compute the same thing with the same draws (all random numbers come fr
 `reference.py`, plain numpy, is the readable statement; `fast.py`, the same per-sample loop
 compiled with numba in float64 (no fastmath: every sum in a fixed order, so the result does not
 depend on the CPU's vector width), is what runs by default. They agree to rounding
-(tests/test_learners.py). `Params.fast` picks the path. The random walk's normals are drawn by
+(tests/core/test_learners.py). `Params.fast` picks the path. The random walk's normals are drawn by
 numba's Generator from the trial's generator (fast.normals): numpy's very numbers.
 """
 from __future__ import annotations

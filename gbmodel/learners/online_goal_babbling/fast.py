@@ -27,7 +27,7 @@ from ...simd import (
 @njit(cache=True)
 def normals(rng, size):
     """rng.standard_normal(size), drawn by numba's Generator: numpy's algorithm on the same bit
-    generator, so the same numbers and the same state after (tests/test_learners.py checks
+    generator, so the same numbers and the same state after (tests/core/test_learners.py checks
     both), in less time than numpy's (the random walk draws m (n + 1) of them per path
     sample)."""
     return rng.standard_normal(size)

@@ -21,38 +21,13 @@ from gbmodel.learners import goal_babbling
 from pipeline import aggregate, fingerprint, report, simulate
 from pipeline.config import CONF_DIR, REPO_ROOT, ConfigError, compose
 from pipeline.plan import code_fingerprint, cost, plan
-from conftest import tiny_overrides
+from conftest import StayParams, stay_home_module, tiny_overrides  # noqa: F401
 
 EXPERIMENTS = sorted(p.stem for p in (CONF_DIR / "experiment").glob("*.yaml"))
 GBMODEL = Path(gbmodel.__file__).resolve().parent
 
 
 # ---- (a) a learner registered at run time -----------------------------------------------------
-@dataclasses.dataclass(frozen=True)
-class StayParams:
-    """A learner that never learns: it commands the home posture for every target."""
-
-    reach: float = 0.0  # unused; a field, to show that the schema is generated from Params
-
-    def validate(self) -> "StayParams":
-        if isinstance(self.reach, bool) or not isinstance(self.reach, (int, float)) \
-                or not self.reach >= 0:
-            raise gbmodel.SpecError("learner.reach", self.reach, "must be >= 0")
-        return self
-
-
-def stay_home_module(name: str = "stay_home") -> types.ModuleType:
-    m = types.ModuleType(name)
-    m.Params = StayParams
-    m.init = lambda params, body, size, rng: None
-    m.draw = lambda params, body, B, rng: (np.zeros(B),)
-    m.train = lambda state, params, body, sizes, scales, draws, epochs: state
-    m.predict = lambda state, params, body, x: np.tile(body.home, (len(x), 1))
-    m.model = lambda state: None
-    m.samples_per_epoch = lambda params, body: 1
-    return m
-
-
 STAY_HOME_YAML = """\
 defaults:
   - stay_home_schema
@@ -495,7 +470,7 @@ def test_the_docs_name_every_module_and_test_file():
     modules = [p for pkg in ("gbmodel", "pipeline") for p in (REPO_ROOT / pkg).rglob("*.py")]
     assert len(modules) > 40
     assert _named("core.md", modules) == []
-    assert _named("tests.md", sorted((REPO_ROOT / "tests").glob("*.py")), folders=False) == []
+    assert _named("tests.md", sorted((REPO_ROOT / "tests").rglob("*.py"))) == []
     assert _named("core.md", [REPO_ROOT / "gbmodel" / "not_a_module.py"]) == [
         "gbmodel/not_a_module.py (not_a_module.py)"]
 

@@ -134,7 +134,7 @@ def test_online_goal_babbling_learns():
     # measured (200 epochs of 106 samples, seeds 0-4): 0.43-0.50 m at first; the mean over
     # epochs 100-200, 21k samples at most, 78, 66, 75, 70, 63 mm (single points 48-121 mm: one
     # global polynomial, stepped sample by sample along a path, wavers); 500 epochs: 26-38 mm.
-    # Goal Babbling (batch) after 300 epochs of 2120 samples: 82 mm (tests/test_core.py)
+    # Goal Babbling (batch) after 300 epochs of 2120 samples: 82 mm (tests/core/test_numerics.py)
     r = _run("online_goal_babbling", 200)
     late = r.abs_error[r.epoch >= 100].mean()
     assert r.abs_error[0] > 0.3 and late < 0.11, late

@@ -8,7 +8,7 @@ import pytest
 import gbmodel
 import gbmodel.learners
 from gbmodel.trial import DRAW_BLOCK
-from test_architecture import stay_home_module
+from conftest import stay_home_module
 
 
 @pytest.fixture

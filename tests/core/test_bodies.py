@@ -1,4 +1,4 @@
-"""Bodies as data (issue 22): every body is one YAML file in conf/body/, gbmodel.make_body builds
+"""Bodies as data: every body is one YAML file in conf/body/, gbmodel.make_body builds
 it from the same plain data, and moving the paper's bodies out of Python changed no result."""
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """The cluster engines' plain parts, without Ray or a cluster: sharding, backend choice, errors.
 
-The engines themselves run end to end in test_backends_slow.py (-m slow).
+The engines themselves run end to end in pipeline/test_backends_slow.py (-m slow).
 """
 import importlib.util
 import random
@@ -137,7 +137,7 @@ def test_unknown_backend_on_the_command_line_exits_2_with_one_line(tmp_path):
     assert len(lines) == 1 and not any(tmp_path.iterdir()), "refused before anything is written"
 
 
-# --- waiting for submitit jobs (what the real SLURM cluster showed; tests/test_engines_cluster.py)
+# --- waiting for submitit jobs (what the real SLURM cluster showed; tests/pipeline/test_engines_cluster.py)
 
 class FakeWatcher:
     def __init__(self):

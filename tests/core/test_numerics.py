@@ -1,6 +1,6 @@
 """Unit tests of the numerical core: features, bodies, growth, the learner's pieces, a trial.
 
-Trials here run Goal Babbling's numpy reference path (learner.fast=false); tests/test_fast.py
+Trials here run Goal Babbling's numpy reference path (learner.fast=false); tests/core/test_fast.py
 checks the compiled path against it.
 """
 import numpy as np

@@ -94,7 +94,7 @@ def test_growth_validation_names_the_field():
         assert err.value.key == key
 
 
-# ---- growth as data (issue 22): every pattern is per-segment data for one mechanism ----------
+# ---- growth as data: every pattern is per-segment data for one mechanism ----------
 
 def test_per_segment_leads_are_the_one_mechanism_behind_proximal_first():
     """proximal_first is per_segment with its computed leads, to the bit."""

@@ -47,7 +47,7 @@ def tree(tmp_path_factory):
         if stage == "pipeline.simulate":
             args += TINY
         if stage == "pipeline.tools.rate":
-            continue  # its rule runs 3 x 20,000 epochs: tests/test_own_experiment.py runs it small
+            continue  # its rule runs 3 x 20,000 epochs: tests/e2e/test_own_experiment.py runs it small
         r = run(args + [f"paths.root={root}"], root)
         done.append((command, r))
     return root, done
@@ -57,7 +57,7 @@ def tree(tmp_path_factory):
 def test_every_readme_command_runs(tree, i):
     root, done = tree
     if COMMANDS[i].split()[2] == "pipeline.tools.rate":
-        pytest.skip("the rate rule's full run is tested small in test_own_experiment.py")
+        pytest.skip("the rate rule's full run is tested small in e2e/test_own_experiment.py")
     command, r = next(d for d in done if d[0] == COMMANDS[i])
     assert r.returncode == 0, f"{command}\n{r.stderr[-2000:]}"
 

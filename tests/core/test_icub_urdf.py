@@ -125,7 +125,7 @@ def test_startup_posture():
     )
 
 
-# ---- the iCub built from its URDF (conf/body/icub_urdf.yaml, issue 22) -------------------------
+# ---- the iCub built from its URDF (conf/body/icub_urdf.yaml) -------------------------
 
 def test_the_urdf_icub_is_the_urdf(urdf):
     """make_body("icub_urdf") computes the URDF's palm exactly (the compiled chain)."""

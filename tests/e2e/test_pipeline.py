@@ -21,7 +21,7 @@ from conftest import figure_trials, files_of, run_cli, tiny_overrides
 
 EXPERIMENTS = sorted(p.stem for p in (CONF_DIR / "experiment").glob("*.yaml"))
 # The readings studies run here on the reference path (every reading, short, one growing
-# condition; the path evaluation is slow), the kernel's agreement is tests/test_readings.py's.
+# condition; the path evaluation is slow), the kernel's agreement is tests/studies/test_readings.py's.
 READINGS = ("learner.fast=false", "learner.epochs=12", "learner.evals_per_decade=3",
             "conditions.periods=[10]")
 CURVE_STATS = [f"{c}_{s}" for c in ("abs_error", "rel_error") for s in ("mean", "std", "q25", "q75")]
@@ -129,7 +129,7 @@ def test_report_regenerates_byte_for_byte_and_publishes_the_committed_reports_fi
     wrote into paths.report; and outputs/report/ (committed, full scale) holds exactly the files
     its report.md lists, every one of which the stage writes. (The scale check is bypassed here:
     a full-scale run takes hours; that it refuses a smoke-scale tree is tested in
-    test_hardening.py.)"""
+    pipeline/test_stage_faults.py.)"""
     committed = REPO_ROOT / "outputs" / "report"
     listed = listed_files(committed / "report.md")
     assert sorted(listed) == sorted(p.relative_to(committed).as_posix()

@@ -1,4 +1,4 @@
-"""Bodies from URDF files (issue 22): the chain compiled into fixed transforms and rotations about
+"""Bodies from URDF files: the chain compiled into fixed transforms and rotations about
 local z is exact against yourdfpy, and such a body learns through pipeline.simulate from a config
 folder of its own (hydra.searchpath)."""
 from __future__ import annotations
@@ -15,7 +15,7 @@ import gbmodel
 from gbmodel.bodies import body_from
 
 yourdfpy = pytest.importorskip("yourdfpy")
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 # skewed axes, fixed joints between the revolute ones, a tool link, and a branch off the chain
 ARM = """<?xml version="1.0"?>
