@@ -5,9 +5,11 @@ import os
 import subprocess
 import sys
 
-from pipeline import cache
+import pytest
+
+from pipeline import cache, cli
 from pipeline.config import REPO_ROOT
-from conftest import figure_trials, tiny_overrides
+from conftest import figure_trials, run_cli, tiny_overrides
 
 
 # `python -m pipeline.simulate ARGS` with Hydra's `now` resolver reading a frozen clock: every
@@ -42,3 +44,27 @@ def test_two_sweeps_of_one_figure_in_one_second_keep_their_own_groups(tmp_path):
     assert sorted(len(list(g.glob("*.json"))) for g in groups) == [2, 2]  # two jobs each
     logs = sorted((tmp_path / "outputs/smoke/logs").glob("simulate-multirun/*"))
     assert len(logs) == 2  # each sweep's multirun.yaml in its own folder
+
+
+# ---- Hydra's own settings are never swept -----------------------------------------------------
+@pytest.mark.parametrize("sweep", [
+    "+hydra.callbacks.x._target_=shutil.copyfile,os.remove",
+    "hydra/launcher=nosuch,basic",
+    "hydra/launcher=basic,joblib",
+    "hydra.launcher.n_jobs=0,1",
+    "hydra/job_logging=default,stdout",
+    "hydra.searchpath=[file:///tmp],[file:///etc]",
+])
+@pytest.mark.parametrize("multirun", [["-m"], []])
+def test_a_sweep_over_hydras_own_settings_is_one_line(tmp_path, sweep, multirun):
+    out = cli.check([*multirun, sweep, f"paths.root={tmp_path}"])
+    assert out is not None and out.startswith(sweep) and "one value per command" in out, out
+    assert "\n" not in out and not any(tmp_path.iterdir())
+
+
+def test_a_hydra_sweep_on_the_command_line_exits_2_before_hydra_starts(tmp_path):
+    r = run_cli("pipeline.simulate", "-m", *tiny_overrides(
+        tmp_path, "+hydra.callbacks.x._target_=shutil.copyfile,os.remove"))
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert r.stderr.startswith("error: +hydra.callbacks.x._target_=shutil.copyfile,os.remove: ")
+    assert not any(tmp_path.iterdir())
