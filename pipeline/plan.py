@@ -28,8 +28,8 @@ import gbmodel.urdf
 from gbmodel.spec import check_int
 from omegaconf import DictConfig, OmegaConf
 
-from .config import (ConfigError, check_backend, check_limits, check_names, check_root,
-                     check_stamp)
+from .config import (ConfigError, check_backend, check_limits, check_names, check_ranges,
+                     check_root, check_stamp)
 from .fingerprint import code_fingerprint, source_fingerprint  # noqa: F401  (the code as run)
 
 log = logging.getLogger(__name__)
@@ -293,6 +293,7 @@ def plan(cfg: DictConfig) -> list[dict]:
     try:
         check_int("trials.count", cfg.trials.count, 1)
         check_run(cfg)
+        check_ranges(cfg)  # the stages' keys (aggregate., report.): a variant's copy lacks them
         for variant, vcfg in variants(cfg):
             check_limits(vcfg)  # a variant's `set` may change what the command line did not
             for cond in conditions(vcfg):
