@@ -341,7 +341,12 @@ def remove_stale_tmp(folder, recursive: bool = False) -> list[Path]:
             if tmp.is_dir() and not tmp.is_symlink():
                 shutil.rmtree(tmp, ignore_errors=True)
             else:
-                tmp.unlink(missing_ok=True)
+                try:
+                    tmp.unlink(missing_ok=True)
+                except OSError as err:  # a read-only folder: the leftover stays, never read
+                    if err.errno not in (errno.EROFS, errno.EACCES, errno.EPERM):
+                        raise
+                    continue
             gone.append(tmp)
     return gone
 

@@ -7,9 +7,9 @@ import sys
 
 import pytest
 
-from pipeline import cache, cli
+from pipeline import cache, cli, io
 from pipeline.config import REPO_ROOT
-from conftest import figure_trials, run_cli, tiny_overrides
+from conftest import figure_trials, files_of, run_cli, tiny_overrides
 
 
 # `python -m pipeline.simulate ARGS` with Hydra's `now` resolver reading a frozen clock: every
@@ -68,3 +68,49 @@ def test_a_hydra_sweep_on_the_command_line_exits_2_before_hydra_starts(tmp_path)
     assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
     assert r.stderr.startswith("error: +hydra.callbacks.x._target_=shutil.copyfile,os.remove: ")
     assert not any(tmp_path.iterdir())
+
+
+# ---- a read-only cache where everything is cached ----------------------------------------------
+F4 = ("experiment=fig4", "figure=f4", "report.explain=false")
+# `unshare -m`: a mount namespace of its own, where the cache is bound read-only (EROFS: root
+# ignores permission bits, not a read-only mount)
+_READ_ONLY = 'mount --bind "$1" "$1" && mount -o remount,bind,ro "$1" && shift && exec "$@"'
+
+
+def _read_only_run(cache_dir, module, *args):
+    env = dict(os.environ, PYTHONPATH=str(REPO_ROOT))
+    return subprocess.run(["unshare", "-m", "sh", "-c", _READ_ONLY, "sh", str(cache_dir),
+                           sys.executable, "-m", module, *args], capture_output=True, text=True,
+                          cwd="/", env=env, timeout=300)
+
+
+def _can_mount_read_only(tmp_path) -> bool:
+    probe = tmp_path / "probe"
+    probe.mkdir()
+    r = subprocess.run(["unshare", "-m", "sh", "-c", _READ_ONLY + " || exit 3", "sh", str(probe),
+                        "touch", str(probe / "x")], capture_output=True, text=True)
+    return r.returncode == 1 and "Read-only" in r.stderr
+
+
+def test_a_read_only_cache_with_everything_cached_is_read(tmp_path):
+    if not _can_mount_read_only(tmp_path):
+        pytest.skip("no read-only bind mount here (unshare -m and mount need CAP_SYS_ADMIN)")
+    args = tiny_overrides(tmp_path, *F4)
+    assert run_cli("pipeline.simulate", *args).returncode == 0
+    cache_dir = tmp_path / "outputs/smoke/cache"
+    kk = next((cache_dir / cache.TRIALS).iterdir())
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True).stdout.strip()
+    leftover = kk / f".x.json~{io._HOST}~{dead}~0.tmp"  # what a killed run of this host leaves
+    leftover.write_text("")
+    before = files_of(cache_dir)
+    for module in ("pipeline.aggregate", "pipeline.simulate", "pipeline.report"):
+        r = _read_only_run(cache_dir, module, *args)
+        assert r.returncode == 0, (module, r.stderr)
+        assert module != "pipeline.simulate" or "6 cached, 0 run" in r.stderr, r.stderr
+    assert (tmp_path / "outputs/smoke/aggregate/f4/summary.parquet").exists()
+    assert files_of(cache_dir) == before and leftover.exists()  # nothing written there
+    # a trial that is not cached needs the cache: one line, before anything runs
+    r = _read_only_run(cache_dir, "pipeline.simulate", *args, "trials.count=2")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert f"{cache_dir}/claims: read-only file system" in r.stderr
