@@ -4,11 +4,13 @@ Hydra's own settings are never swept, and what the code fingerprint covers is pi
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
 from pipeline import cache, cli, io
 from pipeline.config import REPO_ROOT
+from pipeline.fingerprint import source_fingerprint
 from conftest import figure_trials, files_of, run_cli, tiny_overrides
 
 
@@ -114,3 +116,38 @@ def test_a_read_only_cache_with_everything_cached_is_read(tmp_path):
     r = _read_only_run(cache_dir, "pipeline.simulate", *args, "trials.count=2")
     assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
     assert f"{cache_dir}/claims: read-only file system" in r.stderr
+
+
+# ---- what the code fingerprint covers: whole files, on purpose ---------------------------------
+def _evaluation():
+    import gbmodel
+
+    return "gbmodel/evaluation.py", (Path(gbmodel.__file__).parent / "evaluation.py").read_text()
+
+
+def test_an_added_function_no_code_calls_changes_the_fingerprint_on_purpose():
+    """The fingerprint hashes a file's whole syntax tree, not what the kernels reach: a function
+    no code names can still change results (a numba @register_model or @overload, a registry's
+    decorator, a redefinition of a name), so a spurious recompute is accepted, a missed one not."""
+    label, text = _evaluation()
+    base = source_fingerprint([(label, text)])
+    unused = '\n\ndef unused_helper(x):\n    """Called by nothing."""\n    return x + 1\n'
+    assert source_fingerprint([(label, text + unused)]) != base
+    # what cannot change a result changes nothing: comments, docstrings, blank lines
+    assert source_fingerprint([(label, text + "\n\n# a comment\n")]) == base
+    assert source_fingerprint([(label, text.replace('"""', '"""Edited. ', 1))]) == base
+
+
+def test_a_function_no_code_names_can_change_what_a_kernel_computes():
+    """Why reachability is not enough: adding `f` changes `g`'s result without any call of f
+    (the decorator registers it), so following calls from the kernels would miss it."""
+    before = "TABLE = {}\n\ndef g(x):\n    return TABLE.get('scale', lambda v: v)(x)\n"
+    added = ("\n\ndef put(fn):\n    TABLE['scale'] = fn\n    return fn\n\n"
+             "@put\ndef f(v):\n    return 2 * v\n")
+    results = []
+    for text in (before, before + added):
+        scope: dict = {}
+        exec(compile(text, "<module>", "exec"), scope)
+        results.append(scope["g"](3))
+    assert results == [3, 6]
+    assert source_fingerprint([("m.py", before)]) != source_fingerprint([("m.py", before + added)])
