@@ -120,7 +120,10 @@ def check_inside(path) -> Path:
     while not (p.exists() or p.is_symlink()) and p != p.parent:
         p = p.parent
     real = p.resolve()
-    if real != _ROOT[0] and _ROOT[0] not in real.parents:
+    # where the path leads: its existing part resolved, the rest (no links: not there) appended;
+    # a root that does not exist yet is an existing folder's part still to be made
+    led = Path(os.path.normpath(real / path.absolute().relative_to(p)))
+    if led != _ROOT[0] and _ROOT[0] not in led.parents:
         raise UnsafeName(f"{path}: leads outside paths.root={_ROOT[0]} (through {p} -> {real}); "
                          "remove that link")
     return path

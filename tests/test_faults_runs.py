@@ -151,3 +151,10 @@ def test_a_function_no_code_names_can_change_what_a_kernel_computes():
         results.append(scope["g"](3))
     assert results == [3, 6]
     assert source_fingerprint([("m.py", before)]) != source_fingerprint([("m.py", before + added)])
+
+
+def test_a_root_that_does_not_exist_yet_is_made(tmp_path):
+    root = tmp_path / "new" / "root"
+    r = run_cli("pipeline.simulate", *tiny_overrides(root, *F4))
+    assert r.returncode == 0, r.stderr
+    assert (root / "outputs/smoke/cache/plans/f4/current.json").exists()
