@@ -107,6 +107,10 @@ def check(argv: list[str]) -> str | None:
     too_many = check_sweep_size(parsed)
     if too_many:
         return too_many
+    for o in parsed:  # callbacks, launchers, the searchpath: composed and checked once
+        if o.is_hydra_override() and o.is_sweep_override():
+            return (f"{o.input_line}: Hydra's own settings take one value per command; "
+                    "sweep the stage's keys only")
     choices = []
     for o in parsed:
         if o.is_hydra_override():
@@ -121,7 +125,7 @@ def check(argv: list[str]) -> str | None:
         else:
             choices.append([o.input_line])
     hydra_own = [o.input_line for o in parsed if o.is_hydra_override()
-                 and not o.is_sweep_override() and o.get_key_element() != "hydra.searchpath"]
+                 and o.get_key_element() != "hydra.searchpath"]
     planned, notes = {}, []
     for n, combination in enumerate(itertools.islice(itertools.product(*choices),
                                                      _MAX_COMBINATIONS)):

@@ -9,7 +9,11 @@ Checks of *values* live in gbmodel (TrialSpec.validate) and pipeline.plan.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import importlib.util
+import os
+import socket
+import time
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -237,8 +241,19 @@ def register_schemas() -> None:
                  node=schema_of(params, f"{name}_conf", LEARNER_EXTRA))
 
 
+def sweep_tag() -> str:
+    """A name part no other sweep gets (this host, process and nanosecond, hashed): two sweeps
+    started in the same second get their own folder, so their plan records make two groups
+    (pipeline.cli.hydra_run). Resolved once per sweep: Hydra caches it like `now` and copies the
+    cache to every job's config, in any launcher."""
+    who = f"{socket.gethostname()}/{os.getpid()}/{time.time_ns()}"
+    return hashlib.sha256(who.encode()).hexdigest()[:8]
+
+
 if not OmegaConf.has_resolver("repo_root"):
     OmegaConf.register_new_resolver("repo_root", lambda: str(REPO_ROOT))
+if not OmegaConf.has_resolver("sweep_tag"):
+    OmegaConf.register_new_resolver("sweep_tag", sweep_tag, use_cache=True)
 register_schemas()
 
 

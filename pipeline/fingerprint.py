@@ -43,7 +43,9 @@ def _code_of(source: str) -> str:
 
 def source_fingerprint(sources) -> str:
     """Hash of the code of `sources`, (name, source text) pairs (names + syntax trees): a change
-    of what the code computes changes it; comments, docstrings and layout do not."""
+    of what the code computes changes it; comments, docstrings and layout do not. Whole files,
+    not what the kernels reach: a function no code names can still change results (a numba
+    extension's decorator, a registry), so an added unused function recomputes, on purpose."""
     h = hashlib.sha256()
     for name, text in sorted(sources):
         h.update(name.encode() + b"\0")

@@ -120,8 +120,11 @@ def check_inside(path) -> Path:
     p = full
     while not (p.exists() or p.is_symlink()) and p != p.parent:
         p = p.parent
-    real = p.resolve() / full.relative_to(p)  # links only in the part that exists
-    if real != _ROOT[0] and _ROOT[0] not in real.parents:
+    real = p.resolve()
+    # where the path leads: its existing part resolved, the rest (no links: not there) appended;
+    # a root that does not exist yet is an existing folder's part still to be made
+    led = real / full.relative_to(p)
+    if led != _ROOT[0] and _ROOT[0] not in led.parents:
         raise UnsafeName(f"{path}: leads outside paths.root={_ROOT[0]} (through {p} -> {real}); "
                          "remove that link")
     return path
@@ -342,7 +345,12 @@ def remove_stale_tmp(folder, recursive: bool = False) -> list[Path]:
             if tmp.is_dir() and not tmp.is_symlink():
                 shutil.rmtree(tmp, ignore_errors=True)
             else:
-                tmp.unlink(missing_ok=True)
+                try:
+                    tmp.unlink(missing_ok=True)
+                except OSError as err:  # a read-only folder: the leftover stays, never read
+                    if err.errno not in (errno.EROFS, errno.EACCES, errno.EPERM):
+                        raise
+                    continue
             gone.append(tmp)
     return gone
 

@@ -242,14 +242,17 @@ def plan_digest(cfg: DictConfig, overrides) -> str:
 
 
 def check_paths(cfg: DictConfig) -> None:
-    """Every output folder is a folder (or can become one)."""
+    """Every output folder is a folder (or can become one), and writable, except the cache: a
+    read-only cache where every trial is cached is read, never written (aggregate, report, and
+    simulate with nothing to run); a write it would need fails there in one line (a disk error,
+    pipeline.cli.finish) before any trial runs: the claims come first."""
     for key in ("root", "out", "cache", "aggregate", "report", "published", "bench"):
         path = Path(cfg.paths[key])
         for p in [path, *path.parents]:
             if p.exists():
                 if not p.is_dir():
                     _bad(f"paths.{key}", str(path), f"{p} is a file, not a folder")
-                if not os.access(p, os.W_OK | os.X_OK) and p == path:
+                if key != "cache" and not os.access(p, os.W_OK | os.X_OK) and p == path:
                     _bad(f"paths.{key}", str(path), "is not writable")
                 break
 
@@ -294,6 +297,7 @@ def plan(cfg: DictConfig) -> list[dict]:
     try:
         check_int("trials.count", cfg.trials.count, 1)
         check_run(cfg)
+        check_ranges(cfg)  # the stages' keys (aggregate., report.): a variant's copy lacks them
         for variant, vcfg in variants(cfg):
             check_limits(vcfg)  # a variant's `set` may change what the command line did not
             for cond in conditions(vcfg):
