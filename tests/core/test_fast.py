@@ -12,13 +12,14 @@ Tolerances, and what was measured (this kernel; the one before it measured alike
 - a 200-epoch learning curve: 1e-5 m (measured 3e-8 m for arm5 and for iCub), M 1e-4 (2e-7).
 """
 import dataclasses
+import hashlib
 
 import numpy as np
 import pytest
 
 import gbmodel
 from gbmodel import evaluation, simd
-from gbmodel.features import exponents
+from gbmodel.features import exponents, monomial_tree
 from gbmodel.growth import factors
 from gbmodel.learners import goal_babbling as gb
 from gbmodel.learners.goal_babbling import fast, reference
@@ -155,3 +156,75 @@ def test_arrays_cached_per_body():
     assert fast._arrays(body, exps) is fast._arrays(body, exponents(body.n))
     other = dataclasses.replace(body, saturates=not body.saturates)
     assert fast._arrays(other, exps) is not fast._arrays(body, exps)
+
+
+def _online_scalar(M, x, q, w, exps, eta):
+    """updates=online (reference.update) as one scalar float64 loop: each feature a parent
+    monomial times one coordinate, M phi summed over k from 0, every entry's step rounded on its
+    own, the samples of weight 0 skipped."""
+    parent, var = monomial_tree(exps)
+    M = [[float(v) for v in row] for row in M]
+    for xt, qt, wt in zip(x, q, w):
+        if wt == 0:
+            continue
+        phi = [1.0]
+        for k in range(1, len(exps)):
+            phi.append(phi[parent[k]] * float(xt[var[k]]))
+        g = eta * float(wt)
+        r = []
+        for i, row in enumerate(M):
+            acc = 0.0
+            for mk, fk in zip(row, phi):
+                acc += mk * fk
+            r.append(g * (acc - float(qt[i])))
+        for ri, row in zip(r, M):
+            for k, fk in enumerate(phi):
+                row[k] -= ri * fk
+    return np.array(M)
+
+
+@pytest.mark.parametrize("name, kw", [
+    ("arm5", dict(variations=6)),
+    ("icub", dict(variations=3)), ("icub_urdf", dict(variations=3)),
+    ("arm5", dict(variations=6, degree=2)),  # p = 6
+])
+def test_online_updates_are_the_scalar_loop_bit_for_bit(name, kw):
+    """The kernel's per-sample steps (vectors over the rows of M) give the bytes of a scalar
+    float64 loop over the samples, on the epoch's own samples, and with some weights set to 0
+    (those samples skipped, runs of them across the kernel's chunks of samples included)."""
+    body = gbmodel.make_body(name)
+    params = gb.Params(**SETTINGS["icub" if body.n == 3 else name], updates="online", **kw)
+    exps = exponents(body.n, params.degree)
+    rng = np.random.default_rng(5)
+    M = gb.init(params, body, 1.0, rng)
+    idx, raw = gb.draw(params, body, 1, rng)
+    M_fast, q, x, w = fast.epoch_samples(M, body, params, exps, 1.0, np.ones(body.m), idx[0],
+                                         raw[0])
+    x, q, w = x.reshape(-1, body.n), q.reshape(-1, body.m), w.reshape(-1)
+    expect = _online_scalar(M, x, q, w, exps, params.learning_rate)
+    assert not np.array_equal(expect, M), "the epoch must change M"
+    assert M_fast.tobytes() == expect.tobytes()
+    w = w.copy()
+    w[::7] = 0
+    w[100:300] = 0
+    parent, var = monomial_tree(exps)
+    M_zero = np.array(M)
+    fast._online(M_zero, np.ascontiguousarray(x.T), np.ascontiguousarray(q.T), w, len(w), parent,
+                 var, params.learning_rate)
+    assert M_zero.tobytes() == _online_scalar(M, x, q, w, exps, params.learning_rate).tobytes()
+
+
+# sha256[:16] of a 30-epoch trial's curve and final M (updates=online, seed 1): the bytes of the
+# scalar float64 loop of _online_scalar
+ONLINE_TRIALS = {"arm2": "1aa073a40d264fe4", "arm5": "022207acc1aaa1ee",
+                 "icub": "a1075848774fcbe5"}
+
+
+@pytest.mark.parametrize("name", sorted(ONLINE_TRIALS))
+def test_online_updates_trial_bytes_are_pinned(name):
+    spec = gbmodel.TrialSpec(body={"name": name},
+                             learner={"name": "goal_babbling", "fast": True,
+                                      "updates": "online"}, epochs=30)
+    r = gbmodel.run_trial(spec, np.random.default_rng(1))
+    digest = hashlib.sha256(r.abs_error.tobytes() + r.M.tobytes()).hexdigest()[:16]
+    assert digest == ONLINE_TRIALS[name]

@@ -45,13 +45,15 @@ from numba import njit
 from ...features import monomial_tree
 from ...kinematics import chain_layout
 from ...simd import (
-    F4, LANES, _1, _HALF, chain_kinematics, vadd, vclip, vdiv, vfma, vload, vload1, vmul, vsplat,
-    vsqrt, vstore, vstore1, vsub, vsum, vwhere,
+    F4, LANES, W8, _1, _HALF, chain_kinematics, vadd, vadd8, vclip, vdiv, vfma, vload, vload1,
+    vload8, vload18, vmul, vmul8, vsplat, vsplat8, vsqrt, vstore, vstore1, vstore8, vstore18,
+    vsub, vsub8, vsum, vwhere,
 )
 from .reference import NO_MOVEMENT
 from .solve import Solved, cholesky_solve
 
 _BLOCK = 512  # columns per block of features, residuals and gradient (multiple of LANES)
+_CHUNK = 128  # samples whose float64 features and commands are laid out together (updates=online)
 _TILE = 5  # rows of a register tile of M Phi and of the gradient (m = 5, 10; p = 10, 20)
 
 @njit(cache=True)
@@ -310,25 +312,78 @@ def _gradient_step(M, M32, X, Q, w, Npad, parent, var, Phi, Rw, GL, eta):
 @njit(cache=True)
 def _online(M, X, Q, w, N, parent, var, eta):
     """One step per sample, columns 0 ... N-1 in order (reference.update, updates=online), in
-    float64 scalars: M -= eta w_t (M phi_t - q_t) phi_t^T."""
+    float64: M -= eta w_t (M phi_t - q_t) phi_t^T, skipping the samples of weight 0.
+
+    The features of _CHUNK samples at a time first (float64, one product per entry); then the
+    rows of M are the lanes of F64x8 vectors (M kept transposed, MT (p, W), zero-padded to whole
+    vectors), two vectors at a time while k runs, and one pass over M per sample does its step
+    and the next sample's prediction M_new phi_t+1 together. Every entry's update and every sum
+    (k in order, from 0) is the scalar loop's, with * and + rounded separately: the same bytes
+    as a scalar float64 loop, on every CPU."""
     m, p = M.shape
-    phi = np.empty(p)
-    r = np.empty(m)
-    for c in range(N):
-        if w[c] == 0:
+    W = -(-m // W8) * W8
+    MT = np.zeros((p, W))
+    for i in range(m):
+        for k in range(p):
+            MT[k, i] = M[i, k]
+    Ph = np.empty((p, _CHUNK))
+    cols = np.empty(_CHUNK + 1, np.int64)  # the chunk's columns of nonzero weight
+    QT = np.zeros((_CHUNK, W))  # the chunk's commands, float64, a row per sample
+    g = np.zeros(W)  # M phi_t
+    for c0 in range(0, N, _CHUNK):
+        C = min(_CHUNK, N - c0)
+        n_w = 0
+        for j in range(C):
+            if w[c0 + j] != 0:
+                cols[n_w] = j
+                n_w += 1
+        if n_w == 0:
             continue
-        phi[0] = 1.0
+        cols[n_w] = cols[n_w - 1]  # after the last: a prediction that is not used
+        for j in range(C):
+            for i in range(m):
+                QT[j, i] = float(Q[i, c0 + j])
+        Ph[0, :C] = 1.0
         for k in range(1, p):
-            phi[k] = phi[parent[k]] * float(X[var[k], c])
-        g = eta * float(w[c])
-        for i in range(m):
-            acc = 0.0
+            src, coord = parent[k], var[k]
+            for j in range(C):
+                Ph[k, j] = Ph[src, j] * float(X[coord, c0 + j])
+        c = cols[0]
+        for j in range(0, W, W8):
+            acc = vsplat8(0.0)
             for k in range(p):
-                acc += M[i, k] * phi[k]
-            r[i] = g * (acc - float(Q[i, c]))
-        for i in range(m):
-            for k in range(p):
-                M[i, k] -= r[i] * phi[k]
+                acc = vadd8(acc, vmul8(vload8(MT, k, j), vsplat8(Ph[k, c])))
+            vstore18(g, j, acc)
+        for t in range(n_w):
+            c, nxt = cols[t], cols[t + 1]
+            ge = vsplat8(eta * float(w[c0 + c]))
+            j = 0
+            while j + 2 * W8 <= W:  # two vectors of rows: two independent chains of sums
+                s0 = vmul8(ge, vsub8(vload18(g, j), vload8(QT, c, j)))
+                s1 = vmul8(ge, vsub8(vload18(g, j + W8), vload8(QT, c, j + W8)))
+                a0 = a1 = vsplat8(0.0)
+                for k in range(p):
+                    f, h = vsplat8(Ph[k, c]), vsplat8(Ph[k, nxt])
+                    v0 = vsub8(vload8(MT, k, j), vmul8(s0, f))
+                    v1 = vsub8(vload8(MT, k, j + W8), vmul8(s1, f))
+                    vstore8(MT, k, j, v0)
+                    vstore8(MT, k, j + W8, v1)
+                    a0 = vadd8(a0, vmul8(v0, h))
+                    a1 = vadd8(a1, vmul8(v1, h))
+                vstore18(g, j, a0)
+                vstore18(g, j + W8, a1)
+                j += 2 * W8
+            if j < W:
+                s0 = vmul8(ge, vsub8(vload18(g, j), vload8(QT, c, j)))
+                a0 = vsplat8(0.0)
+                for k in range(p):
+                    v0 = vsub8(vload8(MT, k, j), vmul8(s0, vsplat8(Ph[k, c])))
+                    vstore8(MT, k, j, v0)
+                    a0 = vadd8(a0, vmul8(v0, vsplat8(Ph[k, nxt])))
+                vstore18(g, j, a0)
+    for i in range(m):
+        for k in range(p):
+            M[i, k] = MT[k, i]
 
 
 @njit(cache=True)
