@@ -10,7 +10,8 @@ and their ratio. Then the same for online Goal Babbling's compiled path (its epo
 samples and the returns home, its random walk drawn with it) and the ratio of its median to the
 batch fast path's median of the same run (the target: at most 2), in wall-clock and in CPU
 time, and Goal Babbling with learner.solver=lstsq (its epoch: the Gram sums and the p x p solve
-instead of the gradient step) against the gradient epoch. The four paths' trials are
+instead of the gradient step) against the gradient epoch, and Goal Babbling with
+learner.updates=online (one step per sample) against the batch epoch. The paths' trials are
 interleaved (pipeline.tools.bench.paired), so that a shared machine's drifting speed moves them alike.
 With bench.parallel, it also times the same batch of arm5 trials on one and on two worker
 processes of the pipeline's executor. Writes paths.bench/bench.json.
@@ -34,7 +35,8 @@ from ..plan import plan
 
 # epochs per timed trial: long enough to swamp timer noise, short enough for the reference path
 EPOCHS = {"fast": {"arm5": 5000, "icub": 1000}, "reference": {"arm5": 100, "icub": 20},
-          "online": {"arm5": 5000, "icub": 1000}, "lstsq": {"arm5": 5000, "icub": 1000}}
+          "online": {"arm5": 5000, "icub": 1000}, "lstsq": {"arm5": 5000, "icub": 1000},
+          "updates_online": {"arm5": 5000, "icub": 1000}}
 
 
 def paper_spec(body: str, epochs: int, fast: bool, learner: str = "goal_babbling",
@@ -114,10 +116,13 @@ def bench(cfg: DictConfig) -> dict:
     for body in ("arm5", "icub"):
         for learner in ("goal_babbling", "online_goal_babbling"):  # compile or load the kernels
             time_trial(paper_spec(body, 10, True, learner))       # outside the timing
+        time_trial(paper_spec(body, 10, True, extra=("learner.updates=online",)))
         specs = {"fast": paper_spec(body, EPOCHS["fast"][body], True),
                  "online": paper_spec(body, EPOCHS["online"][body], True, "online_goal_babbling"),
                  "lstsq": paper_spec(body, EPOCHS["lstsq"][body], True,
                                      extra=("learner.solver=lstsq",)),
+                 "updates_online": paper_spec(body, EPOCHS["updates_online"][body], True,
+                                              extra=("learner.updates=online",)),
                  "reference": paper_spec(body, EPOCHS["reference"][body], False)}
         times, row = paired(specs, repeats), {}
         for path in specs:
@@ -132,6 +137,8 @@ def bench(cfg: DictConfig) -> dict:
         row["online_draw_us_per_epoch"] = 1e6 * draw_time(specs["online"])
         row["lstsq_over_gradient"] = (row["lstsq_us_per_trial_epoch"]
                                       / row["fast_us_per_trial_epoch"])
+        row["updates_online_over_batch"] = (row["updates_online_us_per_trial_epoch"]
+                                            / row["fast_us_per_trial_epoch"])
         result[body] = row
         print(f"{body}: fast {row['fast_us_per_trial_epoch']:8.1f} us/trial-epoch   "
               f"reference {row['reference_us_per_trial_epoch']:9.1f} us/trial-epoch   "
@@ -141,7 +148,9 @@ def bench(cfg: DictConfig) -> dict:
               f"{row['online_over_batch_cpu']:.2f}; its draws alone "
               f"{row['online_draw_us_per_epoch']:.1f} us/epoch)   "
               f"lstsq {row['lstsq_us_per_trial_epoch']:8.1f} us/trial-epoch, lstsq/gradient "
-              f"{row['lstsq_over_gradient']:.2f}", flush=True)
+              f"{row['lstsq_over_gradient']:.2f}   updates=online "
+              f"{row['updates_online_us_per_trial_epoch']:8.1f} us/trial-epoch, online/batch "
+              f"{row['updates_online_over_batch']:.2f}", flush=True)
     if cfg.bench.parallel:
         result["parallel"] = p = parallel_speedup()
         print(f"parallel: {p['trials']} arm5 trials, 1 worker {p['wall_s_1_worker']:.1f} s, "

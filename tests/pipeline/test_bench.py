@@ -22,3 +22,6 @@ def test_bench_writes_medians_and_the_fast_path_wins(tmp_path):
         # the lstsq solver's epoch against the gradient epoch
         assert row["lstsq_over_gradient"] == (row["lstsq_us_per_trial_epoch"]
                                               / row["fast_us_per_trial_epoch"])
+        # Goal Babbling with updates=online against the batch epoch
+        assert row["updates_online_over_batch"] == (row["updates_online_us_per_trial_epoch"]
+                                                    / row["fast_us_per_trial_epoch"])

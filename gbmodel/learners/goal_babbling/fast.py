@@ -12,8 +12,8 @@ float32 vector loops over the samples of an epoch:
   gradient);
 - the rollout runs in float32; M stays float64 and is updated once per epoch (updates=batch;
   updates=steps repeats the gradient pass, updates=online goes sample by sample in float64
-  scalars). Positions agree with the float64 reference to ~2e-7 m (tests/core/test_fast.py states the
-  tolerances);
+  vectors over M's rows, _online). Positions agree with the float64 reference to ~2e-7 m
+  (tests/core/test_fast.py states the tolerances);
 - the hand is carried backwards through the chain, one rotation about z per joint, in
   registers, LANES samples at a time: DH rows, or a general (URDF) chain's fixed rotation and
   translation per joint (gbmodel.kinematics.chain_layout, simd.chain_kinematics);
