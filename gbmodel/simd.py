@@ -15,7 +15,7 @@ computes lane by lane what it writes, on every x86-64 CPU:
 lane); vadd ... vfma are single IEEE operations (vfma: llvm.fma, rounded once; vdiv, vsqrt
 correctly rounded); vsum adds the lanes in a fixed tree; sincos is a branch-free polynomial
 (Cephes' kernels after a Cody-Waite reduction). Nothing is compiled with fastmath.
-tests/test_kernel_targets.py checks the kernels bit for bit across CPU targets.
+tests/core/test_kernel_targets.py checks the kernels bit for bit across CPU targets.
 """
 from __future__ import annotations
 

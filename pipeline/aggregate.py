@@ -293,10 +293,12 @@ def code_of_stage() -> str:
     return source_fingerprint((n, (here / n).read_text()) for n in CODE)
 
 
-def inputs_digest(figure: str, conds: dict, fail_factor: float) -> str:
+def inputs_digest(figure: str, conds: dict, fail_factor: float, paper=None) -> str:
     """What one figure's aggregate is made of: its conditions (label, settings, trials' seals),
-    the failure factor and the code of this stage. The same digest, the same files."""
-    body = dict(figure=figure, fail_factor=fail_factor, code=code_of_stage(),
+    the experiment's paper block (its study, claims, the paper's numbers: the summary and
+    models.json carry it), the failure factor and the code of this stage. The same digest, the
+    same files."""
+    body = dict(figure=figure, fail_factor=fail_factor, code=code_of_stage(), paper=paper,
                 conditions=[[k, c["id"], c["variant"], sorted(c["trials"]), c["missing"],
                              c["seals"]] for k, c in conds.items()])
     return hashlib.sha256(io.dump_json(body).encode()).hexdigest()[:20]
@@ -313,7 +315,7 @@ def aggregate_figure(cfg: DictConfig, fig: str) -> tuple[list[str], bool]:
         conds, paper, problems = load_trials(cfg.paths.cache, fig, previous)
     except io.DamagedFile as err:
         return [f"{err}; the figure's aggregate is left as it was"], False
-    digest = inputs_digest(fig, conds, cfg.aggregate.fail_factor)
+    digest = inputs_digest(fig, conds, cfg.aggregate.fail_factor, paper)
     try:
         old = io.read_json(folder / "manifest.json")
     except (OSError, ValueError):

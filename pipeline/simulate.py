@@ -19,12 +19,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import gbmodel
+import gbmodel.urdf
 import hydra
 from omegaconf import DictConfig, OmegaConf
 
 from . import cache, cli, execute, io
 from .config import check_backend
-from .plan import PLANNED, check_run, cost, plan, plan_conditions, plan_digest
+from .plan import (PLANNED, check_run, code_fingerprint, cost, plan, plan_conditions,
+                   plan_digest)
 from .progress import Progress
 
 log = logging.getLogger("pipeline.simulate")
@@ -82,7 +84,8 @@ def jobs_of(cfg: DictConfig, overrides: list[str] = ()) -> list[Job]:
     experiment = None if cfg.get("experiments") else _experiment_of(cfg)
     saved = Path(cfg.paths.out) / PLANNED / f"{plan_digest(cfg, [overrides, experiment])}.json"
     try:
-        jobs = unpack_jobs(io.read_json(saved, need=("jobs", "specs")))
+        packed = io.read_json(saved, need=("jobs", "specs"))
+        jobs = unpack_jobs(packed) if still_planned(packed) else None
     except (OSError, ValueError, TypeError, KeyError, IndexError):
         jobs = None
     if jobs is not None:
@@ -110,6 +113,25 @@ def pack_jobs(jobs: list[Job]) -> dict:
             trials.append({**{k: v for k, v in t.items() if k != "spec"}, "spec": ix})
         out.append({**vars(j), "trials": trials})
     return dict(specs=specs, jobs=out)
+
+
+def still_planned(saved: dict) -> bool:
+    """Whether saved jobs are what planning would give now, beyond what plan_digest covers:
+    every file a body reads (a URDF, outside the project's folders) has the bytes it was
+    planned with, and every trial's code fingerprint is that of the code this process runs
+    (code_fingerprint: cached per learner, and it refuses a file edited after the import)."""
+    specs = saved["specs"]
+    for spec in specs:
+        urdf = spec["body"].get("urdf")
+        if isinstance(urdf, dict) and "file" in urdf:
+            try:
+                if gbmodel.urdf.digest(urdf["file"]) != urdf.get("sha256"):
+                    return False
+            except (OSError, ValueError):
+                return False
+    codes = {(specs[t["spec"]]["learner"]["name"], t["code"]) for j in saved["jobs"]
+             for t in j["trials"]}
+    return all(code_fingerprint(name) == code for name, code in codes)
 
 
 def unpack_jobs(saved: dict) -> list[Job]:

@@ -28,7 +28,7 @@ PACKAGES = ("numpy", "numba", "scipy", "pandas", "pyarrow", "matplotlib", "hydra
             "omegaconf")
 LOCK = REPO_ROOT / "requirements.lock"
 # CPU seconds per unit of pipeline.plan.cost: Goal Babbling's fast path on arm5, the unit of the
-# cost model (`python -m pipeline.bench_costs`, its first row, in ns)
+# cost model (`python -m pipeline.tools.bench_costs`, its first row, in ns)
 SECONDS_PER_COST = 1.9e-9
 # Third-party robot models a report may use: body name -> (what, source, licence)
 CREDITS = {
@@ -145,7 +145,7 @@ def markdown(aggs: dict) -> list[str]:
         md.append(f"| {name} | {n} | " + (f"{seconds:.1f} s |" if seconds < 60
                                            else f"{seconds / 60:.1f} min |"))
     md += ["", "CPU time: the plan's cost model (pipeline.plan.cost) on Goal Babbling's "
-           "calibration (pipeline.bench_costs), not a measurement of this run. The final models of every "
+           "calibration (pipeline.tools.bench_costs), not a measurement of this run. The final models of every "
            "condition: `models/<figure>.json` (`pipeline.models.load(figure)`).", ""]
     lines = credits(aggs)
     md += ["## Credits", "",

@@ -116,3 +116,16 @@ def test_added_trials_are_the_only_ones_read(sweep, reads, tmp_path):
     assert aggregate.aggregate(sweep) == []
     assert len(reads) == 2
     assert files_of(Path(sweep.paths.aggregate) / "custom") == built_from_nothing(sweep, tmp_path)
+
+
+def test_an_edited_paper_block_rebuilds_the_aggregate(tmp_path, compose_tiny):
+    """The experiment's paper block (the paper's numbers, its study, the figures it is judged
+    on) is in the summary and models.json: changing it rebuilds the figure."""
+    import pandas as pd
+
+    for value in (0.02, 0.05):
+        cfg = compose_tiny(tmp_path, "experiment=fig4", f"paper.final_abs_error={value}")
+        simulate.simulate(cfg)
+        aggregate.aggregate(cfg)
+        summary = pd.read_parquet(Path(cfg.paths.aggregate) / "fig4" / "summary.parquet")
+        assert set(summary["paper_final_abs_error"]) == {value}

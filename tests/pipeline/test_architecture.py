@@ -511,3 +511,23 @@ def test_every_hydra_command_finds_the_config_folder():
             found += 1
             assert (path.parent / rel).resolve() == (REPO_ROOT / "conf").resolve(), path
     assert found >= 5
+
+
+def test_every_test_file_and_command_the_project_names_exists():
+    """A path `tests/...py` or a command `python -m pipeline...` named in the README, the docs,
+    the configs or the code is a file or module that exists (files move; their mentions must
+    move with them)."""
+    import importlib.util
+    texts = [REPO_ROOT / "README.md", *(REPO_ROOT / "docs").glob("*.md"),
+             *(REPO_ROOT / "conf").rglob("*.yaml"), *(REPO_ROOT / "examples").glob("*.py"),
+             *(REPO_ROOT / "gbmodel").rglob("*.py"), *(REPO_ROOT / "pipeline").rglob("*.py"),
+             REPO_ROOT / "Makefile"]
+    files, modules = set(), set()
+    for path in texts:
+        text = path.read_text()
+        files |= set(re.findall(r"\btests/[\w/]+\.py", text))
+        modules |= set(re.findall(r"-m (pipeline(?:\.\w+)+)", text))
+        modules |= set(re.findall(r"`(pipeline\.tools\.\w+)`", text))
+    assert files and modules
+    assert sorted(f for f in files if not (REPO_ROOT / f).exists()) == []
+    assert sorted(m for m in modules if importlib.util.find_spec(m) is None) == []

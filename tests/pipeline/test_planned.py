@@ -74,3 +74,39 @@ def test_a_conditions_spec_is_stored_once(tmp_path, compose_tiny):
     assert len(stored["specs"]) == 2 and len(jobs[0].trials) == 10
     assert [vars(j) for j in simulate.unpack_jobs(stored)] == json.loads(io.dump_json(
         [vars(j) for j in jobs]))
+
+
+def test_an_edited_urdf_file_plans_again(tmp_path, compose_tiny):
+    """A URDF lies outside the folders plan_digest hashes: saved jobs whose body file changed
+    since are planned again (new keys), not reused and then refused by read_chain forever."""
+    import gbmodel.urdf
+    from pipeline.config import compose
+
+    from omegaconf import OmegaConf
+    src = gbmodel.urdf.resolve(OmegaConf.to_container(compose(["body=ergo_jr"]).body.urdf.file))
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_bytes(Path(src).read_bytes())
+    over = ["body=ergo_jr", f"body.urdf.file={urdf}", "growth=none"]
+    cfg = compose_tiny(tmp_path, *over)
+    first = simulate.jobs_of(cfg, over)
+    text = urdf.read_text()
+    i = text.index('xyz="') + 5
+    urdf.write_text(text[:i] + "0.001 " + text[i:].split(" ", 1)[1])  # one origin moved
+    again = simulate.jobs_of(cfg, over)
+    keys = lambda jobs: [t["key"] for j in jobs for t in j.trials]  # noqa: E731
+    assert keys(again) != keys(first)
+    assert {j.trials[0]["spec"]["body"]["urdf"]["sha256"] for j in again} == {
+        gbmodel.urdf.digest(str(urdf))}
+
+
+def test_saved_jobs_of_other_code_plan_again(tmp_path, compose_tiny, monkeypatch):
+    """Saved jobs carry their trials' code fingerprint; one that is not the running code's is
+    planned again."""
+    cfg = compose_tiny(tmp_path)
+    first = simulate.jobs_of(cfg, [])
+    monkeypatch.setattr(simulate, "code_fingerprint", lambda name: "0" * 16)
+    assert simulate.still_planned(io.read_json(saved(cfg)[0])) is False
+    monkeypatch.undo()
+    assert simulate.still_planned(io.read_json(saved(cfg)[0])) is True
+    assert [t["key"] for t in simulate.jobs_of(cfg, [])[0].trials] == [
+        t["key"] for t in first[0].trials]

@@ -24,7 +24,7 @@ float32 vector loops over the samples of an epoch:
   over the epoch whose sum is float64.
 
 Bit-identical results on every x86-64 CPU, with or without AVX-512, whatever vector width LLVM
-prefers (tests/test_kernel_targets.py: AVX2 + FMA, AVX-512, and the SSE2 baseline without FMA):
+prefers (tests/core/test_kernel_targets.py: AVX2 + FMA, AVX-512, and the SSE2 baseline without FMA):
 - every loop over samples is written on explicit LANES-wide vectors (`F32x16`, gbmodel/simd.py:
   LLVM <16 x float>, one zmm register, or two ymm halves without AVX-512, with the same result lane
   by lane), so the compiler never chooses how to split a sum: every sum over samples (the
