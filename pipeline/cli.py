@@ -127,6 +127,7 @@ def check(argv: list[str]) -> str | None:
     hydra_own = [o.input_line for o in parsed if o.is_hydra_override()
                  and o.get_key_element() != "hydra.searchpath"]
     planned, notes = {}, []
+    n_jobs = math.prod(len(c) for c in choices)
     for n, combination in enumerate(itertools.islice(itertools.product(*choices),
                                                      _MAX_COMBINATIONS)):
         try:  # values too: every sweep job is checked up front
@@ -136,7 +137,8 @@ def check(argv: list[str]) -> str | None:
             if n == 0:
                 check_experiments(cfg, list(combination))
             check_keys(cfg)
-            trials = plan(cfg)  # checks the values, the limits before planning
+            trials = plan(cfg, remember=n_jobs == 1)  # checks the values, the limits; one job:
+            # its stage takes this plan instead of planning again
             notes += [n for n in config_notes(cfg) if n not in notes]
             keeps_experiment(list(combination), trials)
             planned.setdefault(cfg.figure, []).extend(trials)

@@ -287,12 +287,37 @@ def check_run(cfg: DictConfig) -> None:
     check_paths(cfg)
 
 
-def plan(cfg: DictConfig) -> list[dict]:
+_CHECKED: dict[str, list] = {}  # the plan the command-line check made, taken once by its stage
+
+
+def _config_key(cfg: DictConfig) -> str | None:
+    try:
+        return _canonical(OmegaConf.to_container(cfg, resolve=True))
+    except Exception:  # an interpolation only Hydra's own run resolves: no reuse
+        return None
+
+
+def plan(cfg: DictConfig, remember: bool = False) -> list[dict]:
     """Every trial of the config as plain data, in order (variant, condition, trial index).
 
     Each trial carries its content (key, spec, seed, code), content-derived labels (body,
     learner, growth pattern, period, trial index) and where this config uses it: the figure, the
-    condition's id, its growth label (TG<period> / const<size>) and its variant, if any."""
+    condition's id, its growth label (TG<period> / const<size>) and its variant, if any.
+
+    remember: keep the plan for the next plan() of the same config in this process, once (the
+    command-line check plans before Hydra starts the stage, which then takes that plan instead
+    of planning again: the config is checked once per stage)."""
+    key = _config_key(cfg) if (remember or _CHECKED) else None
+    if key is not None and key in _CHECKED:
+        return _CHECKED.pop(key)
+    trials = _plan(cfg)
+    if remember and key is not None:
+        _CHECKED.clear()
+        _CHECKED[key] = trials
+    return trials
+
+
+def _plan(cfg: DictConfig) -> list[dict]:
     trials = []
     try:
         check_int("trials.count", cfg.trials.count, 1)

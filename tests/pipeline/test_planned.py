@@ -110,3 +110,24 @@ def test_saved_jobs_of_other_code_plan_again(tmp_path, compose_tiny, monkeypatch
     assert simulate.still_planned(io.read_json(saved(cfg)[0])) is True
     assert [t["key"] for t in simulate.jobs_of(cfg, [])[0].trials] == [
         t["key"] for t in first[0].trials]
+
+
+def test_the_stage_takes_the_plan_the_command_line_check_made(tmp_path, monkeypatch):
+    """The config is planned once per stage: cli.check plans a one-job command before Hydra
+    starts, and the stage's plan of the same config takes that plan (once); a sweep's check
+    remembers nothing (each job plans its own)."""
+    from conftest import tiny_overrides
+    from pipeline import cli
+    from pipeline.config import compose
+
+    args = tiny_overrides(tmp_path, "experiment=fig4", "figure=once")
+    calls, real = [], plan._plan
+    monkeypatch.setattr(plan, "_plan", lambda cfg: calls.append(1) or real(cfg))
+    assert cli.check(args) is None and len(calls) == 1
+    first = plan.plan(compose(args))
+    assert len(calls) == 1  # the check's plan
+    again = plan.plan(compose(args))
+    assert len(calls) == 2 and [t["key"] for t in again] == [t["key"] for t in first]
+    assert cli.check(["-m", *args, "growth.period=10,20"]) is None
+    plan.plan(compose([*args, "growth.period=10"]))
+    assert len(calls) == 5  # two jobs checked, then planned again by the stage
