@@ -186,7 +186,7 @@ def cells(results: list[dict]) -> pd.DataFrame:
                          high=pick["high"], unit=pick["unit"], trials=int(pick["trials"]),
                          trials_to_decide=None if need is None or pd.isna(need) else int(need),
                          reproduced=vs.count(REPRODUCED), measures=len(g),
-                         per_trial=pick.get("per_trial", "")))
+                         per_trial=pick.get("per_trial", ""), lo=pick["lo"], hi=pick["hi"]))
     return pd.DataFrame(rows)
 
 
@@ -271,6 +271,29 @@ def markdown(cards: pd.DataFrame, results: list[dict], counted=None, readings=No
 COLOURS = {REPRODUCED: "#b7e1b0", NOT: "#f4b6b0", INCONCLUSIVE: "#fbe3a0", DIVERGED: "#c9c3e6"}
 
 
+def _trials_strip(ax, x0: float, y: float, c: dict) -> None:
+    """Each trial's value of the cell's worst measure as a dot on a strip across the cell, the
+    criterion's bounds as ticks and the 95 % interval as a bar: the spread the verdict judges."""
+    values = np.array([float(v) for v in str(c.get("per_trial") or "").split()])
+    if len(values) < 2 or c["unit"] == "rate":
+        return
+    bounds = [b for b in (c.get("lo"), c.get("hi")) if b is not None and np.isfinite(b)]
+    span = np.concatenate([values, bounds, [c["low"], c["high"]]])
+    span = span[np.isfinite(span)]
+    lo, hi = float(span.min()), float(span.max())
+    pad = 0.05 * (hi - lo or 1.0)
+    lo, hi = lo - pad, hi + pad
+    def at(v):
+        return x0 + 0.08 + 0.84 * (np.asarray(v, float) - lo) / (hi - lo)
+    ax.plot([x0 + 0.08, x0 + 0.92], [y, y], color="0.55", lw=0.5)
+    for b in bounds:
+        ax.plot([at(b)] * 2, [y - 0.06, y + 0.06], color="black", lw=0.8)
+    if np.isfinite(c["low"]) and np.isfinite(c["high"]):
+        ax.plot([at(c["low"]), at(c["high"])], [y, y], color="black", lw=2.2, alpha=0.35,
+                solid_capstyle="butt")
+    ax.scatter(at(values), np.full(len(values), y), s=5, color="black", zorder=3, lw=0)
+
+
 def figure(cards: pd.DataFrame, title: str):
     """scorecard.png: claims (rows) x figures (columns), cells coloured by verdict."""
     from .figures import plt
@@ -295,10 +318,11 @@ def figure(cards: pd.DataFrame, title: str):
                     else "") + f"worst: {c['where']}: {fmt(c['value'], c['unit'])} {fmt_interval(c)}"
             if c["verdict"] == INCONCLUSIVE and _need(c):
                 text += f"; ~{_need(c)} trials would decide"
-            ax.text(j + 0.5, i + 0.3, c["verdict"], ha="center", va="center", fontsize=8,
+            ax.text(j + 0.5, i + 0.2, c["verdict"], ha="center", va="center", fontsize=8,
                     fontweight="bold")
-            ax.text(j + 0.5, i + 0.65, textwrap.fill(text, 46), ha="center", va="center",
+            ax.text(j + 0.5, i + 0.5, textwrap.fill(text, 46), ha="center", va="center",
                     fontsize=6.5, linespacing=1.1)
+            _trials_strip(ax, j, i + 0.84, c)
     for s in ax.spines.values():
         s.set_visible(False)
     handles = [plt.Rectangle((0, 0), 1, 1, fc=col) for col in COLOURS.values()]

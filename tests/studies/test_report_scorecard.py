@@ -113,6 +113,9 @@ def test_the_scorecard_figure_draws_every_cell(tmp_path):
                                 table=COVERED))
     fig = sc.figure(cards, "scorecard")
     assert len(fig.axes[0].patches) == len(cards["claim"].unique()) * 2
+    # every trial of a judged spread is a dot: 4 per cell, but the exact failure count's
+    dots = sum(len(c.get_offsets()) for c in fig.axes[0].collections)
+    assert dots == 4 * int((cards["claim"] != "bootstrap").sum())
     fig.savefig(tmp_path / "s.png")
 
 
