@@ -45,9 +45,9 @@ from numba import njit
 from ...features import monomial_tree
 from ...kinematics import chain_layout
 from ...simd import (
-    F4, LANES, W8, _1, _HALF, chain_kinematics, vadd, vadd8, vclip, vdiv, vfma, vload, vload1,
-    vload8, vload18, vmul, vmul8, vsplat, vsplat8, vsqrt, vstore, vstore1, vstore8, vstore18,
-    vsub, vsub8, vsum, vwhere,
+    F4, LANES, W8, _1, _HALF, chain_kinematics, vadd, vadd8, vclip, vdiv, vfma, vfma8, vload, vload1,
+    vload8, vload8f, vload18, vmul, vmul8, vsplat, vsplat8, vsqrt, vstore, vstore1, vstore8, vstore18,
+    vsub, vsub8, vsum, vwhere, transpose8,
 )
 from .reference import NO_MOVEMENT
 from .solve import Solved, cholesky_solve
@@ -309,78 +309,107 @@ def _gradient_step(M, M32, X, Q, w, Npad, parent, var, Phi, Rw, GL, eta):
             M[i, k] -= eta * vsum(vload(GL, i, k * LANES))
 
 
+@njit(inline="always")
+def _row8(Q, i, m, c):
+    """Q[i, c:c + 8] as float64 lanes, zeros for a row i >= m."""
+    return vload8f(Q, i, c) if i < m else vsplat8(0.0)
+
+
 @njit(cache=True)
 def _online(M, X, Q, w, N, parent, var, eta):
     """One step per sample, columns 0 ... N-1 in order (reference.update, updates=online), in
-    float64: M -= eta w_t (M phi_t - q_t) phi_t^T, skipping the samples of weight 0.
+    float64: M_t = M_t-1 - s_t phi_t^T with s_t = eta w_t (M_t-1 phi_t - q_t) (a weight 0 steps
+    by 0). X needs W8 + 2 columns past N, Q W8 (read, not used).
 
-    The features of _CHUNK samples at a time first (float64, one product per entry); then the
-    rows of M are the lanes of F64x8 vectors (M kept transposed, MT (p, W), zero-padded to whole
-    vectors), two vectors at a time while k runs, and one pass over M per sample does its step
-    and the next sample's prediction M_new phi_t+1 together. Every entry's update and every sum
-    (k in order, from 0) is the scalar loop's, with * and + rounded separately: the same bytes
-    as a scalar float64 loop, on every CPU."""
+    The step waits for nothing but s_t, and s_t for the prediction M_t-1 phi_t, which is
+    g_t = P_t - s_t-1 d_t-1 with P_t = M_t-2 phi_t (summed while the pass over M wrote M_t-2)
+    and d_t-1 = phi_t-1 . phi_t (with the features): a sample waits for a few operations, not
+    for a sum over the p features. Per chunk of _CHUNK samples, their features, commands and
+    the products d first; then one pass over M per sample, the rows of M the lanes of F64x8
+    vectors (M kept transposed, MT (p, W), zero-padded to whole vectors). Fused multiply-adds,
+    every sum in a fixed order (P: even and odd k apart, then added): the same bytes on every
+    CPU. It agrees with the numpy reference to rounding (tests/test_fast.py)."""
     m, p = M.shape
     W = -(-m // W8) * W8
     MT = np.zeros((p, W))
     for i in range(m):
         for k in range(p):
             MT[k, i] = M[i, k]
-    Ph = np.empty((p, _CHUNK))
-    cols = np.empty(_CHUNK + 1, np.int64)  # the chunk's columns of nonzero weight
-    QT = np.zeros((_CHUNK, W))  # the chunk's commands, float64, a row per sample
-    g = np.zeros(W)  # M phi_t
+    L = _CHUNK + 2 * W8  # the chunk's columns and those looked ahead, in whole vectors
+    Ph = np.ones((p, L))  # features (row 0: the constant)
+    D = np.zeros(_CHUNK)  # D[j] = phi_j . phi_j+1
+    QT = np.zeros((_CHUNK, W))  # commands, a row per sample (0 in the padding lanes)
+    g, P = np.zeros(W), np.zeros(W)  # g_t, P_t+1
+    pe = p - p % 2
     for c0 in range(0, N, _CHUNK):
         C = min(_CHUNK, N - c0)
-        n_w = 0
-        for j in range(C):
-            if w[c0 + j] != 0:
-                cols[n_w] = j
-                n_w += 1
-        if n_w == 0:
-            continue
-        cols[n_w] = cols[n_w - 1]  # after the last: a prediction that is not used
-        for j in range(C):
-            for i in range(m):
-                QT[j, i] = float(Q[i, c0 + j])
-        Ph[0, :C] = 1.0
+        CL = -(-(C + 2) // W8) * W8
         for k in range(1, p):
             src, coord = parent[k], var[k]
-            for j in range(C):
-                Ph[k, j] = Ph[src, j] * float(X[coord, c0 + j])
-        c = cols[0]
-        for j in range(0, W, W8):
-            acc = vsplat8(0.0)
-            for k in range(p):
-                acc = vadd8(acc, vmul8(vload8(MT, k, j), vsplat8(Ph[k, c])))
-            vstore18(g, j, acc)
-        for t in range(n_w):
-            c, nxt = cols[t], cols[t + 1]
-            ge = vsplat8(eta * float(w[c0 + c]))
-            j = 0
-            while j + 2 * W8 <= W:  # two vectors of rows: two independent chains of sums
-                s0 = vmul8(ge, vsub8(vload18(g, j), vload8(QT, c, j)))
-                s1 = vmul8(ge, vsub8(vload18(g, j + W8), vload8(QT, c, j + W8)))
-                a0 = a1 = vsplat8(0.0)
+            for j in range(0, CL, W8):
+                vstore8(Ph, k, j, vmul8(vload8(Ph, src, j), vload8f(X, coord, c0 + j)))
+        for j in range(0, C, W8):
+            d = vmul8(vload8(Ph, 0, j), vload8(Ph, 0, j + 1))
+            for k in range(1, p):
+                d = vfma8(vload8(Ph, k, j), vload8(Ph, k, j + 1), d)
+            vstore18(D, j, d)
+        for j in range(0, C, W8):  # 8 x 8 blocks of Q, transposed
+            for b in range(0, W, W8):
+                t = transpose8(_row8(Q, b, m, c0 + j), _row8(Q, b + 1, m, c0 + j),
+                               _row8(Q, b + 2, m, c0 + j), _row8(Q, b + 3, m, c0 + j),
+                               _row8(Q, b + 4, m, c0 + j), _row8(Q, b + 5, m, c0 + j),
+                               _row8(Q, b + 6, m, c0 + j), _row8(Q, b + 7, m, c0 + j))
+                for l in range(W8):
+                    vstore8(QT, j + l, b, t[l])
+        if c0 == 0:  # g_0 = M phi_0, P_1 = M phi_1
+            for b in range(0, W, W8):
+                a0, a1 = vsplat8(0.0), vsplat8(0.0)
                 for k in range(p):
-                    f, h = vsplat8(Ph[k, c]), vsplat8(Ph[k, nxt])
-                    v0 = vsub8(vload8(MT, k, j), vmul8(s0, f))
-                    v1 = vsub8(vload8(MT, k, j + W8), vmul8(s1, f))
-                    vstore8(MT, k, j, v0)
-                    vstore8(MT, k, j + W8, v1)
-                    a0 = vadd8(a0, vmul8(v0, h))
-                    a1 = vadd8(a1, vmul8(v1, h))
-                vstore18(g, j, a0)
-                vstore18(g, j + W8, a1)
-                j += 2 * W8
-            if j < W:
-                s0 = vmul8(ge, vsub8(vload18(g, j), vload8(QT, c, j)))
-                a0 = vsplat8(0.0)
-                for k in range(p):
-                    v0 = vsub8(vload8(MT, k, j), vmul8(s0, vsplat8(Ph[k, c])))
-                    vstore8(MT, k, j, v0)
-                    a0 = vadd8(a0, vmul8(v0, vsplat8(Ph[k, nxt])))
-                vstore18(g, j, a0)
+                    mk = vload8(MT, k, b)
+                    a0 = vfma8(mk, vsplat8(Ph[k, 0]), a0)
+                    a1 = vfma8(mk, vsplat8(Ph[k, 1]), a1)
+                vstore18(g, b, a0)
+                vstore18(P, b, a1)
+        for j in range(C):
+            ge, dv = vsplat8(eta * float(w[c0 + j])), vsplat8(D[j])
+            b = 0
+            while b < W:  # two vectors of rows while there are two: the features loaded once
+                two = b + W8 < W
+                b1 = b + W8 if two else b
+                # minus s_t, exactly: eta w (q - g); then g_t+1 = M_t phi_t+1 = P_t+1 - s_t d_t
+                s0 = vmul8(ge, vsub8(vload8(QT, j, b), vload18(g, b)))
+                s1 = vmul8(ge, vsub8(vload8(QT, j, b1), vload18(g, b1)))
+                vstore18(g, b, vfma8(s0, dv, vload18(P, b)))
+                vstore18(g, b1, vfma8(s1, dv, vload18(P, b1)))
+                # M_t = M_t-1 - s_t phi_t^T and P_t+2 = M_t phi_t+2 (even k, odd k)
+                a0, a1, e0, e1 = vsplat8(0.0), vsplat8(0.0), vsplat8(0.0), vsplat8(0.0)
+                for k in range(0, pe, 2):
+                    f0, f1 = vsplat8(Ph[k, j]), vsplat8(Ph[k + 1, j])
+                    h0, h1 = vsplat8(Ph[k, j + 2]), vsplat8(Ph[k + 1, j + 2])
+                    v0 = vfma8(s0, f0, vload8(MT, k, b))
+                    v1 = vfma8(s0, f1, vload8(MT, k + 1, b))
+                    vstore8(MT, k, b, v0)
+                    vstore8(MT, k + 1, b, v1)
+                    a0, a1 = vfma8(v0, h0, a0), vfma8(v1, h1, a1)
+                    if two:
+                        u0 = vfma8(s1, f0, vload8(MT, k, b1))
+                        u1 = vfma8(s1, f1, vload8(MT, k + 1, b1))
+                        vstore8(MT, k, b1, u0)
+                        vstore8(MT, k + 1, b1, u1)
+                        e0, e1 = vfma8(u0, h0, e0), vfma8(u1, h1, e1)
+                if pe < p:
+                    f0, h0 = vsplat8(Ph[pe, j]), vsplat8(Ph[pe, j + 2])
+                    v0 = vfma8(s0, f0, vload8(MT, pe, b))
+                    vstore8(MT, pe, b, v0)
+                    a0 = vfma8(v0, h0, a0)
+                    if two:
+                        u0 = vfma8(s1, f0, vload8(MT, pe, b1))
+                        vstore8(MT, pe, b1, u0)
+                        e0 = vfma8(u0, h0, e0)
+                vstore18(P, b, vadd8(a0, a1))
+                if two:
+                    vstore18(P, b1, vadd8(e0, e1))
+                b += 2 * W8 if two else W8
     for i in range(m):
         for k in range(p):
             M[i, k] = MT[k, i]
