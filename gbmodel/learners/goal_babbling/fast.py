@@ -316,6 +316,75 @@ def _row8(Q, i, m, c):
 
 
 @njit(cache=True)
+def _online_rows(MT, Ph, D, QT, w, c0, C, eta, g, P, b):
+    """_online's steps of the chunk's C samples on the rows b ... b + 7 of M (lanes of MT[:, b:]),
+    g_t and P_t+1 in registers while the samples run (g, P: at the chunk's start and end)."""
+    p = MT.shape[0]
+    pe = p - p % 2
+    g0, P0 = vload18(g, b), vload18(P, b)
+    for j in range(C):
+        # minus s_t, exactly: eta w (q - g); then g_t+1 = M_t phi_t+1 = P_t+1 - s_t d_t
+        s0 = vmul8(vsplat8(eta * float(w[c0 + j])), vsub8(vload8(QT, j, b), g0))
+        g0 = vfma8(s0, vsplat8(D[j]), P0)
+        # M_t = M_t-1 - s_t phi_t^T and P_t+2 = M_t phi_t+2 (even k, odd k)
+        a0, a1 = vsplat8(0.0), vsplat8(0.0)
+        for k in range(0, pe, 2):
+            v0 = vfma8(s0, vsplat8(Ph[k, j]), vload8(MT, k, b))
+            v1 = vfma8(s0, vsplat8(Ph[k + 1, j]), vload8(MT, k + 1, b))
+            vstore8(MT, k, b, v0)
+            vstore8(MT, k + 1, b, v1)
+            a0, a1 = vfma8(v0, vsplat8(Ph[k, j + 2]), a0), vfma8(v1, vsplat8(Ph[k + 1, j + 2]), a1)
+        if pe < p:
+            v0 = vfma8(s0, vsplat8(Ph[pe, j]), vload8(MT, pe, b))
+            vstore8(MT, pe, b, v0)
+            a0 = vfma8(v0, vsplat8(Ph[pe, j + 2]), a0)
+        P0 = vadd8(a0, a1)
+    vstore18(g, b, g0)
+    vstore18(P, b, P0)
+
+
+@njit(cache=True)
+def _online_rows2(MT, Ph, D, QT, w, c0, C, eta, g, P, b):
+    """_online_rows on the rows b ... b + 15, two vectors side by side (the features loaded
+    once, two independent chains)."""
+    p = MT.shape[0]
+    pe = p - p % 2
+    b1 = b + W8
+    g0, P0, g1, P1 = vload18(g, b), vload18(P, b), vload18(g, b1), vload18(P, b1)
+    for j in range(C):
+        ge, dv = vsplat8(eta * float(w[c0 + j])), vsplat8(D[j])
+        s0 = vmul8(ge, vsub8(vload8(QT, j, b), g0))
+        s1 = vmul8(ge, vsub8(vload8(QT, j, b1), g1))
+        g0, g1 = vfma8(s0, dv, P0), vfma8(s1, dv, P1)
+        a0, a1, e0, e1 = vsplat8(0.0), vsplat8(0.0), vsplat8(0.0), vsplat8(0.0)
+        for k in range(0, pe, 2):
+            f0, f1 = vsplat8(Ph[k, j]), vsplat8(Ph[k + 1, j])
+            h0, h1 = vsplat8(Ph[k, j + 2]), vsplat8(Ph[k + 1, j + 2])
+            v0 = vfma8(s0, f0, vload8(MT, k, b))
+            v1 = vfma8(s0, f1, vload8(MT, k + 1, b))
+            u0 = vfma8(s1, f0, vload8(MT, k, b1))
+            u1 = vfma8(s1, f1, vload8(MT, k + 1, b1))
+            vstore8(MT, k, b, v0)
+            vstore8(MT, k + 1, b, v1)
+            vstore8(MT, k, b1, u0)
+            vstore8(MT, k + 1, b1, u1)
+            a0, a1 = vfma8(v0, h0, a0), vfma8(v1, h1, a1)
+            e0, e1 = vfma8(u0, h0, e0), vfma8(u1, h1, e1)
+        if pe < p:
+            f0, h0 = vsplat8(Ph[pe, j]), vsplat8(Ph[pe, j + 2])
+            v0 = vfma8(s0, f0, vload8(MT, pe, b))
+            u0 = vfma8(s1, f0, vload8(MT, pe, b1))
+            vstore8(MT, pe, b, v0)
+            vstore8(MT, pe, b1, u0)
+            a0, e0 = vfma8(v0, h0, a0), vfma8(u0, h0, e0)
+        P0, P1 = vadd8(a0, a1), vadd8(e0, e1)
+    vstore18(g, b, g0)
+    vstore18(P, b, P0)
+    vstore18(g, b1, g1)
+    vstore18(P, b1, P1)
+
+
+@njit(cache=True)
 def _online(M, X, Q, w, N, parent, var, eta):
     """One step per sample, columns 0 ... N-1 in order (reference.update, updates=online), in
     float64: M_t = M_t-1 - s_t phi_t^T with s_t = eta w_t (M_t-1 phi_t - q_t) (a weight 0 steps
@@ -340,7 +409,6 @@ def _online(M, X, Q, w, N, parent, var, eta):
     D = np.zeros(_CHUNK)  # D[j] = phi_j . phi_j+1
     QT = np.zeros((_CHUNK, W))  # commands, a row per sample (0 in the padding lanes)
     g, P = np.zeros(W), np.zeros(W)  # g_t, P_t+1
-    pe = p - p % 2
     for c0 in range(0, N, _CHUNK):
         C = min(_CHUNK, N - c0)
         CL = -(-(C + 2) // W8) * W8
@@ -370,46 +438,10 @@ def _online(M, X, Q, w, N, parent, var, eta):
                     a1 = vfma8(mk, vsplat8(Ph[k, 1]), a1)
                 vstore18(g, b, a0)
                 vstore18(P, b, a1)
-        for j in range(C):
-            ge, dv = vsplat8(eta * float(w[c0 + j])), vsplat8(D[j])
-            b = 0
-            while b < W:  # two vectors of rows while there are two: the features loaded once
-                two = b + W8 < W
-                b1 = b + W8 if two else b
-                # minus s_t, exactly: eta w (q - g); then g_t+1 = M_t phi_t+1 = P_t+1 - s_t d_t
-                s0 = vmul8(ge, vsub8(vload8(QT, j, b), vload18(g, b)))
-                s1 = vmul8(ge, vsub8(vload8(QT, j, b1), vload18(g, b1)))
-                vstore18(g, b, vfma8(s0, dv, vload18(P, b)))
-                vstore18(g, b1, vfma8(s1, dv, vload18(P, b1)))
-                # M_t = M_t-1 - s_t phi_t^T and P_t+2 = M_t phi_t+2 (even k, odd k)
-                a0, a1, e0, e1 = vsplat8(0.0), vsplat8(0.0), vsplat8(0.0), vsplat8(0.0)
-                for k in range(0, pe, 2):
-                    f0, f1 = vsplat8(Ph[k, j]), vsplat8(Ph[k + 1, j])
-                    h0, h1 = vsplat8(Ph[k, j + 2]), vsplat8(Ph[k + 1, j + 2])
-                    v0 = vfma8(s0, f0, vload8(MT, k, b))
-                    v1 = vfma8(s0, f1, vload8(MT, k + 1, b))
-                    vstore8(MT, k, b, v0)
-                    vstore8(MT, k + 1, b, v1)
-                    a0, a1 = vfma8(v0, h0, a0), vfma8(v1, h1, a1)
-                    if two:
-                        u0 = vfma8(s1, f0, vload8(MT, k, b1))
-                        u1 = vfma8(s1, f1, vload8(MT, k + 1, b1))
-                        vstore8(MT, k, b1, u0)
-                        vstore8(MT, k + 1, b1, u1)
-                        e0, e1 = vfma8(u0, h0, e0), vfma8(u1, h1, e1)
-                if pe < p:
-                    f0, h0 = vsplat8(Ph[pe, j]), vsplat8(Ph[pe, j + 2])
-                    v0 = vfma8(s0, f0, vload8(MT, pe, b))
-                    vstore8(MT, pe, b, v0)
-                    a0 = vfma8(v0, h0, a0)
-                    if two:
-                        u0 = vfma8(s1, f0, vload8(MT, pe, b1))
-                        vstore8(MT, pe, b1, u0)
-                        e0 = vfma8(u0, h0, e0)
-                vstore18(P, b, vadd8(a0, a1))
-                if two:
-                    vstore18(P, b1, vadd8(e0, e1))
-                b += 2 * W8 if two else W8
+        for b in range(0, W - W8, 2 * W8):  # two vectors of rows: the features loaded once
+            _online_rows2(MT, Ph, D, QT, w, c0, C, eta, g, P, b)
+        if W % (2 * W8):
+            _online_rows(MT, Ph, D, QT, w, c0, C, eta, g, P, W - W8)
     for i in range(m):
         for k in range(p):
             M[i, k] = MT[k, i]
