@@ -309,6 +309,17 @@ def _gradient_step(M, M32, X, Q, w, Npad, parent, var, Phi, Rw, GL, eta):
             M[i, k] -= eta * vsum(vload(GL, i, k * LANES))
 
 
+@njit(cache=True)
+def _zeros64(shape):
+    """np.zeros(shape) (float64) starting on a 64-byte boundary: a row of whole F64x8 vectors
+    then lies in whole cache lines (a vector across two lines is a split load or store, and a
+    split store is not forwarded to the next load)."""
+    n = shape[0] * shape[1]
+    buf = np.zeros(n + W8)
+    off = (-(buf.ctypes.data // 8)) % W8
+    return buf[off:off + n].reshape(shape)
+
+
 @njit(inline="always")
 def _row8(Q, i, m, c):
     """Q[i, c:c + 8] as float64 lanes, zeros for a row i >= m."""
@@ -400,14 +411,14 @@ def _online(M, X, Q, w, N, parent, var, eta):
     CPU. It agrees with the numpy reference to rounding (tests/test_fast.py)."""
     m, p = M.shape
     W = -(-m // W8) * W8
-    MT = np.zeros((p, W))
+    MT = _zeros64((p, W))
     for i in range(m):
         for k in range(p):
             MT[k, i] = M[i, k]
     L = _CHUNK + 2 * W8  # the chunk's columns and those looked ahead, in whole vectors
     Ph = np.ones((p, L))  # features (row 0: the constant)
     D = np.zeros(_CHUNK)  # D[j] = phi_j . phi_j+1
-    QT = np.zeros((_CHUNK, W))  # commands, a row per sample (0 in the padding lanes)
+    QT = _zeros64((_CHUNK, W))  # commands, a row per sample (0 in the padding lanes)
     g, P = np.zeros(W), np.zeros(W)  # g_t, P_t+1
     for c0 in range(0, N, _CHUNK):
         C = min(_CHUNK, N - c0)
