@@ -192,6 +192,14 @@ def test_online_updates_match_the_reference_steps(name, kw):
     fast._online(M_zero, X, Q, w.reshape(-1).astype(np.float32), N, parent, var,
                  params.learning_rate)
     np.testing.assert_allclose(M_zero, expect(w), rtol=0, atol=1e-9)
+    # one sample fewer (the kernel takes samples in pairs: an odd count ends on a single one);
+    # the reference's last sample then has weight 0 and leaves M as it is
+    w[-1, -1] = 1.0
+    M_odd = np.array(M)
+    fast._online(M_odd, X, Q, w.reshape(-1).astype(np.float32), N - 1, parent, var,
+                 params.learning_rate)
+    w[-1, -1] = 0
+    np.testing.assert_allclose(M_odd, expect(w), rtol=0, atol=1e-9)
 
 
 # sha256[:16] of a 30-epoch trial's curve and final M (updates=online, seed 1)

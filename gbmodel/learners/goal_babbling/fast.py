@@ -329,15 +329,40 @@ def _row8(Q, i, m, c):
 @njit(cache=True)
 def _online_rows(MT, Ph, D, QT, w, c0, C, eta, g, P, b):
     """_online's steps of the chunk's C samples on the rows b ... b + 7 of M (lanes of MT[:, b:]),
-    g_t and P_t+1 in registers while the samples run (g, P: at the chunk's start and end)."""
+    g_t and P_t+1 in registers while the samples run (g, P: at the chunk's start and end).
+    Two samples per pass over M: M_t and M_t+1 from one load of M_t-1, one store of M_t+1."""
     p = MT.shape[0]
     pe = p - p % 2
     g0, P0 = vload18(g, b), vload18(P, b)
-    for j in range(C):
+    for j in range(0, C - C % 2, 2):
         # minus s_t, exactly: eta w (q - g); then g_t+1 = M_t phi_t+1 = P_t+1 - s_t d_t
         s0 = vmul8(vsplat8(eta * float(w[c0 + j])), vsub8(vload8(QT, j, b), g0))
         g0 = vfma8(s0, vsplat8(D[j]), P0)
-        # M_t = M_t-1 - s_t phi_t^T and P_t+2 = M_t phi_t+2 (even k, odd k)
+        s1 = vmul8(vsplat8(eta * float(w[c0 + j + 1])), vsub8(vload8(QT, j + 1, b), g0))
+        # M_t = M_t-1 - s_t phi_t^T, P_t+2 = M_t phi_t+2; M_t+1, Q_t+3 = M_t+1 phi_t+3 (even k,
+        # odd k)
+        a0, a1, e0, e1 = vsplat8(0.0), vsplat8(0.0), vsplat8(0.0), vsplat8(0.0)
+        for k in range(0, pe, 2):
+            v0 = vfma8(s0, vsplat8(Ph[k, j]), vload8(MT, k, b))
+            v1 = vfma8(s0, vsplat8(Ph[k + 1, j]), vload8(MT, k + 1, b))
+            u0 = vfma8(s1, vsplat8(Ph[k, j + 1]), v0)
+            u1 = vfma8(s1, vsplat8(Ph[k + 1, j + 1]), v1)
+            vstore8(MT, k, b, u0)
+            vstore8(MT, k + 1, b, u1)
+            a0, a1 = vfma8(v0, vsplat8(Ph[k, j + 2]), a0), vfma8(v1, vsplat8(Ph[k + 1, j + 2]), a1)
+            e0, e1 = vfma8(u0, vsplat8(Ph[k, j + 3]), e0), vfma8(u1, vsplat8(Ph[k + 1, j + 3]), e1)
+        if pe < p:
+            v0 = vfma8(s0, vsplat8(Ph[pe, j]), vload8(MT, pe, b))
+            u0 = vfma8(s1, vsplat8(Ph[pe, j + 1]), v0)
+            vstore8(MT, pe, b, u0)
+            a0 = vfma8(v0, vsplat8(Ph[pe, j + 2]), a0)
+            e0 = vfma8(u0, vsplat8(Ph[pe, j + 3]), e0)
+        g0 = vfma8(s1, vsplat8(D[j + 1]), vadd8(a0, a1))
+        P0 = vadd8(e0, e1)
+    if C % 2:  # the chunk's last sample on its own
+        j = C - 1
+        s0 = vmul8(vsplat8(eta * float(w[c0 + j])), vsub8(vload8(QT, j, b), g0))
+        g0 = vfma8(s0, vsplat8(D[j]), P0)
         a0, a1 = vsplat8(0.0), vsplat8(0.0)
         for k in range(0, pe, 2):
             v0 = vfma8(s0, vsplat8(Ph[k, j]), vload8(MT, k, b))
@@ -362,32 +387,65 @@ def _online_rows2(MT, Ph, D, QT, w, c0, C, eta, g, P, b):
     pe = p - p % 2
     b1 = b + W8
     g0, P0, g1, P1 = vload18(g, b), vload18(P, b), vload18(g, b1), vload18(P, b1)
-    for j in range(C):
+    for j in range(0, C - C % 2, 2):
+        ge, dv = vsplat8(eta * float(w[c0 + j])), vsplat8(D[j])
+        s0 = vmul8(ge, vsub8(vload8(QT, j, b), g0))
+        s1 = vmul8(ge, vsub8(vload8(QT, j, b1), g1))
+        g0, g1 = vfma8(s0, dv, P0), vfma8(s1, dv, P1)
+        ge = vsplat8(eta * float(w[c0 + j + 1]))
+        r0 = vmul8(ge, vsub8(vload8(QT, j + 1, b), g0))
+        r1 = vmul8(ge, vsub8(vload8(QT, j + 1, b1), g1))
+        a0, a1, e0, e1 = vsplat8(0.0), vsplat8(0.0), vsplat8(0.0), vsplat8(0.0)
+        c0_, c1_, d0, d1 = vsplat8(0.0), vsplat8(0.0), vsplat8(0.0), vsplat8(0.0)
+        for k in range(0, pe, 2):
+            f0, f1 = vsplat8(Ph[k, j]), vsplat8(Ph[k + 1, j])
+            n0, n1 = vsplat8(Ph[k, j + 1]), vsplat8(Ph[k + 1, j + 1])
+            h0, h1 = vsplat8(Ph[k, j + 2]), vsplat8(Ph[k + 1, j + 2])
+            o0, o1 = vsplat8(Ph[k, j + 3]), vsplat8(Ph[k + 1, j + 3])
+            v0 = vfma8(s0, f0, vload8(MT, k, b))
+            v1 = vfma8(s0, f1, vload8(MT, k + 1, b))
+            u0 = vfma8(s1, f0, vload8(MT, k, b1))
+            u1 = vfma8(s1, f1, vload8(MT, k + 1, b1))
+            a0, a1 = vfma8(v0, h0, a0), vfma8(v1, h1, a1)
+            e0, e1 = vfma8(u0, h0, e0), vfma8(u1, h1, e1)
+            v0, v1 = vfma8(r0, n0, v0), vfma8(r0, n1, v1)
+            u0, u1 = vfma8(r1, n0, u0), vfma8(r1, n1, u1)
+            vstore8(MT, k, b, v0)
+            vstore8(MT, k + 1, b, v1)
+            vstore8(MT, k, b1, u0)
+            vstore8(MT, k + 1, b1, u1)
+            c0_, c1_ = vfma8(v0, o0, c0_), vfma8(v1, o1, c1_)
+            d0, d1 = vfma8(u0, o0, d0), vfma8(u1, o1, d1)
+        if pe < p:
+            f0, n0 = vsplat8(Ph[pe, j]), vsplat8(Ph[pe, j + 1])
+            h0, o0 = vsplat8(Ph[pe, j + 2]), vsplat8(Ph[pe, j + 3])
+            v0 = vfma8(s0, f0, vload8(MT, pe, b))
+            u0 = vfma8(s1, f0, vload8(MT, pe, b1))
+            a0, e0 = vfma8(v0, h0, a0), vfma8(u0, h0, e0)
+            v0, u0 = vfma8(r0, n0, v0), vfma8(r1, n0, u0)
+            vstore8(MT, pe, b, v0)
+            vstore8(MT, pe, b1, u0)
+            c0_, d0 = vfma8(v0, o0, c0_), vfma8(u0, o0, d0)
+        dv = vsplat8(D[j + 1])
+        g0, g1 = vfma8(r0, dv, vadd8(a0, a1)), vfma8(r1, dv, vadd8(e0, e1))
+        P0, P1 = vadd8(c0_, c1_), vadd8(d0, d1)
+    if C % 2:  # the chunk's last sample on its own
+        j = C - 1
         ge, dv = vsplat8(eta * float(w[c0 + j])), vsplat8(D[j])
         s0 = vmul8(ge, vsub8(vload8(QT, j, b), g0))
         s1 = vmul8(ge, vsub8(vload8(QT, j, b1), g1))
         g0, g1 = vfma8(s0, dv, P0), vfma8(s1, dv, P1)
         a0, a1, e0, e1 = vsplat8(0.0), vsplat8(0.0), vsplat8(0.0), vsplat8(0.0)
-        for k in range(0, pe, 2):
-            f0, f1 = vsplat8(Ph[k, j]), vsplat8(Ph[k + 1, j])
-            h0, h1 = vsplat8(Ph[k, j + 2]), vsplat8(Ph[k + 1, j + 2])
+        for k in range(p):
+            f0, h0 = vsplat8(Ph[k, j]), vsplat8(Ph[k, j + 2])
             v0 = vfma8(s0, f0, vload8(MT, k, b))
-            v1 = vfma8(s0, f1, vload8(MT, k + 1, b))
             u0 = vfma8(s1, f0, vload8(MT, k, b1))
-            u1 = vfma8(s1, f1, vload8(MT, k + 1, b1))
             vstore8(MT, k, b, v0)
-            vstore8(MT, k + 1, b, v1)
             vstore8(MT, k, b1, u0)
-            vstore8(MT, k + 1, b1, u1)
-            a0, a1 = vfma8(v0, h0, a0), vfma8(v1, h1, a1)
-            e0, e1 = vfma8(u0, h0, e0), vfma8(u1, h1, e1)
-        if pe < p:
-            f0, h0 = vsplat8(Ph[pe, j]), vsplat8(Ph[pe, j + 2])
-            v0 = vfma8(s0, f0, vload8(MT, pe, b))
-            u0 = vfma8(s1, f0, vload8(MT, pe, b1))
-            vstore8(MT, pe, b, v0)
-            vstore8(MT, pe, b1, u0)
-            a0, e0 = vfma8(v0, h0, a0), vfma8(u0, h0, e0)
+            if k % 2:
+                a1, e1 = vfma8(v0, h0, a1), vfma8(u0, h0, e1)
+            else:
+                a0, e0 = vfma8(v0, h0, a0), vfma8(u0, h0, e0)
         P0, P1 = vadd8(a0, a1), vadd8(e0, e1)
     vstore18(g, b, g0)
     vstore18(P, b, P0)
@@ -405,8 +463,9 @@ def _online(M, X, Q, w, N, parent, var, eta):
     g_t = P_t - s_t-1 d_t-1 with P_t = M_t-2 phi_t (summed while the pass over M wrote M_t-2)
     and d_t-1 = phi_t-1 . phi_t (with the features): a sample waits for a few operations, not
     for a sum over the p features. Per chunk of _CHUNK samples, their features, commands and
-    the products d first; then one pass over M per sample, the rows of M the lanes of F64x8
-    vectors (M kept transposed, MT (p, W), zero-padded to whole vectors). Fused multiply-adds,
+    the products d first; then, per block of rows of M (the rows are independent), one pass
+    over M per pair of samples, the rows of M the lanes of F64x8 vectors (M kept transposed,
+    MT (p, W), zero-padded to whole vectors, in whole cache lines). Fused multiply-adds,
     every sum in a fixed order (P: even and odd k apart, then added): the same bytes on every
     CPU. It agrees with the numpy reference to rounding (tests/test_fast.py)."""
     m, p = M.shape
@@ -416,7 +475,8 @@ def _online(M, X, Q, w, N, parent, var, eta):
         for k in range(p):
             MT[k, i] = M[i, k]
     L = _CHUNK + 2 * W8  # the chunk's columns and those looked ahead, in whole vectors
-    Ph = np.ones((p, L))  # features (row 0: the constant)
+    Ph = _zeros64((p, L))  # features (row 0: the constant)
+    Ph[0] = 1.0
     D = np.zeros(_CHUNK)  # D[j] = phi_j . phi_j+1
     QT = _zeros64((_CHUNK, W))  # commands, a row per sample (0 in the padding lanes)
     g, P = np.zeros(W), np.zeros(W)  # g_t, P_t+1
