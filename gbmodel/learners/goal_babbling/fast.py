@@ -467,7 +467,7 @@ def _online(M, X, Q, w, N, parent, var, eta):
     over M per pair of samples, the rows of M the lanes of F64x8 vectors (M kept transposed,
     MT (p, W), zero-padded to whole vectors, in whole cache lines). Fused multiply-adds,
     every sum in a fixed order (P: even and odd k apart, then added): the same bytes on every
-    CPU. It agrees with the numpy reference to rounding (tests/test_fast.py)."""
+    CPU. It agrees with the numpy reference to rounding (tests/core/test_fast.py)."""
     m, p = M.shape
     W = -(-m // W8) * W8
     MT = _zeros64((p, W))
