@@ -6,7 +6,7 @@ computes lane by lane what it writes, on every x86-64 CPU:
 
 - `F32x16` (vload ... vsum, LANES = 16) and `sincos` on it, for the float32 kernel;
 - `F64x8` (vload8 ... vmul8, W8 = 8), whose lanes round as the scalar loop does (separate * and
-  +, no fused multiply-add), and `sincos64`, a scalar float64 sin/cos, for the float64 kernel;
+  +; vfma8, the fused multiply-add, where a kernel asks for it), and `sincos64`, a scalar float64 sin/cos, for the float64 kernel;
 - `chain_kinematics` (F32x16) and `chain_forward64` (scalar float64): the hand point carried
   backwards through the chain laid out by gbmodel.kinematics.chain_layout, joint by joint.
 
@@ -366,6 +366,15 @@ def vstore18(typingctx, a, i, v):
 
 
 @intrinsic
+def vload8f(typingctx, a, k, i):
+    """a[k, i:i + 8] of a 2-d float32 array with contiguous rows, as float64 lanes (exact)."""
+    def codegen(context, builder, sig, args):
+        ptr = _vector_pointer(context, builder, sig, args, 2, ir.VectorType(ir.FloatType(), W8))
+        return builder.fpext(builder.load(ptr, align=4), _VEC8)
+    return F64x8(a, k, i), codegen
+
+
+@intrinsic
 def vsplat8(typingctx, x):
     """Every lane x (as float64)."""
     def codegen(context, builder, sig, args):
@@ -392,6 +401,39 @@ def vmul8(typingctx, a, b):
     return F64x8(a, b), lambda context, builder, sig, args: builder.fmul(*args)
 
 
+@intrinsic
+def vfma8(typingctx, a, b, c):
+    """a * b + c, rounded once (llvm.fma: one instruction on an FMA CPU, a correctly rounded
+    libm call without)."""
+    def codegen(context, builder, sig, args):
+        fn = cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(_VEC8, [_VEC8] * 3), f"llvm.fma.v{W8}f64")
+        return builder.call(fn, args)
+    return F64x8(a, b, c), codegen
+
+
+
+@intrinsic
+def transpose8(typingctx, r0, r1, r2, r3, r4, r5, r6, r7):
+    """The 8 x 8 transpose of eight F64x8 rows: row l of the result holds lane l of r0 ... r7
+    (three stages of shuffles; exact, the values only move)."""
+    def codegen(context, builder, sig, args):
+        mask = ir.VectorType(ir.IntType(32), W8)
+
+        def pair(a, b, lo, hi):
+            return (builder.shuffle_vector(a, b, ir.Constant(mask, lo)),
+                    builder.shuffle_vector(a, b, ir.Constant(mask, hi)))
+        x = list(args)
+        for step, lo, hi in ((1, [0, 8, 2, 10, 4, 12, 6, 14], [1, 9, 3, 11, 5, 13, 7, 15]),
+                             (2, [0, 1, 8, 9, 4, 5, 12, 13], [2, 3, 10, 11, 6, 7, 14, 15]),
+                             (4, [0, 1, 2, 3, 8, 9, 10, 11], [4, 5, 6, 7, 12, 13, 14, 15])):
+            y = list(x)
+            for k in range(W8):
+                if k & step == 0:
+                    y[k], y[k + step] = pair(x[k], x[k + step], lo, hi)
+            x = y
+        return context.make_tuple(builder, sig.return_type, x)
+    return types.UniTuple(F64x8, W8)(r0, r1, r2, r3, r4, r5, r6, r7), codegen
 
 # ---- float64 scalars ------------------------------------------------------------------------------
 # sin and cos of a joint angle: Cephes' double-precision kernels (sin.c: |r| <= pi/4) after a

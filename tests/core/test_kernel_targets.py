@@ -59,6 +59,16 @@ if "lstsq" in sys.argv:  # learner.solver=lstsq: Gram sums in the kernel, the p 
         learner={"name": "goal_babbling", "solver": "lstsq", "radius": 0.1,
                  "targets_per_epoch": 30, "steps": 10})
     out["icub_urdf_lstsq"] = digest(gbmodel.run_trial(spec, np.random.default_rng(5)))
+if "online" in sys.argv:  # learner.updates=online: the float64 per-sample kernel
+    spec = gbmodel.TrialSpec(
+        body={"name": "arm5"}, epochs=60, learner={"name": "goal_babbling", "updates": "online"},
+        growth={"pattern": "nonproportional", "period": 40, "start_size": 0.6})
+    out["arm5_online"] = digest(gbmodel.run_trial(spec, np.random.default_rng(6)))
+    spec = gbmodel.TrialSpec(  # m = 10: two vectors of rows side by side
+        body={"name": "icub_urdf"}, epochs=20,
+        learner={"name": "goal_babbling", "updates": "online", "radius": 0.1,
+                 "targets_per_epoch": 30, "steps": 10})
+    out["icub_urdf_online"] = digest(gbmodel.run_trial(spec, np.random.default_rng(7)))
 codegen = cpu_target.target_context.codegen()
 out["cpu"] = codegen._get_host_cpu_name()
 out["features"] = codegen._tm_features
@@ -112,10 +122,11 @@ def check_registers(name, report, expected):
 def test_arm5_same_bits_on_haswell_and_host(tmp_path):
     """AVX2 + FMA without AVX-512 (haswell) against whatever this CPU is: a DH and a URDF
     chain."""
-    reports = {name: run_child(tmp_path, name, TARGETS[name][0], "urdf", "lstsq")
+    reports = {name: run_child(tmp_path, name, TARGETS[name][0], "urdf", "lstsq", "online")
                for name in ("host", "haswell")}
     check_registers("haswell", reports["haswell"], "ymm")
-    for case in ("arm5", "icub_urdf", "arm5_lstsq", "icub_urdf_lstsq"):
+    for case in ("arm5", "icub_urdf", "arm5_lstsq", "icub_urdf_lstsq", "arm5_online",
+                 "icub_urdf_online"):
         assert reports["haswell"][case] == reports["host"][case], reports
 
 
@@ -137,9 +148,10 @@ def test_same_bits_on_every_target(tmp_path):
         pytest.skip("this CPU has no AVX2 + FMA")
     reports = {}
     for name, (env, expected) in targets.items():
-        reports[name] = run_child(tmp_path, name, env, "icub", "urdf", "lstsq")
+        reports[name] = run_child(tmp_path, name, env, "icub", "urdf", "lstsq", "online")
         check_registers(name, reports[name], expected)
     digests = {name: (r["arm5"], r["icub"], r["icub_urdf"], r["arm5_lstsq"],
-                      r["icub_urdf_lstsq"]) for name, r in reports.items()}
+                      r["icub_urdf_lstsq"], r["arm5_online"], r["icub_urdf_online"])
+               for name, r in reports.items()}
     assert len(set(digests.values())) == 1, json.dumps(digests, indent=1)
 
