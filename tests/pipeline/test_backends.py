@@ -38,7 +38,7 @@ def test_cost_weighs_each_learners_path():
     gb, online = one(), one("learner=online_goal_babbling")
     assert gb == 100 * 2120 * 5 and online == 100 * 106 * 5 * 35
     assert one("learner.fast=false") == 60 * gb
-    assert one("learner.updates=online") == 7 * gb
+    assert one("learner.updates=online") == 2 * gb
     assert one("learner=online_goal_babbling", "learner.fast=false") > 100 * online
     assert all(hasattr(learners.get(name), "sample_cost") for name in learners.available())
 
