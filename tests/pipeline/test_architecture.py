@@ -531,3 +531,12 @@ def test_every_test_file_and_command_the_project_names_exists():
     assert files and modules
     assert sorted(f for f in files if not (REPO_ROOT / f).exists()) == []
     assert sorted(m for m in modules if importlib.util.find_spec(m) is None) == []
+
+
+def test_the_docs_name_no_path_outside_the_clone():
+    """README and docs/ point only at what a clone has: no absolute path of one machine."""
+    texts = [REPO_ROOT / "README.md", *(REPO_ROOT / "docs").glob("*.md")]
+    bad = [f"{p.name}: {m}" for p in texts
+           for m in re.findall(r"(?<![\w.])/(?:work|tmp|root|home)/[\w./-]+", p.read_text())
+           if not m.startswith("/tmp/")]
+    assert bad == []
