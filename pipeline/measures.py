@@ -7,12 +7,14 @@ import numpy as np
 import pandas as pd
 
 
-def rise(values: np.ndarray) -> tuple[int, float]:
+def rise(values: np.ndarray) -> tuple:
     """(index, rise) of the point rising most above the lowest value before it (0, 0 if none):
-    the paper's "significant temporary increase" of the error during growth (sec. 3.1)."""
-    r = values - np.minimum.accumulate(values)
-    i = int(np.argmax(r))
-    return i, float(r[i])
+    the paper's "significant temporary increase" of the error during growth (sec. 3.1). Along
+    the last axis: a curve gives scalars, trials x epochs one index and rise per trial."""
+    values = np.asarray(values)
+    r = values - np.minimum.accumulate(values, axis=-1)
+    i = np.argmax(r, axis=-1)
+    return i, np.take_along_axis(r, np.expand_dims(i, -1), -1)[..., 0]
 
 
 def growth_peak(curve: pd.DataFrame) -> tuple[int, float, float]:
@@ -20,7 +22,7 @@ def growth_peak(curve: pd.DataFrame) -> tuple[int, float, float]:
     c = curve.sort_values("epoch")
     err = c["abs_error_mean"].to_numpy()
     i, r = rise(err)
-    return int(c["epoch"].iloc[i]), float(err[i]), r
+    return int(c["epoch"].iloc[i]), float(err[i]), float(r)
 
 
 def finals(trials: pd.DataFrame) -> pd.DataFrame:

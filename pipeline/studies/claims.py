@@ -29,6 +29,7 @@ import pandas as pd
 
 from gbmodel.growth import factors
 
+from .. import measures
 from .figures import final_body
 
 FACTOR = 1.5  # "about" the paper's final error: within this factor of it
@@ -174,12 +175,10 @@ def rebound(v: np.ndarray) -> np.ndarray:
 
 
 def rise(v: np.ndarray) -> np.ndarray:
-    """The pre-set temporary rise (aggregate.rise): the largest rise above the running minimum,
+    """The pre-set temporary rise (pipeline.measures.rise, as aggregate measures it) per trial,
     relative to the lowest error before it."""
-    r = v - np.minimum.accumulate(v, axis=-1)
-    i = np.argmax(r, axis=-1)[..., None]
-    top, up = np.take_along_axis(v, i, -1)[..., 0], np.take_along_axis(r, i, -1)[..., 0]
-    base = top - up
+    i, up = measures.rise(v)
+    base = np.take_along_axis(v, i[..., None], -1)[..., 0] - up
     return np.where(base > 0, up / np.where(base > 0, base, 1), 0.0)
 
 
