@@ -36,6 +36,7 @@ marker (one line, `error: ...`), and --fix then writes nothing.
 from __future__ import annotations
 
 import argparse
+from decimal import ROUND_HALF_UP, Decimal
 import math
 import re
 import shlex
@@ -57,10 +58,12 @@ UNSCANNED_PAGES = {
 MARKER = re.compile(r"<!--\s*q:(?P<body>.*?)-->")
 NOT_DATA = re.compile(r"\s*not data(?P<line> on this line)?:\s*(?P<why>\S.*?)\s*$")
 # a number: thousands commas, decimals, a sign only where it is not a range's dash ("2-6")
-NUMBER = re.compile(r"(?P<sign>(?<![\w.)\]])[-+−])?"
+NUMBER = re.compile(r"(?P<sign>(?<![\w.)\]>\0])[-+−])?"
                     r"(?P<digits>\d{1,3}(?:,\d{3})+(?:\.\d+)?|\d+(?:\.\d+)?)")
 # the number a marker quotes: the last one before it, then at most a unit
-QUOTED = re.compile(NUMBER.pattern + r"(?P<unit>\s?(?:[A-Za-z%×]{1,4})?\**)$")
+QUOTED = re.compile(NUMBER.pattern + r"(?P<unit>\s?(?:[A-Za-z%×]{1,4})?[*\"'”]*)$")
+# a number written in a text cell: not part of a word ("TG10", "fig4", "const0.5")
+CELL_NUMBER = re.compile(r"(?<![A-Za-z_\d.])" + NUMBER.pattern)
 _NUM = r"[-+−]?(?:\d{1,3}(?:,\d{3})+|\d+)(?:\.\d+)?"
 _JOIN = r"\s*(?:-|–|/|->|→|to)\s*"
 # numbers that must be quoted: a range or list ending in mm, cm or %; a ratio 1.24x or x1.5
@@ -176,7 +179,7 @@ def _in_marker(line: str, j: int) -> bool:
 
 def _numbers_in(cell: str) -> list[float]:
     return [(-1 if n.group("sign") in ("-", "−") else 1) * float(n.group("digits").replace(",", ""))
-            for n in NUMBER.finditer(cell)]
+            for n in CELL_NUMBER.finditer(cell)]
 
 
 def value(body: str, root: Path, tables: dict | None = None) -> float:
@@ -247,7 +250,9 @@ def formatted(x: float, like: str) -> str:
     """x written as `like` writes its number: its decimals, its sign style, its commas."""
     digits = like.lstrip("+-−")
     decimals = len(digits.split(".")[1]) if "." in digits else 0
-    s = f"{x:{'+' if like.startswith('+') else ''}{',' if ',' in digits else ''}.{decimals}f}"
+    # half away from zero on the shortest decimal of x, as a reader rounds 74.5 to 75
+    r = Decimal(repr(x)).quantize(Decimal(1).scaleb(-decimals), rounding=ROUND_HALF_UP)
+    s = f"{r:{'+' if like.startswith('+') else ''}{',' if ',' in digits else ''}.{decimals}f}"
     if s.lstrip("+-") == f"{0:.{decimals}f}":  # no "-0.0"
         s = ("+" if like.startswith("+") else "") + s.lstrip("+-")
     return s.replace("-", "−") if like.startswith("−") else s
