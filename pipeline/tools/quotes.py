@@ -2,7 +2,7 @@
 
     python -m pipeline.tools.quotes              # check every page; exit 1 on a drifted number
     python -m pipeline.tools.quotes --fix        # rewrite each quoted number to its table's value
-    python -m pipeline.tools.quotes docs/x.md    # only these pages
+    python -m pipeline.tools.quotes docs/x.md    # only these pages, scanned even if on a list
 
 A quote marker is an HTML comment written right after the number (and its unit), invisible when
 the markdown is rendered, naming the cell the number is read from:
@@ -49,11 +49,23 @@ import pandas as pd
 from ..config import REPO_ROOT
 
 REPORT = Path("outputs/report")
-# pages another mechanism or another change is rewriting; the scanner leaves them out until then
-UNSCANNED_PAGES = {
+# pages the scanner leaves out (their markers are still checked); the lead empties both lists:
+# pages another change is rewriting from their tables
+REWRITTEN_ELSEWHERE = {
     "docs/baselines.md": "its numbers are being rewritten from baselines.csv",
     "docs/readings.md": "its numbers are being rewritten from readings.csv",
 }
+# pages whose error-like numbers are not all marked yet (`python -m pipeline.tools.quotes PAGE`
+# lists the unmarked ones)
+NOT_YET_MARKED = {
+    "docs/results.md": "the table's rows other than the iCub's final error",
+    "docs/scorecard.md": "coverage and per-unit-size numbers",
+    "docs/choices.md": "numbers from choices.csv",
+    "pipeline/studies/findings.md": "numbers from summary.csv, claims.csv and choices.csv",
+    "docs/bodies.md": "measurements of the bodies and solvers, not from the report",
+    "docs/core.md": "measurements of the kernels and learners, not from the report",
+}
+UNSCANNED_PAGES = {**REWRITTEN_ELSEWHERE, **NOT_YET_MARKED}
 
 MARKER = re.compile(r"<!--\s*q:(?P<body>.*?)-->")
 NOT_DATA = re.compile(r"\s*not data(?P<line> on this line)?:\s*(?P<why>\S.*?)\s*$")
@@ -259,7 +271,7 @@ def formatted(x: float, like: str) -> str:
 
 
 def check(files: list[Path], root: Path | None = None, fix: bool = False, blocks=None,
-          unscanned=None) -> list[str]:
+          unscanned=None, explicit: bool = False) -> list[str]:
     """One line per drifted or unmarked number; with fix, rewrite the drifted ones.
     Raises BadMarker before writing anything."""
     root = REPO_ROOT if root is None else root
@@ -283,7 +295,7 @@ def check(files: list[Path], root: Path | None = None, fix: bool = False, blocks
                 lines[q.line - 1] = line[:q.start] + want + line[q.end:]
         if fix and "".join(lines) != text:
             rewrites[path] = "".join(lines)
-        if page not in unscanned:
+        if explicit or page not in unscanned:
             problems += [f"{page}:{i}: {n} has no quote marker (<!-- q: ... --> or "
                          "<!-- q: not data: why -->)" for i, n in unmarked(page, text, blocks)]
     for path, text in rewrites.items():
@@ -312,7 +324,7 @@ def main(argv=None) -> int:
             print(f"error: {f}: no such page", file=sys.stderr)
             return 2
     try:
-        problems = check(files, fix=args.fix)
+        problems = check(files, fix=args.fix, explicit=bool(args.files))
     except BadMarker as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

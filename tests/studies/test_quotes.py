@@ -133,3 +133,12 @@ def test_every_number_of_the_repositorys_pages_is_its_tables_and_every_one_is_ma
 def test_the_pages_left_unscanned_exist():
     for page in quotes.UNSCANNED_PAGES:
         assert (REPO_ROOT / page).is_file(), page
+
+
+def test_a_page_on_the_unscanned_lists_is_scanned_when_named(root, monkeypatch, capsys):
+    monkeypatch.setattr(quotes, "REPO_ROOT", root)
+    (root / "docs").mkdir()
+    page = _page(root, "ends at 12.4 mm\n", "docs/readings.md")
+    assert quotes.check([page], root=root, blocks=[]) == []
+    assert quotes.main([str(page)]) == 1
+    assert "docs/readings.md:1: 12.4 has no quote marker" in capsys.readouterr().out
