@@ -294,3 +294,33 @@ def section(ctx: Context) -> list[str]:
             "intervals below, readings_scorecard.csv):", "",
             matrix_markdown(read_matrix(m)), recommendations_markdown(cards, recommended()),
             f"![readings]({png})", "", intervals_markdown(cards)]
+
+
+def readme_updated(text: str, csv) -> str:
+    """`text` (README.md) with its readings table regenerated from `csv` (readings_matrix.csv)."""
+    if BEGIN not in text or END not in text:
+        raise ValueError(f"no {BEGIN} ... {END} block")
+    head, rest = text.split(BEGIN, 1)
+    return head + readme_block(csv) + rest.split(END, 1)[1]
+
+
+def main(argv=None) -> int:
+    """python -m pipeline.studies.readings [README.md [readings_matrix.csv]]: regenerate the
+    README's readings table from the committed matrix."""
+    import sys
+
+    from ..config import REPO_ROOT
+
+    args = list(sys.argv[1:] if argv is None else argv)
+    readme = Path(args[0]) if args else REPO_ROOT / "README.md"
+    csv = Path(args[1]) if len(args) > 1 else REPO_ROOT / "outputs" / "report" / "readings_matrix.csv"
+    try:
+        readme.write_text(readme_updated(readme.read_text(), csv))
+    except (OSError, ValueError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
