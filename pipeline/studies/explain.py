@@ -11,15 +11,22 @@ which trains nothing), so the report stage starts no trial:
   learned on +-0.9 and +-0.8 m;
 - continuation (iCub, explain_fig7_continuation): 100,000 epochs at the rate, then 1,000 more at
   the rate and at a tenth of it: a model still improving at a smaller rate is limited by the
-  rate's noise.
+  rate's noise;
+- half size (Fig. 4, explain_fig4_half_size): the half-size arm's error per unit size over the
+  full-size one's at a few epochs, under the plain step at 1 / W and 2 / W and the least-squares
+  solve: whether the half-size arm's slower learning is the step's size dependence;
+- rise (Fig. 4, readings_fig4): the temporary rise during growth (claims.rise, the scorecard's
+  measure) for every T_G under the rate and solver readings.
 """
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 from scipy.optimize import least_squares
 
 from gbmodel.growth import factors
 
+from . import claims, scorecard
 from .figures import final_body
 from .sections import Context, register
 
@@ -99,6 +106,175 @@ def continuation(agg: dict) -> dict | None:
                 smaller_mm=1e3 * float(smaller["abs_error_mean"].iloc[-1]))
 
 
+HALF_EPOCHS = (100, 1_000, 10_000)  # where the half-size over full-size ratio is read
+
+
+def _pivot(trials: pd.DataFrame, condition: str, column: str) -> pd.DataFrame:
+    c = trials[trials["condition"] == condition]
+    return c.pivot(index="trial", columns="epoch", values=column).sort_index(axis=1)
+
+
+def _learner(agg: dict, condition: str) -> dict:
+    return agg["models"]["conditions"][condition]["spec"]["learner"]
+
+
+def _ci(values) -> dict:
+    point, low, high = scorecard.interval(values)
+    return dict(value=point, low=low, high=high, trials=len(values))
+
+
+def half_size(agg: dict) -> list[dict]:
+    """explain_fig4_half_size, per variant: the half-size arm's relative error over the
+    full-size arm's, per trial (trials paired by index: common random numbers), at HALF_EPOCHS
+    (the last evaluation at or before each) as a mean over trials with its 95 % t interval; and
+    the last epoch at which the half-size mean curve lies above the full-size one."""
+    s, out = agg["summary"], []
+    default = s[s["chosen"].astype(bool)] if "chosen" in s else s.iloc[:0]
+    rate0 = _learner(agg, default["condition"].iloc[0])["learning_rate"] if len(default) else None
+    for label, g in s.groupby("variant", sort=False):
+        refs = g[g["growth"] == "none"].sort_values("end_size")
+        if len(refs) != 2 or refs["n_trials"].min() == 0:
+            continue
+        half, full = refs["condition"]
+        learner = _learner(agg, full)
+        kind = ("lstsq" if learner.get("solver") == "lstsq" else "default"
+                if bool(g["chosen"].iloc[0]) else "rate")
+        a, b = (_pivot(agg["trials"], c, "rel_error") for c in (half, full))
+        common = a.index.intersection(b.index)
+        ratio = (a.loc[common] / b.loc[common]).dropna(axis=1)
+        at = {}
+        for e in HALF_EPOCHS:
+            before = ratio.columns[ratio.columns <= e]
+            if len(before) and e <= ratio.columns[-1]:
+                at[e] = dict(_ci(ratio[before[-1]].to_numpy()), epoch=int(before[-1]))
+        mean = (a.mean() / b.mean()).dropna()
+        above = mean.index[mean.to_numpy() > 1]
+        out.append(dict(label=label, kind=kind, rate=(learner["learning_rate"] / rate0
+                                                       if rate0 else np.nan),
+                        at=at, last_above=int(above[-1]) if len(above) else None,
+                        end=int(mean.index[-1]), trials=len(common)))
+    return out
+
+
+def _slower(v: dict) -> bool:
+    """The half-size arm learns slower: its ratio's interval lies above 1 at some epoch."""
+    return any(r["low"] > 1 for r in v["at"].values())
+
+
+def _ratio_text(r: dict) -> str:
+    return f"{r['value']:.2f} [{r['low']:.2f}, {r['high']:.2f}]"
+
+
+def half_size_text(found: list[dict]) -> str:
+    """The numbers of `half_size` and what they show, conditionally on them."""
+    parts = []
+    for v in found:
+        name = "least squares" if v["kind"] == "lstsq" else f"plain step at {v['rate']:.2g} / W"
+        at = (", ".join(f"epoch {e:,} {_ratio_text(r)}" for e, r in v["at"].items())
+              or f"the run ends before epoch {HALF_EPOCHS[0]:,}")
+        last = (f"still above at the last epoch ({v['end']:,})" if v["last_above"] == v["end"]
+                else f"above until epoch {v['last_above']:,}" if v["last_above"]
+                else "never above")
+        parts.append(f"{name}: {at}; {last}")
+    text = ("half-size over full-size error per unit size (mean over "
+            f"{found[0]['trials']} paired trials, 95 % t interval): " + "; ".join(parts)
+            + ". ")
+    by = {v["kind"]: v for v in found}
+    d, ls = by.get("default"), by.get("lstsq")
+    rate = next((v for v in found if v["kind"] == "rate"), None)
+    if d is None or not d["at"]:
+        return text
+    if not _slower(d):
+        return text + ("At the default step the half-size arm does not learn slower in this run "
+                       "(no interval lies above 1).")
+    if ls is not None and not _slower(ls) and rate is not None and not _slower(rate):
+        return text + ("The gap closes under least squares and with the doubled rate at half "
+                       "size: the slower learning is the plain step's size dependence (the "
+                       "efficiency weight scales with the size, so at half size the whole step "
+                       "halves; the cubic features scale with its powers), not something about "
+                       "the small body.")
+    if ls is not None and not _slower(ls):
+        return text + ("The gap closes under least squares, which no uniform scaling of the "
+                       "weights or the features changes, but not with the doubled rate: the "
+                       "halved weights alone do not account for it; the features' scaling with "
+                       "the size's powers remains.")
+    if ls is not None:
+        return text + ("The gap remains under least squares, which no uniform scaling of the "
+                       "weights or the features changes: the slower learning is not only the "
+                       "plain step's size dependence.")
+    return text
+
+
+def rises(agg: dict) -> list[dict]:
+    """readings_fig4 under the default, rate and solver readings: the temporary rise during
+    growth (claims.rise, per trial, epochs 1 ... T_G + 1) for every T_G, with its 95 % t
+    interval, and the reading's rate as a multiple of the default's."""
+    s = agg["summary"]
+    if "choice" not in s:
+        return []
+    default = s[s["chosen"].astype(bool)]
+    rate0 = _learner(agg, default["condition"].iloc[0])["learning_rate"] if len(default) else None
+    out = []
+    for r in s[(s["growth"] != "none") & (s["n_trials"] > 0)].itertuples():
+        if not (r.chosen or str(r.choice).startswith(("learning rate", "solver"))):
+            continue
+        learner = _learner(agg, r.condition)
+        ep, g = claims.per_trial(agg["trials"], r.condition, "abs_error")
+        out.append(dict(reading=r.variant, T_G=int(r.growth_period),
+                        solver=learner.get("solver", "gradient"),
+                        rate=learner["learning_rate"] / rate0 if rate0 else np.nan,
+                        **_ci(claims.rise(g[:, ep <= r.growth_period + 1]))))
+    return out
+
+
+def _pct(r: dict) -> str:
+    return f"{100 * r['value']:+.0f} % [{100 * r['low']:+.0f}, {100 * r['high']:+.0f}]"
+
+
+def rises_markdown(found: list[dict]) -> str:
+    t = pd.DataFrame(found)
+    periods = sorted(t["T_G"].unique())
+    lines = ["| reading | " + " | ".join(f"T_G = {p:,}" for p in periods) + " |",
+             "|---|" + "---|" * len(periods)]
+    for reading, g in t.groupby("reading", sort=False):
+        by = {r["T_G"]: r for r in g.to_dict("records")}
+        lines.append(f"| {reading} ({by[g['T_G'].iloc[0]]['trials']} trials) | " + " | ".join(
+            _pct(by[p]) if p in by else "" for p in periods) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def rises_text(found: list[dict]) -> str:
+    """What changes with the rate, conditionally on the numbers: per gradient reading (by rate)
+    and the least-squares one, the rise at the two longest T_G against the claim's bound."""
+    t = pd.DataFrame(found)
+    periods = sorted(t["T_G"].unique())[-2:]
+    bound = claims.RISE
+
+    def state(r):
+        return ("above" if r["low"] > bound else "below" if r["high"] < bound
+                else "not distinguishable from")
+    parts, above_long = [], {}
+    grad = t[t["solver"] != "lstsq"].sort_values("rate")
+    for _, g in pd.concat([grad, t[t["solver"] == "lstsq"]]).groupby("reading", sort=False):
+        by = {r["T_G"]: r for r in g.to_dict("records")}
+        r0 = g.iloc[0]
+        name = "least squares" if r0["solver"] == "lstsq" else f"{r0['rate']:.2g} / W"
+        parts.append(f"{name}: " + ", ".join(f"T_G = {p:,} {_pct(by[p])}" for p in periods
+                                             if p in by))
+        if r0["solver"] != "lstsq" and periods[-1] in by:
+            above_long[r0["rate"]] = state(by[periods[-1]])
+    text = (f"rise during growth (mean over trials, 95 % t interval; the claim's bound "
+            f"+{bound:.0%}): " + "; ".join(parts) + ". ")
+    if len(above_long) >= 2:
+        rates = sorted(above_long)
+        text += (f"At T_G = {periods[-1]:,} the rise is " + ", ".join(
+            f"{above_long[r]} the bound at {r:.2g} / W" for r in rates) + ".")
+        if above_long[rates[-1]] == "above" and above_long[rates[0]] == "below":
+            text += (f" The rise at T_G = {periods[-1]:,} falls below the bound as the rate "
+                     "falls.")
+    return text
+
+
 def rows(aggs: dict) -> list[dict]:
     """The explanation experiments that the aggregated figures allow (reads only)."""
     out = []
@@ -142,6 +318,15 @@ def rows(aggs: dict) -> list[dict]:
                         measured=f"{k['before_mm']:.2f} mm -> {k['same_mm']:.2f} mm at the same "
                                  f"rate, {k['smaller_mm']:.2f} mm at {k['factor']:g} x the rate "
                                  f"(mean over {k['trials']} trials)"))
+    h = half_size(aggs["explain_fig4_half_size"]) if "explain_fig4_half_size" in aggs else []
+    if h:
+        out.append(dict(figure="fig4", experiment="half size (explain_fig4_half_size): the "
+                        "half-size arm against the full-size one, per variant",
+                        measured=half_size_text(h)))
+    r = rises(aggs["readings_fig4"]) if "readings_fig4" in aggs else []
+    if r:
+        out.append(dict(figure="fig4", experiment="rise (readings_fig4): the temporary rise "
+                        "during growth per T_G, rate and solver", measured=rises_text(r)))
     return out
 
 
@@ -149,16 +334,23 @@ def rows(aggs: dict) -> list[dict]:
 def section(ctx: Context) -> list[str]:
     if not ctx.cfg.report.explain:
         return []
-    found = rows({**ctx.of("figures"), **ctx.of("explain")})
+    aggs = {**ctx.of("figures"), **ctx.of("explain"), **ctx.of("readings")}
+    found = rows(aggs)
     if not found:
         return []
-    import pandas as pd
-
     ctx.text("explanations.csv", pd.DataFrame(found).to_csv(index=False))
-    return (["## Decisive experiments behind the explanations", "",
-             "Read from the aggregated experiments explain_* (conf/experiment/, "
-             "pipeline/studies/explain.py): what a cubic can reach when fitted directly "
-             "(the capacity bound), the 2-DOF arm learned with its extremes away from the "
-             "stretched arm, and the iCub continued at a smaller learning rate.", "",
-             "| figure | experiment | measured |", "|---|---|---|"]
-            + [f"| {r['figure']} | {r['experiment']} | {r['measured']} |" for r in found] + [""])
+    md = (["## Decisive experiments behind the explanations", "",
+           "Read from the aggregated experiments explain_* and readings_fig4 (conf/experiment/, "
+           "pipeline/studies/explain.py): what a cubic can reach when fitted directly "
+           "(the capacity bound), the 2-DOF arm learned with its extremes away from the "
+           "stretched arm, the iCub continued at a smaller learning rate, the half-size arm "
+           "under steps that take the size out, and the rise during growth per rate.", "",
+           "| figure | experiment | measured |", "|---|---|---|"]
+          + [f"| {r['figure']} | {r['experiment']} | {r['measured']} |" for r in found] + [""])
+    r = rises(aggs["readings_fig4"]) if "readings_fig4" in aggs else []
+    if r:
+        ctx.text("explain_rise.csv", pd.DataFrame(r).to_csv(index=False, float_format="%.6g"))
+        md += ["The temporary rise during growth on Fig. 4 (readings_fig4, explain_rise.csv; "
+               "the scorecard's measure, mean over trials with its 95 % t interval):", "",
+               rises_markdown(r)]
+    return md

@@ -4,9 +4,14 @@ The runs are experiments (conf/experiment/readings_fig4|fig5|fig7.yaml): each pa
 conditions under every reading that can change a verdict, as variants with common random
 numbers. This module checks the paper's claims (pipeline.studies.claims) on each reading separately and
 lays them out as one table (rows: readings, columns: claims) and one figure. It also holds the
-rule that fixes the plain step's rate before the run (`weight_sum`).
+rule that fixes the plain step's rate before the run (`weight_sum`), the compact readings x
+figures matrix (`matrix`, readings_matrix.csv, also shown in README.md) and the reading the
+project recommends per figure (RECOMMENDED, written by hand from the findings, checked against
+the verdicts by `contradictions`).
 """
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -20,6 +25,13 @@ from .choices import escape
 from .sections import Context, declares_claims, register
 
 STUDIES = {"readings_fig4": "fig4", "readings_fig5": "fig5", "readings_fig7": "fig7"}
+RECOMMENDED = Path(__file__).parent / "recommended_readings.csv"
+SYMBOLS = {scorecard.REPRODUCED: "✓", scorecard.NOT: "✗", scorecard.INCONCLUSIVE: "?",
+           claims.DIVERGED: "÷"}
+SHORT = {"final": "final", "rise": "rise", "blend": "blend", "after": "after",
+         "bootstrap": "boot"}  # column heads of the matrix (claims.CLAIMS' words in its legend)
+BEGIN, END = "<!-- readings-table:begin -->", "<!-- readings-table:end -->"
+FIGURE_CHOICES = ("default", "learning rate", "solver")  # the readings readings_curves shows
 
 
 def weight_sum(body: str, params: dict, seeds=(0, 1, 2), epochs: int = 20_000,
@@ -98,6 +110,128 @@ def table(aggs: dict) -> pd.DataFrame:
         trials=t["trials"]))
 
 
+def matrix(cards: pd.DataFrame) -> pd.DataFrame:
+    """readings_matrix.csv: one row per reading; per figure its trials per condition ("n") and
+    the verdict on each of the paper's claims (no diagnostics), from the cells of `intervals`.
+    Every entry is text ("" where a reading did not run on a figure)."""
+    paper = cards[~cards["diagnostic"].astype(bool)]
+    figs = list(dict.fromkeys(paper["figure"]))
+    ids = {f: [c.id for c in claims.CLAIMS if c.id in set(paper[paper["figure"] == f]["claim"])]
+           for f in figs}
+    rows = []
+    for reading in dict.fromkeys(paper["reading"]):
+        row = {"reading": reading}
+        for f in figs:
+            tr = paper[(paper["figure"] == f) & (paper["reading"] == reading)]
+            n = tr[tr["claim"] != "bootstrap"]["trials"]
+            row[f"{f} n"] = str(int(n.max())) if len(n) else ""
+            verdicts = dict(zip(tr["claim"], tr["verdict"]))
+            row.update({f"{f} {c}": verdicts.get(c, "") for c in ids[f]})
+        rows.append(row)
+    return pd.DataFrame(rows, dtype=str)
+
+
+def read_matrix(path) -> pd.DataFrame:
+    return pd.read_csv(path, dtype=str, keep_default_na=False)
+
+
+def matrix_markdown(m: pd.DataFrame) -> str:
+    """The matrix as a compact Markdown table (a symbol per verdict) with its legend."""
+    cols = [c for c in m.columns if c != "reading"]
+
+    def head(c):
+        fig, what = c.split(" ", 1)
+        return f"{fig} {SHORT.get(what, what)}"
+    lines = ["| reading | " + " | ".join(head(c) for c in cols) + " |",
+             "|---|" + ":-:|" * len(cols)]
+    for r in m.to_dict("records"):
+        lines.append(f"| {escape(r['reading'])} | " + " | ".join(
+            r[c] if c.endswith(" n") else SYMBOLS.get(r[c], r[c]) for c in cols) + " |")
+    used = [k for k in SHORT if any(c.endswith(" " + k) for c in cols)]
+    lines += ["", " ".join(f"{s} {v}," for v, s in SYMBOLS.items()).rstrip(",")
+              + "; n: trials per condition (blank: not run); columns: the paper's claims: "
+              + "; ".join(f"{SHORT[k]}: {claims.BY_ID[k].words}" for k in used) + "."]
+    return "\n".join(lines) + "\n"
+
+
+def readme_block(path) -> str:
+    """README.md's readings table (between BEGIN and END), generated from readings_matrix.csv."""
+    return "\n".join([BEGIN, "", matrix_markdown(read_matrix(path)), END])
+
+
+def recommended(path=RECOMMENDED) -> pd.DataFrame:
+    """The reading the project recommends per figure (recommended_readings.csv, written by hand
+    from the findings): figure, reading, the claims its reason names as reproduced
+    ("final; rise"), and the reason."""
+    t = pd.read_csv(path, dtype=str, keep_default_na=False)
+    for r in t.to_dict("records"):
+        if r["figure"] not in STUDIES.values():
+            raise ValueError(f"{path}: no readings figure {r['figure']!r}")
+        for c in _named(r):
+            if c not in claims.BY_ID or claims.BY_ID[c].diagnostic:
+                raise ValueError(f"{path}: {r['figure']}: {c!r} is not a claim of the paper")
+    if t["figure"].duplicated().any():
+        raise ValueError(f"{path}: more than one recommendation for a figure")
+    return t
+
+
+def _named(r: dict) -> list[str]:
+    return [c.strip() for c in r["reproduces"].split(";") if c.strip()]
+
+
+def contradictions(cards: pd.DataFrame, recs: pd.DataFrame) -> list[str]:
+    """Where the verdicts contradict a recommendation (on the figures this run holds): its
+    reading did not run, or a claim its reason names as reproduced is not reproduced."""
+    out = []
+    for r in recs.to_dict("records"):
+        f = cards[cards["figure"] == r["figure"]]
+        if not len(f):
+            continue
+        mine = f[f["reading"] == r["reading"]]
+        if not len(mine):
+            out.append(f"{r['figure']}: the recommended reading \"{r['reading']}\" is not in "
+                       "this run")
+            continue
+        verdicts = dict(zip(mine["claim"], mine["verdict"]))
+        out += [f"{r['figure']}, \"{r['reading']}\": the recommendation names \"{c}\" as "
+                f"reproduced, the data say {verdicts.get(c, 'not judged')}"
+                for c in _named(r) if verdicts.get(c) != scorecard.REPRODUCED]
+    return out
+
+
+def recommendations_markdown(cards: pd.DataFrame, recs: pd.DataFrame) -> str:
+    """The recommendations of the figures in this run, and every contradiction, loudly."""
+    figs = set(cards["figure"])
+    shown = recs[recs["figure"].isin(figs)]
+    if not len(shown):
+        return ""
+    lines = ["The project's default stays the plain step at 1 / W (its reasons: the paper's "
+             "text and the stability rule, pipeline/studies/readings.py: weight_sum); the reading "
+             "recommended per figure (pipeline/studies/recommended_readings.csv, written from the "
+             "findings, checked against the verdicts above):", "",
+             "| figure | recommended reading | reproduces (as written) | reason |",
+             "|---|---|---|---|"]
+    lines += [f"| {r['figure']} | {escape(r['reading'])} | {', '.join(_named(r)) or '—'} "
+              f"| {escape(r['reason'])} |" for r in shown.to_dict("records")]
+    lines.append("")
+    lines += [f"- **recommendation contradicted by the data: {c}**"
+              for c in contradictions(cards, recs)]
+    return "\n".join(lines) + "\n"
+
+
+def _figure_readings(per: dict) -> list:
+    """The readings the curves figure shows: the default, the rates and the solvers (all, if a
+    run has none of them)."""
+    every = list(dict.fromkeys(r for p in per.values() for r in p))
+
+    def shown(r):
+        return any(str(sv["choice"].iloc[0]).startswith(FIGURE_CHOICES)
+                   for sv in (p[r][1] for p in per.values() if r in p)
+                   if "choice" in sv and len(sv))
+    keep = [r for r in every if shown(r)]
+    return keep or every
+
+
 def figure(aggs: dict, title: str):
     """The key curves side by side: absolute error of every condition, one panel per figure and
     reading (rows: figures, columns: readings), the end of growth marked, one legend below."""
@@ -105,7 +239,7 @@ def figure(aggs: dict, title: str):
 
     studies = [s for s in STUDIES if s in aggs]
     per = {s: split(aggs[s]) for s in studies}
-    readings = list(dict.fromkeys(r for s in studies for r in per[s]))
+    readings = _figure_readings(per)
     fig, axes = figures.plt.subplots(len(studies), len(readings), squeeze=False,
                                      figsize=(2.7 * len(readings), 2.5 * len(studies) + 1.4),
                                      sharex=True)
@@ -149,9 +283,44 @@ def section(ctx: Context) -> list[str]:
     cards = intervals(read)
     ctx.text("readings_scorecard.csv", cards.to_csv(index=False, float_format="%.6g"))
     ctx.text("readings.csv", reading_table.to_csv(index=False, float_format="%.6g"))
-    png = ctx.save(figure(studies, "Readings of the paper: absolute error of every condition "
-                          "(mean over trials)"), "readings_curves")[0].name
+    m = ctx.text("readings_matrix.csv", matrix(cards).to_csv(index=False))
+    png = ctx.save(figure(studies, "Readings of the paper (the default, the rates, the solver): "
+                          "absolute error of every condition (mean over trials)"),
+                   "readings_curves")[0].name
     return ["## Every reading of the paper against every claim", "",
             "Each row is a reading of the text (conf/experiment/readings_*.yaml, "
-            "pipeline/studies/readings.py); each column a claim, checked as above.", "",
+            "pipeline/studies/readings.py); each column a claim of the paper on a figure, "
+            "judged by the scorecard as above (readings_matrix.csv; the cells with their "
+            "intervals below, readings_scorecard.csv):", "",
+            matrix_markdown(read_matrix(m)), recommendations_markdown(cards, recommended()),
             f"![readings]({png})", "", intervals_markdown(cards)]
+
+
+def readme_updated(text: str, csv) -> str:
+    """`text` (README.md) with its readings table regenerated from `csv` (readings_matrix.csv)."""
+    if BEGIN not in text or END not in text:
+        raise ValueError(f"no {BEGIN} ... {END} block")
+    head, rest = text.split(BEGIN, 1)
+    return head + readme_block(csv) + rest.split(END, 1)[1]
+
+
+def main(argv=None) -> int:
+    """python -m pipeline.studies.readings [README.md [readings_matrix.csv]]: regenerate the
+    README's readings table from the committed matrix."""
+    import sys
+
+    from ..config import REPO_ROOT
+
+    args = list(sys.argv[1:] if argv is None else argv)
+    readme = Path(args[0]) if args else REPO_ROOT / "README.md"
+    csv = Path(args[1]) if len(args) > 1 else REPO_ROOT / "outputs" / "report" / "readings_matrix.csv"
+    try:
+        readme.write_text(readme_updated(readme.read_text(), csv))
+    except (OSError, ValueError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

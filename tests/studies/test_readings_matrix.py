@@ -1,0 +1,130 @@
+"""The readings x figures matrix, the recommended reading and its check against the verdicts,
+README's block, and the readings figure's layout, on synthetic aggregates."""
+import numpy as np
+import pandas as pd
+import pytest
+
+from pipeline.config import REPO_ROOT
+from pipeline.studies import readings
+from pipeline.studies import scorecard as sc
+from test_claims import EPOCHS, RISING, _figure
+
+FLAT = list(np.linspace(0.5, 0.02, len(EPOCHS)))  # no rise during growth
+DEFAULT = "this project's default (plain step, exact R, one batch step, grid)"
+
+
+def _reading_agg(readings_curves: dict, n=4):
+    """One readings aggregate: every reading's conditions named 'reading | condition'."""
+    trials, summaries, curves = [], [], []
+    for k, (label, (grown, choice)) in enumerate(readings_curves.items()):
+        t, s = _figure(grown, periods=(10,), n=n, seed=k)
+        for f in (t, s):
+            f["condition"] = label + " | " + f["condition"]
+        s["variant"], s["choice"], s["chosen"] = label, choice, choice == "default"
+        c = t.groupby(["condition", "epoch"], as_index=False)["abs_error"].mean()
+        curves.append(c.rename(columns={"abs_error": "abs_error_mean"}))
+        trials.append(t)
+        summaries.append(s)
+    return dict(trials=pd.concat(trials, ignore_index=True),
+                summary=pd.concat(summaries, ignore_index=True),
+                curves=pd.concat(curves, ignore_index=True))
+
+
+AGG = {"readings_fig4": _reading_agg({DEFAULT: (RISING, "default"),
+                                      "eta = 0.1 / W": (FLAT, "learning rate")})}
+
+
+@pytest.fixture(scope="module")
+def cards():
+    return readings.intervals(AGG)
+
+
+def test_the_matrix_holds_the_scorecards_verdicts_for_the_papers_claims_only(cards):
+    m = readings.matrix(cards)
+    assert m["reading"].tolist() == [DEFAULT, "eta = 0.1 / W"]
+    assert m["fig4 n"].tolist() == ["4", "4"]
+    paper = cards[~cards["diagnostic"].astype(bool)]
+    assert {c.split(" ", 1)[1] for c in m.columns if c.startswith("fig4 ")} == \
+        set(paper["claim"]) | {"n"}
+    for r in paper.to_dict("records"):
+        row = m[m["reading"] == r["reading"]].iloc[0]
+        assert row[f"fig4 {r['claim']}"] == r["verdict"]
+    # the rising body reproduces the rise, the flat one does not
+    assert m.set_index("reading").loc[DEFAULT, "fig4 rise"] == sc.REPRODUCED
+    assert m.set_index("reading").loc["eta = 0.1 / W", "fig4 rise"] != sc.REPRODUCED
+
+
+def test_the_markdown_is_the_csvs_and_readme_block_round_trips(cards, tmp_path):
+    path = tmp_path / "readings_matrix.csv"
+    path.write_text(readings.matrix(cards).to_csv(index=False))
+    md = readings.matrix_markdown(readings.read_matrix(path))
+    assert md == readings.matrix_markdown(readings.matrix(cards))
+    assert "| eta = 0.1 / W | 4 |" in md and "✓ reproduced" in md
+    readme = "intro\n" + readings.BEGIN + "\nold\n" + readings.END + "\nrest\n"
+    new = readings.readme_updated(readme, path)
+    assert new.startswith("intro\n" + readings.readme_block(path)) and new.endswith("\nrest\n")
+    with pytest.raises(ValueError, match="readings-table"):
+        readings.readme_updated("no block", path)
+
+
+def test_the_readme_block_is_what_the_committed_matrix_gives():
+    csv = REPO_ROOT / "outputs" / "report" / "readings_matrix.csv"
+    if not csv.exists():
+        pytest.skip("outputs/report/readings_matrix.csv is not committed yet (the next full "
+                    "report writes it; then run python -m pipeline.studies.readings)")
+    text = (REPO_ROOT / "README.md").read_text()
+    shown = text[text.index(readings.BEGIN):text.index(readings.END) + len(readings.END)]
+    assert shown == readings.readme_block(csv)
+
+
+def test_the_readme_command_refuses_a_missing_matrix(tmp_path, capsys):
+    readme = tmp_path / "README.md"
+    readme.write_text(readings.BEGIN + "\n" + readings.END + "\n")
+    assert readings.main([str(readme), str(tmp_path / "none.csv")]) == 2
+    assert capsys.readouterr().err.startswith("error: ")
+
+
+def test_a_recommendation_the_verdicts_contradict_is_said_loudly(cards):
+    recs = pd.DataFrame([dict(figure="fig4", reading="eta = 0.1 / W", reproduces="rise; final",
+                              reason="r")])
+    found = readings.contradictions(cards, recs)
+    assert len(found) >= 1 and "\"rise\" as reproduced" in found[0]
+    md = readings.recommendations_markdown(cards, recs)
+    assert "recommendation contradicted by the data: fig4, \"eta = 0.1 / W\"" in md
+    # the same text for the reading that does reproduce the rise: no contradiction on it
+    ok = recs.assign(reading=DEFAULT, reproduces="rise")
+    assert readings.contradictions(cards, ok) == []
+    assert "contradicted" not in readings.recommendations_markdown(cards, ok)
+    gone = recs.assign(reading="no such reading")
+    assert "is not in this run" in readings.contradictions(cards, gone)[0]
+    # a figure not in this run is neither shown nor checked
+    assert readings.contradictions(cards, recs.assign(figure="fig7")) == []
+
+
+def test_the_committed_recommendations_name_the_papers_claims(tmp_path):
+    t = readings.recommended()
+    assert set(t["figure"]) == {"fig4", "fig5", "fig7"}
+    bad = tmp_path / "r.csv"
+    bad.write_text("figure,reading,reproduces,reason\nfig4,x,above_refs,why\n")
+    with pytest.raises(ValueError, match="not a claim of the paper"):
+        readings.recommended(bad)
+    bad.write_text("figure,reading,reproduces,reason\nfig9,x,,why\n")
+    with pytest.raises(ValueError, match="no readings figure"):
+        readings.recommended(bad)
+
+
+def test_the_readings_figure_shows_the_rate_and_solver_readings_and_fits():
+    from test_figure_layout import _check_layout
+
+    others = ["normalised step", "uniform amplitude", "path evaluation", "annealed rate",
+              "online updates"]
+    spec = {DEFAULT: (RISING, "default"), "eta = 0.1 / W": (FLAT, "learning rate (W)"),
+            "least squares (solver=lstsq)": (FLAT, "solver"),
+            **{o: (FLAT, o) for o in others}, "eta = 0.3 / W": (RISING, "learning rate (W)")}
+    aggs = {s: _reading_agg(spec, n=2) for s in readings.STUDIES}
+    fig = readings.figure(aggs, "readings")
+    titles = [ax.get_title() for ax in fig.axes if ax.get_visible()]
+    assert len(titles) == 3 * 4
+    assert not any(o in t for o in others for t in titles)
+    _check_layout(fig)
+    readings.figures.plt.close(fig)
