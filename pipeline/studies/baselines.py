@@ -208,12 +208,10 @@ def void_after_growth(pt: pd.DataFrame) -> list[dict]:
 
 
 # what a learner's inverse is, for the sentence on its smoothness
-KIND = {GB: "a polynomial fitted by gradient steps", GB_PROGRESS: "a polynomial fitted by "
-        "gradient steps", ONLINE: "a polynomial fitted by gradient steps",
-        ONLINE_PROGRESS: "a polynomial fitted by gradient steps",
-        GB_LSTSQ: "a polynomial fitted by least squares", MB: "a polynomial fitted by least squares",
-        MB_WIDE: "a polynomial fitted by least squares",
-        MEMORY: "a lookup of stored examples", MEMORY_ALL: "a lookup of stored examples"}
+KIND = {**dict.fromkeys((GB, GB_PROGRESS, ONLINE, ONLINE_PROGRESS),
+                        "a polynomial fitted by gradient steps"),
+        **dict.fromkeys((GB_LSTSQ, MB, MB_WIDE), "a polynomial fitted by least squares"),
+        **dict.fromkeys((MEMORY, MEMORY_ALL), "a lookup of stored examples")}
 
 
 def smoothness(t: pd.DataFrame) -> list[str]:
@@ -221,10 +219,11 @@ def smoothness(t: pd.DataFrame) -> list[str]:
     trials, the table's column, over every budget and growth it ran) means for a robot."""
     out = []
     for learner in LEARNERS:
-        j = t.loc[t.learner == learner, "largest_jump"].dropna()
+        rows = t[t.learner == learner]
+        j = rows["largest_jump"].dropna()
         if not len(j):
             continue
-        where = f"({KIND[learner]}; {len(j)} rows: budgets {', '.join(dict.fromkeys(t.loc[t.learner == learner, 'budget']))})"
+        where = f"({KIND[learner]}; {len(j)} rows, budgets {', '.join(dict.fromkeys(rows.budget))})"
         if j.max() > JUMP:
             out.append(f"- {learner} {where}: its inverse jumps up to {j.max():.3g} command units "
                        f"(at least {j.min():.3g}) between neighbouring targets 1/200 of the box "
@@ -236,6 +235,7 @@ def smoothness(t: pd.DataFrame) -> list[str]:
                        "command, a real arm follows a line of targets without whipping between "
                        f"solutions (a jump above {JUMP:g} would be discontinuous).")
     return out
+
 
 def table(aggs: dict) -> pd.DataFrame:
     """One row per (body, learner, budget, growth): final errors on the grid and held out."""

@@ -137,7 +137,8 @@ def test_windowed_memory_is_the_control_not_the_test():
 
 def test_smoothness_sentence_per_learner_from_the_numbers():
     cells = {(bl.GB, "1M", "linear", "none"): LOW, (bl.MEMORY, "1M", "linear", "none"): LOW}
-    aggs = {"baselines_arm5": _aggs("arm5", cells, jump=lambda k: 3.56 if k == bl.MEMORY else 0.015)}
+    aggs = {"baselines_arm5": _aggs("arm5", cells,
+                                    jump=lambda k: 3.56 if k == bl.MEMORY else 0.015)}
     lines = bl.smoothness(bl.table(aggs))
     assert len(lines) == 2
     gb, memory = lines
