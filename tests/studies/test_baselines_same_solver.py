@@ -157,3 +157,20 @@ def test_section_renders_every_part():
     assert "Smoothness of the final inverse" in md and bl.VOID.split(":")[0] in md
     assert "| 4M | no growth | motor babbling" not in md and "| 8M | no growth | motor" not in md
     assert f"{bl.GB_LSTSQ} ends lower in 1, motor babbling in 0" in md
+
+
+def test_three_trials_each_are_decided_only_without_overlap():
+    assert bl.p_beats([1.0, 2.0, 3.0], [4.0, 5.0, 6.0])[1] > 0.5
+    assert bl.p_beats([1.0, 2.0, 3.0], [3.0, 4.0, 5.0])[1] < 0.5  # one tie
+
+
+def test_figure_draws_least_squares_goal_babbling_in_its_own_style():
+    cells = {(bl.GB, "1M", "linear", "none"): LOW, (bl.GB_LSTSQ, "1M", "linear", "none"): LOW}
+    agg = _aggs("arm5", cells)
+    agg["curves"] = pd.DataFrame([dict(condition=c, samples=s, heldout_abs_error_mean=0.01)
+                                  for c in ("c0", "c1") for s in (10, 100)])
+    fig = bl.figure({"baselines_arm5": agg}, "t")
+    styles = {ln.get_label(): (ln.get_linestyle(), ln.get_color())
+              for ax in fig.axes for ln in ax.get_lines()}
+    assert styles[bl.GB_LSTSQ][0] == "--" and styles[bl.GB][0] == "-"
+    assert tuple(styles[bl.GB_LSTSQ][1]) != tuple(styles[bl.GB][1])
