@@ -205,11 +205,18 @@ def report(cfg: DictConfig, explicit: bool = False) -> list[Path]:
     aggs = load_aggregates(folder, names)
     if cfg.report.publish:
         check_published_scale(cfg, aggs)
+    before = set(listed_files(out / "report.md")) if (out / "report.md").exists() else set()
     _record_of(out).unlink(missing_ok=True)
     with io.new_dir(out) as tmp:  # the folder is replaced as one set: no file of an older report
         written = [out / p.relative_to(tmp) for p in write_report(cfg, aggs, tmp)]
     io.write_json(_record_of(out), dict(inputs=digest))  # last: the files are all there
     log.info("report: %d files -> %s", len(written), out)
+    lost = sorted(before - {p.relative_to(out).as_posix() for p in written})
+    if lost:  # a narrower run replaced a wider report: say what went, never silently
+        log.warning("report: %d files of the earlier report in %s are not in this one (%s%s); "
+                    "a run of the experiments that made them brings them back (make studies: "
+                    "the studies beyond the paper)", len(lost), out, ", ".join(lost[:4]),
+                    ", ..." if len(lost) > 4 else "")
     return written
 
 

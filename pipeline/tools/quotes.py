@@ -77,7 +77,7 @@ _JOIN = r"\s*(?:-|–|/|->|→|to)\s*"
 # numbers that must be quoted: a range or list ending in mm, cm or %; a ratio 1.24x or x1.5
 UNIT_RUN = re.compile(rf"(?<![\w.]){_NUM}(?:{_JOIN}{_NUM})*\s?(?:mm|cm|%)(?![A-Za-z])")
 RATIO_AFTER = re.compile(rf"(?<![\w.]){_NUM}(?:{_JOIN}{_NUM})*[x×](?![A-Za-z0-9])")
-RATIO_BEFORE = re.compile(rf"(?<![A-Za-z])[x×]{_NUM}(?![\w])")
+RATIO_BEFORE = re.compile(rf"(?<![A-Za-z])[x×]{_NUM}(?![\w-])")  # "x1.5", not "x86-64"
 TERM_COLUMN = re.compile(r"^(?P<col>[^=~#*]+?)(?:#(?P<k>\d+))?(?:\*(?P<scale>[0-9.eE+-]+))?$")
 
 

@@ -52,3 +52,22 @@ def test_a_toy_study_joins_the_report_through_the_registry(tmp_path, compose_tin
     del sections.SECTIONS["toy"]
     with pytest.raises(ValueError, match="paper.study='toy' names no report section"):
         sections.group(report.load_aggregates(cfg.paths.aggregate))
+
+
+def test_a_narrower_report_into_the_same_folder_says_which_files_it_drops(tmp_path, compose_tiny,
+                                                                           caplog):
+    import logging
+
+    cfgs = [compose_tiny(tmp_path, "figure=wide", "growth=none"),
+            compose_tiny(tmp_path, "figure=narrow", "growth=none", "learner.radius=0.15")]
+    for cfg in cfgs:
+        simulate.simulate(cfg)
+        aggregate.aggregate(cfg)
+    report.report(cfgs[1])  # every aggregated figure: wide and narrow
+    assert "wide_curves.png" in report.listed_files(Path(cfgs[1].paths.report) / "report.md")
+    (Path(cfgs[0].paths.aggregate) / "wide").unlink()  # a later run without the wide figure
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger=report.log.name):
+        report.report(cfgs[1])
+    lost = [r.getMessage() for r in caplog.records if "are not in this one" in r.getMessage()]
+    assert lost and "wide_curves.png" in lost[0], caplog.text
