@@ -10,7 +10,8 @@ paths.aggregate/<figure>/:
     curves.parquet    per condition and epoch: mean, std (over trials, ddof 1), 25 % and 75 %
                       quantiles of abs_error and rel_error, and n_trials
     summary.parquet   per condition: final errors, peak error during growth, failures, diverged
-    models.json       per condition and trial: the final model M and its snapshots
+    models.json       per condition and trial: the final model M and its snapshots (compact
+                      JSON: it holds every trial's matrices)
     manifest.json     the digest of the inputs (conditions, trials' seals, code): unchanged
                       inputs leave the figure as it is
     index.parquet     per trial: its files' signature (pipeline.cache.signature), seal, status
@@ -346,7 +347,7 @@ def aggregate_figure(cfg: DictConfig, fig: str) -> tuple[list[str], bool]:
         io.write_table(tmp / "curves.parquet", io.frame_to_table(curves))
         io.write_table(tmp / "summary.parquet", io.frame_to_table(summary))
         io.write_json(tmp / "models.json", {"figure": fig, "paper": paper,
-                                            "conditions": model_of})
+                                            "conditions": model_of}, compact=True)
         io.write_table(tmp / INDEX, index_table(conds))
         io.write_json(tmp / "manifest.json", dict(figure=fig, inputs=digest, code=code_of_stage(),
                                                   trials=int(len(trials))))
