@@ -18,6 +18,7 @@ every example and with brute force, ties included).
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 
 class Nearest:
@@ -46,8 +47,6 @@ class Nearest:
         while self._levels and self._levels[-1][1] - self._levels[-1][0] <= stop - start:
             start = self._levels.pop()[0]
         if k:
-            from scipy.spatial import cKDTree  # imported when used: planning never needs it
-
             self._levels.append((start, stop, cKDTree(self._x[start:stop])))
 
     @property

@@ -19,6 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from ..growth import factors
 from ..spec import check_int, check_number
@@ -107,8 +108,6 @@ def train(state, params: Params, body, sizes, scales, draws, epochs=None):
     for e in range(len(sizes)):
         known_x, known_q = memory(State(outcomes, commands, state.home, done))
         goals = body.target_set(sizes[e])[idx[e]]
-        from scipy.spatial import cKDTree
-
         _, nearest = cKDTree(known_x).query(goals)
         q = body.saturate(known_q[nearest] + params.sigma * noise[e])
         slot = done % params.window
@@ -123,8 +122,6 @@ def predict(state, params: Params, body, x) -> np.ndarray:
         store = state.own()
         return store.values[store.query(np.asarray(x, dtype=np.float64))]
     known_x, known_q = memory(state)
-    from scipy.spatial import cKDTree
-
     _, nearest = cKDTree(known_x).query(np.asarray(x, dtype=np.float64))
     return known_q[nearest]
 
