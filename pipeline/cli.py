@@ -5,7 +5,7 @@ several lines with hints about stack traces, and a bad value in the second job o
 after the first job ran. Each stage therefore first composes and plans every configuration its
 command line can produce (each value of a sweep) with the compose API; a failure is reported as
 one line, `error: ...`, with exit status 2, before Hydra or the stage has written anything.
-A one-job command line that planned without error leaves a note (pipeline.plan.checked_marker,
+A one-job command line that planned without error, and whose stage then ran, leaves a note (pipeline.plan.checked_marker,
 keyed by its config, overrides, config files and code); the same command line again plans
 nothing, only the run's own settings (paths, engine) are checked.
 """
@@ -95,6 +95,9 @@ def _one_line(err: BaseException) -> str:
     return f"{key}: {message}" if key else message
 
 
+_PASSED: list = []  # (note, trials) of the command line check() passed, for finish() to keep
+
+
 def check(argv: list[str]) -> str | None:
     """None when every configuration of the command line composes, else one line saying why."""
     overrides = _overrides(argv)
@@ -162,8 +165,8 @@ def check(argv: list[str]) -> str | None:
             condition_labels(plan_conditions(trials))
     except ConfigError as err:
         return str(err)
-    if n_jobs == 1 and not known:
-        mark_checked(marker, trials)
+    if n_jobs == 1 and not known:  # kept when the stage has run (finish): a refused run writes nothing
+        _PASSED[:] = [(marker, trials)]
     for note in notes:
         print(note, file=sys.stderr)
     return None
@@ -255,6 +258,10 @@ def finish(run, cfg) -> None:
             rc = stop.exit_status(err)
         finally:
             io.confine(None)
+    if rc in (0, 1):  # the stage ran (1: some trials failed or inputs are missing)
+        for marker, trials in _PASSED:
+            mark_checked(marker, trials)
+    _PASSED.clear()
     if rc:
         sys.exit(rc)
 

@@ -24,34 +24,42 @@ def plans(monkeypatch):
     return n
 
 
+def check(argv: list[str]) -> str | None:
+    """cli.check, then what cli.finish does after a stage that ran: the note is kept."""
+    problem = cli.check(argv)
+    if problem is None:
+        cli.finish(lambda cfg: 0, None)
+    return problem
+
+
 def notes(root: Path) -> list[Path]:
     return sorted(root.rglob(f"{plan.PLANNED}/checked/*.json"))
 
 
 def test_a_checked_command_line_is_not_planned_again(tmp_path, plans):
     argv = tiny_overrides(tmp_path, "figure=tiny")
-    assert cli.check(argv) is None and plans == ["tiny"]
+    assert check(argv) is None and plans == ["tiny"]
     assert len(notes(tmp_path)) == 1
     assert json.loads(notes(tmp_path)[0].read_text())["trials"] > 0
-    assert cli.check(argv) is None and plans == ["tiny"]  # the note: no planning
-    assert cli.check([*argv, "trials.count=2"]) is None and plans == ["tiny", "tiny"]
+    assert check(argv) is None and plans == ["tiny"]  # the note: no planning
+    assert check([*argv, "trials.count=2"]) is None and plans == ["tiny", "tiny"]
     assert len(notes(tmp_path)) == 2
 
 
 def test_a_damaged_note_plans_again(tmp_path, plans):
     argv = tiny_overrides(tmp_path, "figure=tiny")
-    cli.check(argv)
+    check(argv)
     notes(tmp_path)[0].write_text("{")
-    assert cli.check(argv) is None and len(plans) == 2
+    assert check(argv) is None and len(plans) == 2
 
 
 def test_the_runs_own_settings_are_checked_on_a_checked_command_line(tmp_path, plans):
     argv = tiny_overrides(tmp_path, "figure=tiny")
-    assert cli.check(argv) is None
+    assert check(argv) is None
     aggregate = Path(compose(argv).paths.aggregate)
     aggregate.parent.mkdir(parents=True, exist_ok=True)
     aggregate.write_text("a file where a folder belongs")
-    problem = cli.check(argv)
+    problem = check(argv)
     assert problem is not None and "paths.aggregate" in problem and len(plans) == 1
 
 
@@ -75,5 +83,13 @@ def test_a_changed_body_file_plans_again(tmp_path):
 
 def test_a_sweep_is_planned_every_time(tmp_path, plans):
     argv = ["-m", *tiny_overrides(tmp_path, "figure=tiny", "trials.count=1,2")]
-    assert cli.check(argv) is None and cli.check(argv) is None
+    assert check(argv) is None and check(argv) is None
     assert len(plans) == 4 and notes(tmp_path) == []
+
+
+def test_a_refused_stage_leaves_no_note(tmp_path, plans):
+    argv = tiny_overrides(tmp_path, "figure=tiny")
+    assert cli.check(argv) is None
+    with pytest.raises(SystemExit):
+        cli.finish(lambda cfg: 2, None)
+    assert notes(tmp_path) == [] and cli._PASSED == []
