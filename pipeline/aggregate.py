@@ -10,7 +10,9 @@ paths.aggregate/<figure>/:
     curves.parquet    per condition and epoch: mean, std (over trials, ddof 1), 25 % and 75 %
                       quantiles of abs_error and rel_error, and n_trials
     summary.parquet   per condition: final errors, peak error during growth, failures, diverged
-    models.json       per condition and trial: the final model M and its snapshots
+    models.json       per condition and trial: the final model M and its snapshots (compact
+                      JSON, one line per condition: a rebuild copies the line of a condition
+                      whose trials did not change; manifest.json holds each line's checksum)
     manifest.json     the digest of the inputs (conditions, trials' seals, code): unchanged
                       inputs leave the figure as it is
     index.parquet     per trial: its files' signature (pipeline.cache.signature), seal, status
@@ -22,6 +24,7 @@ or failed is counted as such and left out of every mean; a damaged or missing fi
 from __future__ import annotations
 
 import hashlib
+import json
 import logging
 import sys
 from functools import lru_cache
@@ -79,7 +82,8 @@ class Previous:
     reused (every trial is read from the cache)."""
 
     def __init__(self, folder: Path | None = None):
-        self.index, self.where, self._table, self._models = {}, None, None, None
+        self.index, self.where, self._table, self._texts, self._models = {}, None, None, None, {}
+        self.lines = {}  # condition -> (id, checksum of its models.json line)
         if folder is None or not folder.exists():
             return
         try:
@@ -88,20 +92,42 @@ class Previous:
             if manifest.get("code") != code_of_stage():
                 return
             rows = io.read_table(where / INDEX, schema=INDEX_SCHEMA).to_pylist()
-        except (OSError, ValueError):
+            self.lines = {k: tuple(v) for k, v in manifest.get("models", {}).items()}
+        except (OSError, ValueError, TypeError):
             return
         self.index, self.where = {r["key"]: r for r in rows}, where
+
+    def trials_of(self, condition: str) -> list[str]:
+        """The finished trials (their indices) the previous aggregate holds for `condition`."""
+        return [str(r["trial"]) for r in self.index.values()
+                if r["condition"] == condition and r["status"] != "diverged"]
 
     def table(self) -> pa.Table:
         if self._table is None:
             self._table = io.read_table(self.where / "trials.parquet", schema=io.CURVE)
         return self._table
 
+    def text(self, condition: str) -> str:
+        """The condition's line of the previous models.json (models_text), checked against the
+        checksum the manifest recorded for it (ValueError if it differs or is not there)."""
+        if self._texts is None:
+            self._texts = {}
+            lines = (self.where / "models.json").read_text().split("\n")
+            decoder = json.JSONDecoder()
+            for line in lines[1:-2] if lines[0] == MODELS_HEAD else ():
+                if line:
+                    name, end = decoder.raw_decode(line)
+                    self._texts[name] = line[end + 1:].rstrip(",")
+        text = self._texts.get(condition)
+        if text is None or _checksum(text) != self.lines.get(condition, (None, None))[1]:
+            raise ValueError(f"models.json: the line of {condition!r} is damaged")
+        return text
+
     def model(self, entry: dict) -> dict:
-        if self._models is None:
-            self._models = io.read_json(self.where / "models.json",
-                                        need=("conditions",))["conditions"]
-        return self._models[entry["condition"]]["trials"][str(entry["trial"])]
+        name = entry["condition"]
+        if name not in self._models:
+            self._models[name] = json.loads(self.text(name))["trials"]
+        return self._models[name][str(entry["trial"])]
 
 
 def load_trials(cache_dir, figure: str, previous: Previous | None = None):
@@ -200,13 +226,41 @@ def curves_table(conds: dict, previous: Previous) -> pa.Table:
     return pa.concat_tables(parts) if parts else io.CURVE.empty_table()
 
 
-def models(conds: dict, previous: Previous) -> dict:
-    """Per condition: its spec, id and each finished trial's model (key, M, snapshots, largest
-    jump), from the trial's sidecar or the previous aggregate."""
-    return {k: {"spec": c["spec"], "id": c["id"],
-                "trials": {i: e["model"] if "model" in e else previous.model(e)
-                           for i, e in c["trials"].items()}}
-            for k, c in conds.items()}
+MODELS_HEAD = '{"conditions":{'
+
+
+def _checksum(text: str) -> str:
+    return hashlib.sha256(text.encode()).hexdigest()[:20]
+
+
+def _compact(obj) -> str:
+    return json.dumps(obj, sort_keys=True, separators=(",", ":"))
+
+
+def models(conds: dict, previous: Previous) -> dict[str, str]:
+    """Per condition, the JSON text of its spec, id and each finished trial's model (key, M,
+    snapshots, largest jump), from the trial's sidecar or the previous aggregate. A condition
+    whose id and finished trials are those of the previous aggregate, none read again, keeps
+    its text as it was (checked against its checksum)."""
+    out = {}
+    for k, c in conds.items():
+        before = previous.lines.get(k)
+        same = (before is not None and before[0] == c["id"]
+                and all("model" not in e for e in c["trials"].values())
+                and sorted(c["trials"]) == sorted(previous.trials_of(k)))
+        out[k] = previous.text(k) if same else _compact(
+            {"spec": c["spec"], "id": c["id"],
+             "trials": {i: e["model"] if "model" in e else previous.model(e)
+                        for i, e in c["trials"].items()}})
+    return out
+
+
+def models_text(fig: str, paper, texts: dict[str, str]) -> str:
+    """models.json: {"conditions": ..., "figure": ..., "paper": ...} as compact JSON with sorted
+    keys, each condition on a line of its own (whitespace JSON allows between values)."""
+    body = ",\n".join(f"{json.dumps(k)}:{texts[k]}" for k in sorted(texts))
+    return (f"{MODELS_HEAD}\n{body}\n}},\"figure\":{json.dumps(fig)},"
+            f"\"paper\":{_compact(paper)}}}\n")
 
 
 def refresh_index(conds: dict, previous: Previous) -> None:
@@ -345,11 +399,11 @@ def aggregate_figure(cfg: DictConfig, fig: str) -> tuple[list[str], bool]:
                        pa.Table.from_pandas(trials, schema=io.CURVE, preserve_index=False))
         io.write_table(tmp / "curves.parquet", io.frame_to_table(curves))
         io.write_table(tmp / "summary.parquet", io.frame_to_table(summary))
-        io.write_json(tmp / "models.json", {"figure": fig, "paper": paper,
-                                            "conditions": model_of})
+        io.write_text(tmp / "models.json", models_text(fig, paper, model_of))
         io.write_table(tmp / INDEX, index_table(conds))
-        io.write_json(tmp / "manifest.json", dict(figure=fig, inputs=digest, code=code_of_stage(),
-                                                  trials=int(len(trials))))
+        io.write_json(tmp / "manifest.json", dict(
+            figure=fig, inputs=digest, code=code_of_stage(), trials=int(len(trials)),
+            models={k: [conds[k]["id"], _checksum(t)] for k, t in model_of.items()}))
     log.info("[%s] %d conditions, %d trial curves -> %s", fig, len(summary),
              sum(len(c["trials"]) for c in conds.values()), folder)
     return problems, True

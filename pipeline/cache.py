@@ -45,12 +45,17 @@ KEY = re.compile(r"[0-9a-f]{20}")  # pipeline.plan.trial_key
 def trial_paths(cache_dir, trial: dict) -> tuple[Path, Path]:
     """(curve, sidecar) of a trial; its key (from a plan record on disk, too) must be a key, so
     that no name read from a file becomes a path elsewhere."""
+    stem = _stem(cache_dir, trial)
+    return Path(f"{stem}.parquet"), Path(f"{stem}.json")
+
+
+def _stem(cache_dir, trial: dict) -> str:
+    """The path of a trial's files without their suffix (trial_paths), as a string: pathlib's
+    joins cost more than the stat of a file."""
     key = trial["key"]
     if not isinstance(key, str) or not KEY.fullmatch(key):
         raise io.DamagedFile(f"trial key {key!r}: not a trial key (20 hexadecimal digits)")
-    folder = _inside(os.path.join(cache_dir, TRIALS, key[:2]), io.confined_root())
-    stem = os.path.join(folder, key)  # strings first: pathlib's joins cost
-    return Path(f"{stem}.parquet"), Path(f"{stem}.json")
+    return os.path.join(_inside(os.path.join(cache_dir, TRIALS, key[:2]), io.confined_root()), key)
 
 
 @lru_cache(maxsize=1024)
@@ -111,8 +116,8 @@ def signature(cache_dir, trial: dict) -> str | None:
     """What the file system says about a trial's files (size, inode, modification and change
     times of the sidecar and the curve): any write or replacement changes it, so an unchanged
     signature lets a reader reuse what it checked before. None: no sidecar."""
-    parts = []
-    for path in trial_paths(cache_dir, trial)[::-1]:
+    parts, stem = [], _stem(cache_dir, trial)
+    for path in (f"{stem}.json", f"{stem}.parquet"):
         try:
             st = os.stat(path)
         except FileNotFoundError:
@@ -299,7 +304,8 @@ def group_conditions(folder: Path, group: str) -> tuple[list[dict], dict, list[s
         if not isinstance(r["conditions"], list) or not all(map(_condition_ok, r["conditions"])):
             raise io.DamagedFile(f"{p}: not a plan record (its conditions are malformed)")
         records.append(r)
-    records.sort(key=lambda r: (r.get("job", 0), record_digest(r)))
+    if len(records) > 1:  # a record's digest costs a dump of all its trials
+        records.sort(key=lambda r: (r.get("job", 0), record_digest(r)))
     conds, paper = {}, {}
     for r in records:
         for c in r["conditions"]:

@@ -5,6 +5,9 @@ several lines with hints about stack traces, and a bad value in the second job o
 after the first job ran. Each stage therefore first composes and plans every configuration its
 command line can produce (each value of a sweep) with the compose API; a failure is reported as
 one line, `error: ...`, with exit status 2, before Hydra or the stage has written anything.
+A one-job command line that planned without error, and whose stage then ran, leaves a note (pipeline.plan.checked_marker,
+keyed by its config, overrides, config files and code); the same command line again plans
+nothing, only the run's own settings (paths, engine) are checked.
 """
 from __future__ import annotations
 
@@ -21,7 +24,8 @@ from .fingerprint import CodeChanged
 from .io import BadInput
 from .config import (ConfigError, check_experiments, check_hydra, check_keys, compose,
                      config_notes)
-from .plan import condition_labels, plan, plan_conditions
+from .plan import (check_run, checked_marker, condition_labels, mark_checked, plan,
+                   plan_conditions, was_checked)
 
 # Hydra's command-line flags that take a value as the next argument
 _FLAGS_WITH_VALUE = {"--cfg", "-c", "--config-path", "-cp", "--config-name", "-cn",
@@ -91,6 +95,9 @@ def _one_line(err: BaseException) -> str:
     return f"{key}: {message}" if key else message
 
 
+_PASSED: list = []  # (note, trials) of the command line check() passed, for finish() to keep
+
+
 def check(argv: list[str]) -> str | None:
     """None when every configuration of the command line composes, else one line saying why."""
     overrides = _overrides(argv)
@@ -131,15 +138,22 @@ def check(argv: list[str]) -> str | None:
     for n, combination in enumerate(itertools.islice(itertools.product(*choices),
                                                      _MAX_COMBINATIONS)):
         try:  # values too: every sweep job is checked up front
-            if n == 0:  # Hydra's own section: callbacks, launcher, logging (check_hydra)
-                check_hydra(compose(list(combination) + hydra_own, hydra=True))
             cfg = compose(list(combination))
+            # one job checked before with the same config, overrides, config files and code:
+            # only the run's own settings (paths, engine) are checked again
+            marker = checked_marker(cfg, list(combination) + hydra_own) if n_jobs == 1 else None
+            known = was_checked(marker)
+            if n == 0 and not known:  # Hydra's own section: callbacks, launcher, logging
+                check_hydra(compose(list(combination) + hydra_own, hydra=True))
             if n == 0:
                 check_experiments(cfg, list(combination))
             check_keys(cfg)
+            notes += [n for n in config_notes(cfg) if n not in notes]
+            if known:
+                check_run(cfg)
+                continue
             trials = plan(cfg, remember=n_jobs == 1)  # checks the values, the limits; one job:
             # its stage takes this plan instead of planning again
-            notes += [n for n in config_notes(cfg) if n not in notes]
             keeps_experiment(list(combination), trials)
             planned.setdefault(cfg.figure, []).extend(trials)
         except ConfigError as err:
@@ -151,6 +165,8 @@ def check(argv: list[str]) -> str | None:
             condition_labels(plan_conditions(trials))
     except ConfigError as err:
         return str(err)
+    if n_jobs == 1 and not known:  # kept when the stage has run (finish): a refused run writes nothing
+        _PASSED[:] = [(marker, trials)]
     for note in notes:
         print(note, file=sys.stderr)
     return None
@@ -242,6 +258,10 @@ def finish(run, cfg) -> None:
             rc = stop.exit_status(err)
         finally:
             io.confine(None)
+    if rc in (0, 1):  # the stage ran (1: some trials failed or inputs are missing)
+        for marker, trials in _PASSED:
+            mark_checked(marker, trials)
+    _PASSED.clear()
     if rc:
         sys.exit(rc)
 

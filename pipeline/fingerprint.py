@@ -29,6 +29,7 @@ class CodeChanged(RuntimeError):
     """A gbmodel file differs from the code this process imported from it."""
 
 
+@lru_cache(maxsize=512)  # gbmodel's shared files are part of every learner's fingerprint
 def _code_of(source: str) -> str:
     """The syntax tree of a module without its docstrings (comments are not in it anyway)."""
     tree = ast.parse(source)

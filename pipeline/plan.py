@@ -241,6 +241,56 @@ def plan_digest(cfg: DictConfig, overrides) -> str:
     return hashlib.sha256(_canonical(body).encode()).hexdigest()[:24]
 
 
+def checked_marker(cfg: DictConfig, overrides) -> Path | None:
+    """Where the note that this command line's config planned without error is kept:
+    paths.out/planned/checked/<digest>.json (plan_digest of the config and `overrides`); None
+    when the config does not resolve outside Hydra's run (then it is planned every time)."""
+    try:
+        digest = plan_digest(cfg, ["checked", list(overrides)])
+    except Exception:  # an interpolation only Hydra's own run resolves
+        return None
+    return Path(cfg.paths.out) / PLANNED / "checked" / f"{digest}.json"
+
+
+def _body_files(trials: list[dict]) -> list[list[str]]:
+    """(file, sha256) of every file the trials' bodies read (a URDF: outside plan_digest)."""
+    seen, out = set(), []
+    for t in trials:
+        if id(t["spec"]) in seen:
+            continue
+        seen.add(id(t["spec"]))
+        urdf = t["spec"]["body"].get("urdf")
+        if isinstance(urdf, dict) and "file" in urdf and [urdf["file"], urdf.get("sha256")] not in out:
+            out.append([urdf["file"], urdf.get("sha256")])
+    return out
+
+
+def was_checked(marker: Path | None) -> bool:
+    """Whether `marker` (checked_marker) says the config planned without error, and every body
+    file it read still has those bytes."""
+    if marker is None:
+        return False
+    try:
+        note = json.loads(marker.read_bytes())
+        return all(gbmodel.urdf.digest(f) == sha for f, sha in note["body_files"])
+    except (OSError, ValueError, TypeError, KeyError):
+        return False
+
+
+def mark_checked(marker: Path | None, trials: list[dict]) -> None:
+    """Keep `marker` for the next run of the same command line; a folder that cannot be
+    written leaves it out (the stage names that folder itself)."""
+    if marker is None:
+        return
+    from . import io
+
+    try:
+        io.write_json(marker, dict(trials=len(trials), body_files=_body_files(trials)),
+                      compact=True)
+    except OSError:
+        pass
+
+
 def check_paths(cfg: DictConfig) -> None:
     """Every output folder is a folder (or can become one), and writable, except the cache: a
     read-only cache where every trial is cached is read, never written (aggregate, report, and

@@ -3,6 +3,7 @@
     python -m pipeline.tools.scale                           # 1,000 and 10,000 trials
     python -m pipeline.tools.scale --sizes 100000            # the large one (about an hour)
     python -m pipeline.tools.scale --baseline /tmp/base      # the same, beside another checkout
+    python -m pipeline.tools.scale --sampled 100000          # 100,000 planned, 1,000 run
 
 A sweep is arm5 trials of `--epochs` (10) epochs, over ten conditions (growth periods 1 ... 10,
 trials.count = size / 10), in its own temporary root. Each stage runs as the command a user
@@ -15,6 +16,11 @@ and the files under the cache afterwards:
     aggregate         the first build
     aggregate_cached  again: nothing changed
     aggregate_one     after one trial changed (its sidecar's content, sealed again)
+
+--sampled N measures a sweep of N trials without running them all: planning all N as simulate
+does (compose, plan, the saved plan written; then again, the saved plan read), in a process of
+its own, and every stage above on a sample of --sample trials (1,000) whose costs per trial,
+times N, estimate the stages at N (recorded as `estimated_cpu_s`, with `sampled`).
 
 With --baseline, every size runs on the baseline checkout right after this one (paired: the
 load of a shared machine falls on both alike). The results go to --out as JSON and are printed as
@@ -103,6 +109,49 @@ def sweep(code: Path, size: int, epochs: int, workers: int, keep: bool) -> dict:
             shutil.rmtree(root, ignore_errors=True)
 
 
+PLANNING = """
+import json, resource, sys, time
+from pipeline import simulate
+from pipeline.config import compose
+cfg, out = compose(json.loads(sys.argv[1])), {}
+for name in ("plan", "plan_saved"):
+    wall, cpu = time.perf_counter(), time.process_time()
+    jobs = simulate.jobs_of(cfg)
+    out[name] = dict(wall_s=round(time.perf_counter() - wall, 3),
+                     cpu_s=round(time.process_time() - cpu, 3),
+                     trials=sum(len(j.trials) for j in jobs))
+out["peak_mb"] = round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)
+print(json.dumps(out))
+"""
+
+
+def planning(code: Path, size: int, epochs: int, workers: int) -> dict:
+    """Plan a sweep of `size` trials in checkout `code` as simulate does, twice (the second
+    time from the saved plan), in a temporary root: wall and CPU of each, peak memory."""
+    root = Path(tempfile.mkdtemp(prefix=f"scale-plan-{size}-"))
+    try:
+        args = json.dumps(overrides(root, size, epochs, workers))
+        proc = subprocess.run([sys.executable, "-c", PLANNING, args], cwd=code,
+                              env=dict(os.environ, PYTHONPATH=str(code)), capture_output=True,
+                              text=True)
+        if proc.returncode:
+            raise RuntimeError(f"planning in {code} exited {proc.returncode}: "
+                               f"{proc.stderr[-2000:]}")
+        return json.loads(proc.stdout.strip().splitlines()[-1])
+    finally:
+        shutil.rmtree(root, ignore_errors=True)
+
+
+def sampled(code: Path, size: int, sample: int, epochs: int, workers: int, keep: bool) -> dict:
+    """A sweep of `size` trials measured on a sample: planning all of them (planning), every
+    stage on `sample` trials (sweep), and each stage's CPU per trial times `size`."""
+    out = sweep(code, sample, epochs, workers, keep)
+    out.update(sampled=sample, size=size, **planning(code, size, epochs, workers))
+    out["estimated_cpu_s"] = {stage: round(out[stage]["cpu_ms_per_trial"] * size / 1000, 1)
+                              for stage in STAGES}
+    return out
+
+
 def packing(n: int, rows: int = 11) -> dict:
     """The cache's file layout against a packed one, on `n` synthetic trial curves of `rows`
     epochs (TRIAL_CURVE) and their sidecars: files, bytes, and ms per trial to write them and to
@@ -162,11 +211,17 @@ def table(results: list[dict]) -> str:
            f"{'ms CPU/trial':>12} {'peak MB':>8} {'files':>7}"
     lines = [head, "-" * len(head)]
     for r in results:
+        size = f"{r['sampled']}/{r['size']}" if "sampled" in r else str(r["size"])
         for stage in STAGES:
             s = r[stage]
-            lines.append(f"{r['code'][-28:]:<28} {r['size']:>7} {stage:<17} {s['wall_s']:>8.2f} "
+            lines.append(f"{r['code'][-28:]:<28} {size:>7} {stage:<17} {s['wall_s']:>8.2f} "
                          f"{s['cpu_s']:>8.2f} {s['cpu_ms_per_trial']:>12.3f} "
                          f"{s['peak_mb']:>8.1f} {r['files'] if stage == 'simulate' else '':>7}")
+        for stage in ("plan", "plan_saved") if "sampled" in r else ():
+            s = r[stage]
+            lines.append(f"{r['code'][-28:]:<28} {r['size']:>7} {stage:<17} {s['wall_s']:>8.2f} "
+                         f"{s['cpu_s']:>8.2f} {1000 * s['cpu_s'] / r['size']:>12.3f} "
+                         f"{r['peak_mb']:>8.1f} {'':>7}")
     return "\n".join(lines)
 
 
@@ -184,6 +239,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--baseline", type=Path, help="another checkout to run beside this one")
     ap.add_argument("--out", type=Path, default=REPO / "outputs" / "bench" / "scale.json")
     ap.add_argument("--keep", action="store_true", help="keep the temporary roots")
+    ap.add_argument("--sampled", type=int, metavar="N",
+                    help="instead of --sizes: plan N trials, run a sample of --sample of them")
+    ap.add_argument("--sample", type=int, default=1000, help="trials run for --sampled (1000)")
     ap.add_argument("--packing", type=int, metavar="N",
                     help="instead: the cache's files against one packed file, for N trials")
     a = ap.parse_args(argv)
@@ -206,11 +264,17 @@ def main(argv: list[str] | None = None) -> int:
     if a.epochs < 1 or a.workers < 1:
         print("error: --epochs and --workers: at least 1", file=sys.stderr)
         return 2
+    if a.sampled is not None and not (CONDITIONS <= a.sample <= a.sampled and a.sample % CONDITIONS == 0
+                                      and a.sampled % CONDITIONS == 0):
+        print(f"error: --sampled={a.sampled} --sample={a.sample}: multiples of {CONDITIONS}, "
+              "the sample at most the sweep", file=sys.stderr)
+        return 2
     codes = [REPO] + ([a.baseline.resolve()] if a.baseline else [])
     results, loads = [], [load()]
-    for size in sizes:
+    for size in sizes if a.sampled is None else [a.sampled]:
         for code in codes:
-            results.append(sweep(code, size, a.epochs, a.workers, a.keep))
+            results.append(sweep(code, size, a.epochs, a.workers, a.keep) if a.sampled is None
+                           else sampled(code, size, a.sample, a.epochs, a.workers, a.keep))
             loads.append(load())
             print("\n".join(table(results[-1:]).splitlines()[2:]), file=sys.stderr)
     record = dict(epochs=a.epochs, workers=a.workers, conditions=CONDITIONS, loads=loads,

@@ -129,3 +129,38 @@ def test_an_edited_paper_block_rebuilds_the_aggregate(tmp_path, compose_tiny):
         aggregate.aggregate(cfg)
         summary = pd.read_parquet(Path(cfg.paths.aggregate) / "fig4" / "summary.parquet")
         assert set(summary["paper_final_abs_error"]) == {value}
+
+
+def model_lines(cfg) -> dict[str, str]:
+    lines = (io.set_of(Path(cfg.paths.aggregate) / "custom") / "models.json").read_text()
+    return {ln.split('":', 1)[0]: ln for ln in lines.splitlines()[1:-1]}
+
+
+def test_one_changed_trial_rewrites_the_model_line_of_its_condition_only(
+        sweep, tmp_path, monkeypatch):
+    from pipeline.tools import scale
+
+    assert aggregate.aggregate(sweep) == []
+    before = model_lines(sweep)
+    assert len(before) == 2
+    encoded, real = [], aggregate._compact
+    monkeypatch.setattr(aggregate, "_compact", lambda obj: encoded.append(obj) or real(obj))
+    scale.change_one_trial(Path(sweep.paths.cache))
+    assert aggregate.aggregate(sweep) == []
+    after = model_lines(sweep)
+    assert len([k for k in after if after[k] != before[k]]) == 1
+    assert len([o for o in encoded if "trials" in o]) == 1  # the other condition's line copied
+    monkeypatch.undo()
+    assert files_of(Path(sweep.paths.aggregate) / "custom") == built_from_nothing(sweep, tmp_path)
+
+
+def test_a_model_line_edited_in_place_is_not_copied(sweep, tmp_path):
+    from pipeline.tools import scale
+
+    assert aggregate.aggregate(sweep) == []
+    models = io.set_of(Path(sweep.paths.aggregate) / "custom") / "models.json"
+    text = models.read_text()
+    models.write_text(text.replace('"largest_jump":', '"largest_jump":1'))  # valid JSON
+    scale.change_one_trial(Path(sweep.paths.cache))
+    assert aggregate.aggregate(sweep) == []
+    assert files_of(Path(sweep.paths.aggregate) / "custom") == built_from_nothing(sweep, tmp_path)

@@ -8,7 +8,9 @@ from pipeline.tools import scale
 
 
 @pytest.mark.parametrize("args", [["--sizes", "15"], ["--sizes", "x"], ["--epochs", "0"],
-                                  ["--packing", "0"], ["--baseline", "/nonexistent"]])
+                                  ["--packing", "0"], ["--baseline", "/nonexistent"],
+                                  ["--sampled", "100", "--sample", "200"],
+                                  ["--sampled", "105"], ["--sampled", "100", "--sample", "5"]])
 def test_bad_input_is_exit_2(args, tmp_path, capsys):
     assert scale.main([*args, "--out", str(tmp_path / "s.json")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
@@ -31,3 +33,22 @@ def test_a_tiny_sweep_records_every_stage(tmp_path):
     assert r["size"] == 10 and r["files"] == 20
     for stage in scale.STAGES:
         assert r[stage]["wall_s"] > 0 and r[stage]["cpu_s"] > 0 and r[stage]["peak_mb"] > 0
+
+
+def test_planning_plans_every_trial_then_takes_the_saved_plan():
+    out = scale.planning(scale.REPO, 40, 2, 1)
+    assert out["plan"]["trials"] == out["plan_saved"]["trials"] == 40
+    assert out["plan"]["cpu_s"] > 0 and out["peak_mb"] > 0
+
+
+@pytest.mark.slow
+def test_a_sampled_sweep_plans_all_and_runs_the_sample(tmp_path):
+    out = tmp_path / "scale.json"
+    assert scale.main(["--sampled", "40", "--sample", "10", "--epochs", "2", "--workers", "1",
+                       "--out", str(out)]) == 0
+    (r,) = json.loads(out.read_text())["results"]
+    assert r["size"] == 40 and r["sampled"] == 10 and r["files"] == 20
+    assert r["plan"]["trials"] == 40
+    for stage in scale.STAGES:
+        assert r["estimated_cpu_s"][stage] == pytest.approx(
+            r[stage]["cpu_ms_per_trial"] * 40 / 1000, abs=0.06)
