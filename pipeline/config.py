@@ -161,7 +161,7 @@ class ReportConf:
     log_error_axis: bool = MISSING
     postures: dict[str, Any] = MISSING
     joint_space_figure: str = MISSING
-    publish: bool = False  # write the committed report (paths.published): make reproduce only
+    publish: bool = False  # write the committed report (paths.published): make reproduce / make studies only
     paper_experiments: list[str] = MISSING  # what the committed report must hold, at full scale
     stamp_findings: bool = False  # record these numbers as the ones findings.md discusses
     # a GIF per figure and condition whose trial 0 stored >= 2 models (conditions.frames)
