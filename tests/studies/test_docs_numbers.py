@@ -11,10 +11,12 @@ def test_the_coverage_table_in_the_docs_is_coverage_csv():
     assert shown == coverage.markdown(pd.read_csv(scorecard.COVERAGE))
 
 
-def test_every_measured_coverage_lets_the_scorecard_decide():
+def test_the_scorecard_decides_exactly_where_the_measured_coverage_allows():
     t = pd.read_csv(scorecard.COVERAGE)
     assert {"final", "rebound", "excess", "ratio"} <= set(t["kind"])
-    assert (t["coverage"] >= scorecard.MIN_COVERAGE).all()
+    for r in t.itertuples():  # "not reproduced" only where the coverage reaches MIN_COVERAGE
+        assert scorecard.established(r.kind, int(r.trials), t) == (r.coverage >= scorecard.MIN_COVERAGE)
+    assert not scorecard.established("rebound", 2, t)  # below the smallest count measured
 
 
 def test_the_coverage_command_refuses_a_figure_that_is_not_there(tmp_path, capsys):
