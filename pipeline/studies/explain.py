@@ -193,6 +193,15 @@ def half_size_text(found: list[dict]) -> str:
                        "efficiency weight scales with the size, so at half size the whole step "
                        "halves; the cubic features scale with its powers), not something about "
                        "the small body.")
+    late = rate is not None and _slower(rate) and list(rate["at"].values())[-1]["low"] <= 1
+    if ls is not None and not _slower(ls) and late:
+        return text + ("The gap closes under least squares, which no uniform scaling of the "
+                       "weights or the features changes: the slower learning is the plain "
+                       "step's size dependence, not something about the small body. Doubling "
+                       "the rate at half size (the step the full-size weights would give) "
+                       f"closes it only after epoch {rate['last_above']:,}: the halved weights "
+                       "account for part of it, the cubic features, which shrink with the "
+                       "size's powers, for the early rest.")
     if ls is not None and not _slower(ls):
         return text + ("The gap closes under least squares, which no uniform scaling of the "
                        "weights or the features changes, but not with the doubled rate: the "

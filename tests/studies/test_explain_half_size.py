@@ -52,6 +52,10 @@ def test_the_paragraph_follows_the_numbers():
         {"d": (1.0, "gradient", SLOW), "2/W": (2.0, "gradient", SLOW),
          "ls": (1.0, "lstsq", SAME)})))
     assert "but not with the doubled rate" in only_ls
+    late = explain.half_size_text(explain.half_size(_half_size_agg(
+        {"d": (1.0, "gradient", SLOW), "2/W": (2.0, "gradient", [1.6, 1.5, 1.5, 0.5, 0.3, 0.3]),
+         "ls": (1.0, "lstsq", SAME)})))
+    assert "closes it only after epoch" in late and "plain step's size dependence" in late
     stays = explain.half_size_text(explain.half_size(_half_size_agg(
         {"d": (1.0, "gradient", SLOW), "2/W": (2.0, "gradient", SAME),
          "ls": (1.0, "lstsq", SLOW)})))

@@ -142,3 +142,10 @@ def test_a_page_on_the_unscanned_lists_is_scanned_when_named(root, monkeypatch, 
     assert quotes.check([page], root=root, blocks=[]) == []
     assert quotes.main([str(page)]) == 1
     assert "docs/readings.md:1: 12.4 has no quote marker" in capsys.readouterr().out
+
+
+def test_the_generated_blocks_are_the_coverage_tables_markers():
+    from pipeline.studies import coverage
+    from pipeline.tools import quotes
+
+    assert quotes.generated_blocks() == [(coverage.BEGIN, coverage.END)]
