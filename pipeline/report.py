@@ -14,7 +14,8 @@ Writes under paths.report (all bytes reproducible, no timestamps, only relative 
                                interval over trials (pipeline/studies/scorecard.py)
     claims.csv                 each claim of the paper, what was measured, and the verdict on the
                                mean (the pre-set criteria)
-    readings.csv, readings_scorecard.csv, readings_curves.png   the readings x claims study
+    readings.csv, readings_scorecard.csv, readings_matrix.csv, readings_summary.csv,
+    readings_curves.png        the readings x claims study (and each reading's final errors)
     explanations.csv           the decisive experiments explain_*, read from their aggregates
     choices.csv, choices.md    the open choices (experiments choices_*): each variant's effect
     conventions.csv            the reporting conventions: each alternative's effect, measured

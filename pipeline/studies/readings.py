@@ -79,6 +79,21 @@ def intervals(aggs: dict) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def finals(aggs: dict) -> pd.DataFrame:
+    """readings_summary.csv: per figure, reading and condition, the trials and the final errors
+    (mean over trials), the numbers the findings quote beside the verdicts."""
+    rows = []
+    for study, fig in STUDIES.items():
+        if study not in aggs:
+            continue
+        for label, (_, sv) in split(aggs[study]).items():
+            rows += [dict(figure=fig, reading=label, condition=r.condition, trials=r.n_trials,
+                          final_abs_error_mean=r.final_abs_error_mean,
+                          final_rel_error_mean=r.final_rel_error_mean)
+                     for r in sv.itertuples()]
+    return pd.DataFrame(rows)
+
+
 def intervals_markdown(t: pd.DataFrame) -> str:
     """Per figure: rows = readings, columns = claims, cells = verdict, value and interval."""
     lines = []
@@ -283,6 +298,7 @@ def section(ctx: Context) -> list[str]:
     cards = intervals(read)
     ctx.text("readings_scorecard.csv", cards.to_csv(index=False, float_format="%.6g"))
     ctx.text("readings.csv", reading_table.to_csv(index=False, float_format="%.6g"))
+    ctx.text("readings_summary.csv", finals(read).to_csv(index=False, float_format="%.6g"))
     m = ctx.text("readings_matrix.csv", matrix(cards).to_csv(index=False))
     png = ctx.save(figure(studies, "Readings of the paper (the default, the rates, the solver): "
                           "absolute error of every condition (mean over trials)"),

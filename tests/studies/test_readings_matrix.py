@@ -128,3 +128,14 @@ def test_the_readings_figure_shows_the_rate_and_solver_readings_and_fits():
     assert not any(o in t for o in others for t in titles)
     _check_layout(fig)
     readings.figures.plt.close(fig)
+
+
+def test_each_readings_final_errors_are_its_summary_rows():
+    agg = dict(AGG["readings_fig4"])
+    s = agg["summary"].assign(final_abs_error_mean=lambda f: 0.01 + 0.001 * np.arange(len(f)),
+                              final_rel_error_mean=0.02)
+    t = readings.finals({"readings_fig4": dict(agg, summary=s)})
+    assert len(t) == len(s) and set(t["figure"]) == {"fig4"}
+    assert set(t["reading"]) == {DEFAULT, "eta = 0.1 / W"}
+    assert not t["condition"].str.contains(" | ").any()  # named as in the paper's figure
+    assert np.allclose(sorted(t["final_abs_error_mean"]), sorted(s["final_abs_error_mean"]))
