@@ -17,7 +17,7 @@ PROFILE ?= full
 ARGS    ?=
 
 .DEFAULT_GOAL := help
-.PHONY: help setup reproduce studies smoke simulate aggregate choices report pipeline bench scale test test-slow test-cluster clean
+.PHONY: help setup reproduce studies stamp smoke simulate aggregate choices report pipeline bench scale test test-slow test-cluster clean
 
 help: ## list the targets
 	@awk 'BEGIN {FS = ":.*## "} /^[a-z-]+:.*## / {printf "  make %-10s %s\n", $$1, $$2}' $(MAKEFILE_LIST)
@@ -48,6 +48,9 @@ reproduce: ## the paper's figures, its open choices and the explanations, publis
 
 studies: ## the studies beyond the paper (readings x figures, baselines), then the whole committed report
 	@$(MAKE) --no-print-directory pipeline PROFILE=full PUBLISH=report.publish=true
+
+stamp: ## after make studies and a rewrite of findings.md: record the numbers it discusses
+	@$(MAKE) --no-print-directory report PROFILE=full PUBLISH="report.publish=true report.stamp_findings=true"
 
 smoke: ## the same at smoke scale (1000 epochs, 2 trials) into outputs/smoke/latest/
 	@$(MAKE) --no-print-directory pipeline PROFILE=smoke

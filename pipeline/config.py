@@ -417,7 +417,7 @@ def check_stamp(cfg) -> None:
     the publishing run (make reproduce: report.publish=true) may, never a smoke or custom run."""
     if cfg.report.stamp_findings and not cfg.report.publish:
         raise ConfigError("report.stamp_findings=true: only with report.publish=true (make "
-                          "reproduce ARGS=report.stamp_findings=true); this run's numbers are not "
+                          "stamp, after make studies); this run's numbers are not "
                           "the committed report's")
 
 

@@ -49,18 +49,11 @@ import pandas as pd
 from ..config import REPO_ROOT
 
 REPORT = Path("outputs/report")
-# pages the scanner leaves out (their markers are still checked); the lead empties both lists:
-# pages another change is rewriting from their tables
-REWRITTEN_ELSEWHERE = {
-    "docs/baselines.md": "its numbers are being rewritten from baselines.csv",
-    "docs/readings.md": "its numbers are being rewritten from readings.csv",
-}
-# pages whose error-like numbers are not all marked yet (`python -m pipeline.tools.quotes PAGE`
-# lists the unmarked ones)
-NOT_YET_MARKED = {
-    "docs/results.md": "the table's rows other than the iCub's final error",
-    "pipeline/studies/findings.md": "numbers from summary.csv, claims.csv and choices.csv",
-}
+# pages the scanner leaves out (their markers are still checked); both empty when every page is
+# marked
+REWRITTEN_ELSEWHERE: dict[str, str] = {}  # pages another change is rewriting: page -> why
+# pages whose error-like numbers are not all marked yet: page -> what is left
+NOT_YET_MARKED: dict[str, str] = {}
 UNSCANNED_PAGES = {**REWRITTEN_ELSEWHERE, **NOT_YET_MARKED}
 
 MARKER = re.compile(r"<!--\s*q:(?P<body>.*?)-->")
@@ -105,9 +98,11 @@ def pages(root: Path | None = None) -> list[Path]:
 
 
 # BEGIN and END lines of tables written and checked by other mechanisms: the coverage table
-# (pipeline.studies.coverage.BEGIN / END; the machinery imports no study, a test compares them)
+# and the README's readings matrix (pipeline.studies.coverage / readings .BEGIN, .END; the
+# machinery imports no study, a test compares them)
 GENERATED_BLOCKS = [("<!-- coverage table: pipeline.studies.coverage -->",
-                     "<!-- end of coverage table -->")]
+                     "<!-- end of coverage table -->"),
+                    ("<!-- readings-table:begin -->", "<!-- readings-table:end -->")]
 
 
 def generated_blocks() -> list[tuple[str, str]]:

@@ -137,6 +137,7 @@ def test_the_pages_left_unscanned_exist():
 
 def test_a_page_on_the_unscanned_lists_is_scanned_when_named(root, monkeypatch, capsys):
     monkeypatch.setattr(quotes, "REPO_ROOT", root)
+    monkeypatch.setattr(quotes, "UNSCANNED_PAGES", {"docs/readings.md": "being rewritten"})
     (root / "docs").mkdir()
     page = _page(root, "ends at 12.4 mm\n", "docs/readings.md")
     assert quotes.check([page], root=root, blocks=[]) == []
@@ -144,8 +145,9 @@ def test_a_page_on_the_unscanned_lists_is_scanned_when_named(root, monkeypatch, 
     assert "docs/readings.md:1: 12.4 has no quote marker" in capsys.readouterr().out
 
 
-def test_the_generated_blocks_are_the_coverage_tables_markers():
-    from pipeline.studies import coverage
+def test_the_generated_blocks_are_the_coverage_and_readings_tables_markers():
+    from pipeline.studies import coverage, readings
     from pipeline.tools import quotes
 
-    assert quotes.generated_blocks() == [(coverage.BEGIN, coverage.END)]
+    assert quotes.generated_blocks() == [(coverage.BEGIN, coverage.END),
+                                         (readings.BEGIN, readings.END)]
