@@ -469,7 +469,7 @@ def figure(aggs: dict, title: str):
     its largest budget (every learner on the same axis)."""
     studies = [s for s in STUDIES if s in aggs]
     fig, axes = figures.plt.subplots(len(studies), 3, squeeze=False, sharey="row",
-                                     figsize=(9.0, 2.8 * len(studies)))
+                                     figsize=(9.0, 2.8 * len(studies) + 0.8))
     colors = dict(zip(LEARNERS, figures.plt.get_cmap("tab10")(np.arange(len(LEARNERS)))))
     for i, s in enumerate(studies):
         summ, curves = aggs[s]["summary"], aggs[s]["curves"]
@@ -487,9 +487,14 @@ def figure(aggs: dict, title: str):
             axes[i, j].set(xscale="log", yscale="log", title=f"{summ['body'].iloc[0]}, {g}",
                            xlabel="samples (reaching movements)")
         axes[i, 0].set_ylabel("held-out error [m]")
-    axes[0, 0].legend(frameon=False, fontsize=6)
+    handles = {}
+    for ax in axes.flat:  # one legend below the panels, off the data
+        for h, label in zip(*ax.get_legend_handles_labels()):
+            handles.setdefault(label, h)
+    fig.legend(list(handles.values()), list(handles), loc="lower center", ncol=3, frameon=False,
+               fontsize=7)
     fig.suptitle(title)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.8 / (2.8 * len(studies) + 0.8), 1, 1))
     return fig
 
 

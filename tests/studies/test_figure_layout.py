@@ -141,3 +141,28 @@ def test_figures_are_saved_as_png_and_pdf(tmp_path):
     fig = figures.learning_curves(*_sweep(LABELS), "sweep")
     paths = figures.save(fig, tmp_path / "s_curves", 60)
     assert [p.suffix for p in paths] == [".png", ".pdf"] and all(p.stat().st_size for p in paths)
+
+
+def test_baselines_figure_legend_lies_below_the_panels():
+    from pipeline.studies import baselines
+
+    summary, curves = [], []
+    for i, (learner, growth, schedule) in enumerate(itertools.product(
+            baselines.LEARNERS, ("none", "proportional", "proportional"), ("linear",))):
+        schedule = "infant" if i % 3 == 2 else schedule
+        cond = f"c{i}"
+        summary.append(dict(body="arm5", variant=f"{learner}, 1.06M, {schedule}", growth=growth,
+                            condition=cond, final_samples=10 ** 6))
+        samples = np.logspace(2, 6, 8)
+        curves.append(pd.DataFrame(dict(condition=cond, samples=samples,
+                                        heldout_abs_error_mean=0.3 / samples ** (0.1 + 0.02 * i))))
+    aggs = {"baselines_arm5": dict(summary=pd.DataFrame(summary),
+                                   curves=pd.concat(curves, ignore_index=True))}
+    with figures.plt.rc_context(figures.RC):
+        fig = baselines.figure(aggs, "Goal Babbling and its alternatives")
+        r = _check_layout(fig)
+    legend = fig.legends[0].get_window_extent(r)
+    for ax in fig.axes:
+        assert not _overlap(legend, ax.get_window_extent(r)), "the legend lies over a panel"
+    assert len(fig.legends[0].get_texts()) == len(baselines.LEARNERS)
+    figures.plt.close(fig)
