@@ -42,27 +42,25 @@ def test_the_ratio_is_read_at_its_epochs_with_the_last_epoch_above():
     assert h[0]["last_above"] == 10000
 
 
+def _paragraph(default, doubled=None, lstsq=None):
+    """The half-size paragraph for ratio curves of the default, the doubled rate and lstsq."""
+    variants = {"d": (1.0, "gradient", default)}
+    if doubled is not None:
+        variants["2/W"] = (2.0, "gradient", doubled)
+    if lstsq is not None:
+        variants["ls"] = (1.0, "lstsq", lstsq)
+    return explain.half_size_text(explain.half_size(_half_size_agg(variants)))
+
+
 def test_the_paragraph_follows_the_numbers():
-    closes = explain.half_size_text(explain.half_size(_half_size_agg(
-        {"d": (1.0, "gradient", SLOW), "2/W": (2.0, "gradient", SAME),
-         "ls": (1.0, "lstsq", SAME)})))
+    closes = _paragraph(SLOW, SAME, SAME)
     assert "plain step's size dependence" in closes and "epoch 1,000 1.89 [" in closes
     assert "plain step at 2 / W: epoch 100 1.0" in closes and "least squares: epoch" in closes
-    only_ls = explain.half_size_text(explain.half_size(_half_size_agg(
-        {"d": (1.0, "gradient", SLOW), "2/W": (2.0, "gradient", SLOW),
-         "ls": (1.0, "lstsq", SAME)})))
-    assert "but not with the doubled rate" in only_ls
-    late = explain.half_size_text(explain.half_size(_half_size_agg(
-        {"d": (1.0, "gradient", SLOW), "2/W": (2.0, "gradient", [1.6, 1.5, 1.5, 0.5, 0.3, 0.3]),
-         "ls": (1.0, "lstsq", SAME)})))
+    assert "but not with the doubled rate" in _paragraph(SLOW, SLOW, SAME)
+    late = _paragraph(SLOW, [1.6, 1.5, 1.5, 0.5, 0.3, 0.3], SAME)
     assert "closes it only after epoch" in late and "plain step's size dependence" in late
-    stays = explain.half_size_text(explain.half_size(_half_size_agg(
-        {"d": (1.0, "gradient", SLOW), "2/W": (2.0, "gradient", SAME),
-         "ls": (1.0, "lstsq", SLOW)})))
-    assert "gap remains under least squares" in stays
-    none = explain.half_size_text(explain.half_size(_half_size_agg(
-        {"d": (1.0, "gradient", SAME), "ls": (1.0, "lstsq", SAME)})))
-    assert "does not learn slower" in none
+    assert "gap remains under least squares" in _paragraph(SLOW, SAME, SLOW)
+    assert "does not learn slower" in _paragraph(SAME, lstsq=SAME)
 
 
 def _rise_agg(rise_by_rate: dict, n=6, seed=1):
