@@ -469,7 +469,7 @@ def figure(aggs: dict, title: str):
     its largest budget (every learner on the same axis)."""
     studies = [s for s in STUDIES if s in aggs]
     fig, axes = figures.plt.subplots(len(studies), 3, squeeze=False, sharey="row",
-                                     figsize=(9.0, 2.8 * len(studies) + 0.8))
+                                     figsize=(9.0, 2.8 * len(studies)))
     colors = dict(zip(LEARNERS, figures.plt.get_cmap("tab10")(np.arange(len(LEARNERS)))))
     for i, s in enumerate(studies):
         summ, curves = aggs[s]["summary"], aggs[s]["curves"]
@@ -488,13 +488,11 @@ def figure(aggs: dict, title: str):
                            xlabel="samples (reaching movements)")
         axes[i, 0].set_ylabel("held-out error [m]")
     handles = {}
-    for ax in axes.flat:  # one legend below the panels, off the data
+    for ax in axes.flat:  # one entry per learner, whichever panels it is drawn in
         for h, label in zip(*ax.get_legend_handles_labels()):
             handles.setdefault(label, h)
-    fig.legend(list(handles.values()), list(handles), loc="lower center", ncol=3, frameon=False,
-               fontsize=7)
     fig.suptitle(title)
-    fig.tight_layout(rect=(0, 0.8 / (2.8 * len(studies) + 0.8), 1, 1))
+    figures.legend_below(fig, list(handles.values()), 2.8 * len(studies), max_cols=3)
     return fig
 
 

@@ -256,7 +256,7 @@ def figure(aggs: dict, title: str):
     per = {s: split(aggs[s]) for s in studies}
     readings = _figure_readings(per)
     fig, axes = figures.plt.subplots(len(studies), len(readings), squeeze=False,
-                                     figsize=(2.7 * len(readings), 2.5 * len(studies) + 1.4),
+                                     figsize=(2.7 * len(readings), 2.5 * len(studies) + 0.8),
                                      sharex=True)
     handles = {}
     for i, s in enumerate(studies):
@@ -281,10 +281,8 @@ def figure(aggs: dict, title: str):
             if i == len(studies) - 1:
                 ax.set_xlabel("epoch")
     handles["end of growth (T_G)"] = figures.growth_end_handle()
-    fig.legend(handles=list(handles.values()), labels=list(handles), loc="lower center",
-               ncol=min(len(handles), 7), frameon=False)
     fig.suptitle(title)
-    fig.tight_layout(rect=(0, 0.6 / (2.5 * len(studies) + 1.4), 1, 1))
+    figures.legend_below(fig, list(handles.values()), 2.5 * len(studies) + 0.8, max_cols=7)
     return fig
 
 
