@@ -31,7 +31,10 @@ names each one without (outside code, and outside tables generated between the B
 lines of other checked mechanisms).
 
 Exit status: 0 all agree; 1 one line per drifted or unmarked number (page:line: ...); 2 a bad
-marker (one line, `error: ...`), and --fix then writes nothing.
+marker (one line, `error: ...`: a filter or scale it cannot read, a table outside the repository
+or not a table, a value that is not finite, a number of more than MAX_DECIMALS decimals, a page
+that is not UTF-8), and --fix then writes nothing. --fix replaces a page in one rename (a kill
+leaves the old page or the new one). A page is read in time linear in its length.
 """
 from __future__ import annotations
 
@@ -68,10 +71,17 @@ CELL_NUMBER = re.compile(r"(?<![A-Za-z_\d.])" + NUMBER.pattern)
 _NUM = r"[-+−]?(?:\d{1,3}(?:,\d{3})+|\d+)(?:\.\d+)?"
 _JOIN = r"\s*(?:-|–|/|->|→|to)\s*"
 # numbers that must be quoted: a range or list ending in mm, cm or %; a ratio 1.24x or x1.5
-UNIT_RUN = re.compile(rf"(?<![\w.]){_NUM}(?:{_JOIN}{_NUM})*\s?(?:mm|cm|%)(?![A-Za-z])")
-RATIO_AFTER = re.compile(rf"(?<![\w.]){_NUM}(?:{_JOIN}{_NUM})*[x×](?![A-Za-z0-9])")
+# (a run of numbers joined by dashes, slashes, arrows or "to", then the unit or the x): the whole
+# run is matched possessively (never given back) and what ends it is looked at where it ends, so
+# a run without one is passed over whole and no start inside it is tried again (linear time;
+# backtracking into the run is quadratic on "1 - 1 - 1 ...")
+RUN = re.compile(rf"(?<![\w.])(?>{_NUM})(?:{_JOIN}{_NUM})*+")
+RUN_ENDS = (re.compile(r"\s?(?:mm|cm|%)(?![A-Za-z])"), re.compile(r"[x×](?![A-Za-z0-9])"))
 RATIO_BEFORE = re.compile(rf"(?<![A-Za-z])[x×]{_NUM}(?![\w-])")  # "x1.5", not "x86-64"
 TERM_COLUMN = re.compile(r"^(?P<col>[^=~#*]+?)(?:#(?P<k>\d+))?(?:\*(?P<scale>[0-9.eE+-]+))?$")
+FILTER = re.compile(r"^(?P<col>[^=~]+)(?P<op>[=~])(?P<want>.*)$")
+MAX_DECIMALS = 15  # a float holds 15-17 significant digits: more decimals quote nothing
+MAX_QUOTED = 64  # characters of a quoted number and its unit (the tail of the line searched)
 
 
 class BadMarker(ValueError):
@@ -137,7 +147,8 @@ def quotes(page: str, text: str, blocks=None) -> list[Quote]:
     """Every marker of a page with the number it quotes."""
     found = []
     for i, line in prose_lines(text, blocks):
-        for m in MARKER.finditer(line):
+        spans = [m.span() for m in MARKER.finditer(line)]
+        for n, m in enumerate(MARKER.finditer(line)):
             nd = NOT_DATA.match(m.group("body"))
             if nd is None and m.group("body").strip().startswith("not data"):
                 raise BadMarker(f"{page}:{i}: an exemption says why: <!-- q: not data: why -->")
@@ -145,12 +156,22 @@ def quotes(page: str, text: str, blocks=None) -> list[Quote]:
                 found.append(Quote(page, i, m.start(), m.start(), "", m.group("body").strip(),
                                    nd.group("why"), exempt_line=True))
                 continue
-            before = MARKER.sub(lambda x: "\0" * len(x.group()), line[:m.start()])
+            # the tail before the marker, earlier markers blanked: a number and its unit are short,
+            # so the search is bounded however long the line is
+            lo = max(0, m.start() - MAX_QUOTED)
+            tail = list(line[lo:m.start()])
+            for a, b in spans[:n]:
+                for j in range(max(a, lo), min(b, m.start())):
+                    tail[j - lo] = "\0"
+            before = "".join(tail)
             q = QUOTED.search(before)
+            if q is not None and q.start() == 0 and lo > 0 and line[lo - 1].isdigit():
+                raise BadMarker(f"{page}:{i}: the number before a marker is longer than "
+                                f"{MAX_QUOTED} characters")
             if q is None:
                 raise BadMarker(f"{page}:{i}: a marker without a number right before it: "
                                 f"<!-- q:{m.group('body')}-->")
-            found.append(Quote(page, i, q.start(), q.end("digits"),
+            found.append(Quote(page, i, lo + q.start(), lo + q.end("digits"),
                                (q.group("sign") or "") + q.group("digits"),
                                m.group("body").strip(), nd.group("why") if nd else None))
     return found
@@ -167,21 +188,38 @@ def unmarked(page: str, text: str, blocks=None) -> list[tuple[int, str]]:
         if i in exempt_lines:
             continue
         # positions in the line with markers removed map back to the line with them
-        keep = [j for j in range(len(line)) if not _in_marker(line, j)]
+        keep = _outside_markers(line)
         clean = "".join(line[j] for j in keep)
-        for pattern in (UNIT_RUN, RATIO_AFTER, RATIO_BEFORE):
-            for run in pattern.finditer(clean):
-                for n in NUMBER.finditer(run.group()):
-                    for start in (run.start() + n.start(), run.start() + n.start("digits")):
-                        if (i, keep[start]) in marked:
-                            break
-                    else:
-                        out.append((i, n.group()))
+        for run in _runs(clean):
+            for n in NUMBER.finditer(run.group()):
+                for start in (run.start() + n.start(), run.start() + n.start("digits")):
+                    if (i, keep[start]) in marked:
+                        break
+                else:
+                    out.append((i, n.group()))
     return sorted(set(out))
 
 
-def _in_marker(line: str, j: int) -> bool:
-    return any(m.start() <= j < m.end() for m in MARKER.finditer(line))
+def _runs(clean: str):
+    """The matches of # (a run of numbers joined by dashes, slashes, arrows or "to", then the unit or the x): the whole
+# run is matched possessively (never given back) and what ends it is looked at where it ends, so
+# a run without one is passed over whole and no start inside it is tried again (linear time;
+# backtracking into the run is quadratic on "1 - 1 - 1 ...")
+RUN, RATIO_AFTER and RATIO_BEFORE in `clean`, in linear time."""
+    for run in RUN.finditer(clean):
+        if any(end.match(clean, run.end()) for end in RUN_ENDS):
+            yield run
+    yield from RATIO_BEFORE.finditer(clean)
+
+
+def _outside_markers(line: str) -> list[int]:
+    """The positions of `line` outside its markers, in one pass."""
+    keep, at = [], 0
+    for m in MARKER.finditer(line):
+        keep.extend(range(at, m.start()))
+        at = m.end()
+    keep.extend(range(at, len(line)))
+    return keep
 
 
 def _numbers_in(cell: str) -> list[float]:
@@ -203,19 +241,42 @@ def value(body: str, root: Path, tables: dict | None = None) -> float:
         num, den = _cell(words[:k], root, tables), _cell(words[k + 1:], root, tables)
         if den == 0:
             raise BadMarker("the ratio's second cell is 0")
-        return num / den
+        return _finite(num / den, "the ratio")
     return _cell(words, root, tables)
+
+
+def _finite(x: float, what: str) -> float:
+    if not math.isfinite(x):
+        raise BadMarker(f"{what} is {x!r}, not a finite number")
+    return x
+
+
+def table_path(name: str, root: Path) -> Path:
+    """The table a marker names: a file of outputs/report/, or a path from the repository root;
+    a path that is absolute, climbs out ('..') or leads out of the repository (a link) is
+    refused: a marker reads the repository's tables only."""
+    rel = Path(name if "/" in name else REPORT / name)
+    if rel.is_absolute() or ".." in rel.parts or "\0" in name:
+        raise BadMarker(f"{name}: a table is named from the repository root, without '..'")
+    path = root / rel
+    real, base = path.resolve(), root.resolve()
+    if base not in real.parents:
+        raise BadMarker(f"{name}: leads outside the repository ({real})")
+    return path
 
 
 def _cell(words: list[str], root: Path, tables: dict) -> float:
     if not words or not words[0].endswith(".csv"):
         raise BadMarker("a marker starts with its table (a .csv file)")
     name, rest = words[0], words[1:]
-    path = root / (name if "/" in name else REPORT / name)
+    path = table_path(name, root)
     if path not in tables:
         if not path.is_file():
             raise BadMarker(f"{name}: no such table ({path.relative_to(root)})")
-        tables[path] = pd.read_csv(path, dtype=str, keep_default_na=False)
+        try:
+            tables[path] = pd.read_csv(path, dtype=str, keep_default_na=False)
+        except (ValueError, UnicodeDecodeError, pd.errors.ParserError) as e:
+            raise BadMarker(f"{name}: not a readable table ({type(e).__name__})") from None
     t = tables[path]
     filters = [w for w in rest if "=" in w or "~" in w]
     columns = [w for w in rest if w not in filters]
@@ -223,7 +284,10 @@ def _cell(words: list[str], root: Path, tables: dict) -> float:
         raise BadMarker(f"{name}: name one column (got {columns or 'none'})")
     rows = pd.Series(True, index=t.index)
     for f in filters:
-        col, op, want = re.match(r"([^=~]+)([=~])(.*)", f).groups()
+        m = FILTER.match(f)
+        if m is None:
+            raise BadMarker(f"{name}: {f!r} is no filter (col=value or col~text)")
+        col, op, want = m.groups()
         if col not in t.columns:
             raise BadMarker(f"{name}: no column {col!r}")
         rows &= (t[col] == want) if op == "=" else t[col].str.contains(want, regex=False)
@@ -248,15 +312,20 @@ def _cell(words: list[str], root: Path, tables: dict) -> float:
     if not math.isfinite(x):
         raise BadMarker(f"{name}: {spec['col']} is {cell!r}")
     try:
-        return x * (float(spec["scale"]) if spec["scale"] else 1.0)
+        scale = float(spec["scale"]) if spec["scale"] else 1.0
     except ValueError:
         raise BadMarker(f"{name}: bad scale {spec['scale']!r}") from None
+    return _finite(x * _finite(scale, f"{name}: the scale {spec['scale']!r}"),
+                   f"{name}: {spec['col']} x {spec['scale']}")
 
 
 def formatted(x: float, like: str) -> str:
     """x written as `like` writes its number: its decimals, its sign style, its commas."""
     digits = like.lstrip("+-−")
     decimals = len(digits.split(".")[1]) if "." in digits else 0
+    if decimals > MAX_DECIMALS:
+        raise BadMarker(f"{like}: {decimals} decimals; a table's number holds at most "
+                        f"{MAX_DECIMALS}")
     # half away from zero on the shortest decimal of x, as a reader rounds 74.5 to 75
     r = Decimal(repr(x)).quantize(Decimal(1).scaleb(-decimals), rounding=ROUND_HALF_UP)
     s = f"{r:{'+' if like.startswith('+') else ''}{',' if ',' in digits else ''}.{decimals}f}"
@@ -274,14 +343,17 @@ def check(files: list[Path], root: Path | None = None, fix: bool = False, blocks
     tables, problems, rewrites = {}, [], {}
     for path in files:
         page = _name(path, root)
-        text = path.read_text()
+        try:
+            text = path.read_bytes().decode("utf-8")
+        except UnicodeDecodeError as e:
+            raise BadMarker(f"{page}: not UTF-8 (byte {e.start})") from None
         lines = text.splitlines(keepends=True)
         for q in sorted(quotes(page, text, blocks), key=lambda q: (q.line, -q.start)):
             if q.exempt is not None:
                 continue
             try:
                 want = formatted(value(q.body, root, tables), q.text)
-            except BadMarker as e:
+            except (BadMarker, ArithmeticError) as e:
                 raise BadMarker(f"{page}:{q.line}: {e}") from None
             if want != q.text:
                 problems.append(f"{page}:{q.line}: quoted {q.text}, "
@@ -293,8 +365,11 @@ def check(files: list[Path], root: Path | None = None, fix: bool = False, blocks
         if explicit or page not in unscanned:
             problems += [f"{page}:{i}: {n} has no quote marker (<!-- q: ... --> or "
                          "<!-- q: not data: why -->)" for i, n in unmarked(page, text, blocks)]
-    for path, text in rewrites.items():
-        path.write_text(text)
+    from .. import io
+
+    for path, text in rewrites.items():  # one rename each: the old page or the new one
+        io.remove_stale_tmp(path.parent)  # what a killed --fix of this host left
+        io.write_text(path, text)
     return problems
 
 
