@@ -24,19 +24,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .spec import SpecError, check_choice, check_int, check_number
+from .spec import MAX_EPOCHS, Choice, Int, Number, check_fields
 
 SELECTIONS = ("random", "progress")
 
 
+# a learner's goal-selection fields and their ranges (a part of its Params.LIMITS)
+LIMITS = dict(goal_selection=Choice(*SELECTIONS), progress_period=Int(1, MAX_EPOCHS),
+              progress_window=Int(1, 10_000), progress_share=Number(0.0, 1.0))
+
+
 def check(params) -> None:
     """Validate a learner's goal-selection fields (goal_selection, progress_*)."""
-    check_choice("learner.goal_selection", params.goal_selection, SELECTIONS)
-    check_int("learner.progress_period", params.progress_period, 1)
-    check_int("learner.progress_window", params.progress_window, 1)
-    check_number("learner.progress_share", params.progress_share, 0.0)
-    if params.progress_share > 1:
-        raise SpecError("learner.progress_share", params.progress_share, "must be <= 1")
+    check_fields(params, "learner", LIMITS)
 
 
 def regions(targets: np.ndarray) -> np.ndarray:

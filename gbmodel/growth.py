@@ -41,10 +41,13 @@ from typing import Optional
 
 import numpy as np
 
-from .spec import SpecError, check_choice, check_int, check_number
+from .spec import (MAX_INT64, MAX_SIZE, Choice, Free, Int, Number, SpecError, check_choice,
+                   check_fields)
 
 PATTERNS = ("proportional", "nonproportional", "proximal_first", "per_segment")
 SCHEDULES = ("linear", "infant", "table")
+MAX_TABLE_ROWS = 10_000
+MAX_TABLE_TIME = 1e12  # |t| of a growth table's rows: their differences stay exact enough
 
 # WHO Child Growth Standards (2006), length-for-age, boys, median [cm]: birth, 12 and 24 months
 WHO_LENGTH_CM = (49.9, 75.7, 87.1)
@@ -133,10 +136,17 @@ def check_table(table, m: int) -> tuple[np.ndarray, np.ndarray]:
     if len(widths) != 1 or widths.pop() not in (2, m + 1):
         raise SpecError(key, table, f"every row must be [t, size] or [t, f_1, ..., f_{m}] "
                         f"({m} segment factors)")
+    if len(table) > MAX_TABLE_ROWS:
+        raise SpecError(key, f"<{len(table):,} rows>", f"at most {MAX_TABLE_ROWS:,} rows")
     if not all(isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x)
                for r in table for x in r):
         raise SpecError(key, table, "every entry must be a finite number")
     arr = np.asarray(table, np.float64)
+    if np.any(np.abs(arr[:, 0]) > MAX_TABLE_TIME):
+        raise SpecError(key, table, f"times within +-{MAX_TABLE_TIME:g} (any unit; their span "
+                        "is mapped onto the growth period)")
+    if np.any(arr[:, 1:] > MAX_SIZE):
+        raise SpecError(key, table, f"sizes must be <= {MAX_SIZE:g} (the size factors' limit)")
     bad = np.flatnonzero(np.diff(arr[:, 0]) <= 0)
     if bad.size:
         raise SpecError(key, table, f"the times must rise strictly (row {bad[0] + 1}: "
@@ -224,16 +234,7 @@ class Growth:
     table: Optional[list] = None
 
     def validate(self, body) -> "Growth":
-        check_choice("growth.pattern", self.pattern, PATTERNS)
-        check_choice("growth.schedule", self.schedule, SCHEDULES)
-        check_int("growth.period", self.period, 0)
-        check_number("growth.proximal_lead", self.proximal_lead, 0.0)
-        check_number("growth.fixed_scale", self.fixed_scale, 0.0, strict=True)
-        if self.proximal_lead > 1.0:
-            raise SpecError("growth.proximal_lead", self.proximal_lead,
-                            "must be <= 1 (beyond, distal segments would shrink for a while)")
-        for name in ("start_size", "end_size"):
-            check_number(f"growth.{name}", getattr(self, name), 0.0, strict=True)
+        check_fields(self, "growth", LIMITS)
         self._validate_table(body)  # before the sizes are mapped through the table
         for name in ("start_size", "end_size"):
             if self.pattern in ("proportional", "nonproportional"):
@@ -352,6 +353,19 @@ class Growth:
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+
+# Growth's fields and their ranges (gbmodel.spec.check_fields); validate() checks the rest
+# against the body (leads, rates and a table per segment, sizes the pattern can reach)
+LIMITS = dict(
+    pattern=Choice(*PATTERNS), schedule=Choice(*SCHEDULES),
+    period=Int(0, MAX_INT64, " epochs (int64)"),
+    proximal_lead=Number(0.0, 1.0, why=" (beyond, distal segments would shrink for a while)"),
+    fixed_scale=Number(0.0, MAX_SIZE, lo_open=True),
+    start_size=Number(0.0, MAX_SIZE, lo_open=True), end_size=Number(0.0, MAX_SIZE, lo_open=True),
+    leads=Free("per_segment: one per segment, -1 ... 1"),
+    rates=Free("per_segment: one per segment, >= 0"),
+    table=Free("rows [t, size...]: check_table"))
 
 
 def factors(body, size, pattern="proportional") -> np.ndarray:

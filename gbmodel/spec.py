@@ -9,6 +9,9 @@ from __future__ import annotations
 import numpy as np
 
 MAX_EPOCHS = 10**9  # epochs of one trial: its memory does not grow with them, its time does
+MAX_SIZE = 100.0  # a growth size factor (1 = the body's full size)
+MAX_INT64 = 2**63 - 1  # growth periods are stored as int64 (the curve table's growth_period)
+MAX_DEGREE = 6  # a learner's polynomial degree P: p = C(n + P, P) features, 84 for the iCub's n = 3
 
 
 class SpecError(ValueError):
@@ -45,3 +48,96 @@ def check_choice(key, value, options):
     """value is one of options."""
     if value not in options:
         raise SpecError(key, value, f"choose one of {list(options)}")
+
+
+# ---- declared ranges: a table per parameter class, one validator ---------------------------------
+# Every field of a validated class names its constraint in the class's table (`<Class>.LIMITS`,
+# a dict field -> constraint), and `check_fields` checks them all in the table's order; a class's
+# validate() keeps only what relates several fields. A constraint is data: the range a key may
+# take is read in one place, shown in one message, and a test can walk every table.
+class Constraint:
+    """What one field may hold; check() raises SpecError naming the key."""
+
+    def ok(self, value) -> bool:
+        try:
+            self.check("x", value)
+        except SpecError:
+            return False
+        return True
+
+    def check(self, key, value) -> None:  # pragma: no cover (every constraint has its own)
+        raise NotImplementedError
+
+
+class Int(Constraint):
+    """An integer (not a bool) in lo ... hi; `why` says what the upper bound protects."""
+
+    def __init__(self, lo: int = 1, hi: int | None = None, why: str = ""):
+        self.lo, self.hi, self.why = lo, hi, why
+
+    def check(self, key, value):
+        check_int(key, value, self.lo)
+        if self.hi is not None and value > self.hi:
+            raise SpecError(key, value, f"at most {self.hi:,}{self.why}")
+
+    def describe(self) -> str:
+        return f"an integer in [{self.lo:,}, {self.hi:,}]{self.why}"
+
+
+class Number(Constraint):
+    """A finite number (not a bool) >= lo (> lo with lo_open) and <= hi."""
+
+    def __init__(self, lo: float | None = None, hi: float | None = None, lo_open: bool = False,
+                 why: str = ""):
+        self.lo, self.hi, self.lo_open, self.why = lo, hi, lo_open, why
+
+    def check(self, key, value):
+        check_number(key, value, self.lo, strict=self.lo_open)
+        if self.hi is not None and value > self.hi:
+            raise SpecError(key, value, f"must be <= {self.hi:g}{self.why}")
+
+    def describe(self) -> str:
+        return f"a number in {'(' if self.lo_open else '['}{self.lo:g}, {self.hi:g}]{self.why}"
+
+
+class Choice(Constraint):
+    def __init__(self, *options):
+        self.options = options
+
+    def check(self, key, value):
+        check_choice(key, value, self.options)
+
+
+class Flag(Constraint):
+    def check(self, key, value):
+        if not isinstance(value, bool):
+            raise SpecError(key, value, "must be true or false")
+
+
+class Maybe(Constraint):
+    """None, or what `inner` allows."""
+
+    def __init__(self, inner: Constraint):
+        self.inner = inner
+
+    def check(self, key, value):
+        if value is not None:
+            self.inner.check(key, value)
+
+
+class Free(Constraint):
+    """A field whose value the class's validate() checks against other fields (a list whose
+    length is the body's segments, a table): named here so that every field is in the table."""
+
+    def __init__(self, why: str):
+        self.why = why
+
+    def check(self, key, value):
+        pass
+
+
+def check_fields(obj, section: str, limits: dict) -> None:
+    """Check every field of `obj` against its constraint in `limits` (field -> Constraint), in
+    the table's order; SpecError names the first bad one as `<section>.<field>=<value>: why`."""
+    for name, constraint in limits.items():
+        constraint.check(f"{section}.{name}", getattr(obj, name))

@@ -24,7 +24,8 @@ from omegaconf import MISSING, DictConfig, OmegaConf
 
 import gbmodel
 from gbmodel import evaluation
-from gbmodel.spec import MAX_EPOCHS
+from gbmodel.growth import LIMITS as growth_limits
+from gbmodel.spec import MAX_EPOCHS, MAX_INT64, MAX_SIZE, Int, Number
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 CONF_DIR = REPO_ROOT / "conf"
@@ -297,30 +298,24 @@ def check_experiments(cfg, overrides: list[str] | tuple = ()) -> None:
 # ---- limits, checked by plan() before it plans a variant's trials ---------------------------------
 MAX_TRIALS = 10_000  # trials.count: independent trials per condition (the paper's figures use 20)
 MAX_PLANNED = 100_000  # trials of one run in all (conditions x variants x trials.count)
-MAX_INT64 = 2**63 - 1  # growth periods are stored as int64 (the curve table's growth_period)
-
-
-MAX_SIZE = 100.0  # a growth size factor (1 = the body's full size)
-# (key, low, high, low included): a number of the config that has a range; one line when outside
-RANGES = (("aggregate.fail_factor", 1.0, 1e3, False),  # x the median: <= 1 flags half or all
-          ("conditions.budget_scale", 0.0, 1e3, False),
-          ("conditions.growth_share", 0.0, 1.0, False),
-          ("report.dpi", 10, 1200, True),
-          ("growth.start_size", 0.0, MAX_SIZE, False), ("growth.end_size", 0.0, MAX_SIZE, False),
-          ("growth.fixed_scale", 0.0, MAX_SIZE, False))
+MAX_FRAMES = 100  # conditions.frames: the report draws each condition's frames (~0.12 s each)
+# key -> its range (gbmodel.spec's constraints): a number of the config outside it is one line
+RANGES = {"aggregate.fail_factor": Number(1.0, 1e3, lo_open=True),  # x the median: <= 1 flags
+          # half or all
+          "conditions.budget_scale": Number(0.0, 1e3, lo_open=True),
+          "conditions.growth_share": Number(0.0, 1.0, lo_open=True),
+          "conditions.frames": Int(0, MAX_FRAMES, " (the report draws every frame of every "
+                                   "condition)"),
+          "report.dpi": Number(10, 1200),
+          **{f"growth.{k}": growth_limits[k] for k in ("start_size", "end_size", "fixed_scale")}}
 
 
 def check_ranges(cfg) -> None:
-    """Refuse (one line naming the key and its range) a number outside RANGES, or not finite."""
-    for key, lo, hi, closed in RANGES:
+    """Refuse (one line naming the key and its range) a value outside RANGES."""
+    for key, constraint in RANGES.items():
         value = OmegaConf.select(cfg, key, default=None)
-        if value is None:
-            continue
-        ok = (not isinstance(value, bool) and isinstance(value, (int, float))
-              and (lo <= value if closed else lo < value) and value <= hi)
-        if not ok:
-            raise ConfigError(f"{key}={value!r}: must be a number in {'[' if closed else '('}"
-                              f"{lo:g}, {hi:g}]")
+        if value is not None and not constraint.ok(value):
+            raise ConfigError(f"{key}={value!r}: must be {constraint.describe()}")
     for s in cfg.conditions.references:
         if isinstance(s, (int, float)) and not isinstance(s, bool) and not s <= MAX_SIZE:
             raise ConfigError(f"conditions.references={s!r}: a size factor of at most "

@@ -169,7 +169,6 @@ def trial_spec(cfg: DictConfig, growth: dict) -> gbmodel.TrialSpec:
         raise ConfigError(str(err)) from None
     for e in cfg.conditions.snapshots:
         check_int("conditions.snapshots", e, 1)
-    check_int("conditions.frames", cfg.conditions.frames, 0)
     frames = frame_epochs(epochs, cfg.conditions.frames) if isinstance(epochs, int) else []
     snaps = tuple(sorted({e for e in [*cfg.conditions.snapshots, *frames]
                           if isinstance(e, int) and e <= epochs}))

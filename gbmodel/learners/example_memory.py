@@ -22,7 +22,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..growth import factors
-from ..spec import check_int, check_number
+from ..spec import Int, Number, check_fields
 from ..nearest import Nearest
 
 
@@ -38,10 +38,12 @@ class Params:
     window: int = 10
 
     def validate(self) -> "Params":
-        check_int("learner.goals", self.goals, 1)
-        check_int("learner.window", self.window, 0)
-        check_number("learner.sigma", self.sigma, 0.0)
+        check_fields(self, "learner", LIMITS)
         return self
+
+
+# Params' fields and their ranges (gbmodel.spec.check_fields)
+LIMITS = dict(goals=Int(1, 10**6), sigma=Number(0.0, 100.0), window=Int(0, 10_000))
 
 
 @dataclass(frozen=True)

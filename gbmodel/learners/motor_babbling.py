@@ -23,7 +23,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..features import exponents, features
-from ..spec import check_choice, check_int, check_number
+from ..spec import MAX_DEGREE, Choice, Int, Number, check_fields
 from ..inverse import init_inverse, predict as predict_inverse
 
 
@@ -45,15 +45,15 @@ class Params:
     degree: int = 3
 
     def validate(self) -> "Params":
-        for name in ("samples", "degree"):
-            check_int(f"learner.{name}", getattr(self, name), 1)
-        check_int("learner.window", self.window, 0)
-        check_number("learner.spread", self.spread, 0.0, strict=True)
-        check_choice("learner.fit", self.fit, ("lstsq", "gradient"))
-        check_number("learner.ridge", self.ridge, 0.0)
-        check_number("learner.learning_rate", self.learning_rate, 0.0, strict=True)
-        check_number("learner.init_range", self.init_range, 0.0)
+        check_fields(self, "learner", LIMITS)
         return self
+
+
+# Params' fields and their ranges (gbmodel.spec.check_fields)
+LIMITS = dict(samples=Int(1, 10**6), spread=Number(0.0, 100.0, lo_open=True),
+              window=Int(0, 10_000), fit=Choice("lstsq", "gradient"), ridge=Number(0.0, 1e6),
+              learning_rate=Number(0.0, 1e3, lo_open=True), init_range=Number(0.0, 100.0),
+              degree=Int(1, MAX_DEGREE, " (the features grow as C(n + P, P))"))
 
 
 @dataclass(frozen=True)

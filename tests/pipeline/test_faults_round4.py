@@ -122,3 +122,74 @@ def test_r7_a_long_line_is_read_in_linear_time(qroot):
     with pytest.raises(quotes.BadMarker, match="longer than"):
         quotes.check([page], root=qroot, blocks=[], unscanned={})
     assert time.perf_counter() - t < 2
+
+
+# ---- rows 1-5: every key has a range, and the two paths agree at its edges ----------------------
+def _h(root, *more):
+    """The issue's H: simulate figure=bi learner.epochs=200 trials.count=1 workers=1."""
+    return ["figure=bi", "learner.epochs=200", "trials.count=1", "workers=1",
+            f"paths.root={root}", *more]
+
+
+@pytest.mark.parametrize("args, says", [
+    (["learner.solver=lstsq", "learner.ridge=0"], "learner.ridge=0.0: must be >= 1e-05"),
+    (["learner.solver=lstsq", "learner.ridge=1e-300"], "learner.ridge=1e-300: must be >= 1e-05"),
+    (["learner.ridge=1e308"], "learner.ridge=1e+308: must be <= 1e+06"),
+    (["learner.window=1000000000"], "learner.window=1000000000: at most 1,000 epochs"),
+    (["learner.degree=1000000000"], "learner.degree=1000000000: at most 6"),
+    (["learner.variations=1000", "learner.targets_per_epoch=10000"], "samples per epoch"),
+    (["growth.schedule=table", "growth.period=100", "growth.table=[[0,0.5],[1,1e300],[2,1.0]]"],
+     "sizes must be <= 100"),
+    (["growth.schedule=table", "growth.period=100", "growth.table=[[-1e308,0.5],[1e308,1.0]]"],
+     "times within +-1e+12"),
+    (["conditions.frames=1000000000"], "conditions.frames=1000000000: must be an integer in "
+                                       "[0, 100]"),
+])
+def test_r1_to_r5_values_the_compiled_path_cannot_compute_are_refused(tmp_path, args, says):
+    import resource
+
+    from pipeline import cli
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    out = cli.check(_h(tmp_path, *args))
+    assert out is not None and says in out and "\n" not in out, out
+    assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before < 200_000  # KiB
+    assert not any(tmp_path.iterdir())  # refused before planning: nothing written
+
+
+def test_r1_every_key_of_a_learner_and_of_growth_has_a_range():
+    import dataclasses
+
+    import gbmodel
+    from gbmodel import growth, spec
+    tables = {name: (gbmodel.learners.get(name).Params, gbmodel.learners.get(name).LIMITS)
+              for name in gbmodel.learners.available()}
+    tables["growth"] = (growth.Growth, growth.LIMITS)
+    for name, (cls, limits) in tables.items():
+        fields = [f.name for f in dataclasses.fields(cls)]
+        assert sorted(limits) == sorted(fields), name
+        for key, c in limits.items():
+            assert isinstance(c, spec.Constraint), (name, key)
+            inner = c.inner if isinstance(c, spec.Maybe) else c
+            if isinstance(inner, (spec.Int, spec.Number)):
+                assert inner.hi is not None, (name, key)  # bounded above, not only below
+        cls_default = cls() if name != "growth" else None
+        if cls_default is not None:
+            cls_default.validate()  # the defaults are inside their ranges
+
+
+@pytest.mark.parametrize("learner", [dict(ridge="MIN_RIDGE"), dict(ridge="MAX_RIDGE"),
+                                     dict(window="MAX_WINDOW", ridge="MIN_RIDGE")])
+def test_r1_the_compiled_and_the_reference_path_agree_at_the_edges(learner):
+    import numpy as np
+
+    import gbmodel
+    from gbmodel.learners import goal_babbling as gb
+    learner = {k: getattr(gb, v) for k, v in learner.items()}
+    errors = []
+    for fast in (True, False):
+        spec = gbmodel.TrialSpec(
+            body={"name": "arm5"}, epochs=100, growth={"pattern": "proportional", "period": 50},
+            learner={"name": "goal_babbling", "solver": "lstsq", "fast": fast, **learner})
+        errors.append(gbmodel.run_trial(spec, np.random.default_rng(1)).abs_error)
+    assert np.isfinite(errors[0]).all()
+    np.testing.assert_allclose(errors[0], errors[1], rtol=1e-3)

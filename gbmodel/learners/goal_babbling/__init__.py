@@ -13,7 +13,8 @@ import numpy as np
 
 from ... import evaluation, goals
 from ...features import exponents
-from ...spec import SpecError, check_choice, check_int, check_number
+from ...spec import (MAX_DEGREE, MAX_EPOCHS, Choice, Flag, Int, Maybe, Number, SpecError,
+                      check_fields)
 from . import reference, solve
 
 
@@ -76,31 +77,16 @@ class Params:
     ridge: float = 1e-3  # the lstsq solve's ridge, times each feature's sum of w Phi_k^2
 
     def validate(self) -> "Params":
-        for name in ("variations", "targets_per_epoch", "steps", "degree"):
-            check_int(f"learner.{name}", getattr(self, name), 1)
-        check_number("learner.learning_rate", self.learning_rate, 0.0, strict=True)
-        if self.rate_samples is not None:
-            check_int("learner.rate_samples", self.rate_samples, 1)
-        for name in ("radius", "init_range"):
-            check_number(f"learner.{name}", getattr(self, name), 0.0)
-        if not isinstance(self.fast, bool):
-            raise SpecError("learner.fast", self.fast, "must be true or false")
-        check_choice("learner.step", self.step, ("normalised", "plain"))
-        check_choice("learner.amplitude", self.amplitude, ("exact", "uniform"))
-        check_choice("learner.updates", self.updates, ("batch", "steps", "online"))
-        check_int("learner.update_steps", self.update_steps, 1)
-        check_choice("learner.rate_schedule", self.rate_schedule, ("constant", "annealed", "step"))
-        check_int("learner.rate_step_epoch", self.rate_step_epoch, 0)
-        check_number("learner.rate_step_factor", self.rate_step_factor, 0.0, strict=True)
-        check_number("learner.anneal_epochs", self.anneal_epochs, 0.0, strict=True)
-        check_choice("learner.targets", self.targets, ("distinct", "any"))
-        check_choice("learner.solver", self.solver, SOLVERS)
-        check_int("learner.window", self.window, 1)
-        check_number("learner.ridge", self.ridge, 0.0)
+        check_fields(self, "learner", LIMITS)
+        samples = self.variations * (self.targets_per_epoch * self.steps + 1)
+        if samples > MAX_SAMPLES:
+            raise SpecError("learner.variations", self.variations,
+                            f"{self.variations} x ({self.targets_per_epoch} targets x "
+                            f"{self.steps} steps + 1) = {samples:,} samples per epoch; at most "
+                            f"{MAX_SAMPLES:,} (an epoch's samples are held in memory at once)")
         if self.solver == "lstsq" and self.updates != "batch":
             raise SpecError("learner.updates", self.updates,
                             "learner.solver=lstsq solves once per epoch: needs updates=batch")
-        goals.check(self)
         return self
 
     def rate(self) -> float:
@@ -124,6 +110,28 @@ class Params:
 
 
 SOLVERS = ("gradient", "lstsq")
+MAX_SAMPLES = 10**6  # samples of one epoch, V (K L + 1): the paper's 2,120, the iCub's 6,020
+# learner.ridge: below MIN_RIDGE the compiled path's float32 Gram sums make the system lose
+# definiteness (0 gives NaN at epoch 1 where numpy's solver returns an answer; 1e-9 ends 0.1 %
+# away from the reference after 200 epochs on arm5); at it both paths end within 1e-3 of each
+# other on arm5 and the iCub (docs/faults.md). Above MAX_RIDGE M stays the initial M to 1e-8
+# (nothing is learned) and ridge x the Gram sums nears overflow.
+MIN_RIDGE, MAX_RIDGE = 1e-5, 1e6
+MAX_WINDOW = 1000  # epochs of Gram sums held (window x (p + m) x p floats) and summed per epoch
+# Params' fields and their ranges (gbmodel.spec.check_fields); validate() adds what relates two
+LIMITS = dict(
+    variations=Int(1, 1000), radius=Number(0.0, 100.0), targets_per_epoch=Int(1, 10_000),
+    steps=Int(1, 1000), learning_rate=Number(0.0, 1e3, lo_open=True),
+    rate_samples=Maybe(Int(1, 10**9)), init_range=Number(0.0, 100.0),
+    degree=Int(1, MAX_DEGREE, " (the features grow as C(n + P, P))"), fast=Flag(),
+    step=Choice("normalised", "plain"), amplitude=Choice("exact", "uniform"),
+    updates=Choice("batch", "steps", "online"), update_steps=Int(1, 1000),
+    rate_schedule=Choice("constant", "annealed", "step"),
+    anneal_epochs=Number(0.0, 1e12, lo_open=True), rate_step_epoch=Int(0, MAX_EPOCHS),
+    rate_step_factor=Number(0.0, 1e3, lo_open=True), targets=Choice("distinct", "any"),
+    **goals.LIMITS, solver=Choice(*SOLVERS),
+    window=Int(1, MAX_WINDOW, " epochs (a window of Gram sums is held in memory)"),
+    ridge=Number(MIN_RIDGE, MAX_RIDGE, why=" (beyond it nothing is learned)"))
 KEYED_DEFAULTS = dict(solver="gradient", window=10, ridge=1e-3)
 
 

@@ -45,7 +45,7 @@ import numpy as np
 from ... import evaluation, goals
 from ...features import exponents
 from ...growth import factors
-from ...spec import SpecError, check_int, check_number
+from ...spec import MAX_DEGREE, Flag, Int, Number, check_fields
 from ...inverse import init_inverse, predict as predict_inverse
 from . import fast, reference
 from .fast import train_fast  # noqa: F401 (the two paths, named here for the tests)
@@ -76,18 +76,17 @@ class Params:
     progress_share: float = 0.2
 
     def validate(self) -> "Params":
-        for name in ("targets_per_epoch", "steps", "degree"):
-            check_int(f"learner.{name}", getattr(self, name), 1)
-        for name in ("radius", "drift", "init_range"):
-            check_number(f"learner.{name}", getattr(self, name), 0.0)
-        check_number("learner.learning_rate", self.learning_rate, 0.0, strict=True)
-        check_number("learner.home_probability", self.home_probability, 0.0)
-        if self.home_probability > 1:
-            raise SpecError("learner.home_probability", self.home_probability, "must be <= 1")
-        if not isinstance(self.fast, bool):
-            raise SpecError("learner.fast", self.fast, "must be true or false")
-        goals.check(self)
+        check_fields(self, "learner", LIMITS)
         return self
+
+
+# Params' fields and their ranges (gbmodel.spec.check_fields)
+LIMITS = dict(
+    targets_per_epoch=Int(1, 10_000), steps=Int(1, 1000), radius=Number(0.0, 100.0),
+    drift=Number(0.0, 100.0), home_probability=Number(0.0, 1.0),
+    learning_rate=Number(0.0, 1e3, lo_open=True), init_range=Number(0.0, 100.0),
+    degree=Int(1, MAX_DEGREE, " (the features grow as C(n + P, P))"), fast=Flag(),
+    **goals.LIMITS)
 
 
 @dataclass(frozen=True)
