@@ -1,12 +1,14 @@
-"""The paper's claims: one table (CLAIMS, one row per claim) and the measure of each.
+"""The paper's claims: the register of criteria (register.yaml) and the measure of each claim.
 
-A row holds the claim's words, the figures it applies to, its criterion and its measure in
-words, and whether it is the paper's claim or a diagnostic we added (shown, marked, never counted
-in the headline). `tests` turns a figure's trial curves into one Test per (claim, condition):
-the measure's value on every trial, and the bounds it must lie within. The verdict on all trials
-and every interval (pipeline/studies/scorecard.py) and every coverage draw
-(pipeline/studies/coverage.py) use these same per-trial values: a claim is judged on the mean
-over trials of its measure, computed on each trial's own curve.
+The register (pipeline/studies/register.yaml) holds, per claim, the paper's sentence, its
+measure, its criterion, every reasonable reading of an ambiguous sentence (each with its params,
+which one is primary and why, and the commit at which it was fixed) and a changelog. Judging is
+two steps: `measures` turns a figure's trial curves into per-trial values (one Measure per
+measure and condition, with the per-trial values of the constant full-size reference over the
+same epochs as its control), and `judge` applies the register's readings to them (one Test per
+claim, reading and condition: values and the bounds their mean must lie within). The report
+writes every Measure to measures.parquet, so `python -m pipeline.tools.rescore` can judge a
+report again under an edited register without running a trial.
 
 Why per trial: a maximum over epochs of a mean curve (a rise, a rebound, an excess) grows as
 the number of trials averaged falls, so it has no fixed value to estimate and no interval over
@@ -14,31 +16,44 @@ resampled trials covers it; the mean of a per-trial maximum has one, and a t int
 (the coverage measured in docs/scorecard.md). A rebound and the blending are measured on each
 trial's curve smoothed over SMOOTH evaluation points: unsmoothed, a single trial's jitter at a
 constant rate reads as a rebound of ~30 % where the mean curve of 20 trials rebounds 3-6 %; a
-rise during growth is not smoothed, as at T_G = 10 it lasts a few evaluation points. The references enter a growing body's measure as
-their mean curves.
+rise during growth is not smoothed, as at T_G = 10 it lasts a few evaluation points. The
+references enter a growing body's measure as their mean curves.
 
-A study adds a claim by adding a row here and its measure in `tests`.
+A study adds a claim by adding it to the register and its measure in `measures` and `judge`.
 """
 from __future__ import annotations
 
+import hashlib
+import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import yaml
 
 from gbmodel.growth import factors
 
-from .. import measures
+from .. import measures as curve_measures
 from .figures import final_body
 
-FACTOR = 1.5  # "about" the paper's final error: within this factor of it
-RISE = 0.10  # a temporary rise during growth: above this fraction of the error before it
-EXCESS = 0.20  # blending and no degeneration: curves stay within this fraction
-REACH = 0.05  # Fig. 2: the extremes count as reached within this distance [m]
-MIN_TRIALS_STAGES = 3  # Fig. 2's extremes are judged on at least this many trials
-ABOVE_REFS_FROM = 100  # "above both references" only for T_G >= this (see CLAIMS)
 SMOOTH = 5  # rebounds and blending: each trial's curve averaged over this many evaluation points
+REGISTER = Path(__file__).parent / "register.yaml"
+CONTROL = "const1.0"  # the control of a growing body: the constant reference of its final size
+HASHED = ("id", "diagnostic", "min_trials", "readings")  # what a changelog entry must cover
+HASHED_READING = ("id", "primary", "diagnostic", "params")
+
+
+@dataclass(frozen=True)
+class Reading:
+    id: str
+    label: str
+    criterion: str
+    why: str
+    params: dict
+    fixed_at: str
+    primary: bool = False
+    diagnostic: bool = False  # a reading shown and marked, never counted
 
 
 @dataclass(frozen=True)
@@ -46,64 +61,55 @@ class Claim:
     id: str
     words: str  # the claim in short, as the paper states it
     figures: str  # the figures it applies to
-    criterion: str  # what the measure must satisfy, in words
+    sentence: str  # the paper's sentence
     measure: str  # what is measured on each trial, in words
+    readings: tuple  # of Reading, the primary first
     diagnostic: bool = False  # added by us: shown and marked, never counted
     min_trials: int = 2  # fewer trials: inconclusive, whatever the interval
+    changelog: tuple = ()
+
+    @property
+    def primary(self) -> Reading:
+        return self.readings[0]
+
+    @property
+    def criterion(self) -> str:
+        return self.primary.criterion
 
 
-CLAIMS = [
-    Claim("final", "final error about the paper's value (2 cm arm, 6 mm iCub)",
-          "Fig. 4, 5, 7",
-          f"every condition within x{FACTOR:g} of the paper's value",
-          "final absolute error per unit of the full body size (a half-size reference counts "
-          "its error at full size), over the paper's value"),
-    Claim("rise", "the error rises temporarily during growth", "Fig. 4, 5, 7",
-          f"above +{RISE:.0%} for every T_G <= 1000",
-          "the largest rise of the absolute error above its running minimum during epochs "
-          "1 ... T_G + 1, relative to the lowest error before it"),
-    Claim("blend", "the relative error blends between the references", "Fig. 4, 5, 7",
-          f"below +{EXCESS:.0%} for every T_G",
-          "the larger of: the most the relative error exceeds the upper of the two references' "
-          "mean curves, and the final distance to the long reference (relative); curves "
-          f"smoothed over {SMOOTH} evaluation points"),
-    Claim("after", "no degeneration after growth", "Fig. 4, 5, 7",
-          f"rebound below +{EXCESS:.0%} and end below start, for every T_G",
-          "the largest rebound of the relative error above its running minimum after growth, "
-          f"the curve smoothed over {SMOOTH} evaluation points (a trial's jitter at a constant "
-          "rate is no rebound); its end over its value at the end of growth"),
-    Claim("bootstrap", "bootstrapping succeeds in every trial", "Fig. 4, 5, 7",
-          "no trial failed", "trials that failed to run, diverged, or ended above "
-          "aggregate.fail_factor times their condition's median"),
-    Claim("stages", "Fig. 2: the estimate expands until the extremes are reached", "Fig. 2",
-          f"the extremes (heights -1 and +1 m) reached within {1000 * REACH:.0f} mm, on at least "
-          f"{MIN_TRIALS_STAGES} trials",
-          "the final error at the worse of the two extreme targets",
-          min_trials=MIN_TRIALS_STAGES),
-    Claim("above_start", "above the start body during growth", "Fig. 4, 5, 7",
-          f"above +{RISE:.0%} for every T_G <= 1000",
-          "the most the absolute error exceeds the constant short reference's mean curve during "
-          "epochs 1 ... T_G + 1", diagnostic=True),
-    Claim("above_refs", "above both references during growth", "Fig. 4, 5, 7",
-          f"above +{RISE:.0%} for T_G in {{{ABOVE_REFS_FROM}, 1000}} (at T_G < "
-          f"{ABOVE_REFS_FROM} the body is full-grown before either reference has learned, so "
-          "it cannot pass)",
-          "the most the absolute error exceeds the larger of the two references' mean curves "
-          "during epochs 1 ... T_G + 1", diagnostic=True),
-    Claim("during", "no degeneration during growth", "Fig. 4, 5, 7",
-          f"rebound below +{EXCESS:.0%} for every T_G",
-          "the largest rebound of the relative error above its running minimum during growth, "
-          f"smoothed over {SMOOTH} evaluation points",
-          diagnostic=True),
-    Claim("stages_home", "Fig. 2: the estimate starts around home", "Fig. 2",
-          "within 0.2 rad of home after epoch 1 (0.1 at initialisation plus one step)",
-          "the largest joint deviation from home over the targets after epoch 1",
-          diagnostic=True),
-    Claim("stages_spread", "Fig. 2: the spread grows from stage to stage", "Fig. 2",
-          "grows at every stage", "the smallest growth of the largest joint deviation from "
-          "home between successive stages", diagnostic=True),
-]
+def criterion_hash(entry: dict) -> str:
+    """The hash of a claim's criterion as the register holds it (its id, diagnostic flag,
+    min_trials and every reading's id, primary and diagnostic flags and params): what its latest
+    changelog entry must record."""
+    keep = {k: entry.get(k) for k in HASHED}
+    keep["readings"] = [{k: r.get(k) for k in HASHED_READING} for r in entry.get("readings", [])]
+    return hashlib.sha256(json.dumps(keep, sort_keys=True).encode()).hexdigest()[:12]
+
+
+def load_register(path: Path = REGISTER) -> list[Claim]:
+    """The claims of a register file, each reading's primary first; a ValueError names what is
+    wrong (no reading, not exactly one primary)."""
+    data = yaml.safe_load(Path(path).read_text())
+    out = []
+    for e in data["claims"]:
+        rs = [Reading(id=str(r["id"]), label=r.get("label", r["id"]), criterion=r["criterion"],
+                      why=r.get("why", ""), params=dict(r.get("params") or {}),
+                      fixed_at=str(r.get("fixed_at", "")), primary=bool(r.get("primary")),
+                      diagnostic=bool(r.get("diagnostic"))) for r in e.get("readings", [])]
+        if sum(r.primary for r in rs) != 1:
+            raise ValueError(f"{path}: claim {e['id']!r} needs exactly one primary reading")
+        rs.sort(key=lambda r: not r.primary)
+        out.append(Claim(id=e["id"], words=e["words"], figures=e["figures"],
+                         sentence=e.get("sentence", ""), measure=e["measure"], readings=tuple(rs),
+                         diagnostic=bool(e.get("diagnostic")),
+                         min_trials=int(e.get("min_trials", 2)),
+                         changelog=tuple(e.get("changelog", []))))
+    return out
+
+
+CLAIMS = load_register()
 BY_ID = {c.id: c for c in CLAIMS}
+RISE = BY_ID["rise"].primary.params["above"]  # a temporary rise: above this fraction
 
 
 def title(claim: str) -> str:
@@ -123,13 +129,35 @@ def diverged_conditions(summary: pd.DataFrame) -> list[str]:
 
 
 @dataclass
-class Test:
-    """One measure of one claim on one condition: `values`, the measure on each trial, whose
-    mean must lie in [lo, hi]. kind: the measure's type, for its measured coverage."""
+class Measure:
+    """One measure on one condition of a figure: `values`, its value on each trial, before any
+    criterion. claim: the claim whose measure it is ("rise" also serves "rise_none"); size: the
+    condition's final size over the figure's full size; period: its T_G (0: no growth);
+    control: the same measure on the constant full-size reference's trials over the same epochs
+    (None where there is no control); exact: a count (values: failed, total)."""
 
     figure: str
     claim: str
-    where: str  # which condition
+    where: str
+    values: np.ndarray
+    unit: str = "%"
+    kind: str = ""
+    size: float = 1.0
+    period: int = 0
+    control: np.ndarray | None = None
+    exact: bool = False
+    diverged: bool = False
+
+
+@dataclass
+class Test:
+    """One measure of one claim on one condition under one reading of its criterion: `values`,
+    the measure on each trial, whose mean must lie in [lo, hi] (with a control: the difference
+    of the means of `values` and `control`). kind: the measure's type."""
+
+    figure: str
+    claim: str
+    where: str
     values: np.ndarray
     lo: float = -np.inf
     hi: float = np.inf
@@ -137,6 +165,12 @@ class Test:
     kind: str = ""
     exact: bool = False  # a count over all trials (the bootstrap claim): judged exactly
     diverged: bool = False  # the condition (or a reference it needs) left no curve
+    reading: str = ""  # the register's reading ("": the primary)
+    primary: bool = True
+    measure: str = ""  # the claim whose measure it is (coverage is looked up by it)
+    control: np.ndarray | None = None
+    diagnostic: bool | None = None  # None: the claim's in this register (BY_ID)
+    min_trials: int | None = None
     result: dict = field(default_factory=dict)
 
 
@@ -177,7 +211,7 @@ def rebound(v: np.ndarray) -> np.ndarray:
 def rise(v: np.ndarray) -> np.ndarray:
     """The pre-set temporary rise (pipeline.measures.rise, as aggregate measures it) per trial,
     relative to the lowest error before it."""
-    i, up = measures.rise(v)
+    i, up = curve_measures.rise(v)
     base = np.take_along_axis(v, i[..., None], -1)[..., 0] - up
     return np.where(base > 0, up / np.where(base > 0, base, 1), 0.0)
 
@@ -192,19 +226,31 @@ def blend(v: np.ndarray, short: np.ndarray, long_: np.ndarray) -> np.ndarray:
     return np.maximum(excess(v, up), np.abs(v[..., -1] / long_[-1] - 1))
 
 
-def tests(figure: str, trials: pd.DataFrame, summary: pd.DataFrame) -> list[Test]:
-    """Every claim's test on one growth figure (Fig. 4, 5, 7): one per condition it covers."""
+def _diverged_measures(figure: str, summary: pd.DataFrame, dead: list, n_refs: int,
+                       has_paper: bool) -> list[Measure]:
+    """The measures a condition with no curve would have had: each a Measure marked diverged,
+    so the cells it touches say so."""
+    out = []
+    for r in summary[summary["condition"].isin(dead)].itertuples():
+        touched = ["final"] if has_paper else []
+        if r.growth != "none":
+            touched += ["rise", "after", "during"]
+        touched += ["blend"] if n_refs == 2 else []  # a growing one's, or a reference's
+        out += [Measure(figure, claim, r.condition, np.array([]), diverged=True,
+                        period=int(r.growth_period) if r.growth != "none" else 0,
+                        size=float(r.end_size) / float(summary["end_size"].max()))
+                for claim in touched]
+    return out
+
+
+def measures(figure: str, trials: pd.DataFrame, summary: pd.DataFrame) -> list[Measure]:
+    """Every claim's measure on one growth figure (Fig. 4, 5, 7), per trial, one Measure per
+    condition it covers, before any criterion: `judge` applies the register's readings."""
     out, every = [], summary
     paper = summary["paper_final_abs_error"].iloc[0] if len(summary) else np.nan
     dead = diverged_conditions(summary)
     n_refs = int((summary["growth"] == "none").sum())
-    for r in summary[summary["condition"].isin(dead)].itertuples():
-        touched = ["final"] if np.isfinite(paper) else []
-        if r.growth != "none":
-            touched += (["rise"] if r.growth_period <= 1000 else []) + ["after", "during"]
-        touched += ["blend"] if n_refs == 2 else []  # a growing one's, or a reference's
-        out += [Test(figure, claim, r.condition, np.array([]), diverged=True)
-                for claim in touched]
+    out += _diverged_measures(figure, summary, dead, n_refs, bool(np.isfinite(paper)))
     summary = summary[~summary["condition"].isin(dead)]
     growing = summary[summary["growth"] != "none"]
     refs = summary[summary["growth"] == "none"].sort_values("end_size")
@@ -212,55 +258,125 @@ def tests(figure: str, trials: pd.DataFrame, summary: pd.DataFrame) -> list[Test
         refs = refs.iloc[:0]  # the comparisons with the references need both of them
     abs_ = {c: per_trial(trials, c, "abs_error") for c in summary["condition"]}
     rel = {c: per_trial(trials, c, "rel_error") for c in summary["condition"]}
+    full = float(every["end_size"].max()) if len(every) else 1.0
     if np.isfinite(paper):
-        full = summary["end_size"].max()
         for r in summary.itertuples():
-            out.append(Test(figure, "final", r.condition,
-                            abs_[r.condition][1][:, -1] * full / r.end_size / paper,
-                            1 / FACTOR, FACTOR, unit="x", kind="final"))
+            out.append(Measure(figure, "final", r.condition, abs_[r.condition][1][:, -1] / paper,
+                               unit="x", kind="final", size=float(r.end_size) / full))
     two_refs = len(refs) == 2
     if two_refs:
         short, long_ = refs["condition"]
+    control = long_ if two_refs else None
     for r in growing.itertuples():
         ep, g = abs_[r.condition]
         _, gr = rel[r.condition]
         during, after = ep <= r.growth_period + 1, ep >= r.growth_period + 1
-        c = r.condition
-        required = r.growth_period <= 1000
-        if required:
-            out.append(Test(figure, "rise", c, rise(g[:, during]), RISE, kind="rebound"))
-        if two_refs and required:
-            s_, l_ = at(ep[during], abs_[short]), at(ep[during], abs_[long_])
-            out.append(Test(figure, "above_start", c, excess(g[:, during], s_), RISE,
-                            kind="excess"))
-            if r.growth_period >= ABOVE_REFS_FROM:
-                out.append(Test(figure, "above_refs", c,
-                                excess(g[:, during], np.maximum(s_, l_)), RISE, kind="excess"))
+        c, period = r.condition, int(r.growth_period)
+
+        def ctrl(fn, curves):  # the same measure on the control's trials over the same epochs
+            if control is None:
+                return None
+            cep, cv = curves[control]
+            keep = np.isin(cep, ep)
+            if not np.array_equal(cep[keep], ep):
+                return None
+            return fn(cv[:, keep])
+        out.append(Measure(figure, "rise", c, rise(g[:, during]), kind="rebound", period=period,
+                           control=ctrl(lambda v: rise(v[:, during]), abs_)))
         if two_refs:
-            out.append(Test(figure, "blend", c, blend(
-                smooth(gr), smooth(at(ep, rel[short])), smooth(at(ep, rel[long_]))),
-                hi=EXCESS, kind="excess"))
+            s_, l_ = at(ep[during], abs_[short]), at(ep[during], abs_[long_])
+            out.append(Measure(figure, "above_start", c, excess(g[:, during], s_),
+                               kind="excess", period=period))
+            out.append(Measure(figure, "above_refs", c, excess(g[:, during], np.maximum(s_, l_)),
+                               kind="excess", period=period))
+            bands = (smooth(at(ep, rel[short])), smooth(at(ep, rel[long_])))
+            out.append(Measure(figure, "blend", c, blend(smooth(gr), *bands), kind="excess",
+                               period=period,
+                               control=ctrl(lambda v: blend(smooth(v), *bands), rel)))
         if after.sum() >= 2:
-            out.append(Test(figure, "after", c + " rebound", rebound(smooth(gr[:, after])),
-                            hi=EXCESS, kind="rebound"))
-            out.append(Test(figure, "after", c + " end / start",
-                            gr[:, after][:, -1] / gr[:, after][:, 0], hi=1.0 - 1e-12, unit="x",
-                            kind="ratio"))
-        out.append(Test(figure, "during", c, rebound(smooth(gr[:, during])), hi=EXCESS,
-                        kind="rebound"))
+            out.append(Measure(figure, "after", c + " rebound", rebound(smooth(gr[:, after])),
+                               kind="rebound", period=period,
+                               control=ctrl(lambda v: rebound(smooth(v[:, after])), rel)))
+            out.append(Measure(figure, "after", c + " end / start",
+                               gr[:, after][:, -1] / gr[:, after][:, 0], unit="x", kind="ratio",
+                               period=period))
+        out.append(Measure(figure, "during", c, rebound(smooth(gr[:, during])), kind="rebound",
+                           period=period))
     fails = int(every["n_bootstrap_failures"].sum() + every["n_run_failures"].sum()
                 + every.get("n_diverged", pd.Series(dtype=int)).sum())
     total = int(every["n_trials"].sum() + every["n_run_failures"].sum()
                 + every.get("n_diverged", pd.Series(dtype=int)).sum())
-    out.append(Test(figure, "bootstrap", f"{fails} of {total} trials failed",
-                    np.array([fails, total]), unit="rate", exact=True))
+    out.append(Measure(figure, "bootstrap", f"{fails} of {total} trials failed",
+                       np.array([fails, total]), unit="rate", exact=True))
     return out
 
 
-def stage_tests(figure: str, spec: dict, trials: list[list]) -> list[Test]:
+def _bounds(claim: str, m: Measure, p: dict) -> tuple[float, float] | None:
+    """[lo, hi] of a measure under a reading's params, or None where the reading does not judge
+    it (a T_G outside its periods)."""
+    if "periods" in p and m.period not in p["periods"]:
+        return None
+    if claim == "final":
+        side = p["full"] if m.size >= 1 - 1e-9 else p["smaller"]
+        return (1 / p["factor"] if side == "two-sided" else -np.inf), p["factor"]
+    if "above" in p:
+        return p["above"], np.inf
+    if "below" in p:
+        return -np.inf, p["below"] - (1e-12 if claim in ("stages",) else 0)
+    if claim == "after":
+        return -np.inf, p["rebound_below"] if m.kind == "rebound" else \
+            p["end_over_start_below"] - 1e-12
+    if "within_m" in p:
+        return -np.inf, p["within_m"] - 1e-12
+    if "within_rad" in p:
+        return -np.inf, p["within_rad"]
+    if "grows_by_rad" in p:
+        return p["grows_by_rad"], np.inf
+    return -np.inf, np.inf
+
+
+SERVES = {"rise": ("rise", "rise_none")}  # a measure that serves more than its own claim
+
+
+def judge(ms: list[Measure], claims: list[Claim] | None = None) -> list[Test]:
+    """Every claim's Tests under every registered reading (claims: a register's; default this
+    one's): one per (claim, reading, condition) the reading judges, its values scaled as the
+    reading says, with its bounds; a controlled reading's Test carries the control's values."""
+    by = {c.id: c for c in (CLAIMS if claims is None else claims)}
+    out = []
+    for m in ms:
+        for claim in SERVES.get(m.claim, (m.claim,)):
+            c = by.get(claim)
+            if c is None:
+                continue
+            for r in c.readings:
+                p = r.params
+                b = _bounds(claim, m, p) if not m.exact else (-np.inf, np.inf)
+                if b is None:
+                    continue
+                if p.get("control") and m.control is None and not m.diverged:
+                    continue  # no control for this measure (an end over its start)
+                values = m.values / m.size if p.get("scale") == "size" else m.values
+                out.append(Test(m.figure, claim, m.where, values, b[0], b[1], unit=m.unit,
+                                kind=m.kind, exact=m.exact, diverged=m.diverged,
+                                reading="" if r.primary else r.id, primary=r.primary,
+                                measure=m.claim,
+                                control=m.control if p.get("control") else None,
+                                diagnostic=c.diagnostic or r.diagnostic,
+                                min_trials=c.min_trials))
+    return out
+
+
+def tests(figure: str, trials: pd.DataFrame, summary: pd.DataFrame,
+          claims: list[Claim] | None = None) -> list[Test]:
+    """Every claim's test on one growth figure (Fig. 4, 5, 7) under every registered reading."""
+    return judge(measures(figure, trials, summary), claims)
+
+
+def stage_measures(figure: str, spec: dict, trials: list[list]) -> list[Measure]:
     """Fig. 2 over trials (`trials`: each trial's M per stage, the final M last): the error at
-    the worse extreme (decisive, on at least MIN_TRIALS_STAGES trials), and as diagnostics the
-    start's deviation from home and the smallest growth of the spread between stages."""
+    the worse extreme (decisive, on at least its min_trials), and as diagnostics the start's
+    deviation from home and the smallest growth of the spread between stages."""
     body, size, pattern, predict = final_body(spec)
     xs = body.target_set(size)
     spread, extreme = [], []
@@ -273,19 +389,36 @@ def stage_tests(figure: str, spec: dict, trials: list[list]) -> list[Test]:
         spread.append(s)
         extreme.append(float(max(err[0], err[-1])))
     spread, extreme = np.array(spread), np.array(extreme)
-    return [Test(figure, "stages", "final error at the worse extreme", extreme,
-                 hi=REACH - 1e-12, unit="m", kind="final"),
-            Test(figure, "stages_home", "deviation from home after epoch 1", spread[:, 0],
-                 hi=0.2, unit="rad", kind="final"),
-            Test(figure, "stages_spread", "smallest growth of the spread",
-                 np.diff(spread, axis=-1).min(axis=-1), lo=1e-12, unit="rad", kind="excess")]
+    return [Measure(figure, "stages", "final error at the worse extreme", extreme, unit="m",
+                    kind="final"),
+            Measure(figure, "stages_home", "deviation from home after epoch 1", spread[:, 0],
+                    unit="rad", kind="final"),
+            Measure(figure, "stages_spread", "smallest growth of the spread",
+                    np.diff(spread, axis=-1).min(axis=-1), unit="rad", kind="excess")]
 
+
+def stage_tests(figure: str, spec: dict, trials: list[list]) -> list[Test]:
+    return judge(stage_measures(figure, spec, trials))
 
 def markdown() -> str:
     """The table of claims: words, figures, criterion, measure; diagnostics marked."""
     lines = ["| claim | figures | criterion (on the mean over trials) | measure, per trial |",
              "|---|---|---|---|"]
     lines += [f"| {title(c.id)} | {c.figures} | {c.criterion} | {c.measure} |" for c in CLAIMS]
+    return "\n".join(lines) + "\n"
+
+
+def readings_markdown() -> str:
+    """Every registered reading of every claim: its criterion, whether it is primary (counted)
+    and why, and the commit at which it was fixed (register.yaml)."""
+    lines = ["| claim | reading | criterion | counted | why (the paper's words) | fixed at |",
+             "|---|---|---|---|---|---|"]
+    for c in CLAIMS:
+        for r in c.readings:
+            counted = ("primary" if r.primary and not c.diagnostic else
+                       "diagnostic" if r.diagnostic or c.diagnostic else "shown where it differs")
+            lines.append(f"| {title(c.id)} | {r.label} | {r.criterion} | {counted} "
+                         f"| {' '.join(r.why.split())} | {r.fixed_at} |")
     return "\n".join(lines) + "\n"
 
 
@@ -319,4 +452,22 @@ def our_reading(cards: pd.DataFrame, table: pd.DataFrame | None = None) -> dict:
         out[r["claim"]] = (r["text"] if not off else
                            "(our reading was written for other verdicts: " + "; ".join(off)
                            + "; see the discussion)")
+    return out
+
+
+def unlogged(path: Path = REGISTER) -> list[str]:
+    """The claims of a register whose criterion changed without a changelog entry (the latest
+    entry's hash is not the criterion's), and entries that lack a field: what the register's
+    test reports."""
+    data = yaml.safe_load(Path(path).read_text())
+    out = []
+    for e in data["claims"]:
+        log = e.get("changelog") or []
+        if not log or log[-1].get("hash") != criterion_hash(e):
+            out.append(f"{e['id']}: criterion {criterion_hash(e)} has no changelog entry "
+                       "(add one: date, commit, reason, before, after, hash)")
+        out += [f"{e['id']}: changelog entry {i} lacks {k!r}" for i, x in enumerate(log)
+                for k in ("date", "commit", "reason", "before", "after") if not x.get(k)]
+        out += [f"{e['id']}: reading {r.get('id')!r} lacks {k!r}" for r in e.get("readings", [])
+                for k in ("criterion", "why", "fixed_at") if not r.get(k)]
     return out

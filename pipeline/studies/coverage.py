@@ -1,112 +1,192 @@
-"""The measured coverage of the scorecard's intervals, per measure type and trial count.
+"""The coverage of the scorecard's intervals on fresh samples, per measure and trial count.
 
-    python -m pipeline.studies.coverage AGGREGATE_FOLDER FIGURE [FIGURE ...] [--trials 3 5 10]
-        [--draws 400] [--out pipeline/studies/coverage.csv]
+    python -m pipeline.studies.coverage REPORT_DIR [--trials 3 5 10 20] [--draws 4000]
+        [--out pipeline/studies/coverage.csv] [--docs docs/scorecard.md]
 
-For each figure (aggregated with at least 20 trials per condition, say fig4 and fig7_20trials),
-every claim's measure is computed on all its trials: the value to cover. Then, `draws` times per
-trial count n, each condition's trials are subsampled to n (without replacement, each condition
-on its own), the same measures and their 95 % intervals (scorecard.interval) are recomputed, and
-each interval is scored on whether it covers the all-trials value. The table holds, per measure
-type (claims.Test.kind) and n, the fraction covered on the figure where it is lowest; the
-scorecard says "not reproduced" only where it is at least scorecard.MIN_COVERAGE.
+For every measure with at least FIT trials in a report (its per-trial values: measures.parquet,
+or scorecard.csv's per_trial column in a report written before it), a model of its distribution
+is fitted to those values, twice: the trials themselves (the plain bootstrap, which keeps a
+skewed measure's outlier as it is) and the shrunk smoothed bootstrap (Silverman & Young 1987: a
+value drawn from the trials plus Gaussian noise of Silverman's bandwidth h = 1.06 s N^(-1/5),
+shrunk about the mean so that the model's mean and variance are the trials'). From each,
+`draws` fresh sets of n trials are drawn per n in `trials`, each set's t interval at every level
+of LEVELS is scored on whether it covers the model's mean (the trials' mean), and the lower of
+the two coverages is kept. The table
+holds, per measure and n, the coverage of the 95 % t interval and the smallest level whose
+coverage is at least scorecard.MIN_COVERAGE (none: the interval is not calibrated at n, and such
+a cell says "inconclusive: interval not calibrated"). Measures are not pooled: each has its own
+row. The draws are seeded by the measure's name, so the same values give the same table.
 """
 from __future__ import annotations
 
 import argparse
+import hashlib
+import math
 import sys
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from scipy import stats
 
-from . import scorecard
-from .claims import tests
-
-SEED = 27  # the draws: fixed, so the same aggregates give the same table
-
-
-def _subset(trials: pd.DataFrame, summary: pd.DataFrame, n: int, rng) -> pd.DataFrame:
-    keep = []
-    for c in summary["condition"]:
-        have = np.sort(trials.loc[trials["condition"] == c, "trial"].unique())
-        keep += [(c, int(t)) for t in rng.choice(have, n, replace=False)]
-    idx = pd.MultiIndex.from_frame(trials[["condition", "trial"]])
-    return trials[idx.isin(keep)]
+LEVELS = (0.95, 0.975, 0.99, 0.995, 0.999)  # the ladder of t levels a measure may need
+MIN_COVERAGE = 0.90  # an interval is calibrated from here
+FIT = 20  # a measure's model is fitted on at least this many trials
+COUNTS = (3, 5, 10, 20)
+DRAWS = 4000
+TABLE = Path(__file__).parent / "coverage.csv"
+COLUMNS = ["figure", "claim", "where", "kind", "trials", "draws", "t95", "level", "coverage"]
 
 
-def coverage(aggs: dict, counts=(3, 5, 10), draws: int = 400,
-             seed: int = SEED) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """(per kind and n: draws, covered fraction; per measure: the same), over the figures of
-    `aggs` (figure -> aggregate with trials and summary)."""
+def _seed(*key) -> int:
+    return int.from_bytes(hashlib.sha256("|".join(map(str, key)).encode()).digest()[:8], "big")
+
+
+def fresh(values, n: int, draws: int = DRAWS, seed: int = 0) -> dict:
+    """level -> the fraction of `draws` fresh sets of n trials whose t interval at that level
+    covers the model's mean, under the less favourable of two models of the values'
+    distribution: the trials themselves (the plain bootstrap: a skewed measure's outlier kept
+    as it is) and the shrunk smoothed bootstrap (Silverman's bandwidth, the trials' mean and
+    variance kept)."""
+    x = np.asarray(values, float)
+    x = x[np.isfinite(x)]
+    m, s0 = (float(x.mean()), float(x.std())) if len(x) else (np.nan, 0.0)
+    if len(x) < 2 or s0 == 0 or n < 2:
+        return {lv: (1.0 if s0 == 0 and len(x) and n >= 2 else np.nan) for lv in LEVELS}
     rng = np.random.default_rng(seed)
+    h = 1.06 * float(x.std(ddof=1)) * len(x) ** -0.2
+    plain = x[rng.integers(0, len(x), (draws, n))]
+    smooth = m + (x[rng.integers(0, len(x), (draws, n))] - m
+                  + h * rng.standard_normal((draws, n))) / math.sqrt(1 + h * h / (s0 * s0))
+    out = {lv: 1.0 for lv in LEVELS}
+    for y in (plain, smooth):
+        err = np.abs(y.mean(axis=1) - m)
+        se = y.std(axis=1, ddof=1) / math.sqrt(n)
+        for lv in LEVELS:
+            out[lv] = min(out[lv], float(np.mean(err <= stats.t.ppf(0.5 + lv / 2, n - 1) * se)))
+    return out
+
+
+def calibrated(cov: dict) -> tuple[float | None, float]:
+    """(the smallest level whose coverage is >= MIN_COVERAGE, or None; its coverage, or the
+    95 % one's where there is none)."""
+    for lv in LEVELS:
+        if np.isfinite(cov.get(lv, np.nan)) and cov[lv] >= MIN_COVERAGE:
+            return lv, cov[lv]
+    return None, cov.get(LEVELS[0], np.nan)
+
+
+def row(figure: str, claim: str, where: str, kind: str, values, n: int,
+        draws: int = DRAWS) -> dict:
+    cov = fresh(values, n, draws, _seed(figure, claim, where, n))
+    level, c = calibrated(cov)
+    return dict(figure=figure, claim=claim, where=where, kind=kind, trials=n, draws=draws,
+                t95=cov[LEVELS[0]], level=np.nan if level is None else level, coverage=c)
+
+
+def per_trial_values(report: Path) -> pd.DataFrame:
+    """One row per measure of a report's figures (figure, claim, where, kind, values): from
+    measures.parquet (study "figures", the measures, not their controls), or from scorecard.csv's
+    per_trial column (the primary reading's values) in a report written before it."""
+    from . import measures_table
+
+    parquet = report / measures_table.NAME
+    if parquet.exists():
+        t = measures_table.read(parquet)
+        t = t[(t["study"] == "figures") & (t["role"] == "value") & ~t["exact"]]
+        rows = [dict(figure=f, claim=c, where=w, kind=g["kind"].iloc[0],
+                     values=g.sort_values("trial")["value"].to_numpy())
+                for (f, c, w), g in t.groupby(["figure", "claim", "where"], sort=False)]
+        return pd.DataFrame(rows)
+    sc = pd.read_csv(report / "scorecard.csv", keep_default_na=False)
+    if "reading" in sc:
+        sc = sc[sc["reading"].astype(str) == ""]
     rows = []
-    for name, agg in aggs.items():
-        full = {(t.claim, t.where): t for t in tests(name, agg["trials"], agg["summary"])
-                if not t.exact}
-        truth = {k: float(np.mean(t.values)) for k, t in full.items()}
-        for n in counts:
-            for _ in range(draws):
-                sub = _subset(agg["trials"], agg["summary"], n, rng)
-                for t in tests(name, sub, agg["summary"]):
-                    if t.exact or (t.claim, t.where) not in truth:
-                        continue
-                    _, low, high = scorecard.interval(t.values)
-                    rows.append(dict(figure=name, claim=t.claim, where=t.where, kind=t.kind,
-                                     trials=n, covered=bool(low <= truth[(t.claim, t.where)]
-                                                        <= high)))
-    df = pd.DataFrame(rows)
-    per_measure = (df.groupby(["figure", "claim", "where", "kind", "trials"], sort=False)
-                   ["covered"].mean().rename("coverage").reset_index())
-    per_figure = (df.groupby(["figure", "kind", "trials"])["covered"].agg(["size", "mean"])
-                  .rename(columns={"size": "draws", "mean": "coverage"}).reset_index())
-    per_kind = (per_figure.groupby(["kind", "trials"])  # the worst figure's: a body may differ
-                .agg(draws=("draws", "sum"), coverage=("coverage", "min")).reset_index())
-    return per_kind, per_measure
+    for r in sc.to_dict("records"):
+        if r["kind"] in ("", None) or not str(r["per_trial"]).strip():
+            continue
+        rows.append(dict(figure=r["figure"], claim=r.get("measure") or r["claim"],
+                         where=r["where"], kind=r["kind"],
+                         values=np.array([float(v) for v in str(r["per_trial"]).split()])))
+    return pd.DataFrame(rows)
+
+
+def table(values: pd.DataFrame, counts=COUNTS, draws: int = DRAWS) -> pd.DataFrame:
+    """The coverage table: every measure with at least FIT trials, at every n of `counts`."""
+    rows = [row(r["figure"], r["claim"], r["where"], r["kind"], r["values"], n, draws)
+            for r in values.to_dict("records") if len(r["values"]) >= FIT for n in counts]
+    return pd.DataFrame(rows, columns=COLUMNS)
+
+
+def read_table(path: Path = TABLE) -> pd.DataFrame:
+    if not Path(path).exists():
+        return pd.DataFrame(columns=COLUMNS)
+    return pd.read_csv(path, keep_default_na=False, na_values=[""],
+                       dtype={"figure": str, "claim": str, "where": str, "kind": str})
+
+
+def to_csv(t: pd.DataFrame) -> str:
+    return t.to_csv(index=False, float_format="%.4f")
 
 
 BEGIN, END = "<!-- coverage table: pipeline.studies.coverage -->", "<!-- end of coverage table -->"
 
 
-def markdown(per_kind: pd.DataFrame) -> str:
-    """The coverage table as docs/scorecard.md shows it (between BEGIN and END)."""
-    counts = sorted(per_kind["trials"].unique())
-    lines = ["| measure type | " + " | ".join(f"{n} of 20 trials" for n in counts) + " |",
-             "|---|" + "---|" * len(counts)]
-    for kind, g in per_kind.groupby("kind", sort=True):
-        by = dict(zip(g["trials"], g["coverage"]))
-        lines.append(f"| {kind} | " + " | ".join(
-            f"{100 * by[n]:.1f} %" if n in by else "" for n in counts) + " |")
+def markdown(t: pd.DataFrame) -> str:
+    """The per-measure table as docs/scorecard.md shows it (between BEGIN and END): per measure,
+    the 95 % t interval's coverage at each n, and the level used where it is below
+    MIN_COVERAGE ("not calibrated" where no level reaches it)."""
+    counts = sorted(int(n) for n in t["trials"].unique())
+    lines = ["| figure | claim | measure | " + " | ".join(f"{n} trials" for n in counts) + " |",
+             "|---|---|---|" + "---|" * len(counts)]
+    for (f, c, w), g in t.groupby(["figure", "claim", "where"], sort=False):
+        by = {int(r["trials"]): r for r in g.to_dict("records")}
+
+        def cell(n):
+            if n not in by:
+                return ""
+            r = by[n]
+            text = f"{100 * r['t95']:.1f} %"
+            if not np.isfinite(r["level"]):
+                return text + " (not calibrated)"
+            if r["level"] > LEVELS[0]:
+                text += f" (t at {100 * r['level']:g} %: {100 * r['coverage']:.1f} %)"
+            return text
+        lines.append(f"| {f} | {c} | {w} | " + " | ".join(cell(n) for n in counts) + " |")
     return "\n".join([BEGIN, *lines, END])
+
+
+def docs_updated(text: str, t: pd.DataFrame) -> str:
+    """`text` (docs/scorecard.md) with its coverage table regenerated from `t`."""
+    if BEGIN not in text or END not in text:
+        raise ValueError(f"no {BEGIN} ... {END} block")
+    head, rest = text.split(BEGIN, 1)
+    return head + markdown(t) + rest.split(END, 1)[1]
 
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m pipeline.studies.coverage",
                                 description=__doc__.split("\n\n")[0])
-    p.add_argument("aggregate", type=Path, help="the aggregate folder (paths.aggregate)")
-    p.add_argument("figures", nargs="+", help="figures with >= 20 trials per condition")
-    p.add_argument("--trials", type=int, nargs="+", default=[3, 5, 10])
-    p.add_argument("--draws", type=int, default=400)
-    p.add_argument("--out", type=Path, default=scorecard.COVERAGE)
+    p.add_argument("report", type=Path, help="a report folder (measures.parquet or scorecard.csv)")
+    p.add_argument("--trials", type=int, nargs="+", default=list(COUNTS))
+    p.add_argument("--draws", type=int, default=DRAWS)
+    p.add_argument("--out", type=Path, default=TABLE)
+    p.add_argument("--docs", type=Path, default=None,
+                   help="a Markdown file whose coverage table to regenerate (docs/scorecard.md)")
     a = p.parse_args(argv)
-    from .. import io
-    from ..report import aggregated, load_aggregates
-
-    missing = [f for f in a.figures if f not in aggregated(a.aggregate)]
-    if missing:
-        print(f"error: {missing[0]}: not aggregated under {a.aggregate}", file=sys.stderr)
+    if not ((a.report / "scorecard.csv").exists() or (a.report / "measures.parquet").exists()):
+        print(f"error: {a.report}: no measures.parquet or scorecard.csv", file=sys.stderr)
         return 2
-    aggs = load_aggregates(a.aggregate, a.figures)
-    for name, agg in aggs.items():
-        least = int(agg["trials"].groupby("condition")["trial"].nunique().min())
-        if least <= max(a.trials):
-            print(f"error: {name} has {least} trials in a condition; --trials must stay below "
-                  "that", file=sys.stderr)
-            return 2
-    per_kind, per_measure = coverage(aggs, a.trials, a.draws)
-    io.write_text(a.out, per_kind.to_csv(index=False, float_format="%.4f"))
-    print(markdown(per_kind))
-    print(per_measure.to_string(index=False))
+    t = table(per_trial_values(a.report), a.trials, a.draws)
+    if not len(t):
+        print(f"error: {a.report}: no measure has {FIT} trials", file=sys.stderr)
+        return 2
+    from .. import io
+
+    io.write_text(a.out, to_csv(t))
+    if a.docs is not None:
+        io.write_text(a.docs, docs_updated(a.docs.read_text(), t))
+    print(markdown(t))
     return 0
 
 

@@ -152,29 +152,48 @@ def section(ctx: Context) -> list[str]:
     ctx.text("summary.md", summary_markdown(summary))
 
     judge_stages = stages is not None and js in declared
-    measures = scorecard.results(declared, dict(
+    measured = scorecard.figure_measures(declared, dict(
         figure=js, spec=stages[0], trials=_trial_stages(aggs[js])) if judge_stages else None)
+    measures = scorecard.judged(measured) if measured else []
+    if cfg.report.scale:  # a reduced scale (the smoke profile): measured, never decided
+        measures = scorecard.no_verdicts(measures, f"a {cfg.report.scale} run, not the "
+                                         "paper's scale")
     cards = scorecard.cells(measures) if measures else None
     claim_rows = scorecard.claims_table(cards).to_dict("records") if measures else []
     md = []
     if claim_rows:
+        counted = counted_figures(declared)
+        readings_cards, recommended = _recommended(ctx)
         ctx.text("claims.csv", pd.DataFrame(claim_rows).to_csv(index=False))
-        ctx.text("scorecard.csv", pd.DataFrame(measures).to_csv(index=False,
-                                                                 float_format="%.6g"))
-        ctx.save(scorecard.figure(cards, ctx.title.split(":")[0] + ": the paper's claims, 95 % "
-                                  "intervals over trials"), "scorecard")
-        md += ["## Scorecard: the paper's claims, with their uncertainty", "",
-               "![scorecard](scorecard.png)", "",
-               scorecard.markdown(cards, measures, counted_figures(declared),
-                                  claims.our_reading(cards)),
-               "Each cell: its verdict, how many of its conditions are reproduced, and its worst "
-               "condition: the mean over trials of the measure and its 95 % interval "
-               "(`scorecard.csv` holds every measure and each trial's value, `claims.csv` every "
-               "cell); pipeline/studies/scorecard.py says how.", "",
-               "## The claims, their criteria and measures", "", claims.markdown()]
+        every = pd.DataFrame(measures)  # the primary reading's; the others' beside
+        ctx.text("scorecard.csv", every[every["primary"]].to_csv(index=False,
+                                                                  float_format="%.6g"))
+        ctx.text("scorecard_readings.csv", every[~every["primary"]].to_csv(
+            index=False, float_format="%.6g"))
+        _write_measures(ctx, measured, counted)
+        ctx.save(scorecard.figure(cards, ctx.title.split(":")[0] + ": the paper's claims, "
+                                  "calibrated intervals over trials"), "scorecard")
         if cfg.report.stamp_findings:
             stamp_findings(summary, claim_rows)
-        md += [findings(summary, claim_rows)]  # the discussion of the committed run, if it is
+        discussion = findings(summary, claim_rows)  # of the committed run, if it is
+        ours = claims.our_reading(cards) if discussion == FINDINGS.read_text() else None
+        md += ["## Scorecard: the paper's claims, with their uncertainty", "",
+               "![scorecard](scorecard.png)", "",
+               scorecard.markdown(cards, measures, counted, ours,
+                                  "" if cfg.report.scale else
+                                  scorecard.recommended_headline(readings_cards, recommended)),
+               "Each cell: its verdict, how many of its conditions are reproduced, and its worst "
+               "condition: the mean over trials of the measure and its interval "
+               "(`scorecard.csv` holds every measure, `scorecard_readings.csv` the same under "
+               "the other registered readings, `claims.csv` every "
+               "cell, `measures.parquet` every per-trial value: `python -m "
+               "pipeline.tools.rescore` judges them again under an edited register); "
+               "pipeline/studies/scorecard.py says how.", "",
+               "## The claims, their criteria and measures", "", claims.markdown(), "",
+               "Every registered reading of a criterion (pipeline/studies/register.yaml; the "
+               "cells above show a reading's verdict where it differs from the primary's):", "",
+               claims.readings_markdown()]
+        md += [discussion]
     curves = pd.concat([a["curves"] for a in aggs.values()], ignore_index=True)
     io.write_table(out / "curves.parquet", io.frame_to_table(curves))
     ctx.written.append(out / "curves.parquet")
@@ -197,6 +216,30 @@ def section(ctx: Context) -> list[str]:
         ctx.text("conventions.csv", convention_table.to_csv(index=False, float_format="%.6g"))
         md += [conventions.markdown(convention_table)]
     return md
+
+
+def _recommended(ctx: Context) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """(the readings study's cells, the recommended readings) for the second headline."""
+    from . import readings
+
+    read = {k: a for k, a in ctx.of("readings").items() if declares_claims(a)}
+    cards = readings.intervals(read) if read else pd.DataFrame()
+    return cards, readings.recommended()
+
+
+def _write_measures(ctx: Context, measured: list, counted: list) -> None:
+    """measures.parquet: every per-trial measure of the figures and of the readings study."""
+    from . import measures_table, readings
+
+    frames = [measures_table.frame([m for m in measured if m.figure == f], "figures",
+                                   counted=f in counted)
+              for f in dict.fromkeys(m.figure for m in measured)]
+    read = {k: a for k, a in ctx.of("readings").items() if declares_claims(a)}
+    recs = set(zip(*readings.recommended()[["figure", "reading"]].to_numpy().T))
+    frames += [measures_table.frame(ms, "readings", reading=label,
+                                    recommended=(fig, label) in recs)
+               for (fig, label), ms in scorecard.readings_measures(read).items()]
+    ctx.written.append(measures_table.write(ctx.out / measures_table.NAME, frames))
 
 
 FINDINGS = Path(__file__).parent / "findings.md"

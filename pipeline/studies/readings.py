@@ -66,16 +66,9 @@ def intervals(aggs: dict) -> pd.DataFrame:
     """One row per (figure, reading, claim): the scorecard's verdict with its 95 % interval over
     the reading's trials (pipeline/studies/scorecard.py), the measure that decides it."""
     rows = []
-    for study, fig in STUDIES.items():
-        if study not in aggs or "trials" not in aggs[study]:
-            continue
-        s = aggs[study]["summary"]
-        for label in s["variant"].drop_duplicates():
-            names = s[s["variant"] == label]["condition"].tolist()
-            tests = claims.tests(fig, _rename(aggs[study]["trials"], names), _rename(s, names))
-            table = scorecard.coverage_table()
-            cards = scorecard.cells([scorecard.run_test(t, table) for t in tests])
-            rows += [dict(c, reading=label) for c in cards.to_dict("records")]
+    for (_, label), ms in scorecard.readings_measures(aggs).items():
+        cards = scorecard.cells(scorecard.judged(ms))
+        rows += [dict(c, reading=label) for c in cards.to_dict("records")]
     return pd.DataFrame(rows)
 
 

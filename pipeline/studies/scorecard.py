@@ -1,54 +1,83 @@
-"""The scorecard: every claim of the paper on every figure, with a 95 % interval over trials.
+"""The scorecard: every claim of the paper on every figure, with a calibrated interval over
+trials.
 
 Each claim's measure (pipeline/studies/claims.py) is a value per trial; a cell's value is its
-mean over the trials, and the interval is Student's t interval of that mean:
+mean over the trials, and the interval is Student's t interval of that mean at a level whose
+coverage is measured, not assumed:
 
-    mean +- t(0.975, n - 1) * s / sqrt(n)
+    mean +- t((1 + level) / 2, n - 1) * s / sqrt(n)
 
-Why t, on per-trial values: the mean of independent trials is what the t interval is for, its
-point always lies inside it, and its coverage measured by drawing 3, 5 and 10 of 20 trials
-(pipeline/studies/coverage.py, docs/scorecard.md) is near 95 % for every measure type; the
-percentile bootstrap of a maximum of the mean curve was biased (it covered the 20-trial value in
-far fewer than 95 % of draws) and had its point outside its own interval.
+The coverage of each measure at its trial count is estimated on fresh samples
+(pipeline/studies/coverage.py: a smoothed bootstrap of the measure's 20-trial values); the level
+is the smallest of LEVELS whose coverage of the model's mean is at least MIN_COVERAGE. A
+controlled reading (a difference from the constant full-size reference) uses Welch's interval
+of the difference at the measure's level.
 
     reproduced      the interval lies within the criterion
-    not reproduced  the interval lies outside it, and the measure's coverage at this trial
-                    count is established (COVERAGE, >= MIN_COVERAGE); else inconclusive
-    inconclusive    the interval straddles a bound of the criterion (or there is one trial only)
+    not reproduced  the interval lies outside it
+    inconclusive    the interval straddles a bound of the criterion, or no level of LEVELS
+                    reaches MIN_COVERAGE ("interval not calibrated"), or fewer trials than the
+                    claim's min_trials
+    not a verdict   fewer than MIN_VERDICT trials (a smoke run): value and interval shown, no
+                    verdict
 
-A cell (claim x figure) holds one measure per condition: it is not reproduced if any is, else
-inconclusive if any is, else reproduced; it shows its worst condition and how many of its
-measures are reproduced. For an inconclusive measure, `trials_to_decide` is the trial count per
-condition at which an interval of the observed spread (its half-width shrinking as 1 / sqrt(n))
-would no longer reach the bound.
+A cell (claim x figure) holds one measure per condition under the claim's primary reading: it is
+not reproduced if any is, else inconclusive if any is, else reproduced; it shows its worst
+condition and how many of its measures are reproduced, and the verdict under every other
+registered reading where it differs. For an inconclusive measure, `trials_to_decide` is the
+trial count per condition at which an interval of the observed spread (its half-width shrinking
+as 1 / sqrt(n)) would no longer reach the bound.
 """
 from __future__ import annotations
 
 import math
 import textwrap
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 from scipy import stats
 
-from .claims import BY_ID, CLAIMS, DIVERGED, Test, stage_tests, tests as growth_tests, title
+from . import coverage
+from .claims import BY_ID, CLAIMS, DIVERGED, Test, judge, stage_measures, title
+from .claims import measures as claims_measures
 
-LEVEL = 0.95
-MIN_COVERAGE = 0.90  # a measure type's interval is trusted to say "not reproduced" from here
-COVERAGE = Path(__file__).parent / "coverage.csv"  # written by pipeline.studies.coverage
+LEVEL = 0.95  # the nominal level where the coverage allows it (coverage.LEVELS[0])
+LEVELS, MIN_COVERAGE = coverage.LEVELS, coverage.MIN_COVERAGE
+MIN_VERDICT = min(coverage.COUNTS)  # fewer trials: "not a verdict" (no coverage measured)
+MAX_DECIDE = 1000  # "trials to decide" beyond this is no estimate: not shown
+COVERAGE = coverage.TABLE  # written by pipeline.studies.coverage
 TITLES = {c.id: title(c.id) for c in CLAIMS}
 REPRODUCED, NOT, INCONCLUSIVE = "reproduced", "not reproduced", "inconclusive"
+NOT_A_VERDICT = "not a verdict"
+UNCALIBRATED = "interval not calibrated"
 
 
-def interval(values: np.ndarray) -> tuple[float, float, float]:
-    """(mean, low, high): the mean of the per-trial values and its 95 % t interval (no interval
-    for one trial)."""
+def interval(values: np.ndarray, level: float = LEVEL) -> tuple[float, float, float]:
+    """(mean, low, high): the mean of the per-trial values and its t interval at `level` (no
+    interval for one trial)."""
     v = np.asarray(values, float)
     point = float(v.mean()) if len(v) else np.nan
     if len(v) < 2:
         return point, np.nan, np.nan
-    half = float(stats.t.ppf(0.5 + LEVEL / 2, len(v) - 1) * v.std(ddof=1) / math.sqrt(len(v)))
+    half = float(stats.t.ppf(0.5 + level / 2, len(v) - 1) * v.std(ddof=1) / math.sqrt(len(v)))
+    return point, point - half, point + half
+
+
+def difference(values: np.ndarray, control: np.ndarray,
+               level: float = LEVEL) -> tuple[float, float, float]:
+    """(difference of the means, low, high): Welch's interval at `level` of mean(values) -
+    mean(control), two independent samples (the trials of two conditions have their own
+    seeds)."""
+    a, b = np.asarray(values, float), np.asarray(control, float)
+    point = float(a.mean() - b.mean()) if len(a) and len(b) else np.nan
+    if len(a) < 2 or len(b) < 2:
+        return point, np.nan, np.nan
+    va, vb = a.var(ddof=1) / len(a), b.var(ddof=1) / len(b)
+    se = math.sqrt(va + vb)
+    if se == 0:
+        return point, point, point
+    df = (va + vb) ** 2 / (va ** 2 / (len(a) - 1) + vb ** 2 / (len(b) - 1))
+    half = float(stats.t.ppf(0.5 + level / 2, df) * se)
     return point, point - half, point + half
 
 
@@ -68,7 +97,8 @@ def trials_to_decide(point: float, low: float, high: float, lo: float, hi: float
                      n: int) -> int | None:
     """Trials per condition at which an interval of the observed spread would clear the bound it
     straddles: the half-width on that side times sqrt(n / n') below the distance from the point
-    to the bound. None when undefined (no interval, or the point on the bound)."""
+    to the bound. None when undefined (no interval, or the point on the bound) or beyond
+    MAX_DECIDE (no estimate at the observed spread)."""
     if not (np.isfinite(low) and np.isfinite(high)):
         return None
     bounds = [b for b in (lo, hi) if np.isfinite(b) and low <= b <= high]
@@ -79,32 +109,64 @@ def trials_to_decide(point: float, low: float, high: float, lo: float, hi: float
     half = (point - low) if b <= point else (high - point)
     if gap == 0 or half <= 0:
         return None
-    return max(n + 1, math.ceil(n * (half / gap) ** 2))
+    need = max(n + 1, math.ceil(n * (half / gap) ** 2))
+    return need if need <= MAX_DECIDE else None
 
 
 def coverage_table() -> pd.DataFrame:
-    """The measured coverage per measure type and trial count (empty when never measured)."""
-    if not COVERAGE.exists():
-        return pd.DataFrame(columns=["kind", "trials", "draws", "coverage"])
-    return pd.read_csv(COVERAGE)
+    """The measured coverage per measure and trial count (coverage.csv; empty when never
+    measured)."""
+    return coverage.read_table(COVERAGE)
 
 
-def established(kind: str, n: int, table: pd.DataFrame | None = None) -> bool:
-    """Whether the interval of measure type `kind` on n trials is trusted to say "not
-    reproduced": the coverage measured at the largest trial count <= n is >= MIN_COVERAGE."""
-    t = coverage_table() if table is None else table
-    t = t[(t["kind"] == kind) & (t["trials"] <= n)]
-    return bool(len(t)) and float(t.sort_values("trials")["coverage"].iloc[-1]) >= MIN_COVERAGE
+_FRESH: dict = {}
+
+
+def calibration(t: Test, n: int, table: pd.DataFrame | None = None) -> tuple[float | None, str]:
+    """(the t level to use, where its coverage comes from) for a measure on n trials, or (None,
+    why) where no level is calibrated. A measure with at least coverage.FIT trials is calibrated
+    on fresh samples of its own values; one with fewer takes the coverage table's rows of its
+    measure and condition at the largest measured n <= its own (those of its own figure
+    family, e.g. fig7_20trials for fig7, where there are any), the most demanding level of
+    them; failing that, those of its claim's measure."""
+    measure = t.measure or t.claim
+    if n >= coverage.FIT:
+        key = (t.figure, measure, t.where, n, np.asarray(t.values, float).tobytes())
+        if key not in _FRESH:
+            _FRESH[key] = coverage.row(t.figure, measure, t.where, t.kind, t.values, n)
+        r = _FRESH[key]
+        level = r["level"] if np.isfinite(r["level"]) else None
+        return level, f"fresh samples of its {n} trials"
+    tab = coverage_table() if table is None else table
+    if not len(tab):
+        return None, "no coverage measured"
+    tab = tab[tab["trials"] <= n]
+    if "claim" not in tab:  # a table per measure type only
+        return None, "no coverage per measure"
+    for rows in (tab[(tab["claim"] == measure) & (tab["where"] == t.where)],
+                 tab[tab["claim"] == measure]):
+        if not len(rows):
+            continue
+        rows = rows[rows["trials"] == rows["trials"].max()]
+        own = rows[rows["figure"].astype(str).str.startswith(str(t.figure))]
+        rows = own if len(own) else rows
+        if rows["level"].isna().any():
+            return None, f"not calibrated at {int(rows['trials'].iloc[0])} trials"
+        return float(rows["level"].max()), f"coverage table at {int(rows['trials'].iloc[0])} trials"
+    return None, "no coverage measured for this measure"
 
 
 def run_test(t: Test, table: pd.DataFrame | None = None) -> dict:
     """Measure a test and judge it; stores and returns its result."""
+    base = dict(figure=t.figure, claim=t.claim, diagnostic=_diagnostic(t), where=t.where,
+                reading=t.reading, primary=t.primary, measure=t.measure or t.claim,
+                lo=t.lo, hi=t.hi, unit=t.unit, kind=t.kind)
     if t.diverged:  # nothing to measure: the cell says so
-        t.result = dict(figure=t.figure, claim=t.claim, diagnostic=BY_ID[t.claim].diagnostic,
-                        where=t.where, value=np.nan, low=np.nan, high=np.nan, lo=t.lo, hi=t.hi,
-                        unit=t.unit, kind=t.kind, trials=0, verdict=DIVERGED,
-                        trials_to_decide=None, per_trial="")
+        t.result = dict(base, value=np.nan, low=np.nan, high=np.nan, trials=0, verdict=DIVERGED,
+                        level=np.nan, note="", control_value=np.nan, trials_to_decide=None,
+                        per_trial="")
         return t.result
+    note, level, control_value = "", np.nan, np.nan
     if t.exact:  # a count: the verdict is exact, the interval is the failure rate's
         k, n = (int(v) for v in t.values)
         ci = stats.binomtest(k, n).proportion_ci(LEVEL) if n else None
@@ -113,17 +175,42 @@ def run_test(t: Test, table: pd.DataFrame | None = None) -> dict:
         v, need, per_trial = (REPRODUCED if k == 0 else NOT), None, ""
     else:
         n = len(t.values)
-        point, low, high = interval(t.values)
+        lv, why = calibration(t, n, table)
+        level = LEVEL if lv is None else lv
+        if t.control is not None and len(t.control):
+            point, low, high = difference(t.values, t.control, level)
+            control_value = float(np.mean(t.control))
+        else:
+            point, low, high = interval(t.values, level)
         v = verdict(low, high, t.lo, t.hi)
-        if (v == NOT and not established(t.kind, n, table)) or n < BY_ID[t.claim].min_trials:
+        if n < MIN_VERDICT:
+            v, note = NOT_A_VERDICT, f"{n} trials; a verdict needs {MIN_VERDICT}"
+        elif lv is None:
+            v, note = INCONCLUSIVE, f"{UNCALIBRATED} ({why})"
+        elif n < (t.min_trials if t.min_trials is not None else BY_ID[t.claim].min_trials):
             v = INCONCLUSIVE
-        need = trials_to_decide(point, low, high, t.lo, t.hi, n) if v == INCONCLUSIVE else None
+        need = (trials_to_decide(point, low, high, t.lo, t.hi, n)
+                if v == INCONCLUSIVE and not note else None)
         per_trial = " ".join(f"{x:.6g}" for x in t.values)
-    t.result = dict(figure=t.figure, claim=t.claim, diagnostic=BY_ID[t.claim].diagnostic,
-                    where=t.where, value=point, low=low, high=high, lo=t.lo, hi=t.hi,
-                    unit=t.unit, kind=t.kind, trials=n, verdict=v, trials_to_decide=need,
+    t.result = dict(base, value=point, low=low, high=high, trials=n, verdict=v, level=level,
+                    note=note, control_value=control_value, trials_to_decide=need,
                     per_trial=per_trial)
     return t.result
+
+
+def no_verdicts(results: list[dict], why: str) -> list[dict]:
+    """The results with every verdict replaced by "not a verdict" (`why`: "a smoke run"): a run
+    at a reduced scale measures the claims and decides none of them."""
+    return [r if r["verdict"] == DIVERGED else
+            dict(r, verdict=NOT_A_VERDICT, note=why, trials_to_decide=None) for r in results]
+
+
+def _diagnostic(t: Test) -> bool:
+    if t.diagnostic is not None:
+        return bool(t.diagnostic)
+    c = BY_ID[t.claim]
+    return bool(c.diagnostic or next((r.diagnostic for r in c.readings
+                                      if r.id == t.reading), False))
 
 
 # --- cells, tables, figure -------------------------------------------------------------------------
@@ -149,7 +236,19 @@ def fmt_interval(r: dict) -> str:
         return "no interval (1 trial)" if r["trials"] < 2 else "n/a"
     if r["unit"] == "rate":
         return f"(failure rate 95 % interval {fmt(r['low'], 'rate')} ... {fmt(r['high'], 'rate')})"
-    return f"[{fmt(r['low'], r['unit'])}, {fmt(r['high'], r['unit'])}]"
+    level = r.get("level", LEVEL)
+    at = (f" at {100 * level:g} %" if level is not None and np.isfinite(level)
+          and abs(level - LEVEL) > 1e-9 else "")
+    return f"[{fmt(r['low'], r['unit'])}, {fmt(r['high'], r['unit'])}]{at}"
+
+
+def fmt_measure(r: dict) -> str:
+    """The value and its interval; a controlled reading's as a difference from the control."""
+    text = f"{fmt(r['value'], r['unit'])} {fmt_interval(r)}"
+    cv = r.get("control_value")
+    if cv is not None and np.isfinite(cv):
+        text = f"{text} over the constant full-size body ({fmt(cv, r['unit'])})"
+    return text
 
 
 def criterion(r: dict) -> str:
@@ -169,25 +268,58 @@ def _margin(g: pd.DataFrame) -> pd.Series:
     return np.minimum(rel(g["value"] - g["lo"], g["lo"]), rel(g["hi"] - g["value"], g["hi"]))
 
 
-def cells(results: list[dict]) -> pd.DataFrame:
-    """One cell per (claim, figure): the verdict of all its measures (not reproduced if any is,
-    else inconclusive if any is, else reproduced), how many are reproduced (k of n), and the
-    worst measure (the smallest margin to the criterion), which the cell shows."""
+ORDER = (DIVERGED, NOT_A_VERDICT, NOT, INCONCLUSIVE, REPRODUCED)  # a cell's: the first present
+
+
+def _cell(claim: str, figure: str, reading: str, g: pd.DataFrame) -> dict:
+    vs = g["verdict"].tolist()
+    v = next(x for x in ORDER if x in vs)
+    pick = g.loc[_margin(g).fillna(-np.inf).idxmin()]
+    if v == NOT_A_VERDICT:
+        pick = g.loc[g["verdict"] == NOT_A_VERDICT].iloc[0]
+    need = pick["trials_to_decide"]
+    return dict(claim=claim, figure=figure, reading=reading,
+                diagnostic=bool(pick["diagnostic"]) if "diagnostic" in pick else
+                bool(BY_ID[claim].diagnostic),
+                verdict=v, where=pick["where"], value=pick["value"], low=pick["low"],
+                high=pick["high"], unit=pick["unit"], trials=int(pick["trials"]),
+                trials_to_decide=None if need is None or pd.isna(need) else int(need),
+                reproduced=vs.count(REPRODUCED), measures=len(g),
+                per_trial=pick.get("per_trial", ""), lo=pick["lo"], hi=pick["hi"],
+                level=pick.get("level", LEVEL), note=pick.get("note", "") or "",
+                control_value=pick.get("control_value", np.nan))
+
+
+def all_cells(results: list[dict]) -> pd.DataFrame:
+    """One cell per (claim, figure, reading of its criterion), the primary reading's reading
+    ""."""
     df = pd.DataFrame(results)
-    rows = []
-    for (claim, figure), g in df.groupby(["claim", "figure"], sort=False):
-        vs = g["verdict"].tolist()
-        v = (DIVERGED if DIVERGED in vs else NOT if NOT in vs else INCONCLUSIVE
-             if INCONCLUSIVE in vs else REPRODUCED)
-        pick = g.loc[_margin(g).fillna(-np.inf).idxmin()]
-        need = pick["trials_to_decide"]
-        rows.append(dict(claim=claim, figure=figure, diagnostic=bool(BY_ID[claim].diagnostic),
-                         verdict=v, where=pick["where"], value=pick["value"], low=pick["low"],
-                         high=pick["high"], unit=pick["unit"], trials=int(pick["trials"]),
-                         trials_to_decide=None if need is None or pd.isna(need) else int(need),
-                         reproduced=vs.count(REPRODUCED), measures=len(g),
-                         per_trial=pick.get("per_trial", ""), lo=pick["lo"], hi=pick["hi"]))
-    return pd.DataFrame(rows)
+    if "reading" not in df:
+        df["reading"] = ""
+    df["reading"] = df["reading"].fillna("")
+    return pd.DataFrame([_cell(c, f, rd, g) for (c, f, rd), g
+                         in df.groupby(["claim", "figure", "reading"], sort=False)])
+
+
+def cells(results: list[dict]) -> pd.DataFrame:
+    """One cell per (claim, figure) under the claim's primary reading: the verdict of all its
+    measures (not reproduced if any is, else inconclusive if any is, else reproduced), how many
+    are reproduced (k of n), the worst measure (the smallest margin to the criterion), which the
+    cell shows, and `others`: the cells of the other registered readings whose verdict differs
+    ("reading: verdict (worst ...)", "; "-joined)."""
+    every = all_cells(results)
+    if not len(every):
+        return every
+    primary = every[every["reading"] == ""].copy()
+    other = every[every["reading"] != ""]
+    notes = []
+    for r in primary.to_dict("records"):
+        o = other[(other["claim"] == r["claim"]) & (other["figure"] == r["figure"])]
+        notes.append("; ".join(f"{x['reading']}: {x['verdict']} (worst: {x['where']}: "
+                               f"{fmt_measure(x)})" for x in o.to_dict("records")
+                               if x["verdict"] != r["verdict"]))
+    primary["others"] = notes
+    return primary.drop(columns="reading").reset_index(drop=True)
 
 
 def _need(r: dict) -> int | None:
@@ -198,14 +330,20 @@ def _need(r: dict) -> int | None:
 
 def cell_text(c, newline: str = " ") -> str:
     """'not reproduced', k of n, the worst measure: its value and interval (+ trials to
-    decide)."""
+    decide, why it is not a verdict, the verdicts under the other readings where they
+    differ)."""
     r = dict(c)
-    text = f"**{r['verdict']}**"
-    if r.get("measures", 1) > 1:
+    note = r.get("note") or ""
+    text = f"**{r['verdict']}" + (f": {UNCALIBRATED}" if UNCALIBRATED in note else "") + "**"
+    if r.get("measures", 1) > 1 and r["verdict"] != NOT_A_VERDICT:
         text += f" ({r['reproduced']} of {r['measures']} reproduced)"
-    text += f"{newline}worst: {r['where']}: {fmt(r['value'], r['unit'])} {fmt_interval(r)}"
+    text += f"{newline}worst: {r['where']}: {fmt_measure(r)}"
+    if r["verdict"] == NOT_A_VERDICT and note:
+        text += f" ({note})"
     if r["verdict"] == INCONCLUSIVE and _need(r):
         text += f"{newline}~{_need(r)} trials would decide"
+    if r.get("others"):
+        text += f"{newline}other readings: {r['others']}"
     return text
 
 
@@ -221,13 +359,23 @@ def headline(cards: pd.DataFrame, counted=None) -> dict:
     c = cards[~cards["diagnostic"].astype(bool)]
     if counted is not None:
         c = c[c["figure"].isin(counted)]
-    return {v: int((c["verdict"] == v).sum()) for v in (REPRODUCED, NOT, INCONCLUSIVE, DIVERGED)}
+    return {v: int((c["verdict"] == v).sum())
+            for v in (REPRODUCED, NOT, INCONCLUSIVE, DIVERGED, NOT_A_VERDICT)}
+
+
+def headline_text(n: dict) -> str:
+    """"10 reproduced, 3 not reproduced, 3 inconclusive" (+ diverged, not a verdict if any)."""
+    if n[NOT_A_VERDICT] and not (n[REPRODUCED] or n[NOT] or n[INCONCLUSIVE]):
+        return f"no verdict ({n[NOT_A_VERDICT]} cells measured, none decided)"
+    text = f"{n[REPRODUCED]} reproduced, {n[NOT]} not reproduced, {n[INCONCLUSIVE]} inconclusive"
+    text += f", {n[DIVERGED]} diverged" if n[DIVERGED] else ""
+    return text + (f", {n[NOT_A_VERDICT]} not a verdict" if n[NOT_A_VERDICT] else "")
 
 
 def claims_table(cards: pd.DataFrame) -> pd.DataFrame:
     """claims.csv: one row per cell, the claim's words, criterion and measure from the table of
     claims, and the cell's verdict, worst condition and k of n, from the same results as
-    scorecard.csv."""
+    scorecard.csv, and the verdicts under the other readings where they differ."""
     rows = []
     for r in cards.to_dict("records"):
         c = BY_ID[r["claim"]]
@@ -235,40 +383,54 @@ def claims_table(cards: pd.DataFrame) -> pd.DataFrame:
                          diagnostic=c.diagnostic, criterion=c.criterion, measure=c.measure,
                          verdict=r["verdict"], reproduced=r["reproduced"],
                          measures=r["measures"], worst=r["where"],
-                         measured=f"{fmt(r['value'], r['unit'])} {fmt_interval(r)}",
-                         trials=r["trials"]))
+                         measured=fmt_measure(r), trials=r["trials"],
+                         other_readings=r.get("others", "")))
     return pd.DataFrame(rows)
 
 
-def markdown(cards: pd.DataFrame, results: list[dict], counted=None, readings=None) -> str:
+def markdown(cards: pd.DataFrame, results: list[dict], counted=None, readings=None,
+             recommended: str = "") -> str:
     """The scorecard (claims x figures) and, below it, every measure with its interval.
-    counted: the figures the headline counts; readings: claim -> our reading (written text)."""
+    counted: the figures the headline counts; readings: claim -> our reading (written text),
+    the column shown only where given (the committed run's discussion); recommended: the
+    headline of the recommended reading, shown beside the default's."""
     claims, figs = _order(cards)
     n = headline(cards, counted)
     where = "" if counted is None else f" on {', '.join(sorted(counted))}"
-    lines = [f"The paper's claims{where}: **{n[REPRODUCED]} reproduced, {n[NOT]} not reproduced, "
-             f"{n[INCONCLUSIVE]} inconclusive" + (f", {n[DIVERGED]} diverged" if n[DIVERGED]
-                                                   else "") + "** (95 % t intervals of the mean over trials of a "
-             "per-trial measure; diagnostics, marked, are shown and not counted).",
-             "", "| claim of the paper | " + " | ".join(figs) + " | our reading |",
-             "|---|" + "---|" * (len(figs) + 1)]
+    lines = [f"The paper's claims{where}, this project's default reading: **{headline_text(n)}** "
+             "(t intervals of the mean over trials of a per-trial measure, at a level whose "
+             "coverage is measured; each claim under its primary reading of the paper, "
+             "pipeline/studies/register.yaml; diagnostics, marked, are shown and not counted)."]
+    if recommended:
+        lines += ["", recommended]
+    if n[NOT_A_VERDICT]:
+        lines += ["", f"**Not a verdict**: a cell on fewer than {MIN_VERDICT} trials per "
+                  "condition (no coverage is measured below that), or of a run at a reduced "
+                  "scale (report.scale), shows its value and interval and decides nothing."]
+    own = readings is not None
+    lines += ["", "| claim of the paper | " + " | ".join(figs) + (" | our reading |" if own
+                                                                  else " |"),
+              "|---|" + "---|" * (len(figs) + own)]
     for claim in claims:
         row = cards[cards["claim"] == claim]
-        by = {r.figure: cell_text(r._asdict(), "<br>") for r in row.itertuples()}
+        by = {r["figure"]: cell_text(r, "<br>") for r in row.to_dict("records")}
         lines.append(f"| {TITLES[claim]} | " + " | ".join(by.get(f, "—") for f in figs)
-                     + f" | {(readings or {}).get(claim, '')} |")
-    lines += ["", "<details><summary>every measure, its 95 % interval and criterion</summary>", "",
-              "| figure | claim | measure | value | 95 % interval | criterion | trials | verdict "
-              "| trials to decide |", "|---|---|---|---|---|---|---|---|---|"]
+                     + (f" | {(readings or {}).get(claim, '')} |" if own else " |"))
+    lines += ["", "<details><summary>every measure under every reading, its interval and "
+              "criterion</summary>", "",
+              "| figure | claim | reading | measure | value | interval | criterion | trials "
+              "| verdict | trials to decide |", "|---|---|---|---|---|---|---|---|---|---|"]
     for r in results:
-        lines.append(f"| {r['figure']} | {TITLES[r['claim']]} | {r['where']} "
-                     f"| {fmt(r['value'], r['unit'])} | {fmt_interval(r)} | {criterion(r)} "
-                     f"| {r['trials']} | {r['verdict']} | {_need(r) or ''} |")
+        lines.append(f"| {r['figure']} | {TITLES[r['claim']]} | {r.get('reading') or 'primary'} "
+                     f"| {r['where']} | {fmt(r['value'], r['unit'])} | {fmt_interval(r)} "
+                     f"| {criterion(r)} | {r['trials']} | {r['verdict']}"
+                     + (f" ({r['note']})" if r.get("note") else "") + f" | {_need(r) or ''} |")
     lines += ["", "</details>", ""]
     return "\n".join(lines)
 
 
-COLOURS = {REPRODUCED: "#b7e1b0", NOT: "#f4b6b0", INCONCLUSIVE: "#fbe3a0", DIVERGED: "#c9c3e6"}
+COLOURS = {REPRODUCED: "#b7e1b0", NOT: "#f4b6b0", INCONCLUSIVE: "#fbe3a0", DIVERGED: "#c9c3e6",
+           NOT_A_VERDICT: "#e4e4e4"}
 
 
 def _trials_strip(ax, x0: float, y: float, c: dict) -> None:
@@ -318,7 +480,9 @@ def figure(cards: pd.DataFrame, title: str):
                     else "") + f"worst: {c['where']}: {fmt(c['value'], c['unit'])} {fmt_interval(c)}"
             if c["verdict"] == INCONCLUSIVE and _need(c):
                 text += f"; ~{_need(c)} trials would decide"
-            ax.text(j + 0.5, i + 0.2, c["verdict"], ha="center", va="center", fontsize=8,
+            label = c["verdict"] + (": not calibrated" if UNCALIBRATED in str(c.get("note"))
+                                    else "")
+            ax.text(j + 0.5, i + 0.2, label, ha="center", va="center", fontsize=8,
                     fontweight="bold")
             ax.text(j + 0.5, i + 0.5, textwrap.fill(text, 46), ha="center", va="center",
                     fontsize=6.5, linespacing=1.1)
@@ -333,14 +497,58 @@ def figure(cards: pd.DataFrame, title: str):
     return fig
 
 
-def results(aggs: dict, stages: dict | None = None, table: pd.DataFrame | None = None) -> list[dict]:
-    """Every test of every figure that declares the paper's claims (aggs: figure -> aggregate with
-    its trials), and of Fig. 2's stages (`stages`: figure, spec, per-trial Ms), measured."""
-    tests = []
+def figure_measures(aggs: dict, stages: dict | None = None) -> list:
+    """Every measure (claims.Measure) of every figure that declares the paper's claims (aggs:
+    figure -> aggregate with its trials), and of Fig. 2's stages (`stages`: figure, spec,
+    per-trial Ms)."""
+    ms = []
     for name, agg in aggs.items():
         if (agg["summary"]["growth"] != "none").any():
-            tests += growth_tests(name, agg["trials"], agg["summary"])
+            ms += claims_measures(name, agg["trials"], agg["summary"])
     if stages:
-        tests += stage_tests(stages["figure"], stages["spec"], stages["trials"])
+        ms += stage_measures(stages["figure"], stages["spec"], stages["trials"])
+    return ms
+
+
+def judged(ms: list, table: pd.DataFrame | None = None, register=None) -> list[dict]:
+    """Every measure judged under every reading of `register` (default: this one's)."""
     table = coverage_table() if table is None else table
-    return [run_test(t, table) for t in tests]
+    return [run_test(t, table) for t in judge(ms, register)]
+
+
+def results(aggs: dict, stages: dict | None = None, table: pd.DataFrame | None = None) -> list[dict]:
+    """Every test of every figure that declares the paper's claims, measured and judged."""
+    return judged(figure_measures(aggs, stages), table)
+
+
+def readings_measures(read: dict) -> dict:
+    """(figure, reading) -> every measure of that reading of the readings study (read: its
+    aggregates, by experiment), as readings.intervals judges them."""
+    from . import readings
+
+    out = {}
+    for study, fig in readings.STUDIES.items():
+        if study not in read or "trials" not in read[study]:
+            continue
+        s = read[study]["summary"]
+        for label in s["variant"].drop_duplicates():
+            names = s[s["variant"] == label]["condition"].tolist()
+            out[(fig, label)] = claims_measures(
+                fig, readings._rename(read[study]["trials"], names), readings._rename(s, names))
+    return out
+
+
+def recommended_headline(cards: pd.DataFrame, recs: pd.DataFrame) -> str:
+    """The headline of the recommended reading (recommended_readings.csv) over the readings
+    study's cells (cards: one per figure, reading and claim), beside the default's: "" when the
+    run has none of its readings."""
+    keep = [(f, r) for f, r in zip(recs["figure"], recs["reading"])
+            if len(cards) and ((cards["figure"] == f) & (cards["reading"] == r)).any()]
+    if not keep:
+        return ""
+    mine = pd.concat([cards[(cards["figure"] == f) & (cards["reading"] == r)] for f, r in keep])
+    readings = "; ".join(f"{r} on {f}" for f, r in keep)
+    n = int(mine[mine["claim"] != "bootstrap"]["trials"].max())
+    return (f"The recommended reading ({readings}; the readings study, {n} trials per "
+            f"condition, pipeline/studies/recommended_readings.csv): "
+            f"**{headline_text(headline(mine))}**.")

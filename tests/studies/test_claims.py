@@ -8,6 +8,7 @@ from pipeline.studies import paper
 from pipeline.measures import growth_peak
 from pipeline.studies import claims
 from pipeline.studies import scorecard as sc
+from tests.studies.coverage_tables import covered
 
 EPOCHS = np.array([1, 2, 5, 10, 11, 20, 50, 100])
 SHORT = np.linspace(0.2, 0.01, len(EPOCHS))
@@ -49,8 +50,9 @@ def _cells(*args, **kw):
 
 
 def _covered(coverage=0.95):
-    return pd.DataFrame([dict(kind=k, trials=2, draws=100, coverage=coverage)
-                         for k in ("final", "rebound", "excess", "ratio")])
+    """A coverage table that calibrates every measure at 3 trials (coverage >= 90 %: the 95 %
+    t interval) or none."""
+    return covered(coverage)
 
 
 def test_a_body_that_rises_during_growth_and_then_learns_reproduces_the_claims():
@@ -60,13 +62,24 @@ def test_a_body_that_rises_during_growth_and_then_learns_reproduces_the_claims()
     assert c.loc["bootstrap", "verdict"] == sc.REPRODUCED
 
 
-def test_a_half_size_reference_is_judged_per_unit_size():
-    # const0.5 ends at 10 mm on a body of half the size: 20 mm at full size, the paper's value
-    c = _cells(RISING)
+def test_the_final_error_is_judged_in_metres_with_every_reading_beside():
+    # const0.5 ends at 10 mm: 0.5x the paper's 20 mm in metres (at most about it: reproduced),
+    # 1.0x per unit size (the diagnostic), and below 1 / 1.5 under the two-sided reading
     t = sc.results({"figX": dict(zip(("trials", "summary"), _figure(RISING)))}, table=_covered())
-    half = next(r for r in t if r["claim"] == "final" and r["where"] == "const0.5")
-    assert half["value"] == pytest.approx(1.0, rel=0.02) and half["verdict"] == sc.REPRODUCED
+    half = {r["reading"]: r for r in t if r["claim"] == "final" and r["where"] == "const0.5"}
+    assert half[""]["value"] == pytest.approx(0.5, rel=0.02)
+    assert half[""]["verdict"] == sc.REPRODUCED and half[""]["lo"] == -np.inf
+    assert half["per unit size"]["value"] == pytest.approx(1.0, rel=0.02)
+    assert half["per unit size"]["diagnostic"] and half["per unit size"]["verdict"] == sc.REPRODUCED
+    assert half["metres, two-sided"]["verdict"] == sc.NOT
+    full = next(r for r in t if r["claim"] == "final" and r["where"] == "const1.0"
+                and r["reading"] == "")
+    assert np.isfinite(full["lo"])  # two-sided at full size: too accurate fails too
+    c = sc.cells(t).set_index("claim")
     assert c.loc["final", "verdict"] == sc.REPRODUCED
+    assert "metres, two-sided: not reproduced" in c.loc["final", "others"]
+    assert "per unit size" not in c.loc["final", "others"]  # the same verdict: not repeated
+    assert "other readings: metres, two-sided" in sc.cell_text(c.loc["final"].to_dict())
 
 
 def test_a_body_that_never_rises_fails_the_rise_claims_in_the_worst_condition():
@@ -100,15 +113,30 @@ def test_a_rebound_after_growth_is_degeneration():
     assert c.loc["after", "verdict"] == sc.NOT
 
 
-def test_without_measured_coverage_nothing_is_called_not_reproduced():
+def test_without_a_calibrated_interval_nothing_is_decided():
     flat = np.linspace(0.2, 0.02, len(EPOCHS))
     res = sc.results({"figX": dict(zip(("trials", "summary"), _figure(flat)))},
                      table=_covered(0.80))
     cells = sc.cells(res).set_index("claim")
     assert cells.loc["rise", "verdict"] == sc.INCONCLUSIVE
-    assert sc.established("rebound", 5, _covered(0.95))
-    assert not sc.established("rebound", 5, _covered(0.80))
-    assert not sc.established("rebound", 1, _covered(0.95))  # not measured at 1 trial
+    assert sc.UNCALIBRATED in cells.loc["rise", "note"]
+    assert "inconclusive: interval not calibrated" in sc.cell_text(cells.loc["rise"].to_dict())
+    assert cells.loc["bootstrap", "verdict"] == sc.REPRODUCED  # an exact count needs none
+    ok = sc.cells(sc.results({"figX": dict(zip(("trials", "summary"), _figure(flat)))},
+                             table=_covered(0.95))).set_index("claim")
+    assert ok.loc["rise", "verdict"] == sc.NOT
+
+
+def test_two_trials_are_not_a_verdict():
+    res = sc.results({"figX": dict(zip(("trials", "summary"), _figure(RISING, n=2)))},
+                     table=_covered())
+    cards = sc.cells(res)
+    judged = cards[cards["claim"] != "bootstrap"]
+    assert set(judged["verdict"]) == {sc.NOT_A_VERDICT}
+    assert judged["trials_to_decide"].isna().all()
+    md = sc.markdown(cards, res, counted=["figX"])
+    assert "our reading" not in md and "would decide" not in md
+    assert "**Not a verdict**" in md
 
 
 def test_diagnostics_are_shown_and_never_counted():
@@ -130,6 +158,7 @@ def test_claims_csv_and_scorecard_csv_agree():
                      table=_covered())
     table = sc.claims_table(sc.cells(res))
     per = pd.DataFrame(res)
+    per = per[per["reading"] == ""]  # the cells are the primary reading's
     for r in table.to_dict("records"):
         vs = set(per[(per["figure"] == r["figure"]) & (per["claim"] == r["claim"])]["verdict"])
         want = (sc.NOT if sc.NOT in vs else sc.INCONCLUSIVE if sc.INCONCLUSIVE in vs
@@ -216,7 +245,7 @@ def test_fig2_stages_start_near_home(spread, verdict):
 def test_fig2_extremes_need_three_trials():
     spec, ms = _stages(0.06)
     res = [sc.run_test(t, _covered()) for t in claims.stage_tests("fig2", spec, [ms] * 2)]
-    assert next(r for r in res if r["claim"] == "stages")["verdict"] == sc.INCONCLUSIVE
+    assert next(r for r in res if r["claim"] == "stages")["verdict"] == sc.NOT_A_VERDICT
 
 
 def test_a_trials_jitter_is_no_rebound_but_a_lasting_one_is():

@@ -4,10 +4,10 @@ import pandas as pd
 import pytest
 
 from pipeline.studies import scorecard as sc
+from tests.studies.coverage_tables import covered
 
 
-COVERED = pd.DataFrame([dict(kind=k, trials=2, draws=100, coverage=0.95)
-                        for k in ("final", "rebound", "excess", "ratio")])
+COVERED = covered()
 
 
 def _test(values, lo=0.9, hi=1.1):
@@ -100,12 +100,14 @@ def test_growth_claims_on_trial_curves():
     assert cards.loc["final", "verdict"] == sc.REPRODUCED
     assert cards.loc["bootstrap", "verdict"] == sc.REPRODUCED
     md = sc.markdown(sc.cells(res), res)
-    assert "| claim of the paper | figX | our reading |" in md
+    assert "| claim of the paper | figX |" in md and "our reading" not in md
+    md = sc.markdown(sc.cells(res), res, readings={"rise": "it rises"})
+    assert "| claim of the paper | figX | our reading |" in md and "it rises" in md
     for r in res:  # no measure's point lies outside its interval
         assert r["claim"] == "bootstrap" or r["low"] <= r["value"] <= r["high"]
     # one trial per condition: no interval, so nothing is decided but the exact count
     one = sc.cells(sc.results({"figX": _figure(1, 0.01)}, table=COVERED)).set_index("claim")
-    assert set(one.drop(index="bootstrap")["verdict"]) == {sc.INCONCLUSIVE}
+    assert set(one.drop(index="bootstrap")["verdict"]) == {sc.NOT_A_VERDICT}
 
 
 def test_the_scorecard_figure_draws_every_cell(tmp_path):

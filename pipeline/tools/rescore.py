@@ -1,0 +1,89 @@
+"""Rescore a report under a register of criteria, without running a trial.
+
+    python -m pipeline.tools.rescore [REPORT_DIR] [--register FILE]
+
+Reads REPORT_DIR/measures.parquet (every per-trial measure the report stage wrote; default
+outputs/report), judges every measure under every reading of the register (default
+pipeline/studies/register.yaml; pass an edited copy), and prints the two headlines (the default
+reading on the counted figures; the recommended reading over the readings study) and every cell
+whose verdict differs from the report's claims.csv. Intervals and coverage are the scorecard's
+(pipeline/studies/scorecard.py); the measures themselves (smoothing, windows) are fixed when
+the trials are measured and cannot change here. Exit 2 with one line on bad input.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import pandas as pd
+
+from ..config import REPO_ROOT
+from ..studies import claims, measures_table, scorecard
+
+
+def rescore(report: Path, register: Path) -> dict:
+    """{"default": headline, "recommended": headline or None, "cells": the primary cells of the
+    figures (figure, claim, verdict, ...), "changed": rows (figure, claim, before, after)}."""
+    t = measures_table.read(report / measures_table.NAME)
+    reg = claims.load_register(register)
+    groups = measures_table.measures(t)
+    fig_ms = [m for (study, _, _), ms in groups.items() if study == "figures" for m in ms]
+    counted = sorted(set(t.loc[(t["study"] == "figures") & t["counted"], "figure"]))
+    res = [scorecard.run_test(x) for x in claims.judge(fig_ms, reg)]
+    cards = scorecard.cells(res) if res else pd.DataFrame()
+    out = dict(default=scorecard.headline(cards, counted) if len(cards) else None,
+               counted=counted, cells=cards, recommended=None, recommended_on=[])
+    rec = [(fig, reading) for (study, reading, fig) in groups
+           if study == "readings" and t.loc[(t["study"] == "readings") & (t["figure"] == fig)
+                                            & (t["reading"] == reading), "recommended"].any()]
+    if rec:
+        rc = pd.concat([scorecard.cells([scorecard.run_test(x) for x in claims.judge(
+            groups[("readings", reading, fig)], reg)]) for fig, reading in rec])
+        out.update(recommended=scorecard.headline(rc), recommended_on=rec)
+    before = report / "claims.csv"
+    changed = []
+    if before.exists() and len(cards):
+        old = pd.read_csv(before, keep_default_na=False)
+        was = dict(zip(zip(old["figure"], old["claim"]), old["verdict"]))
+        changed = [dict(figure=r["figure"], claim=r["claim"],
+                        before=was.get((r["figure"], r["claim"]), "not judged"),
+                        after=r["verdict"]) for r in cards.to_dict("records")
+                   if was.get((r["figure"], r["claim"])) != r["verdict"]]
+    out["changed"] = changed
+    return out
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(prog="python -m pipeline.tools.rescore",
+                                description=__doc__.split("\n\n")[0])
+    p.add_argument("report", nargs="?", type=Path, default=REPO_ROOT / "outputs" / "report")
+    p.add_argument("--register", type=Path, default=claims.REGISTER)
+    a = p.parse_args(argv)
+    if not (a.report / measures_table.NAME).exists():
+        print(f"error: {a.report}: no {measures_table.NAME} (a report written before it has "
+              "none: regenerate the report)", file=sys.stderr)
+        return 2
+    start = time.perf_counter()
+    try:
+        out = rescore(a.report, a.register)
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        print(f"error: {a.register}: {e}", file=sys.stderr)
+        return 2
+    if out["default"] is not None:
+        print(f"default reading on {', '.join(out['counted'])}: "
+              f"{scorecard.headline_text(out['default'])}")
+    if out["recommended"] is not None:
+        on = "; ".join(f"{r} on {f}" for f, r in out["recommended_on"])
+        print(f"recommended reading ({on}): {scorecard.headline_text(out['recommended'])}")
+    for c in out["changed"]:
+        print(f"changed: {c['figure']} {c['claim']}: {c['before']} -> {c['after']}")
+    if not out["changed"]:
+        print("no cell changed against the report's claims.csv")
+    print(f"({time.perf_counter() - start:.1f} s, no trial run)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
