@@ -314,7 +314,8 @@ def measures(figure: str, trials: pd.DataFrame, summary: pd.DataFrame) -> list[M
 def _bounds(claim: str, m: Measure, p: dict) -> tuple[float, float] | None:
     """[lo, hi] of a measure under a reading's params, or None where the reading does not judge
     it (a T_G outside its periods)."""
-    if "periods" in p and m.period not in p["periods"]:
+    if ("from" in p or "up_to" in p) and not (
+            m.period and p.get("from", 0) <= m.period <= p.get("up_to", np.inf)):
         return None
     if claim == "final":
         side = p["full"] if m.size >= 1 - 1e-9 else p["smaller"]

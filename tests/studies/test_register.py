@@ -37,9 +37,9 @@ def test_the_final_error_is_primary_in_metres_and_per_unit_size_is_a_diagnostic(
 
 
 def test_the_whole_rise_claim_is_counted():
-    assert claims.BY_ID["rise"].primary.params["periods"] == [10, 100, 1000]
+    assert claims.BY_ID["rise"].primary.params["up_to"] == 1000
     none = claims.BY_ID["rise_none"]
-    assert none.primary.params["periods"] == [10000] and not none.diagnostic
+    assert none.primary.params["from"] == 10000 and not none.diagnostic
 
 
 def test_every_reading_is_listed_with_why_and_when():
