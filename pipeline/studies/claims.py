@@ -54,6 +54,7 @@ class Reading:
     fixed_at: str
     primary: bool = False
     diagnostic: bool = False  # a reading shown and marked, never counted
+    always_shown: bool = False  # shown beside the primary's verdict even where it agrees
 
 
 @dataclass(frozen=True)
@@ -95,7 +96,8 @@ def load_register(path: Path = REGISTER) -> list[Claim]:
         rs = [Reading(id=str(r["id"]), label=r.get("label", r["id"]), criterion=r["criterion"],
                       why=r.get("why", ""), params=dict(r.get("params") or {}),
                       fixed_at=str(r.get("fixed_at", "")), primary=bool(r.get("primary")),
-                      diagnostic=bool(r.get("diagnostic"))) for r in e.get("readings", [])]
+                      diagnostic=bool(r.get("diagnostic")),
+                      always_shown=bool(r.get("always_shown"))) for r in e.get("readings", [])]
         if sum(r.primary for r in rs) != 1:
             raise ValueError(f"{path}: claim {e['id']!r} needs exactly one primary reading")
         rs.sort(key=lambda r: not r.primary)

@@ -274,9 +274,8 @@ ORDER = (DIVERGED, NOT_A_VERDICT, NOT, INCONCLUSIVE, REPRODUCED)  # a cell's: th
 def _cell(claim: str, figure: str, reading: str, g: pd.DataFrame) -> dict:
     vs = g["verdict"].tolist()
     v = next(x for x in ORDER if x in vs)
-    pick = g.loc[_margin(g).fillna(-np.inf).idxmin()]
-    if v == NOT_A_VERDICT:
-        pick = g.loc[g["verdict"] == NOT_A_VERDICT].iloc[0]
+    deciding = g[g["verdict"] == v]  # the measures that give the cell its verdict
+    pick = deciding.loc[_margin(deciding).fillna(-np.inf).idxmin()]
     need = pick["trials_to_decide"]
     return dict(claim=claim, figure=figure, reading=reading,
                 diagnostic=bool(pick["diagnostic"]) if "diagnostic" in pick else
@@ -304,9 +303,9 @@ def all_cells(results: list[dict]) -> pd.DataFrame:
 def cells(results: list[dict]) -> pd.DataFrame:
     """One cell per (claim, figure) under the claim's primary reading: the verdict of all its
     measures (not reproduced if any is, else inconclusive if any is, else reproduced), how many
-    are reproduced (k of n), the worst measure (the smallest margin to the criterion), which the
-    cell shows, and `others`: the cells of the other registered readings whose verdict differs
-    ("reading: verdict (worst ...)", "; "-joined)."""
+    are reproduced (k of n), the worst measure that gives the cell its verdict (the smallest
+    margin to the criterion among them), which the cell shows, and `others`: the cells of the other registered readings whose verdict differs
+    ("reading: verdict (worst ...)", "; "-joined), and those the register always shows."""
     every = all_cells(results)
     if not len(every):
         return every
@@ -315,9 +314,10 @@ def cells(results: list[dict]) -> pd.DataFrame:
     notes = []
     for r in primary.to_dict("records"):
         o = other[(other["claim"] == r["claim"]) & (other["figure"] == r["figure"])]
+        shown = {rd.id for rd in BY_ID[r["claim"]].readings if rd.always_shown}
         notes.append("; ".join(f"{x['reading']}: {x['verdict']} (worst: {x['where']}: "
                                f"{fmt_measure(x)})" for x in o.to_dict("records")
-                               if x["verdict"] != r["verdict"]))
+                               if x["verdict"] != r["verdict"] or x["reading"] in shown))
     primary["others"] = notes
     return primary.drop(columns="reading").reset_index(drop=True)
 
