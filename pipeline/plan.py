@@ -319,6 +319,30 @@ def trial_key(spec: dict, seed: dict, code: str) -> str:
     return hashlib.sha256(_canonical(dict(spec=spec, seed=seed, code=code)).encode()).hexdigest()[:20]
 
 
+def misplanned(specs: list[dict], jobs: list[dict]) -> str | None:
+    """What is wrong with a saved plan's trials (paths.out/planned/<digest>.json: specs once,
+    trials naming theirs by index), None when each trial's spec, seed and code hash to its key
+    and its condition is its spec's (condition_id): the file is a cache, checked like the trial
+    sidecars, so an edited spec is planned again instead of run under another spec's key. Each
+    spec's canonical JSON is made once: checking 100,000 trials costs what planning them did."""
+    canon = [_canonical(spec) for spec in specs]
+    conds = {}
+    for job in jobs:
+        for t in job["trials"]:
+            ix, seed, code = t["spec"], t["seed"], t["code"]
+            body = f'{{"code":{_canonical(code)},"seed":{_canonical(seed)},"spec":{canon[ix]}}}'
+            if hashlib.sha256(body.encode()).hexdigest()[:20] != t["key"]:
+                return f"trial {t['key']}: its spec, seed and code do not hash to its key"
+            root = seed["entropy"]
+            if (ix, root) not in conds:
+                conds[ix, root] = hashlib.sha256(
+                    f'{{"root_seed":{_canonical(root)},"spec":{canon[ix]}}}'.encode()
+                ).hexdigest()[:16]
+            if conds[ix, root] != t["condition"]:
+                return f"trial {t['key']}: its condition is not its spec's"
+    return None
+
+
 def check_run(cfg: DictConfig) -> None:
     """The checks of a run's own settings (not of its trials'): cheap, so that they are made
     on every run, a planned one (planned) too."""

@@ -25,8 +25,8 @@ from omegaconf import DictConfig, OmegaConf
 
 from . import cache, cli, execute, io
 from .config import check_backend
-from .plan import (PLANNED, check_run, code_fingerprint, cost, plan, plan_conditions,
-                   plan_digest)
+from .plan import (PLANNED, check_run, code_fingerprint, cost, misplanned, plan,
+                   plan_conditions, plan_digest)
 from .progress import Progress
 
 log = logging.getLogger("pipeline.simulate")
@@ -83,11 +83,19 @@ def jobs_of(cfg: DictConfig, overrides: list[str] = ()) -> list[Job]:
     check_backend(cfg.executor.backend)  # this stage submits: the engine's package is needed
     experiment = None if cfg.get("experiments") else _experiment_of(cfg)
     saved = Path(cfg.paths.out) / PLANNED / f"{plan_digest(cfg, [overrides, experiment])}.json"
+    jobs = None
     try:
         packed = io.read_json(saved, need=("jobs", "specs"))
-        jobs = unpack_jobs(packed) if still_planned(packed) else None
-    except (OSError, ValueError, TypeError, KeyError, IndexError):
-        jobs = None
+        wrong = misplanned(packed["specs"], packed["jobs"])
+        if wrong is not None:  # a cache whose content is not its keys': never run
+            log.warning("warning: %s: %s (edited or damaged); planned again", saved, wrong)
+        elif still_planned(packed):
+            jobs = unpack_jobs(packed)
+    except FileNotFoundError:
+        pass
+    except (OSError, ValueError, TypeError, KeyError, IndexError, AttributeError) as err:
+        log.warning("warning: %s: damaged (%s); planned again", saved,
+                    str(err).splitlines()[0] if str(err) else type(err).__name__)
     if jobs is not None:
         check_run(cfg)
         return jobs

@@ -193,3 +193,44 @@ def test_r1_the_compiled_and_the_reference_path_agree_at_the_edges(learner):
         errors.append(gbmodel.run_trial(spec, np.random.default_rng(1)).abs_error)
     assert np.isfinite(errors[0]).all()
     np.testing.assert_allclose(errors[0], errors[1], rtol=1e-3)
+
+
+# ---- row 9: a saved plan is a cache, checked like one ---------------------------------------------
+@pytest.mark.parametrize("edit", ["rate", "key", "condition", "damaged"])
+def test_r9_a_tampered_saved_plan_is_discarded_and_planned_again(tmp_path, compose_tiny, edit,
+                                                                 caplog):
+    import json
+    from pathlib import Path
+
+    from pipeline import io, plan, simulate
+    cfg = compose_tiny(tmp_path)
+    first = simulate.jobs_of(cfg)
+    (saved,) = (Path(cfg.paths.out) / plan.PLANNED).glob("*.json")
+    packed = io.read_json(saved)
+    if edit == "rate":  # the issue's: the learning rate edited, the keys left as they were
+        packed["specs"][0]["learner"]["learning_rate"] *= 10
+    elif edit == "key":
+        packed["jobs"][0]["trials"][0]["key"] = "0" * 20
+    elif edit == "condition":
+        packed["jobs"][0]["trials"][0]["condition"] = "0" * 16
+    if edit == "damaged":
+        saved.write_text('{"jobs": 1, "specs": 2}')
+    else:
+        io.write_json(saved, packed, compact=True)
+    caplog.clear()
+    again = simulate.jobs_of(cfg)
+    assert [vars(j) for j in again] == json.loads(io.dump_json([vars(j) for j in first]))
+    warned = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
+    assert len(warned) == 1 and str(saved) in warned[0] and "planned again" in warned[0], warned
+    assert plan.misplanned(*(io.read_json(saved)[k] for k in ("specs", "jobs"))) is None  # healed
+
+
+def test_r9_the_fast_check_of_a_saved_plan_is_trial_key_and_condition_id(tmp_path, compose_tiny):
+    from pipeline import plan, simulate
+    cfg = compose_tiny(tmp_path, "trials.count=3")
+    packed = simulate.pack_jobs(simulate.jobs_of(cfg))
+    assert plan.misplanned(packed["specs"], packed["jobs"]) is None
+    for t in packed["jobs"][0]["trials"]:
+        spec = packed["specs"][t["spec"]]
+        assert t["key"] == plan.trial_key(spec, t["seed"], t["code"])
+        assert t["condition"] == plan.condition_id(spec, t["seed"]["entropy"])
