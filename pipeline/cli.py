@@ -98,8 +98,19 @@ def _one_line(err: BaseException) -> str:
 _PASSED: list = []  # (note, trials) of the command line check() passed, for finish() to keep
 
 
+# Hydra's flags that would read config files the check does not compose (a config dir or
+# name of one's own: hydra.searchpath is the checked way) or a pickled config (code)
+_UNCHECKED_FLAGS = {"--config-path", "-cp", "--config-name", "-cn", "--config-dir", "-cd",
+                    "--experimental-rerun"}
+
+
 def check(argv: list[str]) -> str | None:
     """None when every configuration of the command line composes, else one line saying why."""
+    for arg in argv:
+        flag = arg.split("=", 1)[0]
+        if flag in _UNCHECKED_FLAGS:
+            return (f"{arg}: the stages read the project's config and the folders of "
+                    "hydra.searchpath=[file://...] only (where every file is checked)")
     overrides = _overrides(argv)
     for o in overrides:
         if not o.isascii() and "LexerNoViableAlt" in (_parse_error(o) or ""):
@@ -142,8 +153,9 @@ def check(argv: list[str]) -> str | None:
             # one job checked before with the same config, overrides, config files and code:
             # only the run's own settings (paths, engine) are checked again
             marker = checked_marker(cfg, list(combination) + hydra_own) if n_jobs == 1 else None
-            known = was_checked(marker)
-            if n == 0 and not known:  # Hydra's own section: callbacks, launcher, logging
+            known = was_checked(marker, cfg.paths.root)
+            if n == 0:  # Hydra's own section: callbacks, launcher, logging, folders (also
+                # for a checked command line: a note is never a reason to skip it)
                 check_hydra(compose(list(combination) + hydra_own, hydra=True))
             if n == 0:
                 check_experiments(cfg, list(combination))
@@ -166,7 +178,7 @@ def check(argv: list[str]) -> str | None:
     except ConfigError as err:
         return str(err)
     if n_jobs == 1 and not known:  # kept when the stage has run (finish): a refused run writes nothing
-        _PASSED[:] = [(marker, trials)]
+        _PASSED[:] = [(marker, trials, cfg.paths.root)]
     for note in notes:
         print(note, file=sys.stderr)
     return None
@@ -259,8 +271,8 @@ def finish(run, cfg) -> None:
         finally:
             io.confine(None)
     if rc in (0, 1):  # the stage ran (1: some trials failed or inputs are missing)
-        for marker, trials in _PASSED:
-            mark_checked(marker, trials)
+        for marker, trials, root in _PASSED:
+            mark_checked(marker, trials, root)
     _PASSED.clear()
     if rc:
         sys.exit(rc)

@@ -15,6 +15,7 @@ import os
 import socket
 import time
 import typing
+from functools import lru_cache
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Optional
@@ -435,12 +436,68 @@ def _targets(node, where: str):
             yield from _targets(v, f"{where}[{i}]")
 
 
+# What a config may set under `hydra` (the command line and every config file on the search
+# path alike): the only keys whose value may differ from the project's own (conf/config.yaml with
+# Hydra's defaults), each with the check its value must pass. Everything else Hydra reads (its
+# callbacks, env_set and env_copy, hydra.env, a launcher's or sweeper's own code) is refused:
+# a logging factory, a callback or an environment variable (PYTHONPATH, LD_PRELOAD) runs code, a
+# folder outside paths.root is written outside it.
+HYDRA_ALLOWED = {
+    "searchpath": "where config groups live (a body or an experiment of one's own)",
+    "mode": "RUN or MULTIRUN", "verbose": "Hydra's debug logging",
+    "job.chdir": "change into the run's folder (inside paths.root)",
+    "job.name": "a plain name (it names the sweep's folder)",
+    "job.config.override_dirname": "how override_dirname is spelt",
+    "launcher": "Hydra's own launchers (hydra/launcher=basic|joblib), not their temp_folder",
+    "sweeper": "Hydra's own sweepers",
+    "job_logging": "to the terminal: StreamHandler to sys.stdout/stderr or NullHandler, "
+                   "formatters by format, no factory ('()', class, ext://) of any kind",
+    "hydra_logging": "the same as job_logging",
+    "run.dir": "a folder inside paths.root (or the project's '.', where nothing is written)",
+    "sweep.dir": "a folder inside paths.root", "sweep.subdir": "a relative name, no '..'",
+    "output_subdir": "null, or a relative name inside a run folder under paths.root",
+    "help": "the text of --help", "hydra_help": "the text of --hydra-help",
+}
+# filled by Hydra from the command line when it runs: what it says there is not a setting
+HYDRA_RUNTIME = ("runtime", "overrides", "job.override_dirname", "job.id", "job.num",
+                 "job.config_name")
+LAUNCHER_KEYS = {"_target_", "n_jobs", "backend", "prefer", "require", "verbose", "timeout",
+                 "pre_dispatch", "batch_size", "max_nbytes", "mmap_mode"}
+LOG_HANDLERS = ("logging.StreamHandler", "logging.NullHandler")
+LOG_STREAMS = ("ext://sys.stdout", "ext://sys.stderr")
+LOG_FORMATTER_KEYS = {"format", "datefmt", "style", "validate"}
+LOG_HANDLER_KEYS = {"class", "formatter", "stream", "level"}
+LOG_LOGGER_KEYS = {"level", "handlers", "propagate"}
+
+
+def _flat(node, where: str = "") -> dict:
+    """Dotted key -> leaf value of a plain config tree (lists are leaves, an empty dict none)."""
+    if isinstance(node, dict):
+        out = {}
+        for k, v in node.items():
+            out.update(_flat(v, f"{where}.{k}" if where else str(k)))
+        return out
+    return {where: node}
+
+
+def _under(key: str, prefixes) -> str | None:
+    return next((p for p in prefixes if key == p or key.startswith(p + ".")), None)
+
+
+@lru_cache(maxsize=1)
+def _hydra_defaults() -> dict:
+    """The project's own `hydra` section, flat (conf/config.yaml over Hydra's defaults)."""
+    cfg = compose(["paths.root=/"], hydra=True)
+    return _flat(OmegaConf.to_container(cfg.hydra, resolve=False))
+
+
 def check_hydra(cfg) -> None:
-    """Refuse what would make Hydra call or write something the project did not choose: a
-    callback (hydra.callbacks: any function, run before and after each job), a `_target_` that is
-    not the project's own (in the config) or Hydra's (its launcher and sweeper), a logging handler
-    that writes a file or is built by a factory, a launcher with n_jobs=0. `cfg` is composed with
-    hydra=True; the command line and every config file (a body YAML on hydra.searchpath) count."""
+    """Refuse what would make Hydra call or write something the project did not choose. `cfg` is
+    composed with hydra=True: the command line and every config file (a body YAML on
+    hydra.searchpath) count. Outside `hydra`: a `_target_` that is not the project's own. Under
+    it: a key that differs from the project's own and is not in HYDRA_ALLOWED (callbacks, env_set,
+    env_copy, hydra.env ...), or an allowed key whose value fails its check (_check_logging,
+    _check_hydra_dirs, a launcher or sweeper that is not Hydra's)."""
     tree = OmegaConf.to_container(cfg, resolve=False)
     hydra = tree.pop("hydra", None) or {}
     for key, target in _targets(tree, ""):
@@ -450,24 +507,120 @@ def check_hydra(cfg) -> None:
     for name in hydra.get("callbacks") or {}:
         raise ConfigError(f"hydra.callbacks.{name}: Hydra callbacks run code on every job; the "
                           "stages take none")
+    for name in (hydra.get("job") or {}).get("env_set") or {}:
+        raise ConfigError(f"hydra.job.env_set.{name}: sets an environment variable of every job "
+                          "(PYTHONPATH, LD_PRELOAD: code the workers run); the stages take none")
+    base, now = _hydra_defaults(), _flat(hydra)
+    for key in sorted(set(base) | set(now)):
+        if _under(key, HYDRA_RUNTIME) or base.get(key, _GONE) == now.get(key, _GONE):
+            continue
+        if _under(key, HYDRA_ALLOWED) is None:
+            shown = f"={now[key]!r}" if key in now else " (removed)"
+            raise ConfigError(f"hydra.{key}{shown}: not a setting the stages take from Hydra "
+                              f"(allowed under hydra: {', '.join(HYDRA_ALLOWED)}; docs/faults.md)")
     for section in ("launcher", "sweeper"):
         target = (hydra.get(section) or {}).get("_target_")
         if target is not None and not (isinstance(target, str)
                                        and target.startswith(HYDRA_TARGETS)):
             raise ConfigError(f"hydra.{section}._target_={target!r}: only Hydra's own "
                               f"{section}s (hydra/{section}=...)")
-    n_jobs = (hydra.get("launcher") or {}).get("n_jobs")
+    launcher = hydra.get("launcher") or {}
+    n_jobs = launcher.get("n_jobs")
     if n_jobs is not None and (isinstance(n_jobs, bool) or not isinstance(n_jobs, int)
                                or n_jobs == 0):
         raise ConfigError(f"hydra.launcher.n_jobs={n_jobs!r}: a non-zero integer (-1: one "
                           "job per core)")
+    for key in sorted(k for k, v in launcher.items() if k not in LAUNCHER_KEYS and v is not None):
+        raise ConfigError(f"hydra.launcher.{key}={launcher[key]!r}: not a launcher setting the "
+                          f"stages take ({', '.join(sorted(LAUNCHER_KEYS))}; a temp_folder "
+                          "would be written outside paths.root)")
+    name = (hydra.get("job") or {}).get("name")
+    if name != base.get("job.name"):
+        check_names_plain("hydra.job.name", name)
     for section in ("job_logging", "hydra_logging"):
-        for name, handler in ((hydra.get(section) or {}).get("handlers") or {}).items():
-            if not isinstance(handler, dict):
-                continue
-            cls = handler.get("class", "")
-            if ("()" in handler or "filename" in handler
-                    or cls not in ("logging.StreamHandler", "logging.NullHandler")):
-                raise ConfigError(f"hydra.{section}.handlers.{name}: writes a log file or builds "
-                                  "its own handler; the stages log to the terminal "
-                                  f"(hydra/{section}=stdout)")
+        _check_logging(section, hydra.get(section) or {})
+    _check_hydra_dirs(cfg, hydra)
+
+
+_GONE = object()
+
+
+def check_names_plain(key: str, value) -> None:
+    from .io import UnsafeName, safe_name
+
+    try:
+        safe_name(key, value)
+    except UnsafeName as err:
+        raise ConfigError(str(err)) from None
+
+
+def _check_logging(section: str, conf: dict) -> None:
+    """A logging config (logging.config.dictConfig) that builds nothing but terminal handlers:
+    no factory ('()') anywhere, no filters, a class only on a handler and only LOG_HANDLERS, a
+    stream only sys.stdout or sys.stderr (ext:// imports any object), formatters by format."""
+    where = f"hydra.{section}"
+    for key, value in _flat(conf).items():
+        if "()" in key.split(".") or (isinstance(value, str) and "ext://" in value
+                                      and value not in LOG_STREAMS):
+            raise ConfigError(f"{where}.{key}={value!r}: builds or imports its own object; the "
+                              f"stages log to the terminal (hydra/{section}=stdout)")
+    for name, f in (conf.get("formatters") or {}).items():
+        for key in sorted(set(f or {}) - LOG_FORMATTER_KEYS):
+            raise ConfigError(f"{where}.formatters.{name}.{key}: a formatter is its format "
+                              f"({', '.join(sorted(LOG_FORMATTER_KEYS))}); nothing is built")
+    for name in conf.get("filters") or {}:
+        raise ConfigError(f"{where}.filters.{name}: a logging filter is built by a factory; the "
+                          "stages take none")
+    for name, h in (conf.get("handlers") or {}).items():
+        h = h if isinstance(h, dict) else {}
+        extra = sorted(set(h) - LOG_HANDLER_KEYS)
+        if h.get("class") not in LOG_HANDLERS or extra or h.get("stream", LOG_STREAMS[0]) \
+                not in LOG_STREAMS:
+            raise ConfigError(f"{where}.handlers.{name}: writes a log file or builds its own "
+                              "handler; the stages log to the terminal "
+                              f"(hydra/{section}=stdout: {' or '.join(LOG_HANDLERS)} to "
+                              "sys.stdout or sys.stderr)")
+    loggers = dict(conf.get("loggers") or {}, root=conf.get("root") or {})
+    for name, logger in loggers.items():
+        for key in sorted(set(logger or {}) - LOG_LOGGER_KEYS):
+            raise ConfigError(f"{where}.loggers.{name}.{key}: not a logger setting the stages "
+                              f"take ({', '.join(sorted(LOG_LOGGER_KEYS))})")
+
+
+def _check_hydra_dirs(cfg, hydra: dict) -> None:
+    """Hydra's folders lie inside paths.root: run.dir (made at every run; `.` the project's,
+    where nothing is written while output_subdir is null), sweep.dir and its subdir, and the
+    output_subdir its config files go to (relative, inside the run's folder)."""
+    root = OmegaConf.select(cfg, "paths.root", default=None)
+    if not isinstance(root, str) or not Path(root).is_absolute():
+        return  # check_root names it
+    base = Path(root).resolve()
+    base_dirs = _hydra_defaults()
+
+    def inside(key: str) -> Path | None:
+        raw = OmegaConf.select(cfg, f"hydra.{key}", throw_on_resolution_failure=False)
+        if raw is None:
+            raise ConfigError(f"hydra.{key}: cannot be resolved before the run; write it from "
+                              "${paths.out}")
+        path = Path(str(raw))
+        led = (path if path.is_absolute() else Path.cwd() / path).resolve()
+        if ".." in path.parts or (led != base and base not in led.parents):
+            raise ConfigError(f"hydra.{key}={str(raw)!r}: outside paths.root={root}; Hydra "
+                              "would write there")
+        return led
+
+    sub = (hydra.get("sweep") or {}).get("subdir")
+    if sub != base_dirs.get("sweep.subdir") and (
+            not isinstance(sub, str) or Path(sub).is_absolute() or ".." in Path(sub).parts):
+        raise ConfigError(f"hydra.sweep.subdir={sub!r}: a relative name without '..' (a job's "
+                          "folder inside the sweep's)")
+    out = hydra.get("output_subdir")
+    if out is not None and (not isinstance(out, str) or Path(out).is_absolute()
+                            or ".." in Path(out).parts):
+        raise ConfigError(f"hydra.output_subdir={out!r}: null, or a relative name without "
+                          "'..' (Hydra writes its config files there, inside the run's folder)")
+    run_dir = (hydra.get("run") or {}).get("dir")
+    if run_dir != base_dirs.get("run.dir") or out is not None:
+        inside("run.dir")
+    if (hydra.get("sweep") or {}).get("dir") != base_dirs.get("sweep.dir"):
+        inside("sweep.dir")

@@ -99,6 +99,18 @@ def confine(root) -> None:
     _ROOT[:] = [] if root is None else [Path(root).resolve()]
 
 
+@contextmanager
+def confined(root):
+    """confine(root) within the block (None: as it was), the previous confinement after it."""
+    before = list(_ROOT)
+    if root is not None:
+        confine(root)
+    try:
+        yield
+    finally:
+        _ROOT[:] = before
+
+
 def confined_root() -> Path | None:
     """The root of confine(), None where nothing is confined."""
     return _ROOT[0] if _ROOT else None

@@ -264,29 +264,38 @@ def _body_files(trials: list[dict]) -> list[list[str]]:
     return out
 
 
-def was_checked(marker: Path | None) -> bool:
+def was_checked(marker: Path | None, root=None) -> bool:
     """Whether `marker` (checked_marker) says the config planned without error, and every body
-    file it read still has those bytes."""
+    file it read still has those bytes. A marker reached through a link that leaves `root`
+    (paths.root) is no note of this project's (it could be planted to skip the checks)."""
     if marker is None:
         return False
+    from . import io
+
     try:
-        note = json.loads(marker.read_bytes())
+        with io.confined(root):
+            io.check_inside(marker)
+        fd = os.open(marker, os.O_RDONLY | os.O_NOFOLLOW)
+        with os.fdopen(fd, "rb") as fh:
+            note = json.loads(fh.read())
         return all(gbmodel.urdf.digest(f) == sha for f, sha in note["body_files"])
     except (OSError, ValueError, TypeError, KeyError):
         return False
 
 
-def mark_checked(marker: Path | None, trials: list[dict]) -> None:
-    """Keep `marker` for the next run of the same command line; a folder that cannot be
-    written leaves it out (the stage names that folder itself)."""
+def mark_checked(marker: Path | None, trials: list[dict], root=None) -> None:
+    """Keep `marker` for the next run of the same command line, confined to `root` (paths.root:
+    a link at planned/ or planned/checked that leads elsewhere is refused, never followed); a
+    folder that cannot be written leaves it out (the stage names that folder itself)."""
     if marker is None:
         return
     from . import io
 
     try:
-        io.write_json(marker, dict(trials=len(trials), body_files=_body_files(trials)),
-                      compact=True)
-    except OSError:
+        with io.confined(root):
+            io.write_json(marker, dict(trials=len(trials), body_files=_body_files(trials)),
+                          compact=True)
+    except (OSError, io.UnsafeName):
         pass
 
 

@@ -234,3 +234,107 @@ def test_r9_the_fast_check_of_a_saved_plan_is_trial_key_and_condition_id(tmp_pat
         spec = packed["specs"][t["spec"]]
         assert t["key"] == plan.trial_key(spec, t["seed"], t["code"])
         assert t["condition"] == plan.condition_id(spec, t["seed"]["entropy"])
+
+
+# ---- rows 10-13: Hydra cannot run code or write outside the root ---------------------------------
+EVIL_BODY = """# @package _global_
+defaults:
+  - /body/arm5@body
+hydra:
+  job_logging:
+    formatters:
+      evil: {"()": shutil.copyfile, src: /etc/hostname, dst: HIT}
+"""
+
+
+@pytest.mark.parametrize("args, says", [
+    (["+hydra.job_logging.formatters.evil.class=os.symlink",
+      "+hydra.job_logging.formatters.evil.format=/etc", "+hydra.job_logging.formatters.evil.datefmt=HIT"],
+     "hydra.job_logging.formatters.evil.class: a formatter is its format"),
+    (["+hydra.hydra_logging.formatters.evil.class=os.makedirs",
+      "+hydra.hydra_logging.formatters.evil.format=HIT"], "hydra.hydra_logging.formatters.evil"),
+    (["+hydra.job_logging.filters.f._=x"], "a logging filter is built by a factory"),
+    (["hydra.job_logging.handlers.console.stream=ext://os.system"], "builds or imports"),
+    (["+hydra.job_logging.root.filters=[x]"], "hydra.job_logging.loggers.root.filters"),
+    (["+hydra.job.env_set.PYTHONPATH=HIT", "workers=2"], "hydra.job.env_set.PYTHONPATH: sets an "
+                                                         "environment variable"),
+    (["hydra.job.env_copy=[PATH]"], "hydra.job.env_set.PATH: sets an environment"),  # Hydra
+    # copies env_copy into env_set
+    (["+hydra.env.x=1"], "hydra.env.x=1: not a setting"),
+    (["hydra.output_subdir=HIT"], "hydra.output_subdir='HIT'"),
+    (["hydra.output_subdir=.hydra"], "hydra.run.dir='.': outside paths.root"),
+    (["hydra.run.dir=HIT"], "hydra.run.dir='HIT': outside paths.root"),
+    (["hydra.sweep.dir=HIT"], "hydra.sweep.dir='HIT': outside paths.root"),
+    (["hydra.sweep.subdir=../../x"], "hydra.sweep.subdir='../../x'"),
+    (["hydra.job.name=../../x"], "hydra.job.name"),
+    (["hydra/launcher=joblib", "hydra.launcher.temp_folder=HIT"], "hydra.launcher.temp_folder"),
+    (["-cd", "HIT"], "-cd: the stages read the project's config"),
+    (["--experimental-rerun", "HIT"], "--experimental-rerun"),
+])
+def test_r10_to_r12_hydra_settings_outside_the_allow_list_are_one_line(tmp_path, args, says):
+    from pipeline import cli
+    hit = tmp_path / "outside"
+    args = [a.replace("HIT", str(hit)) for a in args]
+    out = cli.check([*args, f"paths.root={tmp_path / 'root'}"])
+    says = says.replace("HIT", str(hit))
+    assert out is not None and says in out and "\n" not in out, out
+    assert not (tmp_path / "root").exists() and not hit.exists()
+
+
+def test_r10_a_logging_factory_in_a_body_yaml_on_the_searchpath_is_refused(tmp_path):
+    from pipeline import cli
+    (tmp_path / "conf" / "body").mkdir(parents=True)
+    (tmp_path / "conf" / "body" / "evil.yaml").write_text(
+        EVIL_BODY.replace("HIT", str(tmp_path / "hit")))
+    out = cli.check([f"hydra.searchpath=[file://{tmp_path / 'conf'}]", "body=evil",
+                     f"paths.root={tmp_path / 'out'}"])
+    assert out is not None and "hydra.job_logging.formatters.evil.()" in out, out
+    assert not (tmp_path / "hit").exists()
+
+
+def test_r10_the_command_line_refuses_a_formatter_class_and_writes_nothing(tmp_path):
+    from conftest import run_cli
+    link = tmp_path / "link"
+    r = run_cli("pipeline.simulate", "+hydra.job_logging.formatters.evil.class=os.symlink",
+                "+hydra.job_logging.formatters.evil.format=/etc",
+                f"+hydra.job_logging.formatters.evil.datefmt={link}", "figure=bi",
+                "learner.epochs=20", "trials.count=1", "workers=1",
+                f"paths.root={tmp_path / 'root'}")
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert r.stderr.startswith("error: hydra.job_logging.formatters.evil.class")
+    assert not link.is_symlink() and not (tmp_path / "root").exists()
+
+
+@pytest.mark.parametrize("args", [
+    [],  # the project's own settings
+    ["hydra.run.dir=${paths.out}/runs/x", "hydra.output_subdir=.hydra"],  # a snapshot inside
+    ["hydra.sweep.dir=${paths.out}/sweeps", "hydra.sweep.subdir=job${hydra.job.num}"],
+    ["hydra/launcher=joblib", "hydra.launcher.n_jobs=2"], ["hydra.verbose=true"],
+    ["hydra.job.chdir=false"], ["hydra/job_logging=stdout", "hydra/hydra_logging=disabled"],
+    ["hydra.job_logging.handlers.console.stream=ext://sys.stderr"],
+])
+def test_r12_what_the_allow_list_permits_passes(tmp_path, args):
+    from pipeline import cli
+    assert cli.check([*args, "figure=bi", "learner.epochs=20", "trials.count=1", "workers=1",
+                      f"paths.root={tmp_path}"]) is None
+
+
+def test_r13_a_link_at_planned_checked_is_neither_written_nor_read(tmp_path):
+    from pipeline import cli, plan
+    from pipeline.config import compose
+    root, elsewhere = tmp_path / "root", tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (root / "outputs" / "planned").mkdir(parents=True)
+    os.symlink(elsewhere, root / "outputs" / "planned" / "checked")
+    args = ["figure=bi", "learner.epochs=20", "trials.count=1", "workers=1", f"paths.root={root}"]
+    assert cli.check(args) is None
+    cli.finish(lambda cfg: 0, compose(args))  # the stage ran: the note would be written now
+    assert not any(elsewhere.iterdir())  # never through the link
+    marker = plan.checked_marker(compose(args), args)
+    marker.write_text('{"trials": 1, "body_files": []}')  # planted there (through the link)
+    assert (elsewhere / marker.name).exists()
+    assert not plan.was_checked(marker, str(root))  # not a note of this root's
+    os.unlink(root / "outputs" / "planned" / "checked")
+    (root / "outputs" / "planned" / "checked").mkdir()
+    marker.write_text('{"trials": 1, "body_files": []}')
+    assert plan.was_checked(marker, str(root))  # a real one inside the root is
