@@ -13,10 +13,20 @@ It reads what `python -m pipeline.aggregate` wrote (paths.aggregate/<figure>/mod
 the report's compact copy (models/<figure>.json: final models, no snapshots), and
 builds bodies and growth from each condition's trial spec, so a model is evaluated on the body
 it learned, at the size the body had at the end of its trial.
+
+Every file is checked before a model is built from it (DamagedFile, one line naming the file and
+what makes it again): the report's copy carries a seal (pipeline.io.seal, as a trial's sidecar)
+over its figure and conditions; an aggregate's models.json is checked line by line against the
+checksums of its manifest.json. A spec must validate (a degree of 1e9 is refused, not built) and
+every M must be finite, of the shape its body and degree give. `python -m pipeline.models seal
+FILE...` seals a report's models file that has no seal (one written before seals) only after
+re-deriving the report's final errors from its models (verify_against_curves): each condition's
+mean and quartiles over trials at its last epoch, as curves.parquet beside it holds them.
 """
 from __future__ import annotations
 
 import json
+import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,6 +34,8 @@ from pathlib import Path
 import numpy as np
 
 import gbmodel
+
+from . import io
 
 
 @dataclass
@@ -116,7 +128,7 @@ def load(figure: str, aggregate_dir=None) -> Figure:
         raise FileNotFoundError(f"{tried[0]}: not aggregated (run pipeline.simulate and "
                                 "pipeline.aggregate for this figure, or pipeline.report for "
                                 "its models/<figure>.json)")
-    data = json.loads(path.read_text())
+    data = read(path)
     out = {}
     for label, c in data["conditions"].items():
         trials = {int(i): t for i, t in c["trials"].items()}
@@ -128,3 +140,154 @@ def load(figure: str, aggregate_dir=None) -> Figure:
             snapshots={i: {int(e): np.asarray(m) for e, m in t.get("snapshots", {}).items()}
                        for i, t in trials.items()})
     return Figure(figure, out)
+
+
+def _remedy(path: Path) -> str:
+    if path.name == "models.json":
+        return (f"run python -m pipeline.aggregate figure={path.parent.name} again (it rebuilds "
+                "the file from the cache)")
+    return (f"run python -m pipeline.report for {path.stem} again (make studies for the "
+            "committed report), or restore the committed file")
+
+
+def read(path, sealed: bool = True) -> dict:
+    """The checked content of a models file (a report's models/<figure>.json or an aggregate's
+    models.json); DamagedFile, one line naming the file and what makes it again, when it is not
+    JSON, its seal or checksums do not match (sealed=False: a report's file is read without
+    its seal, for `seal`), a spec does not validate or an M is not finite or of its shape."""
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+        data = json.loads(raw)
+        if not isinstance(data, dict) or not isinstance(data.get("conditions"), dict):
+            raise ValueError("no conditions")
+        if path.name == "models.json":
+            _check_lines(path, raw)
+        elif sealed:
+            io.check_seal(data, path)
+        for label, c in data["conditions"].items():
+            _check_condition(label, c)
+    except io.DamagedFile as err:
+        raise io.DamagedFile(f"{err}; {_remedy(path)}") from None
+    except (ValueError, TypeError, KeyError, AttributeError, IndexError, RecursionError) as err:
+        why = str(err).splitlines()[0] if str(err) else type(err).__name__
+        raise io.DamagedFile(f"{path}: damaged ({why[:300]}); {_remedy(path)}") from None
+    return data
+
+
+def _check_lines(path: Path, raw: bytes) -> None:
+    """An aggregate's models.json against its manifest.json: each condition's line checksum."""
+    from .aggregate import MODELS_HEAD, _checksum
+
+    manifest = io.read_json(path.parent / "manifest.json", need=("models",))
+    lines = raw.decode().split("\n")
+    decoder, seen = json.JSONDecoder(), {}
+    for line in lines[1:-2] if lines[0] == MODELS_HEAD else ():
+        if line:
+            name, end = decoder.raw_decode(line)
+            seen[name] = _checksum(line[end + 1:].rstrip(","))
+    want = {k: v[1] for k, v in manifest["models"].items()}
+    if seen != want:
+        bad = sorted(k for k in set(seen) | set(want) if seen.get(k) != want.get(k))
+        raise io.DamagedFile(f"{path}: damaged: condition {bad[0]!r} does not match the "
+                             "checksum manifest.json holds")
+
+
+def _check_condition(label: str, c: dict) -> None:
+    spec = gbmodel.TrialSpec.from_dict(c["spec"])
+    try:
+        body = spec.make_body()
+        spec.validate(body)
+    except ValueError as err:
+        raise ValueError(f"condition {label!r}: {err}") from None
+    if "degree" not in spec.learner:  # a learner without a polynomial M
+        return
+    shape = (body.m, len(gbmodel.exponents(body.n, spec.make_learner()[1].degree)))
+    for i, t in c["trials"].items():
+        for where, M in [("M", t.get("M")), *((f"snapshot {e}", m) for e, m in
+                                               (t.get("snapshots") or {}).items())]:
+            if M is None:
+                continue
+            M = np.asarray(M, dtype=np.float64)
+            if M.shape != shape or not np.isfinite(M).all():
+                raise ValueError(f"condition {label!r}, trial {i}: {where} is not a finite "
+                                 f"{shape[0]} x {shape[1]} matrix")
+
+
+def final_errors(data: dict) -> dict[str, np.ndarray]:
+    """Condition -> each trial's final absolute error, from its model: the error its trial's
+    last evaluation measured (its points and formula, the body at its final size)."""
+    out = {}
+    for label, c in data["conditions"].items():
+        spec = gbmodel.TrialSpec.from_dict(c["spec"])
+        model = Model(label, spec, {int(i): np.asarray(t["M"], np.float64)
+                                    for i, t in c["trials"].items() if t.get("M") is not None})
+        ev = {**gbmodel.evaluation.DEFAULTS, **spec.evaluation}
+        xs = gbmodel.evaluation.eval_points(model.body, model.size, ev["points"],
+                                            ev["path_steps"])
+        out[label] = np.array([gbmodel.evaluation.error(
+            np.linalg.norm(model.reach(xs, trial=i) - xs, axis=-1), ev["formula"])
+            for i in sorted(model.M)])
+    return out
+
+
+def verify_against_curves(path, curves_file=None, rtol: float = 2e-5) -> list[str]:
+    """What differs between a report's models file and its curves.parquet (beside models/):
+    per condition, the mean, q25 and q75 of the trials' final errors (final_errors) at the
+    last epoch. [] when every condition agrees within rtol (the report rounds M to 9 digits: the
+    committed report's files agree to 4.3e-6)."""
+    import pandas as pd
+
+    path = Path(path)
+    data = read(path, sealed=False)
+    curves = pd.read_parquet(curves_file or path.parent.parent / "curves.parquet")
+    problems = []
+    for label, errs in final_errors(data).items():
+        rows = curves[(curves.figure == data["figure"]) & (curves.condition == label)]
+        last = rows[rows.epoch == rows.epoch.max()]
+        if len(last) != 1 or int(last.n_trials.iloc[0]) != len(errs):
+            problems.append(f"{label}: {len(errs)} models, but the curves hold "
+                            f"{last.n_trials.tolist()} trials at the last epoch")
+            continue
+        got = dict(abs_error_mean=errs.mean(), abs_error_q25=np.quantile(errs, 0.25),
+                   abs_error_q75=np.quantile(errs, 0.75))
+        for col, value in got.items():
+            want = float(last[col].iloc[0])
+            if not np.isclose(value, want, rtol=rtol, atol=0):
+                problems.append(f"{label}: {col} {value:.6g} from the models, {want:.6g} in "
+                                "the curves")
+    return problems
+
+
+def seal_file(path) -> None:
+    """Seal a report's models file after verify_against_curves found it to agree."""
+    path = Path(path)
+    data = read(path, sealed=False)
+    problems = verify_against_curves(path)
+    if problems:
+        raise io.DamagedFile(f"{path}: its models do not give the report's final errors "
+                             f"({problems[0]}); not sealed")
+    body = {k: v for k, v in data.items() if k != io.SEAL}
+    io.write_text(path, json.dumps(io.seal(body), sort_keys=True, separators=(",", ":")) + "\n")
+
+
+def main(argv=None) -> int:
+    """python -m pipeline.models seal FILE...: verify each report models file against the
+    report's curves, then seal it; one line and exit 2 for a file that does not verify."""
+    argv = sys.argv[1:] if argv is None else argv
+    if len(argv) < 2 or argv[0] != "seal":
+        print("usage: python -m pipeline.models seal outputs/report/models/<figure>.json ...",
+              file=sys.stderr)
+        return 2
+    for f in argv[1:]:
+        try:
+            seal_file(f)
+        except (io.BadInput, OSError) as err:
+            print(f"error: {err}", file=sys.stderr)
+            return 2
+        print(f"{f}: verified against the report's curves, sealed", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

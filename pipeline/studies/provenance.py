@@ -42,7 +42,8 @@ CREDITS = {
 def write_models(aggs: dict, out: Path) -> list[Path]:
     """models/<figure>.json per figure with a model: each condition's spec and every trial's
     final M (rounded to float32's precision, 9 significant digits: the posture it gives
-    differs by < 1e-6 rad); conditions of learners without a model are left out."""
+    differs by < 1e-6 rad), sealed (pipeline.models.load checks the seal); conditions of
+    learners without a model are left out."""
     from .. import io
 
     written = []
@@ -55,7 +56,7 @@ def write_models(aggs: dict, out: Path) -> list[Path]:
                 conds[label] = dict(spec=c["spec"], trials=trials)
         if conds:
             path = out / "models" / f"{name}.json"
-            io.write_text(path, json.dumps(dict(figure=name, conditions=conds),
+            io.write_text(path, json.dumps(io.seal(dict(figure=name, conditions=conds)),
                                            sort_keys=True, separators=(",", ":")) + "\n")
             written.append(path)
     return written

@@ -338,3 +338,118 @@ def test_r13_a_link_at_planned_checked_is_neither_written_nor_read(tmp_path):
     (root / "outputs" / "planned" / "checked").mkdir()
     marker.write_text('{"trials": 1, "body_files": []}')
     assert plan.was_checked(marker, str(root))  # a real one inside the root is
+
+
+# ---- row 6: sealed models ------------------------------------------------------------------------
+def _report_copy(tmp_path, figure="fig2"):
+    """The committed report's models/<figure>.json and curves.parquet in a report folder."""
+    import shutil
+
+    from pipeline.config import REPO_ROOT
+    report = tmp_path / "report"
+    (report / "models").mkdir(parents=True)
+    shutil.copy(REPO_ROOT / "outputs/report/models" / f"{figure}.json", report / "models")
+    shutil.copy(REPO_ROOT / "outputs/report/curves.parquet", report)
+    return report, report / "models" / f"{figure}.json"
+
+
+def _edit(path, how, reseal=False):
+    import json
+
+    from pipeline import io
+    data = json.loads(path.read_text())
+    cond = next(iter(data["conditions"].values()))
+    if how == "M":
+        cond["trials"]["0"]["M"][0][0] += 5
+    elif how == "nan":
+        cond["trials"]["0"]["M"][0][0] = float("nan")
+    elif how == "end_size":
+        cond["spec"]["growth"]["end_size"] = 3.0
+    elif how == "degree":
+        cond["spec"]["learner"]["degree"] = 1e9
+    elif how == "shape":
+        cond["trials"]["0"]["M"] = cond["trials"]["0"]["M"][:1]
+    if reseal:
+        data = io.seal({k: v for k, v in data.items() if k != "seal"})
+    path.write_text(json.dumps(data))
+
+
+def test_r6_the_committed_models_are_sealed_and_load():
+    from pipeline import models
+    from pipeline.config import REPO_ROOT
+    for f in sorted((REPO_ROOT / "outputs/report/models").glob("*.json")):
+        assert "seal" in models.read(f), f
+    assert models.load("fig2", REPO_ROOT / "outputs/report").labels == ["const1.0"]
+
+
+@pytest.mark.parametrize("how", ["M", "nan", "end_size", "degree"])
+def test_r6_an_edited_model_file_is_refused_in_one_line(tmp_path, how):
+    from pipeline import io, models
+    report, path = _report_copy(tmp_path)
+    _edit(path, how)
+    t = time.perf_counter()
+    with pytest.raises(io.DamagedFile) as err:
+        models.load("fig2", report)
+    msg = str(err.value)
+    assert msg.startswith(f"{path}: damaged") and "\n" not in msg
+    assert "pipeline.report" in msg  # what makes it again
+    assert time.perf_counter() - t < 10  # degree 1e9: refused, not built
+
+
+@pytest.mark.parametrize("how, says", [("nan", "not a finite"), ("degree", "learner.degree"),
+                                       ("shape", "not a finite 2 x 4 matrix")])
+def test_r6_a_resealed_model_file_must_still_be_a_model(tmp_path, how, says):
+    from pipeline import io, models
+    report, path = _report_copy(tmp_path)
+    _edit(path, how, reseal=True)
+    with pytest.raises(io.DamagedFile, match=says):
+        models.load("fig2", report)
+
+
+@pytest.mark.parametrize("text", [b"{", b"\xff\xfe", b"[]", b'{"conditions": {"a": 1}}'])
+def test_r6_damaged_json_names_the_file(tmp_path, text):
+    from pipeline import io, models
+    report, path = _report_copy(tmp_path)
+    path.write_bytes(text)
+    with pytest.raises(io.DamagedFile, match=f"^{path}: damaged"):
+        models.load("fig2", report)
+
+
+def test_r6_seal_verifies_an_unsealed_file_against_the_report_first(tmp_path, capsys):
+    import json
+
+    from pipeline import models
+    report, path = _report_copy(tmp_path, "fig4")
+    data = json.loads(path.read_text())
+    data.pop("seal")
+    path.write_text(json.dumps(data))
+    with pytest.raises(models.io.DamagedFile, match="no seal"):
+        models.load("fig4", report)  # unsealed: refused, not taken on trust
+    _edit(path, "M")
+    assert models.main(["seal", str(path)]) == 2  # its models do not give the report's errors
+    assert "TG10: abs_error_mean" in capsys.readouterr().err
+    path.write_text(json.dumps(data))
+    assert models.main(["seal", str(path)]) == 0
+    assert models.load("fig4", report).labels[0] == "TG10"
+
+
+def test_r6_an_aggregate_models_json_is_checked_against_its_manifest(tmp_path):
+    import shutil
+
+    from pipeline import aggregate, io, models, simulate
+    from pipeline.config import compose
+    cfg = compose(["experiment=fig2", "figure=f2", "profile=smoke", "learner.epochs=30",
+                   "trials.count=1", "workers=1", f"paths.root={tmp_path}"])
+    simulate.simulate(cfg)
+    assert aggregate.aggregate(cfg) == []
+    agg = tmp_path / "outputs/smoke/aggregate"
+    assert models.load("f2", agg).labels == ["const1.0"]
+    d = io.set_of(agg / "f2")
+    os.chmod(d, 0o755)
+    text = (d / "models.json").read_text()
+    (d / "models.json").unlink()
+    (d / "models.json").write_text(text.replace('"M":[[', '"M":[[5', 1))
+    with pytest.raises(io.DamagedFile, match="manifest.json") as err:
+        models.load("f2", agg)
+    assert "pipeline.aggregate figure=f2" in str(err.value)
+    shutil.rmtree(tmp_path / "outputs")
