@@ -149,6 +149,7 @@ class Measure:
     control: np.ndarray | None = None
     exact: bool = False
     diverged: bool = False
+    calibrated: tuple | None = None  # (t level or None, why) once known (measures.parquet)
 
 
 @dataclass
@@ -173,6 +174,7 @@ class Test:
     control: np.ndarray | None = None
     diagnostic: bool | None = None  # None: the claim's in this register (BY_ID)
     min_trials: int | None = None
+    calibrated: tuple | None = None  # the measure's (t level or None, why), where known
     result: dict = field(default_factory=dict)
 
 
@@ -366,7 +368,7 @@ def judge(ms: list[Measure], claims: list[Claim] | None = None) -> list[Test]:
                                 measure=m.claim,
                                 control=m.control if p.get("control") else None,
                                 diagnostic=c.diagnostic or r.diagnostic,
-                                min_trials=c.min_trials))
+                                min_trials=c.min_trials, calibrated=m.calibrated))
     return out
 
 

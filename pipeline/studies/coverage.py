@@ -20,6 +20,7 @@ row. The draws are seeded by the measure's name, so the same values give the sam
 from __future__ import annotations
 
 import argparse
+import functools
 import hashlib
 import math
 import sys
@@ -60,11 +61,17 @@ def fresh(values, n: int, draws: int = DRAWS, seed: int = 0) -> dict:
                   + h * rng.standard_normal((draws, n))) / math.sqrt(1 + h * h / (s0 * s0))
     out = {lv: 1.0 for lv in LEVELS}
     for y in (plain, smooth):
-        err = np.abs(y.mean(axis=1) - m)
-        se = y.std(axis=1, ddof=1) / math.sqrt(n)
+        mean = y.mean(axis=1)
+        err = np.abs(mean - m)
+        se = np.sqrt(((y - mean[:, None]) ** 2).sum(axis=1) / ((n - 1) * n))
         for lv in LEVELS:
-            out[lv] = min(out[lv], float(np.mean(err <= stats.t.ppf(0.5 + lv / 2, n - 1) * se)))
+            out[lv] = min(out[lv], float(np.mean(err <= _quantile(lv, n) * se)))
     return out
+
+
+@functools.lru_cache(maxsize=None)
+def _quantile(level: float, n: int) -> float:
+    return float(stats.t.ppf(0.5 + level / 2, n - 1))
 
 
 def calibrated(cov: dict) -> tuple[float | None, float]:

@@ -228,7 +228,8 @@ def _recommended(ctx: Context) -> tuple[pd.DataFrame, pd.DataFrame]:
 
 
 def _write_measures(ctx: Context, measured: list, counted: list) -> None:
-    """measures.parquet: every per-trial measure of the figures and of the readings study."""
+    """measures.parquet: every per-trial measure of the figures, the readings study, the
+    baselines and the choices."""
     from . import measures_table, readings
 
     frames = [measures_table.frame([m for m in measured if m.figure == f], "figures",
@@ -239,7 +240,9 @@ def _write_measures(ctx: Context, measured: list, counted: list) -> None:
     frames += [measures_table.frame(ms, "readings", reading=label,
                                     recommended=(fig, label) in recs)
                for (fig, label), ms in scorecard.readings_measures(read).items()]
-    ctx.written.append(measures_table.write(ctx.out / measures_table.NAME, frames))
+    frames += measures_table.study_frames(ctx.of("baselines"), ctx.of("choices"))
+    ctx.written.append(measures_table.write(ctx.out / measures_table.NAME, frames,
+                                            ctx.cfg.report.scale))
 
 
 FINDINGS = Path(__file__).parent / "findings.md"

@@ -129,6 +129,8 @@ def calibration(t: Test, n: int, table: pd.DataFrame | None = None) -> tuple[flo
     measure and condition at the largest measured n <= its own (those of its own figure
     family, e.g. fig7_20trials for fig7, where there are any), the most demanding level of
     them; failing that, those of its claim's measure."""
+    if t.calibrated is not None:  # measured when the report was written (measures.parquet)
+        return t.calibrated
     measure = t.measure or t.claim
     if n >= coverage.FIT:
         key = (t.figure, measure, t.where, n, np.asarray(t.values, float).tobytes())

@@ -31,7 +31,13 @@ def rescore(report: Path, register: Path) -> dict:
     groups = measures_table.measures(t)
     fig_ms = [m for (study, _, _), ms in groups.items() if study == "figures" for m in ms]
     counted = sorted(set(t.loc[(t["study"] == "figures") & t["counted"], "figure"]))
-    res = [scorecard.run_test(x) for x in claims.judge(fig_ms, reg)]
+    scale = str(t["scale"].iloc[0]) if len(t) else ""
+
+    def judged(ms):
+        res = [scorecard.run_test(x) for x in claims.judge(ms, reg)]
+        return scorecard.no_verdicts(res, f"a {scale} run, not the paper's scale") if scale \
+            else res
+    res = judged(fig_ms)
     cards = scorecard.cells(res) if res else pd.DataFrame()
     out = dict(default=scorecard.headline(cards, counted) if len(cards) else None,
                counted=counted, cells=cards, recommended=None, recommended_on=[])
@@ -39,8 +45,8 @@ def rescore(report: Path, register: Path) -> dict:
            if study == "readings" and t.loc[(t["study"] == "readings") & (t["figure"] == fig)
                                             & (t["reading"] == reading), "recommended"].any()]
     if rec:
-        rc = pd.concat([scorecard.cells([scorecard.run_test(x) for x in claims.judge(
-            groups[("readings", reading, fig)], reg)]) for fig, reading in rec])
+        rc = pd.concat([scorecard.cells(judged(groups[("readings", reading, fig)]))
+                        for fig, reading in rec])
         out.update(recommended=scorecard.headline(rc), recommended_on=rec)
     before = report / "claims.csv"
     changed = []

@@ -72,3 +72,25 @@ def test_the_measures_table_round_trips(tmp_path):
         assert (a.control is None) == (b.control is None)
         if a.control is not None:
             assert np.array_equal(a.control, b.control)
+
+
+def test_a_reduced_scale_run_is_no_verdict_when_rescored_either(tmp_path):
+    trials, summary = _figure(RISING, periods=(10,), n=20, noise=0.05)
+    ms = claims.measures("figX", trials, summary)
+    measures_table.write(tmp_path / measures_table.NAME,
+                         [measures_table.frame(ms, "figures", counted=True)], scale="smoke")
+    out = rescore.rescore(tmp_path, claims.REGISTER)
+    n = out["default"]
+    assert n[sc.NOT_A_VERDICT] > 0 and n[sc.REPRODUCED] == n[sc.NOT] == n[sc.INCONCLUSIVE] == 0
+
+
+def test_rescoring_draws_no_fresh_samples(tmp_path, monkeypatch):
+    """The t level of each measure is stored with it: rescoring reuses it."""
+    _report(tmp_path)
+    from pipeline.studies import coverage
+
+    def fail(*a, **k):
+        raise AssertionError("fresh samples drawn while rescoring")
+    monkeypatch.setattr(coverage, "row", fail)
+    sc._FRESH.clear()
+    assert rescore.rescore(tmp_path, claims.REGISTER)["changed"] == []
