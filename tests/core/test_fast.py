@@ -22,7 +22,7 @@ from gbmodel import evaluation, simd
 from gbmodel.features import exponents, monomial_tree
 from gbmodel.growth import factors
 from gbmodel.learners import goal_babbling as gb
-from gbmodel.learners.goal_babbling import fast, reference
+from gbmodel.learners.goal_babbling import fast, online, reference
 
 SETTINGS = {
     "arm2": dict(radius=0.2, targets_per_epoch=15, steps=7),
@@ -64,7 +64,7 @@ def test_one_epoch_matches_reference(name, pattern, size, degree):
         idx, raw = gb.draw(params, body, 1, rng)
         M_ref, (xstar, x, q, w) = reference.epoch(M, body, size, scale, exps, idx[0], raw[0],
                                                   params.radius, params.steps,
-                                                  params.learning_rate)
+                                                   params.learning_rate)
         M_fast, q_fast, x_fast, w_fast = fast.epoch_samples(M, body, params, exps, size, scale,
                                                             idx[0], raw[0])
         np.testing.assert_allclose(x_fast, x, atol=2e-6)
@@ -189,15 +189,15 @@ def test_online_updates_match_the_reference_steps(name, kw):
     X[:, :N], Q[:, :N] = x.reshape(N, -1).T, q.reshape(N, -1).T
     parent, var = monomial_tree(exps)
     M_zero = np.array(M)
-    fast._online(M_zero, X, Q, w.reshape(-1).astype(np.float32), N, parent, var,
-                 params.learning_rate)
+    online.online(M_zero, X, Q, w.reshape(-1).astype(np.float32), N, parent, var,
+                  params.learning_rate)
     np.testing.assert_allclose(M_zero, expect(w), rtol=0, atol=1e-9)
     # one sample fewer (the kernel takes samples in pairs: an odd count ends on a single one);
     # the reference's last sample then has weight 0 and leaves M as it is
     w[-1, -1] = 1.0
     M_odd = np.array(M)
-    fast._online(M_odd, X, Q, w.reshape(-1).astype(np.float32), N - 1, parent, var,
-                 params.learning_rate)
+    online.online(M_odd, X, Q, w.reshape(-1).astype(np.float32), N - 1, parent, var,
+                  params.learning_rate)
     w[-1, -1] = 0
     np.testing.assert_allclose(M_odd, expect(w), rtol=0, atol=1e-9)
 

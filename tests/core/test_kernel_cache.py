@@ -20,10 +20,10 @@ def test_a_damaged_kernel_cache_is_removed_and_compiled_again(tmp_path):
     for part in ("gbmodel", "pipeline", "conf"):  # mtimes kept: numba's cache stays valid
         shutil.copytree(REPO_ROOT / part, copy / part, copy_function=shutil.copy2)
     assert _warm(copy).returncode == 0  # the cache is complete (loaded, or compiled once)
-    from gbmodel.learners.goal_babbling import fast
-    line = fast._distances.py_func.__code__.co_firstlineno  # the index of today's code, not a
+    from gbmodel.learners.goal_babbling import rollout
+    line = rollout._distances.py_func.__code__.co_firstlineno  # the index of today's code, not a
     index = next((copy / "gbmodel/learners/goal_babbling/__pycache__").glob(  # stale one's
-        f"fast._distances-{line}.*.nbi"))
+        f"rollout._distances-{line}.*.nbi"))
     index.write_bytes(index.read_bytes()[:30])  # truncated, as by a full disk
     r = _warm(copy)
     assert r.returncode == 0, r.stderr

@@ -23,7 +23,7 @@ CHILD = r"""
 import hashlib, json, sys
 import numpy as np
 import gbmodel
-from gbmodel.learners.goal_babbling import fast
+from gbmodel.learners.goal_babbling import core
 from numba.core.registry import cpu_target
 
 
@@ -72,7 +72,7 @@ if "online" in sys.argv:  # learner.updates=online: the float64 per-sample kerne
 codegen = cpu_target.target_context.codegen()
 out["cpu"] = codegen._get_host_cpu_name()
 out["features"] = codegen._tm_features
-asm = fast._tile5x5.overloads[fast._tile5x5.signatures[0]].library.get_asm_str()
+asm = core._tile5x5.overloads[core._tile5x5.signatures[0]].library.get_asm_str()
 out["zmm"], out["ymm"] = asm.count("%zmm"), asm.count("%ymm")
 print(json.dumps(out))
 """

@@ -224,7 +224,7 @@ def _train(M, params: Params, body, sizes, scales, draws, epochs) -> np.ndarray:
     if params.fast:
         from . import fast
         return fast.run_block(M, body, params, exps, sizes, scales, rates, idx, raw, *amp)
-    if isinstance(M, solve.Solved):
+    if params.solver == "lstsq":
         for e in range(len(sizes)):
             _, x, q, w = reference.samples(M.M, body, sizes[e], scales[e], exps, idx[e], raw[e],
                                            params.radius, params.steps, amp[0][e] if amp else None)

@@ -1,0 +1,77 @@
+"""The lstsq rule in the kernel (solver=lstsq; solve.py states it in numpy).
+
+An epoch's Gram sums [sum_t w Phi Phi^T; sum_t w q Phi^T] into its slot of a ring of `window`
+slots, then M from the sum of the slots by the ridge system (solve.system), solved by a
+Cholesky factor in plain loops of a fixed order (solve.cholesky_solve, compiled here).
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ...simd import LANES, vload, vload1, vmul, vstore, vsum
+from .core import _BLOCK, _accumulate, _features
+from .solve import cholesky_solve
+
+
+@njit(cache=True)
+def _gram_sums(X, Q, w, Npad, parent, var, Phi, Z, GG, out):
+    """out (p + m, p) = [sum_t w Phi Phi^T; sum_t w q Phi^T] over the columns of X, Q, w
+    (solve.grams): the rows w Phi and w q in blocks, their products with Phi in the gradient's
+    register tiles (float32 lanes, float64 sum)."""
+    p, m = Phi.shape[0], Q.shape[0]
+    GG[:] = 0
+    for c0 in range(0, Npad, _BLOCK):
+        C = min(_BLOCK, Npad - c0)
+        _features(X, c0, C, parent, var, Phi)
+        for c in range(0, C, LANES):
+            wc = vload1(w, c0 + c)
+            for k in range(p):
+                vstore(Z, k, c, vmul(vload(Phi, k, c), wc))
+            for i in range(m):
+                vstore(Z, p + i, c, vmul(vload(Q, i, c0 + c), wc))
+        _accumulate(Z, Phi, C, GG, p)
+    for i in range(p + m):
+        for k in range(p):
+            out[i, k] = vsum(vload(GG, i, k * LANES))
+    for i in range(p):  # G is symmetric: its upper triangle from the lower
+        for k in range(i + 1, p):
+            out[i, k] = out[k, i]
+
+
+_cholesky_solve = njit(cache=True)(cholesky_solve)
+
+
+@njit(cache=True)
+def solve(M, ring, slot, ridge, X, Q, w, Npad, parent, var, Phi, solver_work):
+    """solver=lstsq (solve.solve): this epoch's Gram sums into ring[slot], then M from the sum
+    of the slots (in slot order) by the ridge system, in place."""
+    Z, GG, total, A, B, L, out = solver_work
+    m, p = M.shape
+    _gram_sums(X, Q, w, Npad, parent, var, Phi, Z, GG, ring[slot])
+    total[:] = ring[0]
+    for k in range(1, ring.shape[0]):
+        for i in range(p + m):
+            for j in range(p):
+                total[i, j] += ring[k, i, j]
+    for i in range(p):
+        for j in range(p):
+            A[i, j] = total[i, j]
+        d = ridge * total[i, i] if total[i, i] > 0 else 1.0
+        A[i, i] += d
+        for r in range(m):
+            B[i, r] = total[p + r, i] + d * M[r, i]
+    _cholesky_solve(A, B, L, out)
+    for r in range(m):
+        for i in range(p):
+            M[r, i] = out[i, r]
+
+
+@njit(cache=True)
+def solver_work(m, n, p, V, T, solving):
+    """Work arrays of the lstsq rule (solving false: token ones, for the other rules)."""
+    Npad = -(-(V * (T + 1)) // LANES) * LANES
+    cols = min(Npad, _BLOCK) if solving else LANES
+    f4 = np.float32
+    return (np.empty((p + m, cols), f4), np.empty((p + m, p * LANES), f4), np.empty((p + m, p)),
+            np.empty((p, p)), np.empty((p, m)), np.zeros((p, p)), np.empty((p, m)))

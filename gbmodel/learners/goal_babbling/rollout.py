@@ -1,0 +1,213 @@
+"""The rollout of one epoch in the kernel (reference.samples): path, commands, postures, weights.
+
+`rollout` leaves an epoch's samples in its work arrays (`_work`): Q (m, N) commands as the body
+took them (saturated), X (n, N) the hand's positions, w (N) the weights w_dir w_eff (eq. 1-3),
+the home example first in each variation (eq. 5); an update rule (gradient.py, online.py,
+lstsq.py) then learns from them. `_distances` is the evaluation's rollout of g itself.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ...simd import (
+    F4, LANES, _1, _HALF, chain_kinematics, vadd, vclip, vdiv, vfma, vload, vload1, vmul, vsplat,
+    vsqrt, vstore, vstore1, vsub, vwhere,
+)
+from .core import _BLOCK, _features, _predict
+from .reference import NO_MOVEMENT
+
+@njit(cache=True)
+def _disturbances(raw, amp, s, centre, half, radius, A, b):
+    """Eq. 8: rows of [A | b] of every variation, scaled so that max |A_i x + b_i| = radius
+    times amp[v, i] over the target box (centre +- half) at size s (float64; stored as float32;
+    amp is 1 for the exact reading, U(0, 1) for the uniform one)."""
+    V, m, n = A.shape
+    for v in range(V):
+        for i in range(m):
+            at_centre = raw[v, i, n]
+            spread = 0.0
+            for j in range(n):
+                at_centre += raw[v, i, j] * s * centre[j]
+                spread += abs(raw[v, i, j]) * s * half[j]
+            k_i = radius / (abs(at_centre) + spread) * amp[v, i]
+            for j in range(n):
+                A[v, i, j] = F4(raw[v, i, j] * k_i)
+            b[v, i] = F4(raw[v, i, n] * k_i)
+
+
+@njit(cache=True)
+def _commands(gpath, path, A, b, home, T, Npad, Q):
+    """Commands of every variation, v in the columns v (T + 1) ... v (T + 1) + T of Q: the home
+    posture, then g + A x* + b along the path; home again in the columns N ... Npad - 1.
+    (A variation's last vector runs into the next variation's columns, which that variation
+    then writes; hence in order.)"""
+    m, Bv = gpath.shape
+    V, n = A.shape[0], path.shape[0]
+    for v in range(V):
+        r0 = v * (T + 1)
+        for u in range(0, Bv, LANES):
+            # x* of these columns (n <= 3: the hand coordinates controlled), in registers
+            x0 = vload(path, 0, u)
+            x1 = vload(path, min(1, n - 1), u)
+            x2 = vload(path, min(2, n - 1), u)
+            for i in range(m):
+                q = vfma(vsplat(A[v, i, 0]), x0, vadd(vload(gpath, i, u), vsplat(b[v, i])))
+                if n > 1:
+                    q = vfma(vsplat(A[v, i, 1]), x1, q)
+                if n > 2:
+                    q = vfma(vsplat(A[v, i, 2]), x2, q)
+                for j in range(3, n):
+                    q = vfma(vsplat(A[v, i, j]), vload(path, j, u), q)
+                vstore(Q, i, r0 + u, q)
+        for i in range(m):
+            Q[i, r0] = home[i]
+    for i in range(m):
+        Q[i, V * (T + 1):Npad] = home[i]
+
+
+@njit(cache=True)
+def _weights(dxs, nxs, X, Q, V, T, Npad, w):
+    """w_dir * w_eff (eq. 1-3) of every path column r0 + 1 ... r0 + T of a variation (r0 =
+    v (T + 1)) against the column before, w = 1 for its home column r0 (eq. 5); 0 for the
+    columns N ... Npad - 1. dxs, nxs: the intended steps u -> u + 1 and their squared lengths,
+    the same for every variation. (In order, as _commands.)"""
+    n, m = X.shape[0], Q.shape[0]
+    Bv = len(nxs)
+    zero, one, half = vsplat(0), vsplat(_1), vsplat(_HALF)
+    no_move2 = vsplat(F4(NO_MOVEMENT * NO_MOVEMENT))
+    for v in range(V):
+        r0 = v * (T + 1)
+        for u in range(0, Bv, LANES):
+            c = r0 + u
+            dot = nx = nq = zero
+            for j in range(n):
+                dx = vsub(vload(X, j, c + 1), vload(X, j, c))
+                dot = vfma(vload(dxs, j, u), dx, dot)
+                nx = vfma(dx, dx, nx)
+            for i in range(m):
+                dq = vsub(vload(Q, i, c + 1), vload(Q, i, c))
+                nq = vfma(dq, dq, nq)
+            nxs_u = vload1(nxs, u)
+            den = vsqrt(vmul(nxs_u, nx))
+            cos = vwhere(den, zero, vdiv(dot, den), zero)
+            cos = vclip(cos)
+            w_dir = vwhere(nxs_u, no_move2, vmul(half, vadd(one, cos)), zero)
+            w_eff = vwhere(nq, zero, vsqrt(vdiv(nx, nq)), zero)
+            vstore1(w, c + 1, vmul(w_dir, w_eff))
+        w[r0] = _1
+    w[V * (T + 1):Npad] = 0
+
+
+@njit(cache=True)
+def rollout(M, idx, raw, amp, s, body, targets, home, parent, var, joints, radius, steps, box,
+            work):
+    """Steps 1-4 of an epoch (reference.samples): the target path at size s, V variations of g
+    (M) along it, their postures and the weights, into work (_work): Q (m, N) postures, X (n, N)
+    reached positions, w (N) weights, variation v in the columns v (T + 1) ... v (T + 1) + T
+    (N = V (T + 1); then columns of padding up to a multiple of LANES, weight 0, and LANES spare
+    ones). Leaves M in float32 in work's M32."""
+    Q, X, w, _, _, path, Phip, gpath, dxs, nxs, A, b, M32, _, Qh, Xh = work
+    m, p = M.shape
+    n = targets.shape[1]
+    V = raw.shape[0]
+    Bv = gpath.shape[1]
+    Npad = len(w) - LANES
+    T = (len(idx) - 1) * steps
+    s4 = F4(s)
+    # the home posture and where it puts the hand (every lane the same)
+    for i in range(m):
+        vstore(Qh, i, 0, vsplat(home[i]))
+    chain_kinematics(Qh, Xh, LANES, joints, body)
+    # the target path (eq. 9) at the current size in columns 1 ... T, the hand at home in
+    # column 0, the last target in the rest
+    for j in range(n):
+        path[j, 0] = Xh[j, 0]
+    for k in range(len(idx) - 1):
+        t0, t1 = idx[k], idx[k + 1]
+        for l in range(steps):
+            f = F4(l) / F4(steps)
+            for j in range(n):
+                # t0 + f (t1 - t0): exactly t0 along a repeated target (targets=any), so that
+                # its intended steps are 0 and weigh nothing, as in the float64 reference
+                path[j, 1 + k * steps + l] = s4 * (targets[t0, j] +
+                                                   f * (targets[t1, j] - targets[t0, j]))
+    for u in range(T + 1, path.shape[1]):
+        for j in range(n):
+            path[j, u] = s4 * targets[idx[-1], j]
+    # the intended steps u -> u + 1 and their squared lengths
+    nxs[:] = 0
+    for j in range(n):
+        for u in range(Bv):
+            dxs[j, u] = path[j, u + 1] - path[j, u]
+            nxs[u] += dxs[j, u] * dxs[j, u]
+    # g along the path
+    for i in range(m):
+        for k in range(p):
+            M32[i, k] = M[i, k]
+    _features(path, 0, Bv, parent, var, Phip)
+    _predict(M32, Phip, Bv, gpath, Q, w[:0], 0)
+    # the variations' disturbances (eq. 8), their rollouts and weights
+    _disturbances(raw, amp, s, box[0], box[1], radius, A, b)
+    _commands(gpath, path, A, b, home, T, Npad, Q)
+    chain_kinematics(Q, X, Npad, joints, body)
+    _weights(dxs, nxs, X, Q, V, T, Npad, w)
+
+
+@njit(cache=True)
+def _work(m, n, p, V, T):
+    """Work arrays of one epoch: Npad = V (T + 1) rounded up to LANES sample columns (and LANES
+    spare), Bv = T + 1 rounded up for the path."""
+    Bv = -(-(T + 1) // LANES) * LANES
+    Npad = -(-(V * (T + 1)) // LANES) * LANES
+    N = Npad + LANES
+    f4 = np.float32
+    return (np.zeros((m, N), f4), np.zeros((n, N), f4), np.zeros(N, f4),
+            np.empty((p, min(Npad, _BLOCK)), f4), np.empty((m, min(Npad, _BLOCK)), f4),
+            np.empty((n, Bv + LANES), f4), np.empty((p, Bv), f4), np.empty((m, Bv), f4),
+            np.empty((n, Bv), f4), np.empty(Bv, f4),
+            np.empty((V, m, n), f4), np.empty((V, m), f4),
+            np.empty((m, p), f4), np.empty((m, p * LANES), f4),
+            np.empty((m, LANES), f4), np.empty((n, LANES), f4))
+
+
+@njit(cache=True)
+def _box(targets):
+    """(centre, half width) of the box around the targets (at full size), per coordinate."""
+    n = targets.shape[1]
+    centre, half = np.empty(n), np.empty(n)
+    for j in range(n):
+        lo, hi = float(targets[:, j].min()), float(targets[:, j].max())
+        centre[j], half[j] = 0.5 * (lo + hi), 0.5 * (hi - lo)
+    return centre, half
+
+
+@njit(cache=True)
+def _distances(M, scale, chain, xs, parent, var, joints, out):
+    """out[t] = |f(g(xs_t)) - xs_t| (float64) with the chain's lengths times scale."""
+    a, d, ca, sa, base, outputs, ty, R, general = chain
+    m, p = M.shape
+    NT, n = xs.shape
+    ae, de, ye = np.empty(m, np.float32), np.empty(m, np.float32), np.empty(m, np.float32)
+    for i in range(m):
+        ae[i], de[i], ye[i] = a[i] * scale[i], d[i] * scale[i], ty[i] * scale[i]
+    body = (ae, de, ca, sa, base, outputs, ye, R, general)
+    M32 = np.empty((m, p), np.float32)
+    for i in range(m):
+        for k in range(p):
+            M32[i, k] = M[i, k]
+    C = -(-NT // LANES) * LANES
+    X, Phi, Q = np.empty((n, C), np.float32), np.empty((p, C), np.float32), np.empty((m, C),
+                                                                                      np.float32)
+    for t in range(C):
+        for j in range(n):
+            X[j, t] = xs[min(t, NT - 1), j]
+    _features(X, 0, C, parent, var, Phi)
+    _predict(M32, Phi, C, Q, Q, np.empty(0, np.float32), 0)
+    chain_kinematics(Q, X, C, joints, body)
+    for t in range(NT):
+        d2 = 0.0
+        for j in range(n):
+            dx = float(X[j, t]) - xs[t, j]
+            d2 += dx * dx
+        out[t] = np.sqrt(d2)
