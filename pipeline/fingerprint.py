@@ -9,13 +9,23 @@ would otherwise key old-code results with the new code's fingerprint. Both the c
 functions and the values the module holds (its constants, function defaults, class attributes
 such as a dataclass's defaults: evaluated from the file as read now and compared with what the
 import made) are checked. Such a file raises CodeChanged, a one-line error: run the command again.
+
+What is learnt from a file's text (its syntax tree without docstrings, its compiled code, the
+expressions of its constants and defaults, its imports: _facts) is kept in gbmodel/__pycache__/,
+named by the SHA-256 of the text and checked against a checksum of its own: a file is parsed and
+compiled once per content, by any process, and again only when its bytes change (never judged
+by a modification time). The checks against the imported module run on every fingerprint, from
+those facts.
 """
 from __future__ import annotations
 
 import ast
 import hashlib
 import inspect
+import marshal
+import os
 import sys
+import tempfile
 from functools import lru_cache
 from pathlib import Path
 
@@ -29,10 +39,13 @@ class CodeChanged(RuntimeError):
     """A gbmodel file differs from the code this process imported from it."""
 
 
-@lru_cache(maxsize=512)  # gbmodel's shared files are part of every learner's fingerprint
 def _code_of(source: str) -> str:
     """The syntax tree of a module without its docstrings (comments are not in it anyway)."""
-    tree = ast.parse(source)
+    return _dump(ast.parse(source))
+
+
+def _dump(tree) -> str:
+    """ast.dump of `tree` with its docstrings taken out (in place)."""
     for node in ast.walk(tree):
         body = getattr(node, "body", None)
         if (isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef))
@@ -50,8 +63,96 @@ def source_fingerprint(sources) -> str:
     h = hashlib.sha256()
     for name, text in sorted(sources):
         h.update(name.encode() + b"\0")
-        h.update(_code_of(text).encode() + b"\0")
+        h.update(_facts(text)["tree"].encode() + b"\0")
     return h.hexdigest()[:16]
+
+
+FACTS_FORMAT = 1  # the layout of _facts' record: a new one is a new file name
+
+
+def _facts_folder() -> Path:
+    return (Path(gbmodel.__file__).resolve().parent / "__pycache__"
+            / f"fingerprint.{sys.implementation.cache_tag}.{FACTS_FORMAT}")
+
+
+def _compiled(node):
+    """Expression `node` compiled on its own, or None when it cannot be."""
+    try:
+        return compile(ast.Expression(node), "<fingerprint>", "eval")
+    except Exception:
+        return None
+
+
+def _checks(body: list) -> list:
+    """The plain assignments, function defaults and classes of `body` (a module's or class's
+    statements), in order, with their expressions compiled: ("=", name, code),
+    ("def", name, [code of each default], [(keyword-only arg, code or None)]),
+    ("class", name, checks of its body). _values evaluates them against the live module."""
+    out = []
+    for node in body:
+        targets = ([node.target] if isinstance(node, ast.AnnAssign) and node.value is not None
+                   else node.targets if isinstance(node, ast.Assign) else [])
+        out += [("=", t.id, _compiled(node.value)) for t in targets if isinstance(t, ast.Name)]
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            out.append(("def", node.name, [_compiled(e) for e in node.args.defaults],
+                        [(a.arg, None if e is None else _compiled(e))
+                         for a, e in zip(node.args.kwonlyargs, node.args.kw_defaults)]))
+        if isinstance(node, ast.ClassDef):
+            out.append(("class", node.name, _checks(node.body)))
+    return out
+
+
+def _imports(tree) -> list:
+    """Every import statement of `tree`: ("from", level, module or None, [names]) and
+    ("import", None, None, [names])."""
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            out.append(("from", node.level, node.module, [a.name for a in node.names]))
+        elif isinstance(node, ast.Import):
+            out.append(("import", None, None, [a.name for a in node.names]))
+    return out
+
+
+def _learn(text: str) -> dict:
+    """What the fingerprint needs of a source text, from one parse and one compile: tree (the
+    syntax tree without docstrings, _code_of), code (the module compiled), checks (_checks) and
+    imports (_imports)."""
+    tree = ast.parse(text)
+    checks, imports = _checks(tree.body), _imports(tree)
+    return dict(tree=_dump(tree), code=compile(text, "<fingerprint>", "exec"), checks=checks,
+                imports=imports)
+
+
+@lru_cache(maxsize=512)
+def _facts(text: str) -> dict:
+    """_learn(text), kept on disk by the SHA-256 of `text` with a checksum of the record: read
+    back when one is there and intact, else learnt and written (atomically; a folder that
+    cannot be written is only not kept)."""
+    key = hashlib.sha256(text.encode()).hexdigest()
+    path = _facts_folder() / f"{key}.marshal"
+    try:
+        data = path.read_bytes()
+        body = data[64:]
+        if data[:64] == hashlib.sha256(body).hexdigest().encode():
+            facts = marshal.loads(body)
+            if isinstance(facts, dict) and facts.get("key") == key:
+                return facts
+    except (OSError, ValueError, EOFError, TypeError):
+        pass
+    facts = dict(_learn(text), key=key)
+    body = marshal.dumps(facts)
+    tmp = None
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{key[:16]}.")
+        with os.fdopen(fd, "wb") as f:
+            f.write(hashlib.sha256(body).hexdigest().encode() + body)
+        os.replace(tmp, path)
+    except OSError:
+        if tmp is not None:
+            Path(tmp).unlink(missing_ok=True)
+    return facts
 
 
 def _codes(code, out=None) -> dict:
@@ -87,8 +188,13 @@ def _live_codes(module, path: Path):
         except ValueError:
             continue
         code = getattr(obj, "__code__", None)
-        if inspect.iscode(code) and Path(code.co_filename).resolve() == path:
+        if inspect.iscode(code) and _resolved(code.co_filename) == path:
             yield code
+
+
+@lru_cache(maxsize=4096)
+def _resolved(filename: str) -> Path:
+    return Path(filename).resolve()
 
 
 _PLAIN = (int, float, complex, str, bytes, bool, type(None))
@@ -125,11 +231,14 @@ def _same(a, b) -> bool:
         return False
 
 
-def _value(node, scope: dict):
-    """The value of expression `node` in `scope` (a copy of the live namespace), or a marker
-    when it cannot be evaluated on its own or is not a plain value (an object, a function)."""
+def _value(code, scope: dict):
+    """The value of compiled expression `code` in `scope` (a copy of the live namespace), or a
+    marker when it cannot be evaluated on its own or is not a plain value (an object, a
+    function)."""
+    if code is None:
+        return _SKIP
     try:
-        value = eval(compile(ast.Expression(node), "<fingerprint>", "eval"), dict(scope))
+        value = eval(code, dict(scope))
     except Exception:
         return _SKIP
     return value if _plain(value) else _SKIP
@@ -138,47 +247,46 @@ def _value(node, scope: dict):
 _SKIP = object()
 
 
-def _values(body: list, scope: dict, live, where: str):
+def _values(checks: list, scope: dict, live, where: str):
     """(name, value now in the file, value the import made) of the plain assignments and
-    function defaults in `body` (a module's or class's statements); `live` is its namespace. A
-    private mutable container (`_CACHE = {}`) is state the code fills, not a constant: skipped."""
-    for node in body:
-        targets = ([node.target] if isinstance(node, ast.AnnAssign) and node.value is not None
-                   else node.targets if isinstance(node, ast.Assign) else [])
-        for t in targets:
-            if (isinstance(t, ast.Name) and t.id in live
-                    and not (t.id.startswith("_") and isinstance(live[t.id], (list, dict, set)))):
-                now = _value(node.value, scope)
-                if now is not _SKIP and _plain(live[t.id]):
-                    yield f"{where}{t.id}", now, live[t.id]
-        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.name in live:
-            func = live[node.name]
+    function defaults of `checks` (_checks of a module's or class's statements); `live` is its
+    namespace. A private mutable container (`_CACHE = {}`) is state the code fills, not a
+    constant: skipped."""
+    for kind, name, *rest in checks:
+        if kind == "=":
+            if name in live and not (name.startswith("_")
+                                     and isinstance(live[name], (list, dict, set))):
+                now = _value(rest[0], scope)
+                if now is not _SKIP and _plain(live[name]):
+                    yield f"{where}{name}", now, live[name]
+        elif kind == "def" and name in live:
+            func = live[name]
             func = getattr(func, "__func__", func)
             func = getattr(func, "py_func", func)
             defaults = getattr(func, "__defaults__", None) or ()
-            exprs = node.args.defaults
-            if len(exprs) == len(defaults):
-                for expr, was in zip(exprs, defaults):
-                    now = _value(expr, scope)
+            codes, kwonly = rest
+            if len(codes) == len(defaults):
+                for code, was in zip(codes, defaults):
+                    now = _value(code, scope)
                     if now is not _SKIP and _plain(was):
-                        yield f"{where}{node.name} (a default)", now, was
+                        yield f"{where}{name} (a default)", now, was
             kw = getattr(func, "__kwdefaults__", None) or {}
-            for arg, expr in zip(node.args.kwonlyargs, node.args.kw_defaults):
-                if expr is not None and arg.arg in kw and _plain(kw[arg.arg]):
-                    now = _value(expr, scope)
+            for arg, code in kwonly:
+                if code is not None and arg in kw and _plain(kw[arg]):
+                    now = _value(code, scope)
                     if now is not _SKIP:
-                        yield f"{where}{node.name} (a default)", now, kw[arg.arg]
-        if isinstance(node, ast.ClassDef) and inspect.isclass(live.get(node.name)):
-            cls = live[node.name]
-            yield from _values(node.body, {**scope, **vars(cls)}, dict(vars(cls)),
-                               f"{where}{node.name}.")
+                        yield f"{where}{name} (a default)", now, kw[arg]
+        elif kind == "class" and inspect.isclass(live.get(name)):
+            cls = live[name]
+            yield from _values(rest[0], {**scope, **vars(cls)}, dict(vars(cls)),
+                               f"{where}{name}.")
 
 
 def _changed_value(module, text: str) -> str | None:
     """The first constant, default or class attribute whose value in `text` differs from the
     one the imported `module` holds, else None."""
     scope = dict(vars(module))
-    for name, now, was in _values(ast.parse(text).body, scope, scope, ""):
+    for name, now, was in _values(_facts(text)["checks"], scope, scope, ""):
         if not _same(now, was):
             return name
     return None
@@ -198,7 +306,7 @@ def as_imported(path: Path, text: str, modules: dict | None = None) -> str:
     module = (_gbmodel_modules() if modules is None else modules).get(path)
     if module is None:
         return text
-    compiled = _codes(compile(text, str(path), "exec"))
+    compiled = _codes(_facts(text)["code"])
     for code in _live_codes(module, path):
         if code not in compiled.get(code.co_qualname, ()):
             raise CodeChanged(f"{path}: changed since this process imported it ({code.co_qualname} "
@@ -222,16 +330,14 @@ def imported_learners(sources, name: str) -> set[str]:
         if parts[:2] != ["gbmodel", "learners"]:
             continue  # a learner registered from elsewhere: its source is hashed as it is
         package = parts[:-1]  # of a module, and of a package's __init__ alike
-        for node in ast.walk(ast.parse(text)):
-            if isinstance(node, ast.ImportFrom):
-                base = package[:len(package) - node.level + 1] if node.level else []
-                stem = base + (node.module.split(".") if node.module else [])
-                targets = [stem + a.name.split(".") for a in node.names] \
-                    if not node.module or stem == ["gbmodel", "learners"] else [stem]
-            elif isinstance(node, ast.Import):
-                targets = [a.name.split(".") for a in node.names]
+        for kind, level, module, names in _facts(text)["imports"]:
+            if kind == "from":
+                base = package[:len(package) - level + 1] if level else []
+                stem = base + (module.split(".") if module else [])
+                targets = [stem + n.split(".") for n in names] \
+                    if not module or stem == ["gbmodel", "learners"] else [stem]
             else:
-                continue
+                targets = [n.split(".") for n in names]
             found |= {t[2] for t in targets
                       if t[:2] == ["gbmodel", "learners"] and len(t) > 2 and t[2] != name
                       and t[2] in known}

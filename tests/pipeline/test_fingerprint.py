@@ -50,3 +50,51 @@ def test_a_file_edited_after_the_import_is_refused(tmp_path):
 def test_unchanged_or_comment_edited_files_give_the_usual_fingerprint(tmp_path):
     from pipeline.fingerprint import code_fingerprint
     assert _run(tmp_path, "none") == _run(tmp_path, "comment") == code_fingerprint("goal_babbling")
+
+
+LEARNT = """
+import sys
+from pathlib import Path
+import gbmodel
+from pipeline import fingerprint
+assert str(Path(gbmodel.__file__)).startswith(sys.argv[1]), gbmodel.__file__
+learnt = []
+learn = fingerprint._learn
+fingerprint._learn = lambda text: learnt.append(text) or learn(text)
+print(fingerprint.code_fingerprint("goal_babbling"), len(learnt),
+      sum("# edited" in t for t in learnt))
+"""
+
+
+def test_files_are_parsed_once_per_content_and_again_when_their_bytes_change(tmp_path):
+    """A second process parses nothing; an edited file (its modification time put back) is
+    parsed again, it alone; a damaged record is learnt again; the fingerprint is the same."""
+    from pipeline.fingerprint import code_fingerprint
+    copy = tmp_path / "code"
+    shutil.copytree(REPO_ROOT / "gbmodel", copy / "gbmodel",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    env = dict(os.environ, PYTHONPATH=f"{copy}{os.pathsep}{REPO_ROOT}", NUMBA_DISABLE_JIT="1")
+
+    def run():
+        r = subprocess.run([sys.executable, "-c", LEARNT, str(copy)], capture_output=True,
+                           text=True, env=env, cwd=copy, timeout=120)
+        assert r.returncode == 0, r.stderr
+        fp, learnt, edited = r.stdout.split()
+        return fp, int(learnt), int(edited)
+
+    usual = code_fingerprint("goal_babbling")
+    fp, learnt, _ = run()
+    assert fp == usual and learnt > 10  # every file of the learner and of the shared core
+    assert run() == (usual, 0, 0)  # from the records: nothing parsed
+    growth = copy / "gbmodel" / "growth.py"
+    stat = growth.stat()
+    growth.write_text(growth.read_text() + "# edited\n")
+    os.utime(growth, ns=(stat.st_atime_ns, stat.st_mtime_ns))  # the same modification time
+    assert run() == (usual, 1, 1)  # a comment: the same fingerprint, one file parsed again
+    records = sorted((copy / "gbmodel" / "__pycache__").glob("fingerprint.*/*.marshal"))
+    assert len(records) == learnt + 1
+    for record in records:
+        data = bytearray(record.read_bytes())
+        data[-1] ^= 1  # a damaged record is not believed
+        record.write_bytes(bytes(data))
+    assert run() == (usual, learnt, 1)
