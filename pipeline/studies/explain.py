@@ -37,20 +37,62 @@ def _errors(body, size, pattern, predict, M, xs):
 
 
 def best_cubic(spec: dict, M0) -> dict:
-    """The degree-3 inverse fitted directly to the targets (scipy least squares from M0)."""
+    """The degree-3 inverse fitted directly to the targets (scipy least squares from M0), with
+    the Jacobian of _jacobian where the learner's inverse is linear in M (g(x) = M Phi(x)),
+    else scipy's finite differences."""
     body, size, pattern, predict = final_body(spec)
     xs = body.target_set(size)
     M0 = np.asarray(M0, float)
+    f = factors(body, size, pattern)
 
     def residuals(flat):
         q = predict(flat.reshape(M0.shape), xs)
-        return (body.forward(q, factors(body, size, pattern)) - xs).ravel()
+        return (body.forward(q, f) - xs).ravel()
 
-    fit = least_squares(residuals, M0.ravel(), method="trf", max_nfev=200 * M0.size)
+    Phi = _linear_features(predict, M0, xs)
+    jac = "2-point" if Phi is None else (lambda flat: _jacobian(body, f, Phi, flat, M0.shape))
+    fit = least_squares(residuals, M0.ravel(), jac=jac, method="trf", max_nfev=200 * M0.size)
     d = _errors(body, size, pattern, predict, fit.x.reshape(M0.shape), xs)
     learned = _errors(body, size, pattern, predict, M0, xs)
     return dict(M=fit.x.reshape(M0.shape), best_mean_mm=1e3 * d.mean(), best_worst_mm=1e3 * d.max(),
                 learned_mean_mm=1e3 * learned.mean(), learned_worst_mm=1e3 * learned.max())
+
+
+def _linear_features(predict, M0, xs):
+    """Phi (N, p) with predict(M, xs) = Phi @ M.T for every M (read off the unit models), or
+    None when predict is not linear in M (checked at zero, at M0 and at a point beside it)."""
+    m, p = M0.shape
+    unit = np.zeros((m, p))
+    if np.any(predict(unit, xs) != 0):
+        return None
+    cols = []
+    for k in range(p):
+        unit[0, k] = 1.0
+        cols.append(predict(unit, xs)[:, 0])
+        unit[0, k] = 0.0
+    Phi = np.stack(cols, axis=1)
+    linear = all(np.allclose(predict(M, xs), Phi @ M.T, rtol=1e-12, atol=1e-12)
+                 for M in (M0, 0.5 * M0 + 0.25))
+    return Phi if linear else None
+
+
+JOINT_STEP = 1e-6  # the central differences of the forward kinematics, per joint command
+
+
+def _jacobian(body, f, Phi, flat, shape):
+    """d residuals / d M (N n, m p) of best_cubic at M = flat: the hand's derivative in each
+    joint command J (N, n, m), by central differences over the commands (2 m forward calls, not
+    the m p of differences over M), times dq_j / dM_jk = Phi_k exactly."""
+    q = Phi @ flat.reshape(shape).T
+    N, m = q.shape
+    step = np.zeros(m)
+    cols = []
+    for j in range(m):
+        step[j] = JOINT_STEP
+        cols.append(body.forward(q + step, f) - body.forward(q - step, f))
+        step[j] = 0.0
+    J = np.stack(cols, axis=-1) / (2 * JOINT_STEP)
+    return (J[:, :, :, None] * Phi[:, None, None, :]).reshape(N * J.shape[1], m * Phi.shape[1])
 
 
 def _extremes(spec, M) -> float:
