@@ -210,8 +210,10 @@ def report(cfg: DictConfig, explicit: bool = False) -> list[Path]:
     _record_of(out).unlink(missing_ok=True)
     with io.new_dir(out) as tmp:  # the folder is replaced as one set: no file of an older report
         written = [out / p.relative_to(tmp) for p in write_report(cfg, aggs, tmp)]
+        kept = keep_figure_reports(out, tmp)  # ... but every figure's own report beside it stays
     io.write_json(_record_of(out), dict(inputs=digest))  # last: the files are all there
-    log.info("report: %d files -> %s", len(written), out)
+    log.info("report: %d files -> %s%s", len(written), out,
+             f" (the figure reports beside it kept: {', '.join(kept)})" if kept else "")
     lost = sorted(before - {p.relative_to(out).as_posix() for p in written})
     if lost:  # a narrower run replaced a wider report: say what went, never silently
         log.warning("report: %d files of the earlier report in %s are not in this one (%s%s); "
@@ -219,6 +221,30 @@ def report(cfg: DictConfig, explicit: bool = False) -> list[Path]:
                     "the studies beyond the paper)", len(lost), out, ", ".join(lost[:4]),
                     ", ..." if len(lost) > 4 else "")
     return written
+
+
+def keep_figure_reports(out: Path, tmp: Path) -> list[str]:
+    """Carry every figure's own report (`report figure=NAME`: a folder of `out` with its
+    report.md, and its input record `.NAME.inputs.json`) that the new report in `tmp` does not
+    write itself from `out` into `tmp`, as hard links (never a copy's bytes, never through a
+    link): a report of every figure, whatever its settings, never deletes one figure's report.
+    Returns their names."""
+    import os
+    import shutil
+
+    kept = []
+    if not out.is_dir() or out.is_symlink():
+        return kept
+    for sub in sorted(out.iterdir()):
+        if (sub.name.startswith(".") or sub.is_symlink() or not sub.is_dir()
+                or not (sub / "report.md").is_file() or (tmp / sub.name).exists()):
+            continue
+        shutil.copytree(sub, tmp / sub.name, symlinks=True, copy_function=os.link)
+        record = _record_of(sub)
+        if record.is_file() and not record.is_symlink():
+            os.link(record, _record_of(tmp / sub.name))
+        kept.append(sub.name)
+    return kept
 
 
 def write_report(cfg: DictConfig, aggs: dict, out: Path) -> list[Path]:

@@ -60,9 +60,10 @@ def table(aggs: dict) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def escape(text: str) -> str:
-    """A table cell's text with its pipes escaped (labels such as |g - home|)."""
-    return text.replace("|", "\\|")
+def escape(text) -> str:
+    """A Markdown table cell's text: its pipes escaped (labels such as |g - home| or a sweep's
+    `R=0.1 | TG1000`) and line breaks folded, so the row keeps its header's cells."""
+    return " ".join(str(text).splitlines()).replace("|", "\\|")
 
 
 def markdown(t: pd.DataFrame, aggs: dict) -> str:

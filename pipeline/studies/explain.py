@@ -27,6 +27,7 @@ from scipy.optimize import least_squares
 from gbmodel.growth import factors
 
 from . import claims, scorecard
+from .choices import escape
 from .figures import final_body
 from .sections import Context, register
 
@@ -289,7 +290,7 @@ def rises_markdown(found: list[dict]) -> str:
              "|---|" + "---|" * len(periods)]
     for reading, g in t.groupby("reading", sort=False):
         by = {r["T_G"]: r for r in g.to_dict("records")}
-        lines.append(f"| {reading} ({by[g['T_G'].iloc[0]]['trials']} trials) | " + " | ".join(
+        lines.append(f"| {escape(reading)} ({by[g['T_G'].iloc[0]]['trials']} trials) | " + " | ".join(
             _pct(by[p]) if p in by else "" for p in periods) + " |")
     return "\n".join(lines) + "\n"
 
@@ -397,7 +398,8 @@ def section(ctx: Context) -> list[str]:
            "stretched arm, the iCub continued at a smaller learning rate, the half-size arm "
            "under steps that take the size out, and the rise during growth per rate.", "",
            "| figure | experiment | measured |", "|---|---|---|"]
-          + [f"| {r['figure']} | {r['experiment']} | {r['measured']} |" for r in found] + [""])
+          + [f"| {r['figure']} | {escape(r['experiment'])} | {escape(r['measured'])} |"
+             for r in found] + [""])
     r = rises(aggs["readings_fig4"]) if "readings_fig4" in aggs else []
     if r:
         ctx.text("explain_rise.csv", pd.DataFrame(r).to_csv(index=False, float_format="%.6g"))

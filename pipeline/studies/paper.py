@@ -15,6 +15,7 @@ from omegaconf import OmegaConf
 
 from .. import io
 from . import claims, conventions, figures, scorecard, settings
+from .choices import escape
 from .claims import DIVERGED, diverged_conditions
 from .sections import Context, declares_claims, register
 
@@ -50,7 +51,8 @@ def summary_markdown(summary: pd.DataFrame) -> str:
                 f"epoch {r['peak_epoch_growth']})" if np.isfinite(r["peak_abs_error_growth"]) else "")
         gone = DIVERGED if r["condition"] in dead else ""  # no trial left a curve
         lines.append(
-            f"| {r['figure']} | {r['condition']} | {r['body']} | {r['growth']} "
+            f"| {escape(r['figure'])} | {escape(r['condition'])} | {escape(r['body'])} "
+            f"| {escape(r['growth'])} "
             f"| {r['growth_period'] if r['growth'] != 'none' else ''} | {r['n_trials']} "
             f"| {_pm(r['final_abs_error_mean'], r['final_abs_error_std']) or gone} "
             f"| {_pm(r['final_rel_error_mean'], r['final_rel_error_std']) or gone} | {peak or gone} "

@@ -396,6 +396,8 @@ def markdown(cards: pd.DataFrame, results: list[dict], counted=None, readings=No
     counted: the figures the headline counts; readings: claim -> our reading (written text),
     the column shown only where given (the committed run's discussion); recommended: the
     headline of the recommended reading, shown beside the default's."""
+    from .choices import escape
+
     claims, figs = _order(cards)
     n = headline(cards, counted)
     where = "" if counted is None else f" on {', '.join(sorted(counted))}"
@@ -415,18 +417,19 @@ def markdown(cards: pd.DataFrame, results: list[dict], counted=None, readings=No
               "|---|" + "---|" * (len(figs) + own)]
     for claim in claims:
         row = cards[cards["claim"] == claim]
-        by = {r["figure"]: cell_text(r, "<br>") for r in row.to_dict("records")}
-        lines.append(f"| {TITLES[claim]} | " + " | ".join(by.get(f, "—") for f in figs)
-                     + (f" | {(readings or {}).get(claim, '')} |" if own else " |"))
+        by = {r["figure"]: escape(cell_text(r, "<br>")) for r in row.to_dict("records")}
+        lines.append(f"| {escape(TITLES[claim])} | " + " | ".join(by.get(f, "—") for f in figs)
+                     + (f" | {escape((readings or {}).get(claim, ''))} |" if own else " |"))
     lines += ["", "<details><summary>every measure under every reading, its interval and "
               "criterion</summary>", "",
               "| figure | claim | reading | measure | value | interval | criterion | trials "
               "| verdict | trials to decide |", "|---|---|---|---|---|---|---|---|---|---|"]
     for r in results:
-        lines.append(f"| {r['figure']} | {TITLES[r['claim']]} | {r.get('reading') or 'primary'} "
-                     f"| {r['where']} | {fmt(r['value'], r['unit'])} | {fmt_interval(r)} "
+        lines.append(f"| {r['figure']} | {escape(TITLES[r['claim']])} "
+                     f"| {escape(r.get('reading') or 'primary')} | {escape(r['where'])} "
+                     f"| {fmt(r['value'], r['unit'])} | {fmt_interval(r)} "
                      f"| {criterion(r)} | {r['trials']} | {r['verdict']}"
-                     + (f" ({r['note']})" if r.get("note") else "") + f" | {_need(r) or ''} |")
+                     + (f" ({escape(r['note'])})" if r.get("note") else "") + f" | {_need(r) or ''} |")
     lines += ["", "</details>", ""]
     return "\n".join(lines)
 

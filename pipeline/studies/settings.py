@@ -64,7 +64,9 @@ def table(agg: dict) -> pd.DataFrame:
 
 
 def markdown(agg: dict) -> str:
+    from .choices import escape
+
     t = table(agg)
     lines = ["| condition | settings that differ from the defaults |", "|---|---|"]
-    lines += [f"| {r.condition} | {r.settings} |" for r in t.itertuples()]
+    lines += [f"| {escape(r.condition)} | {escape(r.settings)} |" for r in t.itertuples()]
     return "\n".join(lines) + "\n"

@@ -71,3 +71,25 @@ def test_a_narrower_report_into_the_same_folder_says_which_files_it_drops(tmp_pa
         report.report(cfgs[1])
     lost = [r.getMessage() for r in caplog.records if "are not in this one" in r.getMessage()]
     assert lost and "wide_curves.png" in lost[0], caplog.text
+
+
+def test_a_plain_report_after_two_figure_reports_leaves_both(tmp_path, compose_tiny):
+    """`report figure=A`, `report figure=B`, then a plain report with other settings
+    (report.dpi=100): outputs/latest/A/ and B/ are still there, whole, beside it."""
+    cfgs = {name: compose_tiny(tmp_path, f"figure={name}", "growth=none")
+            for name in ("fig_a", "fig_b")}
+    for cfg in cfgs.values():
+        simulate.simulate(cfg)
+        aggregate.aggregate(cfg, True)
+        report.report(cfg, explicit=True)
+    root = Path(cfgs["fig_a"].paths.report)
+    before = {n: (root / n / "report.md").read_text() for n in cfgs}
+    plain = compose_tiny(tmp_path, "report.dpi=100")
+    assert report.report(plain)  # every aggregated figure, into root itself
+    assert {"fig_a_curves.png", "fig_b_curves.png"} <= set(report.listed_files(root / "report.md"))
+    for name in cfgs:
+        assert (root / name / "report.md").read_text() == before[name]
+        assert all((root / name / f).is_file()
+                   for f in report.listed_files(root / name / "report.md"))
+        assert report.report(cfgs[name], explicit=True) == []  # still up to date: its record kept
+    assert report.report(plain) == []
