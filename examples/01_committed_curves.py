@@ -20,7 +20,9 @@ import pandas as pd  # noqa: E402
 REPO = Path(__file__).resolve().parents[1] if "__file__" in globals() else Path.cwd()
 CURVES = Path(os.environ.get("GBGROWTH_CURVES", REPO / "outputs" / "report" / "curves.parquet"))
 FIGURE = os.environ.get("GBGROWTH_FIGURE", "fig4")
-OUT = Path(os.environ.get("GBGROWTH_EXAMPLE_OUT", "."))
+# the figures go under outputs/examples/ (ignored by git), never into the repository itself
+OUT = Path(os.environ.get("GBGROWTH_EXAMPLE_OUT", REPO / "outputs" / "examples"))
+OUT.mkdir(parents=True, exist_ok=True)
 
 # %%
 curves = pd.read_parquet(CURVES)

@@ -22,7 +22,10 @@ import numpy as np  # noqa: E402
 import gbmodel  # noqa: E402
 
 EPOCHS = int(os.environ.get("GBGROWTH_EPOCHS", 2000))
-OUT = Path(os.environ.get("GBGROWTH_EXAMPLE_OUT", "."))
+REPO = Path(__file__).resolve().parents[1] if "__file__" in globals() else Path.cwd()
+# the figures go under outputs/examples/ (ignored by git), never into the repository itself
+OUT = Path(os.environ.get("GBGROWTH_EXAMPLE_OUT", REPO / "outputs" / "examples"))
+OUT.mkdir(parents=True, exist_ok=True)
 
 # %%
 URDF = """<robot name="arm3">

@@ -16,14 +16,15 @@ import itertools
 import math
 import re
 import sys
+from pathlib import Path
 
 from hydra.core.override_parser.overrides_parser import OverridesParser
 
 from . import execute, io, stop
 from .fingerprint import CodeChanged
 from .io import BadInput
-from .config import (ConfigError, check_experiments, check_hydra, check_keys, compose,
-                     config_notes)
+from .config import (ConfigError, check_choices, check_experiments, check_hydra, check_keys,
+                     compose, config_notes)
 from .plan import (check_run, checked_marker, condition_labels, mark_checked, plan,
                    plan_conditions, was_checked)
 
@@ -95,6 +96,19 @@ def _one_line(err: BaseException) -> str:
     return f"{key}: {message}" if key else message
 
 
+def missing_folder(searchpath) -> str | None:
+    """One line when a `file://` folder of hydra.searchpath does not exist (Hydra skips it, and
+    the body it should hold surfaces as `body=my_arm: unknown option`)."""
+    for entry in searchpath if isinstance(searchpath, list) else [searchpath]:
+        entry = str(entry)
+        if entry.startswith("file://"):
+            folder = Path(entry[len("file://"):])
+            if not folder.is_dir():
+                return (f"hydra.searchpath: {folder} is not a folder; give the absolute path of "
+                        "your config folder (the one that holds body/)")
+    return None
+
+
 _PASSED: list = []  # (note, trials) of the command line check() passed, for finish() to keep
 
 
@@ -133,6 +147,9 @@ def check(argv: list[str]) -> str | None:
     for o in parsed:
         if o.is_hydra_override():
             if o.get_key_element() == "hydra.searchpath":  # where config groups (a body) live
+                missing = missing_folder(o.value())
+                if missing:
+                    return missing
                 choices.append([o.input_line])
             continue  # hydra/launcher=... and hydra.*: Hydra's own settings, checked by Hydra
         if o.is_sweep_override():
@@ -166,6 +183,7 @@ def check(argv: list[str]) -> str | None:
                 continue
             trials = plan(cfg, remember=n_jobs == 1)  # checks the values, the limits; one job:
             # its stage takes this plan instead of planning again
+            check_choices(cfg, list(combination))  # what plan accepts but a user did not mean
             keeps_experiment(list(combination), trials)
             planned.setdefault(cfg.figure, []).extend(trials)
         except ConfigError as err:
@@ -287,10 +305,60 @@ def disk_message(err: OSError) -> str:
     return f"{where}: {why}; free space or choose a writable paths.root"
 
 
+# config groups a user does not choose: body_learner follows body and learner; paths and
+# trials have one option each (their values are overridden key by key)
+_INTERNAL_GROUPS = ("body_learner", "hydra", "paths", "trials")
+
+
+def user_groups(overrides: list[str] = ()) -> dict[str, list[str]]:
+    """group -> the options a user can choose (conf/ and the folders of hydra.searchpath among
+    `overrides`): no internal group, no generated `<learner>_schema` a learner's file extends."""
+    from hydra import compose as hydra_compose
+    from hydra import initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+
+    from .config import CONF_DIR
+
+    search = [o for o in overrides if o.startswith("hydra.searchpath=")]
+    GlobalHydra.instance().clear()
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+        hydra_compose(config_name="config", overrides=search)
+        loader = GlobalHydra.instance().config_loader()
+        return {g: [o for o in sorted(loader.get_group_options(g)) if not o.endswith("_schema")]
+                for g in sorted(loader.list_groups("")) if g not in _INTERNAL_GROUPS}
+
+
+def help_text(stage: str, argv: list[str]) -> str:
+    """What `--help` prints: the stage, the groups and their options a user can choose, and the
+    config the command line composes to (Hydra's own help listed the internal schemas too)."""
+    from omegaconf import OmegaConf
+
+    overrides = _overrides(argv)
+    lines = [f"python -m {stage} [group=option ...] [key=value ...] [-m for a sweep]", "",
+             "== Configuration groups (group=option) ==", ""]
+    lines += [f"{g}: {', '.join(opts)}" for g, opts in user_groups(overrides).items()]
+    lines += ["", "A body's learner settings (body_learner) follow body= and learner=; "
+              "hydra.searchpath=[file:///abs/my_conf] adds your own folder of bodies.", "",
+              "== Config (override any key: foo.bar=value) ==", ""]
+    try:
+        cfg = compose(overrides)
+    except Exception:  # a bad override: the defaults (the stage itself names the problem)
+        cfg = compose([])
+    lines.append(OmegaConf.to_yaml(cfg).rstrip())
+    lines += ["", "Hydra's own flags: --hydra-help"]
+    return "\n".join(lines) + "\n"
+
+
 def main(hydra_main) -> None:
     """Run a stage's @hydra.main function after checking its command line. A signal before the
-    stage runs ends the process with one line (pipeline.stop)."""
+    stage runs ends the process with one line (pipeline.stop). `--help` prints help_text."""
     stop.install()
+    if "--help" in sys.argv[1:] or "-h" in sys.argv[1:]:
+        import __main__
+
+        stage = getattr(__main__, "__spec__", None)
+        sys.stdout.write(help_text(stage.name if stage else "pipeline", sys.argv[1:]))
+        sys.exit(0)
     problem = check(sys.argv[1:])
     if problem is not None:
         print(f"error: {problem}", file=sys.stderr)

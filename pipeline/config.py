@@ -361,6 +361,30 @@ def config_notes(cfg) -> list[str]:
     return notes
 
 
+def check_choices(cfg, overrides) -> None:
+    """Refuse (one line) what a command line would otherwise accept in silence: a body file
+    whose `name:` differs from its file name (`body=my_arm` loading `name: other`), a growth
+    period with growth=none (it would become 0), and a growth period given on the command line
+    that is longer than the run (the body would never reach its end size)."""
+    given = {o.lstrip("+~").split("=", 1)[0]: o.split("=", 1)[1] for o in overrides if "=" in o}
+    body = given.get("body")
+    if body is not None and "body.name" not in given and cfg.body.name != body:
+        raise ConfigError(f"body={body}: its file {body}.yaml says name: {cfg.body.name}; a body "
+                          f"file is named after its body (rename one of them)")
+    g = cfg.growth
+    if g.pattern == "none" and g.period:
+        raise ConfigError(f"growth.period={g.period}: growth=none keeps the body at one size, so "
+                          "it has no period; drop growth.period or choose a growth pattern "
+                          "(growth=proportional)")
+    epochs = cfg.learner.epochs
+    if ("growth.period" in given and g.pattern != "none" and not cfg.conditions.periods
+            and cfg.conditions.budget is None and isinstance(epochs, int)
+            and isinstance(g.period, int) and g.period > epochs):
+        raise ConfigError(f"growth.period={g.period}: longer than the run (learner.epochs="
+                          f"{epochs}), so the body never reaches its end size; choose a period "
+                          "of at most learner.epochs")
+
+
 def check_keys(cfg) -> None:
     """Refuse a top-level key the schema does not know (`+foo=1` is composed without a word)."""
     known = {f.name for f in dataclasses.fields(Config)}

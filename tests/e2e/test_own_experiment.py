@@ -84,7 +84,7 @@ def test_the_same_trial_under_two_figures_is_computed_once(tmp_path, compose_tin
 @pytest.mark.parametrize("launcher", ["basic", "joblib"])
 def test_every_documented_launcher_runs_uncached_trials(tmp_path, launcher):
     r = run_cli("pipeline.simulate", "-m", *tiny_overrides(
-        tmp_path, "growth.period=10,100", "trials.count=2", "workers=2",
+        tmp_path, "growth.period=10,20", "trials.count=2", "workers=2",
         f"hydra/launcher={launcher}"))
     assert r.returncode == 0, r.stderr
     assert r.stderr.count("2 run, 0 failed") == 2, r.stderr

@@ -35,12 +35,12 @@ def _sweep(root, *overrides):
 
 
 def test_two_sweeps_of_one_figure_in_one_second_keep_their_own_groups(tmp_path):
-    _sweep(tmp_path, "growth.period=10,100")
-    _sweep(tmp_path, "growth.period=20,200")
+    _sweep(tmp_path, "growth.period=10,20")  # within the run's 30 epochs
+    _sweep(tmp_path, "growth.period=15,25")
     cache_dir = tmp_path / "outputs/smoke/cache"
     trials, problems = figure_trials(cache_dir, "custom")
     # the later sweep makes the figure alone: its two conditions, not the four of both sweeps
-    assert sorted({t["condition"] for t in trials}) == ["TG20", "TG200"] and problems == []
+    assert sorted({t["condition"] for t in trials}) == ["TG15", "TG25"] and problems == []
     groups = [p for p in (cache_dir / cache.PLANS / "custom").iterdir() if p.is_dir()]
     assert len(groups) == 2
     assert sorted(len(list(g.glob("*.json"))) for g in groups) == [2, 2]  # two jobs each
