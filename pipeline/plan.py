@@ -533,6 +533,11 @@ def plan_conditions(trials: list[dict]) -> list[dict]:
     return list(out.values())
 
 
+# CPU seconds per unit of cost(): Goal Babbling's fast path on arm5, the unit of the cost model
+# (`python -m pipeline.tools.bench_costs`, its first row, in ns)
+SECONDS_PER_COST = 1.9e-9
+
+
 def cost(trial: dict) -> float:
     """Rough relative run time of a trial: samples per epoch x joints x epochs x the learner's
     cost per sample and joint (its sample_cost; 1 for a learner without one)."""

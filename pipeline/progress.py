@@ -22,6 +22,30 @@ def fmt_duration(seconds: float) -> str:
     return f"{h}h{rest // 60:02d}m{rest % 60:02d}s" if h else f"{rest // 60}m{rest % 60:02d}s"
 
 
+ESTIMATE_ABOVE_S = 60.0  # a run estimated to take longer than this says so before it starts
+
+
+def estimate(trials: list[dict], workers: int, costs: dict | None = None) -> str | None:
+    """One line before a run longer than ESTIMATE_ABOVE_S of CPU: its trials, their epochs and
+    the CPU time the cost model gives (pipeline.plan.cost x SECONDS_PER_COST: calibrated on Goal
+    Babbling's fast path; startup, compilation and the other stages not counted), and the wall
+    time on `workers`; None for a shorter run."""
+    from .plan import SECONDS_PER_COST, cost
+
+    if not trials:
+        return None
+    cpu = SECONDS_PER_COST * sum((costs or {}).get(t["key"]) or cost(t) for t in trials)
+    if cpu <= ESTIMATE_ABOVE_S:
+        return None
+    epochs = sorted({int(t["spec"]["epochs"]) for t in trials})
+    span = f"{epochs[0]:,}" if len(epochs) == 1 else f"{epochs[0]:,} to {epochs[-1]:,}"
+    workers = max(1, min(workers, len(trials)))
+    return (f"estimate: {len(trials):,} trials of {span} epochs, about "
+            f"{fmt_duration(cpu)} of CPU time (the cost model, pipeline.plan.cost), so about "
+            f"{fmt_duration(cpu / workers)} on {workers} worker(s) with a core each; "
+            "Ctrl-C stops it, and the same command resumes")
+
+
 class Progress:
     """done/total, elapsed and ETA (by the trials' estimated cost), one line per finished trial,
     and a heartbeat line after `heartbeat_s` without one. `summary` is pipeline.simulate's
@@ -89,3 +113,21 @@ class Progress:
         if self.open_line:  # a heartbeat on a terminal ends without a newline
             self.stream.write("\n")
             self.stream.flush()
+
+
+class Steps:
+    """A line per step of a stage that has no trials to count (the report's sections, one
+    figure's curves): `[report] 3/9 readings | elapsed 0m41s`, so a stage of minutes is never
+    silent. Plain lines to stderr."""
+
+    def __init__(self, stage: str, total: int, stream=None):
+        self.stage, self.total, self.done = stage, total, 0
+        self.stream = stream or sys.stderr
+        self.start = time.perf_counter()
+
+    def __call__(self, what: str) -> None:
+        self.done += 1
+        self.stream.write(f"[{self.stage}] {self.done}/{self.total} {what} | elapsed "
+                          f"{fmt_duration(time.perf_counter() - self.start)}\n")
+        self.stream.flush()
+

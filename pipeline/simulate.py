@@ -27,7 +27,7 @@ from . import cache, cli, execute, io
 from .config import check_backend
 from .plan import (PLANNED, check_run, code_fingerprint, cost, misplanned, plan,
                    plan_conditions, plan_digest)
-from .progress import Progress
+from .progress import Progress, estimate
 
 log = logging.getLogger("pipeline.simulate")
 WAIT_POLL_S = 2.0
@@ -220,6 +220,9 @@ def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = Non
              summary.cached, len(mine), workers,
              f", {len(elsewhere)} being computed by another run" if elsewhere else "")
     progress = Progress(summary, todo)  # a heartbeat line when nothing finishes for a while
+    ahead = estimate(mine, workers, progress.costs)  # a long run says what it costs first
+    if ahead:
+        print(f"[{figure}] {ahead}", file=sys.stderr, flush=True)
     try:
         if mine:
             execute.warm_up(mine)

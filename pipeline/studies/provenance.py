@@ -22,14 +22,12 @@ from importlib import metadata
 from pathlib import Path
 
 from ..config import REPO_ROOT
+from ..plan import SECONDS_PER_COST  # CPU seconds per unit of pipeline.plan.cost
 from .sections import Context, register
 
 PACKAGES = ("numpy", "numba", "scipy", "pandas", "pyarrow", "matplotlib", "hydra-core",
             "omegaconf")
 LOCK = REPO_ROOT / "requirements.lock"
-# CPU seconds per unit of pipeline.plan.cost: Goal Babbling's fast path on arm5, the unit of the
-# cost model (`python -m pipeline.tools.bench_costs`, its first row, in ns)
-SECONDS_PER_COST = 1.9e-9
 # Third-party robot models a report may use: body name -> (what, source, licence)
 CREDITS = {
     "icub_urdf": ("the iCub's URDF (model iCubLisboa01)", "robotology/icub-models, PyPI "

@@ -79,11 +79,14 @@ class Context:
         return paths
 
 
-def run(ctx: Context) -> list[str]:
-    """Every registered section in its place: the report's Markdown lines."""
+def run(ctx: Context, step=None) -> list[str]:
+    """Every registered section in its place: the report's Markdown lines. `step(name)`, if
+    given, is called before each section of a study the report holds (a progress line)."""
     _load()
     md = []
-    for _, section in sorted(SECTIONS.values(), key=lambda s: s[0]):
+    for study, (_, section) in sorted(SECTIONS.items(), key=lambda s: s[1][0]):
+        if step is not None and study in ctx.groups:
+            step(f"{study}: {', '.join(ctx.groups[study])}")
         md += section(ctx)
     return md
 

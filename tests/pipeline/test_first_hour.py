@@ -48,3 +48,29 @@ def test_help_lists_only_what_a_user_chooses(stage):
     assert "learner: example_memory, goal_babbling, motor_babbling, online_goal_babbling" in groups
     assert "_schema" not in groups and "body_learner:" not in groups
     assert "body: arm2, arm5" in groups and "experiment: " in groups
+
+
+def test_a_run_longer_than_a_minute_says_what_it_costs_first():
+    from pipeline.config import compose
+    from pipeline.plan import plan
+    from pipeline.progress import estimate
+
+    long = plan(compose(["experiment=fig4", "trials.count=10"]))  # 100,000 epochs each: ~2 min
+    line = estimate(long, 2)
+    assert line and line.startswith(f"estimate: {len(long)} trials of 100,000 epochs, about "), line
+    assert "CPU time" in line and "on 2 worker(s)" in line
+    assert estimate(plan(compose(["profile=smoke", "trials.count=1"])), 2) is None  # seconds
+
+
+def test_the_report_stage_prints_a_line_per_section():
+    import io
+
+    from pipeline.progress import Steps
+
+    out = io.StringIO()
+    step = Steps("report", 2, stream=out)
+    step("figures: fig4")
+    step("readings: readings_fig4")
+    lines = out.getvalue().splitlines()
+    assert lines[0].startswith("[report] 1/2 figures: fig4 | elapsed 0m0")
+    assert lines[1].startswith("[report] 2/2 readings: readings_fig4 | elapsed")
