@@ -32,7 +32,10 @@ from .plan import (check_run, checked_marker, condition_labels, mark_checked, pl
 _FLAGS_WITH_VALUE = {"--cfg", "-c", "--config-path", "-cp", "--config-name", "-cn",
                      "--config-dir", "-cd", "--package", "-p", "--info", "-i",
                      "--experimental-rerun"}
-_MAX_COMBINATIONS = 256  # a sweep larger than this is checked on its first combinations only
+# a sweep's jobs composed and planned up front: the first job, then each other value of each
+# swept key in turn (the others at their first), at most this many (each compose takes about a
+# second); every value of a swept key with a declared range (config.declared) is checked by it
+_MAX_COMBINATIONS = 8
 MAX_SWEEP_JOBS = 10_000  # jobs of one multirun: each is a Hydra job with its own folder
 
 
@@ -143,7 +146,7 @@ def check(argv: list[str]) -> str | None:
         if o.is_hydra_override() and o.is_sweep_override():
             return (f"{o.input_line}: Hydra's own settings take one value per command; "
                     "sweep the stage's keys only")
-    choices = []
+    choices, sweeps = [], []
     for o in parsed:
         if o.is_hydra_override():
             if o.get_key_element() == "hydra.searchpath":  # where config groups (a body) live
@@ -157,13 +160,14 @@ def check(argv: list[str]) -> str | None:
                 return f"{o.input_line}: a sweep over several values needs -m (--multirun)"
             choices.append(itertools.islice(o.sweep_string_iterator(), _MAX_COMBINATIONS))
             choices[-1] = [f"{o.get_key_element()}={v}" for v in choices[-1]]
+            sweeps.append(o)
         else:
             choices.append([o.input_line])
     hydra_own = [o.input_line for o in parsed if o.is_hydra_override()
                  and o.get_key_element() != "hydra.searchpath"]
     planned, notes = {}, []
     n_jobs = math.prod(len(c) for c in choices)
-    for n, combination in enumerate(itertools.islice(itertools.product(*choices),
+    for n, combination in enumerate(itertools.islice(_one_at_a_time(choices),
                                                      _MAX_COMBINATIONS)):
         try:  # values too: every sweep job is checked up front
             cfg = compose(list(combination))
@@ -176,6 +180,7 @@ def check(argv: list[str]) -> str | None:
                 check_hydra(compose(list(combination) + hydra_own, hydra=True))
             if n == 0:
                 check_experiments(cfg, list(combination))
+                check_sweep_values(sweeps, cfg)
             check_keys(cfg)
             notes += [n for n in config_notes(cfg) if n not in notes]
             if known:
@@ -200,6 +205,50 @@ def check(argv: list[str]) -> str | None:
     for note in notes:
         print(note, file=sys.stderr)
     return None
+
+
+def _one_at_a_time(choices: list[list[str]]):
+    """The first combination, then each other value of each choice with the rest at their
+    first: every value is in some combination (the product's first ones hold one value of the
+    first key only)."""
+    first = [c[0] for c in choices]
+    yield tuple(first)
+    for i, c in enumerate(choices):
+        for v in c[1:]:
+            yield tuple(first[:i] + [v] + first[i + 1:])
+
+
+def _sweep_values(o):
+    """The typed values of sweep override `o`, lazily (a range's numbers are computed)."""
+    from hydra.core.override_parser.types import ChoiceSweep, RangeSweep
+
+    v = o.value()
+    if isinstance(v, RangeSweep):
+        x = v.start
+        while (x < v.stop) if v.step > 0 else (x > v.stop):
+            yield x
+            x += v.step
+    elif isinstance(v, ChoiceSweep):
+        yield from v.list
+
+
+def check_sweep_values(sweeps, cfg) -> None:
+    """ConfigError for the first value of a sweep outside its key's declared range
+    (config.declared): every job's value is checked, not only the composed ones'."""
+    from .config import declared
+
+    groups = {o.get_key_element() for o in sweeps}
+    for o in sweeps:
+        key = o.get_key_element().lstrip("+~")
+        if key.split(".")[0] in groups:  # swept with its group (learner=a,b): a range each
+            continue
+        constraint = declared(key, cfg)
+        if constraint is None:
+            continue
+        for value in _sweep_values(o):
+            if not constraint.ok(value):
+                raise ConfigError(f"{key}={value!r} (a value of the sweep {o.input_line}): "
+                                  f"must be {constraint.describe()}")
 
 
 # Overrides that leave an experiment's conditions as they are (where, how and how many)

@@ -311,6 +311,26 @@ RANGES = {"aggregate.fail_factor": Number(1.0, 1e3, lo_open=True),  # x the medi
           **{f"growth.{k}": growth_limits[k] for k in ("start_size", "end_size", "fixed_scale")}}
 
 
+def declared(key: str, cfg):
+    """The declared range of a config key (a gbmodel.spec constraint), or None: RANGES, the
+    limits of growth (gbmodel.growth.LIMITS), of the config's learner (its LIMITS) and the
+    counts of check_limits."""
+    section, _, name = key.partition(".")
+    if key in RANGES:
+        return RANGES[key]
+    if section == "growth":
+        return growth_limits.get(name)
+    if section == "learner":
+        if name == "epochs":
+            return Int(1, MAX_EPOCHS)
+        learner = OmegaConf.select(cfg, "learner.name", default=None)
+        if learner in gbmodel.learners.available():
+            return getattr(gbmodel.learners.get(learner), "LIMITS", {}).get(name)
+    if key == "trials.count":
+        return Int(1, MAX_TRIALS)
+    return None
+
+
 def check_ranges(cfg) -> None:
     """Refuse (one line naming the key and its range) a value outside RANGES."""
     for key, constraint in RANGES.items():

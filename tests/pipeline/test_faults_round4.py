@@ -453,3 +453,59 @@ def test_r6_an_aggregate_models_json_is_checked_against_its_manifest(tmp_path):
         models.load("f2", agg)
     assert "pipeline.aggregate figure=f2" in str(err.value)
     shutil.rmtree(tmp_path / "outputs")
+
+
+# ---- large but allowed inputs ----------------------------------------------------------------------
+def test_large_a_10000_job_sweep_is_checked_in_a_few_composes(tmp_path, monkeypatch):
+    from pipeline import cli, config
+    composed, real = [], config.compose
+
+    def counting(overrides=(), hydra=False):
+        composed.append(list(overrides))
+        return real(overrides, hydra)
+
+    monkeypatch.setattr(cli, "compose", counting)
+    args = ["-m", "growth.period=range(1,10001)", "figure=bi", "learner.epochs=20",
+            "trials.count=1", "workers=1", f"paths.root={tmp_path}"]
+    assert cli.check(args) is None
+    assert len(composed) <= cli._MAX_COMBINATIONS + 1  # (+1: Hydra's own section, once)
+    # Hydra composes each batch before launching it: batches of a few jobs, not all 10,000
+    assert real(["paths.root=/"], hydra=True).hydra.sweeper.max_batch_size <= 16
+
+
+@pytest.mark.parametrize("sweep, says", [
+    ("learner.ridge=1e-3,1e-2,0.1,1,10,100,1000,1e4,1e5,1e6,1e7",
+     "learner.ridge=10000000.0 (a value of the sweep"),
+    ("growth.period=range(0,10000000000000000000000,1000000000000000000)", "growth.period="),
+])
+def test_large_every_value_of_a_sweep_is_checked_against_its_range(tmp_path, sweep, says):
+    from pipeline import cli
+    out = cli.check(["-m", sweep, "figure=bi", "learner.epochs=20", "trials.count=1",
+                     f"paths.root={tmp_path}"])
+    assert out is not None and says in out and "\n" not in out, out
+
+
+def test_large_the_aggregate_index_holds_signatures_and_the_rest_is_identical(tmp_path):
+    """aggregate/<figure>/index.parquet records each trial file's signature (size, inode,
+    modification and change time: what the next aggregate compares to read only what changed),
+    so it differs between identical runs by design; every other file of the set, and the
+    index's other columns, are the same bytes (docs/faults.md)."""
+    import pyarrow.parquet as pq
+
+    from pipeline import aggregate, io, simulate
+    from pipeline.config import compose
+    sets = []
+    for run in ("a", "b"):
+        cfg = compose(["experiment=fig2", "figure=f2", "profile=smoke", "learner.epochs=30",
+                       "trials.count=2", "workers=1", f"paths.root={tmp_path / run}"])
+        simulate.simulate(cfg)
+        assert aggregate.aggregate(cfg) == []
+        sets.append(io.set_of(tmp_path / run / "outputs/smoke/aggregate/f2"))
+    names = sorted(p.name for p in sets[0].iterdir())
+    assert names == sorted(p.name for p in sets[1].iterdir())
+    for name in names:
+        if name == aggregate.INDEX:
+            a, b = (pq.read_table(s / name).drop(["signature"]) for s in sets)
+            assert a.equals(b)
+        else:
+            assert (sets[0] / name).read_bytes() == (sets[1] / name).read_bytes(), name
