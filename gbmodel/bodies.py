@@ -47,6 +47,10 @@ class Body:
     # fixed 3x4 transform, then a rotation about local z; the tool point in the last frame
     frames: np.ndarray | None = None  # (m, 3, 4)
     tool: np.ndarray | None = None  # (3,)
+    # or a body in the loop (gbmodel/body_loop.py): a Python forward function, its segments'
+    # lengths (what growth patterns weigh)
+    loop: Any = None  # body_loop.Forward
+    lengths: np.ndarray | None = None  # (m,)
     _cos_alpha: np.ndarray = field(init=False, repr=False)
     _sin_alpha: np.ndarray = field(init=False, repr=False)
 
@@ -66,7 +70,10 @@ class Body:
     @property
     def segment_lengths(self) -> np.ndarray:
         """Full length of each segment (m,): what growth scales. DH: hypot(a_i, d_i); a general
-        chain: the translation after joint i (to the next joint, or to the tool)."""
+        chain: the translation after joint i (to the next joint, or to the tool); a body in the
+        loop: its description's `callable.lengths`."""
+        if self.loop is not None:
+            return self.lengths
         if not self.general:
             return np.hypot(self.a, self.d)
         after = np.vstack([self.frames[1:, :, 3], self.tool[None]])
@@ -103,6 +110,10 @@ class Body:
     def chain(self, factors=None) -> dict:
         """Arrays describing the DH chain with per-segment length factors `factors` (m,):
         a, d, cos/sin alpha, base. DH chains only."""
+        if self.loop is not None:
+            raise ValueError(f"body {self.name!r} is a body in the loop (a Python forward "
+                             "function): only the numpy reference path takes it "
+                             "(learner.fast=false)")
         if self.general:
             raise ValueError(f"body {self.name!r} is a general (URDF) chain, not DH rows: this "
                              "learner or kernel takes DH chains only so far")
@@ -119,6 +130,11 @@ class Body:
         q = np.asarray(q, dtype=np.float64)
         if q.shape[-1] != self.m:
             raise ValueError(f"{self.name} takes {self.m} joint commands, got shape {q.shape}")
+        if self.loop is not None:
+            from .body_loop import positions
+
+            p = positions(self.loop, self.joint_angles(q), self._factors(factors), self.name)
+            return p[..., list(self.outputs)]
         if self.general:
             p = chain_position(self.joint_angles(q), self.frames, self.tool,
                                self._factors(factors))
@@ -129,9 +145,14 @@ class Body:
     def frame_points(self, q: np.ndarray, factors=None) -> np.ndarray:
         """Root-frame points (m + 1, 3) for command q (m,), base to hand: every joint's origin,
         then the hand (the tool point, all three coordinates of what forward returns), as
-        robotics-toolbox's fkine_all. For drawing a posture."""
+        robotics-toolbox's fkine_all. For drawing a posture. A body in the loop: the hand only
+        (1, 3), its joints' places are not known."""
         theta = self.joint_angles(np.asarray(q, float))
         k = self._factors(factors)
+        if self.loop is not None:
+            from .body_loop import positions
+
+            return positions(self.loop, theta[None], k, self.name)
         if self.general:
             joints = [chain_position(theta[:j], self.frames[:j], self.frames[j][:, 3], k[:j])
                       for j in range(1, self.m)]
@@ -203,6 +224,8 @@ class Description:
     units: str = "rad"  # rad | deg: of alpha, theta offset and limits
     dh: Optional[list[Any]] = None  # per joint (a [m], d [m], alpha, theta offset)
     urdf: Optional[dict[str, Any]] = None  # or a URDF's chain: {file, root, tip, joints, hold}
+    mjcf: Optional[dict[str, Any]] = None  # or an MJCF model's: {file, root, tip, joints, hold}
+    callable: Optional[dict[str, Any]] = None  # or a forward function: {factory, args, ...}
     base: list[Any] = field(default_factory=lambda: [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0],
                                                      [0.0, 0.0, 1.0, 0.0]])
     hand: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
@@ -216,6 +239,7 @@ class Description:
 
 
 FIELDS = tuple(f.name for f in fields(Description))
+CHAINS = ("dh", "urdf", "mjcf", "callable")  # the fields of which a body gives exactly one
 UNITS = {"rad": 1.0, "deg": None}  # deg: np.deg2rad (the same bits as the tables' conversion)
 SHIPPED = Path(__file__).resolve().parents[1] / "conf" / "body"  # the shipped descriptions
 
@@ -291,13 +315,21 @@ def body_from(desc: dict) -> Body:
     angle = np.deg2rad if units == "deg" else (lambda x: x)
     base = _matrix(desc, "base", 3, 4, np.hstack([np.eye(3), np.zeros((3, 1))]).tolist())
     hand = _matrix(desc, "hand", 3, None, [0.0, 0.0, 0.0])
-    if (desc.get("dh") is None) == (desc.get("urdf") is None):
-        raise _bad("dh", desc.get("dh"), "a body needs its chain, one of: dh rows (a, d, alpha, "
-                   "theta offset), or urdf: {file, root, tip}")
-    general = {}
-    if desc.get("urdf") is not None:
-        general, urdf_limits = _urdf_chain(desc["urdf"], base, hand)
+    chains = [k for k in CHAINS if desc.get(k) is not None]
+    if len(chains) != 1:
+        raise _bad(chains[1] if chains else "dh", desc.get(chains[1] if chains else "dh"),
+                   "a body needs its chain, one of: dh rows (a, d, alpha, theta offset), "
+                   "urdf: {file, root, tip}, mjcf: {file, root, tip} or callable: {factory}")
+    general, loop = {}, {}
+    if chains[0] in ("urdf", "mjcf"):
+        general, urdf_limits = _file_chain(chains[0], desc[chains[0]], base, hand)
         m = len(general["frames"])
+        dh = np.zeros((m, 4))
+    elif chains[0] == "callable":
+        m = len(_matrix(desc, "home", None, None))  # a function's joints: home's length
+        if m < 1:
+            raise _bad("home", desc["home"], "needs at least one joint")
+        loop = _loop(desc["callable"], m, base, hand)
         dh = np.zeros((m, 4))
     else:
         dh = _matrix(desc, "dh", None, 4)
@@ -320,8 +352,8 @@ def body_from(desc: dict) -> Body:
             limits = urdf_limits  # the URDF's own [[lower, upper]] [rad]
         elif desc.get("limits") is None:
             raise _bad("limits", None, "normalise: true maps commands onto the joint limits; "
-                       "give [min, max] per joint" + (" (the URDF has none for some joints)"
-                                                      if general else ""))
+                       "give [min, max] per joint" + (f" (the {chains[0].upper()} has none for "
+                                                      "some joints)" if general else ""))
         else:
             limits = angle(_matrix(desc, "limits", m, 2))
         if np.any(limits[:, 1] <= limits[:, 0]):
@@ -352,23 +384,62 @@ def body_from(desc: dict) -> Body:
         name=name, a=dh[:, 0].copy(), d=dh[:, 1].copy(), alpha=angle(dh[:, 2]),
         theta_offset=angle(dh[:, 3]), base=base, outputs=tuple(int(k) for k in outputs),
         home=home, targets=targets, growing=np.asarray(grows, bool), q_min=q_min, q_max=q_max,
-        saturates=saturate, description=str(desc.get("description", "")), **general,
+        saturates=saturate, description=str(desc.get("description", "")), **general, **loop,
     )
 
 
-def _urdf_chain(urdf, base, hand) -> tuple[dict, np.ndarray]:
-    """(frames, tool) of the URDF chain with `base` before it and the hand point `hand` (in the
-    tip link's frame) as the tool, and the URDF's limits [rad]."""
-    from .urdf import read_chain
+def _file_chain(kind, section, base, hand) -> tuple[dict, np.ndarray]:
+    """(frames, tool) of the URDF's or MJCF model's chain (kind: urdf, mjcf) with `base` before
+    it and the hand point `hand` (in the tip's frame) as the tool, and the file's limits [rad]."""
+    from . import mjcf, urdf
 
     keys = ("file", "root", "tip", "joints", "hold", "sha256")
-    if not isinstance(urdf, dict) or not {"file", "root", "tip"} <= set(urdf) <= set(keys):
-        raise _bad("urdf", urdf, "needs file, root, tip (and optionally joints, hold, sha256)")
-    chain = read_chain(**urdf)
+    if not isinstance(section, dict) or not {"file", "root", "tip"} <= set(section) <= set(keys):
+        raise _bad(kind, section, "needs file, root, tip (and optionally joints, hold, sha256)")
+    chain = {"urdf": urdf, "mjcf": mjcf}[kind].read_chain(**section)
     frames = chain["frames"].copy()
     frames[0] = base[:, :3] @ frames[0] + np.hstack([np.zeros((3, 3)), base[:, 3:]])
     tool = chain["tool"] + chain["rest"] @ hand
     return dict(frames=frames, tool=tool), chain["limits"]
+
+
+def _loop(section, m, base, hand) -> dict:
+    """A body in the loop's forward function and segment lengths (gbmodel/body_loop.py)."""
+    from . import body_loop
+
+    body_loop.check(section)
+    if np.any(hand != 0) or not np.array_equal(base, np.hstack([np.eye(3), np.zeros((3, 1))])):
+        raise _bad("hand", hand.tolist(), "a body in the loop's positions are its function's: "
+                   "leave base and hand at their defaults")
+    given = section.get("lengths")
+    try:
+        lengths = np.ones(m) if given is None else np.asarray(given, np.float64)
+    except (TypeError, ValueError):
+        lengths = np.full(1, np.nan)
+    if (lengths.shape != (m,) or not np.all((lengths >= 0) & (lengths <= MAX_MAGNITUDE))
+            or not lengths.sum() > 0):
+        raise _bad("callable.lengths", given, f"needs {m} lengths [m] (one per joint of home) "
+                   f"within [0, {MAX_MAGNITUDE:g}], not all 0")
+    return dict(loop=body_loop.load(section), lengths=lengths)
+
+
+READS = ("urdf", "mjcf", "callable")  # the sections whose source_digest joins the cache key
+
+
+def source_digest(section: str, value) -> str | None:
+    """The SHA-256 of what a body's `section` (one of READS) reads beyond its description (a
+    file's bytes, an MJCF's includes, a function's source): the part of a trial's cache key that
+    planning adds as `<section>.sha256`. None when the section reads nothing (absent, or missing
+    the key naming what it reads)."""
+    from . import body_loop, mjcf, urdf
+
+    if not isinstance(value, dict):
+        return None
+    if section in ("urdf", "mjcf") and "file" in value:
+        return {"urdf": urdf, "mjcf": mjcf}[section].digest(value["file"])
+    if section == "callable" and "factory" in value:
+        return body_loop.digest(value)
+    return None
 
 
 def make_body(description: str | dict | None = None, **fields) -> Body:
@@ -380,7 +451,7 @@ def make_body(description: str | dict | None = None, **fields) -> Body:
     Raises ValueError naming the bad field as `body.<field>`."""
     desc = {"name": description} if isinstance(description, str) else dict(description or {})
     desc.update(fields)
-    if "dh" not in desc and "urdf" not in desc:
+    if not any(k in desc for k in CHAINS):
         given = {k: v for k, v in desc.items() if v is not None}
         desc = {**read_description(desc.get("name")), **given}
     return body_from(desc)

@@ -35,51 +35,57 @@ MAX_BYTES = 16 * 2**20  # a URDF's size: the largest robot descriptions are a fe
 MAX_MAGNITUDE = 1e3  # |origin|, |rpy|, |limit|, |held angle|: metres and radians
 
 
-def _bad(key, value, why):
-    return ValueError(f"body.urdf.{key}={value!r}: {why}")
+def _bad(key, value, why, kind="urdf"):
+    return ValueError(f"body.{kind}.{key}={value!r}: {why}")
 
 
-def resolve(file) -> Path:
+def resolve(file, kind="urdf") -> Path:
     """The URDF's path: a path, or {package: <distribution>, path: <end of a file's path in it>}
-    for a file that an installed package holds (e.g. icub-models' robots)."""
+    for a file that an installed package holds (e.g. icub-models' robots). kind: the body's
+    section that names the file in errors (urdf, mjcf)."""
     if isinstance(file, dict):
         package, tail = file.get("package"), file.get("path")
         if set(file) != {"package", "path"} or not isinstance(tail, str):
-            raise _bad("file", file, "give a path, or {package, path}")
+            raise _bad("file", file, "give a path, or {package, path}", kind=kind)
         try:
             dist = importlib.metadata.distribution(package)
         except (importlib.metadata.PackageNotFoundError, ValueError, TypeError):
-            raise _bad("file", file, f"package {package!r} is not installed") from None
+            raise _bad("file", file, f"package {package!r} is not installed",
+                       kind=kind) from None
         hits = [f for f in dist.files or () if f.as_posix().endswith(tail.lstrip("/"))]
         if len(hits) != 1:
-            raise _bad("file", file, f"{len(hits)} files of {package} end with {tail!r}")
+            raise _bad("file", file, f"{len(hits)} files of {package} end with {tail!r}",
+                       kind=kind)
         return Path(dist.locate_file(hits[0])).resolve()
     if not isinstance(file, str) or not file:
-        raise _bad("file", file, "give a path, or {package, path}")
+        raise _bad("file", file, "give a path, or {package, path}", kind=kind)
     return Path(file).expanduser()
 
 
-def read_bytes(file) -> bytes:
+def read_bytes(file, kind="urdf") -> bytes:
     """The bytes of the URDF `file` (a path or {package, path}): a regular file of at most
-    MAX_BYTES, else ValueError naming body.urdf.file."""
-    path = resolve(file)
+    MAX_BYTES, else ValueError naming body.urdf.file (body.<kind>.file)."""
+    path = resolve(file, kind)
+    what = kind.upper()
     try:
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)  # a FIFO: opened, never waited on
     except OSError as err:
-        raise _bad("file", str(file), f"cannot read the URDF: {err.strerror}") from None
+        raise _bad("file", str(file), f"cannot read the {what}: {err.strerror}",
+                   kind=kind) from None
     try:
         info = os.fstat(fd)
         if not stat.S_ISREG(info.st_mode):
-            raise _bad("file", str(file), "not a regular file (a FIFO, device or folder)")
+            raise _bad("file", str(file), "not a regular file (a FIFO, device or folder)",
+                       kind=kind)
         if info.st_size > MAX_BYTES:
-            raise _bad("file", str(file), f"{info.st_size:,} bytes; a URDF is at most "
-                       f"{MAX_BYTES:,}")
+            raise _bad("file", str(file), f"{info.st_size:,} bytes; a {what} is at most "
+                       f"{MAX_BYTES:,}", kind=kind)
         with os.fdopen(os.dup(fd), "rb") as fh:
             data = fh.read(MAX_BYTES + 1)
     finally:
         os.close(fd)
     if len(data) > MAX_BYTES:
-        raise _bad("file", str(file), f"more than {MAX_BYTES:,} bytes")
+        raise _bad("file", str(file), f"more than {MAX_BYTES:,} bytes", kind=kind)
     return data
 
 
@@ -125,6 +131,30 @@ def _rot_axis(axis, angle) -> np.ndarray:
     return R @ np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]]) @ R.T
 
 
+def chosen(movable, joints, hold, what, kind="urdf") -> tuple[list, dict]:
+    """The commanded joints (default: every movable one of the chain, in chain order) and the
+    held ones' angles, checked: distinct joints of the chain in chain order, held joints that
+    are the chain's other movable ones, finite angles. what: the joints' kind, in errors."""
+    joints = list(movable if joints is None else joints)
+    unknown = [n for n in joints if n not in movable]
+    if unknown or len(set(joints)) != len(joints) or not joints:
+        raise _bad("joints", joints, f"choose distinct {what} joints of the chain, {movable}",
+                   kind=kind)
+    if [n for n in movable if n in joints] != joints:
+        order = [n for n in movable if n in joints]
+        raise _bad("joints", joints, f"name them in chain order, {order}", kind=kind)
+    hold = dict(hold or {})
+    extra = sorted(map(str, set(hold) - (set(movable) - set(joints))))
+    if extra:
+        raise _bad("hold", hold, f"{extra} are not held joints of the chain", kind=kind)
+    for name, angle in hold.items():
+        if (isinstance(angle, bool) or not isinstance(angle, (int, float))
+                or not abs(angle) <= MAX_MAGNITUDE):
+            raise _bad(f"hold.{name}", angle, f"a finite angle [rad] within +-{MAX_MAGNITUDE:g}",
+                       kind=kind)
+    return joints, hold
+
+
 def read_chain(file, root: str, tip: str, joints=None, hold=None, sha256=None) -> dict:
     """The chain from link `root` to link `tip` of a URDF: dict(frames (m, 3, 4), tool (3,),
     names (m,), limits (m, 2) [rad], NaN where the URDF gives none). joints: the commanded
@@ -164,21 +194,7 @@ def read_chain(file, root: str, tip: str, joints=None, hold=None, sha256=None) -
         if j.get("type") not in REVOLUTE + ("fixed",):
             raise _bad("root", root, f"joint {j.get('name')!r} on the chain is "
                        f"{j.get('type')}: only revolute, continuous and fixed joints are taken")
-    joints = list(movable if joints is None else joints)
-    unknown = [n for n in joints if n not in movable]
-    if unknown or len(set(joints)) != len(joints) or not joints:
-        raise _bad("joints", joints, f"choose distinct revolute joints of the chain, {movable}")
-    if [n for n in movable if n in joints] != joints:
-        order = [n for n in movable if n in joints]
-        raise _bad("joints", joints, f"name them in chain order, {order}")
-    hold = dict(hold or {})
-    extra = sorted(set(hold) - (set(movable) - set(joints)))
-    if extra:
-        raise _bad("hold", hold, f"{extra} are not held joints of the chain")
-    for name, angle in hold.items():
-        if (isinstance(angle, bool) or not isinstance(angle, (int, float))
-                or not abs(angle) <= MAX_MAGNITUDE):
-            raise _bad(f"hold.{name}", angle, f"a finite angle [rad] within +-{MAX_MAGNITUDE:g}")
+    joints, hold = chosen(movable, joints, hold, "revolute")
     T = np.eye(4)
     frames, limits = [], []
     for j in chain:

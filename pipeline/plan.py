@@ -24,7 +24,6 @@ import numpy as np
 
 import gbmodel
 import gbmodel.bodies
-import gbmodel.urdf
 from gbmodel.spec import check_int
 from omegaconf import DictConfig, OmegaConf
 
@@ -186,14 +185,16 @@ def trial_spec(cfg: DictConfig, growth: dict) -> gbmodel.TrialSpec:
 
 def body_content(body: dict) -> dict:
     """The body's description with the SHA-256 of every file it reads (a URDF's bytes, as
-    `urdf.sha256`): an edited file is another body, so its trials get other keys."""
-    urdf = body.get("urdf")
-    if isinstance(urdf, dict) and "file" in urdf:
+    `urdf.sha256`; an MJCF model's and its includes'; a body in the loop's function source and
+    files, gbmodel.bodies.source_digest): an edited file is another body, so its trials get
+    other keys."""
+    for section in gbmodel.bodies.READS:
         try:
-            sha = gbmodel.urdf.digest(urdf["file"])
+            sha = gbmodel.bodies.source_digest(section, body.get(section))
         except ValueError as err:
             raise ConfigError(str(err)) from None
-        body = {**body, "urdf": {**urdf, "sha256": sha}}
+        if sha is not None:
+            body = {**body, section: {**body[section], "sha256": sha}}
     return body
 
 
@@ -251,16 +252,21 @@ def checked_marker(cfg: DictConfig, overrides) -> Path | None:
     return Path(cfg.paths.out) / PLANNED / "checked" / f"{digest}.json"
 
 
-def _body_files(trials: list[dict]) -> list[list[str]]:
-    """(file, sha256) of every file the trials' bodies read (a URDF: outside plan_digest)."""
+def _body_files(trials: list[dict]) -> list[list]:
+    """(section, its description, sha256) of every file the trials' bodies read (a URDF, an MJCF
+    model, a body in the loop's function: outside plan_digest)."""
     seen, out = set(), []
     for t in trials:
         if id(t["spec"]) in seen:
             continue
         seen.add(id(t["spec"]))
-        urdf = t["spec"]["body"].get("urdf")
-        if isinstance(urdf, dict) and "file" in urdf and [urdf["file"], urdf.get("sha256")] not in out:
-            out.append([urdf["file"], urdf.get("sha256")])
+        for section in gbmodel.bodies.READS:
+            value = t["spec"]["body"].get(section)
+            if isinstance(value, dict) and "sha256" in value:
+                entry = [section, {k: v for k, v in value.items() if k != "sha256"},
+                         value["sha256"]]
+                if entry not in out:
+                    out.append(entry)
     return out
 
 
@@ -278,7 +284,8 @@ def was_checked(marker: Path | None, root=None) -> bool:
         fd = os.open(marker, os.O_RDONLY | os.O_NOFOLLOW)
         with os.fdopen(fd, "rb") as fh:
             note = json.loads(fh.read())
-        return all(gbmodel.urdf.digest(f) == sha for f, sha in note["body_files"])
+        return all(gbmodel.bodies.source_digest(section, value) == sha
+                   for section, value, sha in note["body_files"])
     except (OSError, ValueError, TypeError, KeyError):
         return False
 

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import gbmodel
-import gbmodel.urdf
+import gbmodel.bodies
 import hydra
 from omegaconf import DictConfig, OmegaConf
 
@@ -130,12 +130,13 @@ def still_planned(saved: dict) -> bool:
     (code_fingerprint: cached per learner, and it refuses a file edited after the import)."""
     specs = saved["specs"]
     for spec in specs:
-        urdf = spec["body"].get("urdf")
-        if isinstance(urdf, dict) and "file" in urdf:
+        for section in gbmodel.bodies.READS:
+            value = spec["body"].get(section)
             try:
-                if gbmodel.urdf.digest(urdf["file"]) != urdf.get("sha256"):
-                    return False
+                sha = gbmodel.bodies.source_digest(section, value)
             except (OSError, ValueError):
+                return False
+            if sha is not None and sha != value.get("sha256"):
                 return False
     codes = {(specs[t["spec"]]["learner"]["name"], t["code"]) for j in saved["jobs"]
              for t in j["trials"]}

@@ -145,12 +145,12 @@ def test_no_limits_with_normalise(tmp_path):
     assert body_from(_desc(path, normalise=False)).m == 4
 
 
-@pytest.mark.parametrize("pattern", ["proportional", "proximal_first"])
-def test_the_fast_kernel_computes_the_urdf_chain(urdf_file, pattern):
-    """The compiled kernel (float32) learns the URDF body as the numpy reference (float64)
-    does, with the same draws: the same curve and M up to float32 rounding."""
+def kernel_learns_as_the_reference(body: dict, pattern: str) -> None:
+    """The compiled kernel (float32) learns the general-chain body as the numpy reference
+    (float64) does, with the same draws: the same curve and M up to float32 rounding (also
+    tests/core/test_bodies_mjcf.py)."""
     def trial(fast):
-        spec = gbmodel.TrialSpec(body=_desc(urdf_file), epochs=20, evals_per_decade=5,
+        spec = gbmodel.TrialSpec(body=body, epochs=20, evals_per_decade=5,
                                  learner={"name": "goal_babbling", "fast": fast},
                                  growth={"pattern": pattern, "start_size": 0.5, "period": 10})
         return gbmodel.run_trial(spec, np.random.default_rng(3))
@@ -158,6 +158,11 @@ def test_the_fast_kernel_computes_the_urdf_chain(urdf_file, pattern):
     np.testing.assert_allclose(fast.abs_error, ref.abs_error, rtol=1e-4, atol=1e-7)
     np.testing.assert_allclose(fast.M, ref.M, rtol=0, atol=1e-5)
     assert not np.array_equal(fast.M, ref.M)  # two paths indeed
+
+
+@pytest.mark.parametrize("pattern", ["proportional", "proximal_first"])
+def test_the_fast_kernel_computes_the_urdf_chain(urdf_file, pattern):
+    kernel_learns_as_the_reference(_desc(urdf_file), pattern)
 
 
 def test_fast_distances_of_a_urdf_body(urdf_file):

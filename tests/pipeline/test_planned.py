@@ -194,7 +194,7 @@ def test_a_changed_body_file_plans_again(tmp_path):
     note = tmp_path / "note.json"
     trials = [{"spec": {"body": {"urdf": {"file": str(body), "sha256": "0" * 64}}}}]
     plan.mark_checked(note, trials)
-    assert json.loads(note.read_text())["body_files"] == [[str(body), "0" * 64]]
+    assert json.loads(note.read_text())["body_files"] == [["urdf", {"file": str(body)}, "0" * 64]]
     assert not plan.was_checked(note)  # the file's bytes are not those it was planned with
     import gbmodel.urdf
 
