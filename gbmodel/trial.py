@@ -68,7 +68,11 @@ class TrialSpec:
         body: this spec's body if the caller built it already (it is then not built again)."""
         body = self.make_body() if body is None else body
         self.make_growth().validate(body)
-        self.make_learner()
+        _, params = self.make_learner()
+        if body.loop is not None and getattr(params, "fast", False):
+            raise SpecError("learner.fast", True, f"body {body.name!r} is a body in the loop (a "
+                            "Python forward function): only the numpy reference path takes it; "
+                            "set learner.fast=false")
         check_epochs("learner.epochs", self.epochs)
         check_int("learner.evals_per_decade", self.evals_per_decade, 1)
         ev = {**evaluation.DEFAULTS, **self.evaluation}

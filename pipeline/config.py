@@ -378,6 +378,12 @@ def config_notes(cfg) -> list[str]:
             and (period or cfg.conditions.periods)):
         notes.append(f"note: growth.start_size={start} > growth.end_size={end} (size factors): "
                      "the body shrinks over the growth period")
+    loop = cfg.body.get("callable") if "body" in cfg else None
+    if loop is not None and loop.get("factory"):
+        notes.append(f"note: body.callable: the cache key holds {loop.factory}, the source of its "
+                     f"module and the files in body.callable.files ({len(loop.get('files') or [])}"
+                     "), not the modules it imports, a simulator's version or a robot's state: "
+                     "change body.callable.version when those change (gbmodel/body_loop.py)")
     return notes
 
 
