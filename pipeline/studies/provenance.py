@@ -34,6 +34,11 @@ CREDITS = {
                   "package icub-models", "CC-BY-SA-4.0"),
     "ergo_jr": ("the Poppy Ergo Jr's URDF", "poppy-project/poppy-ergo-jr, PyPI package "
                 "poppy-ergo-jr", "GPL-3.0"),
+    **{body: (f"the MJCF model {file} of Gymnasium's {env} (from OpenAI Gym)",
+              "Farama-Foundation/Gymnasium, PyPI package gymnasium", "MIT")
+       for body, file, env in (("pusher", "pusher.xml", "Pusher"),
+                               ("reacher", "reacher.xml", "Reacher"),
+                               ("humanoid_arm", "humanoid.xml", "Humanoid"))},
 }
 
 
