@@ -26,9 +26,11 @@ import numpy as np  # noqa: E402
 import gbmodel  # noqa: E402
 
 EPOCHS = int(os.environ.get("GBGROWTH_EPOCHS", 1000))
-OUT = Path(os.environ.get("GBGROWTH_EXAMPLE_OUT", "."))
-HERE = Path(__file__).resolve().parent if "__file__" in globals() else Path("examples")
-sys.path.insert(0, str(HERE / "in_the_loop"))  # where the factory's module is imported from
+REPO = Path(__file__).resolve().parents[1] if "__file__" in globals() else Path.cwd()
+# the figures go under outputs/examples/ (ignored by git), never into the repository itself
+OUT = Path(os.environ.get("GBGROWTH_EXAMPLE_OUT", REPO / "outputs" / "examples"))
+OUT.mkdir(parents=True, exist_ok=True)
+sys.path.insert(0, str(REPO / "examples" / "in_the_loop"))  # the factory's module
 
 # %% [markdown]
 # The MJCF body as shipped, and the same arm as a body in the loop: the factory
