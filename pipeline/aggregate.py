@@ -38,7 +38,8 @@ from omegaconf import DictConfig
 
 from . import cache, cli, io
 from .measures import finals, growth_peak
-from .plan import condition_labels, source_fingerprint
+from .fingerprint import source_fingerprint
+from .labels import condition_labels
 
 log = logging.getLogger("pipeline.aggregate")
 
@@ -337,7 +338,7 @@ def summarize(trials: pd.DataFrame, curves: pd.DataFrame, conds: dict, paper: di
 
 
 # what an aggregate's bytes depend on
-CODE = ("aggregate.py", "cache.py", "io.py", "measures.py", "plan.py")
+CODE = ("aggregate.py", "cache.py", "io.py", "keys.py", "labels.py", "measures.py")
 
 
 @lru_cache(maxsize=1)

@@ -11,7 +11,7 @@ Layout under paths.cache:
     plans/<figure>/<group>/<hash>.json   the conditions one simulate run planned for a figure
     plans/<figure>/current.json   the group that makes the figure now
 
-A trial's key hashes its content only (spec, seed, code fingerprint: pipeline.plan.trial_key),
+A trial's key hashes its content only (spec, seed, code fingerprint: pipeline.keys.trial_key),
 never the figure or the label that asked for it: the same trial under two figures or two sweeps
 is computed once. The curve is written first and the sidecar last: the sidecar marks a finished
 trial, its curve checksum proves the curve complete and its seal (pipeline.io.seal) proves the sidecar unchanged (the
@@ -35,11 +35,12 @@ from pathlib import Path
 import numpy as np
 
 from . import io
+from .keys import trial_key
 
 TRIALS, PLANS, FAILED = "trials", "plans", "failed"
 
 
-KEY = re.compile(r"[0-9a-f]{20}")  # pipeline.plan.trial_key
+KEY = re.compile(r"[0-9a-f]{20}")  # pipeline.keys.trial_key
 
 
 def trial_paths(cache_dir, trial: dict) -> tuple[Path, Path]:
@@ -132,8 +133,6 @@ def signature(cache_dir, trial: dict) -> str | None:
 def _keyed(s: dict) -> bool:
     """Whether a sidecar's own spec, seed and code hash to its key (a sidecar copied or edited
     under another trial's name is not that trial)."""
-    from .plan import trial_key
-
     try:
         return trial_key(s["spec"], s["seed"], s["code"]) == s["key"]
     except (KeyError, TypeError, ValueError):

@@ -5,7 +5,7 @@ several lines with hints about stack traces, and a bad value in the second job o
 after the first job ran. Each stage therefore first composes and plans every configuration its
 command line can produce (each value of a sweep) with the compose API; a failure is reported as
 one line, `error: ...`, with exit status 2, before Hydra or the stage has written anything.
-A one-job command line that planned without error, and whose stage then ran, leaves a note (pipeline.plan.checked_marker,
+A one-job command line that planned without error, and whose stage then ran, leaves a note (pipeline.planned.checked_marker,
 keyed by its config, overrides, config files and code); the same command line again plans
 nothing, only the run's own settings (paths, engine) are checked.
 """
@@ -25,8 +25,9 @@ from .fingerprint import CodeChanged
 from .io import BadInput
 from .config import (ConfigError, check_choices, check_experiments, check_hydra, check_keys,
                      compose, config_notes)
-from .plan import (check_run, checked_marker, condition_labels, mark_checked, plan,
-                   plan_conditions, was_checked)
+from .labels import condition_labels
+from .plan import check_run, plan, plan_conditions
+from .planned import checked_marker, mark_checked, was_checked
 
 # Hydra's command-line flags that take a value as the next argument
 _FLAGS_WITH_VALUE = {"--cfg", "-c", "--config-path", "-cp", "--config-name", "-cn",

@@ -5,15 +5,13 @@ cluster and hashed into the cache key. Every value is checked here, before any s
 anything: the trial's own values by gbmodel (TrialSpec.validate, whose SpecError names the config
 key), the plan's by this module; either way a ConfigError with one line naming the key.
 
-A condition is its settings (the hash of its trial spec and root seed: condition_id), never a
-label. It grows a body by a pattern from a start to an end size over T_G epochs, or keeps it at a
-constant size (a reference). Labels are derived from what differs between the conditions of a
-figure (condition_labels): `V=10`, `R=0.1, L=5`, the growth label `TG<period>` / `const<size>`
-where the growth differs, or a variant's own label.
+A condition is its settings (the hash of its trial spec and root seed: pipeline.keys.condition_id),
+never a label. It grows a body by a pattern from a start to an end size over T_G epochs, or keeps
+it at a constant size (a reference). Labels are derived from what differs between the conditions
+of a figure (pipeline.labels); a fully planned command plans nothing again (pipeline.planned).
 """
 from __future__ import annotations
 
-import hashlib
 import json
 import logging
 import os
@@ -29,22 +27,14 @@ from omegaconf import DictConfig, OmegaConf
 
 from .config import (ConfigError, check_backend, check_limits, check_names, check_ranges,
                      check_root, check_stamp)
-from .fingerprint import code_fingerprint, source_fingerprint  # noqa: F401  (the code as run)
+from .fingerprint import code_fingerprint
+from .keys import canonical, condition_id, stable_hash32, trial_key
 
 log = logging.getLogger(__name__)
 
 
 def _bad(key, value, why):
     raise ConfigError(f"{key}={value!r}: {why}")
-
-
-def _canonical(obj) -> str:
-    return json.dumps(obj, sort_keys=True, separators=(",", ":"))
-
-
-def stable_hash32(obj) -> int:
-    """A 32-bit integer from the canonical JSON of obj: the same on every machine and run."""
-    return int.from_bytes(hashlib.sha256(_canonical(obj).encode()).digest()[:4], "big")
 
 
 def _sized(pattern, size):
@@ -179,7 +169,7 @@ def trial_spec(cfg: DictConfig, growth: dict) -> gbmodel.TrialSpec:
         spec.validate()
     except ValueError as err:
         raise ConfigError(str(err)) from None
-    check_reach(_canonical(spec.body))
+    check_reach(canonical(spec.body))
     return spec
 
 
@@ -210,102 +200,6 @@ def check_reach(body_json: str) -> None:
                     body.name, np.round(body.targets[missed[0]], 3).tolist())
 
 
-# ---- planned runs: a fully planned command plans nothing again ----------------------------------
-PLANNED = "planned"  # paths.out/planned/<digest>.json: a command's jobs (the cache holds trials)
-_PLAN_SOURCES = (("conf", ("*.yaml",)), ("pipeline", ("*.py",)),
-                 ("gbmodel", ("*.py", "*.yaml", "*.urdf", "*.json")))
-
-
-@lru_cache(maxsize=1)
-def planning_sources() -> str:
-    """The hash of every file a plan is made from (config files, pipeline's and gbmodel's code
-    and data) and of the versions of Hydra and OmegaConf that compose the config."""
-    import hydra
-    import omegaconf
-
-    root = Path(__file__).resolve().parents[1]
-    h = hashlib.sha256(f"{hydra.__version__} {omegaconf.__version__}".encode())
-    for folder, patterns in _PLAN_SOURCES:
-        files = sorted({p for pat in patterns for p in (root / folder).rglob(pat)
-                        if "__pycache__" not in p.parts})
-        for p in files:
-            h.update(str(p.relative_to(root)).encode() + b"\0" + p.read_bytes() + b"\0")
-    return h.hexdigest()
-
-
-def plan_digest(cfg: DictConfig, overrides) -> str:
-    """What a command's plan is made of: its config (resolved), its overrides and
-    planning_sources(). The same digest, the same trials."""
-    body = dict(config=OmegaConf.to_container(cfg, resolve=True), overrides=list(overrides),
-                sources=planning_sources())
-    return hashlib.sha256(_canonical(body).encode()).hexdigest()[:24]
-
-
-def checked_marker(cfg: DictConfig, overrides) -> Path | None:
-    """Where the note that this command line's config planned without error is kept:
-    paths.out/planned/checked/<digest>.json (plan_digest of the config and `overrides`); None
-    when the config does not resolve outside Hydra's run (then it is planned every time)."""
-    try:
-        digest = plan_digest(cfg, ["checked", list(overrides)])
-    except Exception:  # an interpolation only Hydra's own run resolves
-        return None
-    return Path(cfg.paths.out) / PLANNED / "checked" / f"{digest}.json"
-
-
-def _body_files(trials: list[dict]) -> list[list]:
-    """(section, its description, sha256) of every file the trials' bodies read (a URDF, an MJCF
-    model, a body in the loop's function: outside plan_digest)."""
-    seen, out = set(), []
-    for t in trials:
-        if id(t["spec"]) in seen:
-            continue
-        seen.add(id(t["spec"]))
-        for section in gbmodel.bodies.READS:
-            value = t["spec"]["body"].get(section)
-            if isinstance(value, dict) and "sha256" in value:
-                entry = [section, {k: v for k, v in value.items() if k != "sha256"},
-                         value["sha256"]]
-                if entry not in out:
-                    out.append(entry)
-    return out
-
-
-def was_checked(marker: Path | None, root=None) -> bool:
-    """Whether `marker` (checked_marker) says the config planned without error, and every body
-    file it read still has those bytes. A marker reached through a link that leaves `root`
-    (paths.root) is no note of this project's (it could be planted to skip the checks)."""
-    if marker is None:
-        return False
-    from . import io
-
-    try:
-        with io.confined(root):
-            io.check_inside(marker)
-        fd = os.open(marker, os.O_RDONLY | os.O_NOFOLLOW)
-        with os.fdopen(fd, "rb") as fh:
-            note = json.loads(fh.read())
-        return all(gbmodel.bodies.source_digest(section, value) == sha
-                   for section, value, sha in note["body_files"])
-    except (OSError, ValueError, TypeError, KeyError):
-        return False
-
-
-def mark_checked(marker: Path | None, trials: list[dict], root=None) -> None:
-    """Keep `marker` for the next run of the same command line, confined to `root` (paths.root:
-    a link at planned/ or planned/checked that leads elsewhere is refused, never followed); a
-    folder that cannot be written leaves it out (the stage names that folder itself)."""
-    if marker is None:
-        return
-    from . import io
-
-    try:
-        with io.confined(root):
-            io.write_json(marker, dict(trials=len(trials), body_files=_body_files(trials)),
-                          compact=True)
-    except (OSError, io.UnsafeName):
-        pass
-
-
 def check_paths(cfg: DictConfig) -> None:
     """Every output folder is a folder (or can become one), and writable, except the cache: a
     read-only cache where every trial is cached is read, never written (aggregate, report, and
@@ -320,43 +214,6 @@ def check_paths(cfg: DictConfig) -> None:
                 if key != "cache" and not os.access(p, os.W_OK | os.X_OK) and p == path:
                     _bad(f"paths.{key}", str(path), "is not writable")
                 break
-
-
-def condition_id(spec: dict, root_seed: int) -> str:
-    """A condition is its settings: the hash of its trial spec (body, growth, learner,
-    evaluation, epochs, snapshots) and the root seed, never a label."""
-    return hashlib.sha256(_canonical(dict(spec=spec, root_seed=root_seed)).encode()).hexdigest()[:16]
-
-
-def trial_key(spec: dict, seed: dict, code: str) -> str:
-    """A trial is its content: spec, seed and code fingerprint. The figure, the condition's
-    label or the variant that asked for it are not part of it, so the same trial under two
-    figures or two sweeps is computed once."""
-    return hashlib.sha256(_canonical(dict(spec=spec, seed=seed, code=code)).encode()).hexdigest()[:20]
-
-
-def misplanned(specs: list[dict], jobs: list[dict]) -> str | None:
-    """What is wrong with a saved plan's trials (paths.out/planned/<digest>.json: specs once,
-    trials naming theirs by index), None when each trial's spec, seed and code hash to its key
-    and its condition is its spec's (condition_id): the file is a cache, checked like the trial
-    sidecars, so an edited spec is planned again instead of run under another spec's key. Each
-    spec's canonical JSON is made once: checking 100,000 trials costs what planning them did."""
-    canon = [_canonical(spec) for spec in specs]
-    conds = {}
-    for job in jobs:
-        for t in job["trials"]:
-            ix, seed, code = t["spec"], t["seed"], t["code"]
-            body = f'{{"code":{_canonical(code)},"seed":{_canonical(seed)},"spec":{canon[ix]}}}'
-            if hashlib.sha256(body.encode()).hexdigest()[:20] != t["key"]:
-                return f"trial {t['key']}: its spec, seed and code do not hash to its key"
-            root = seed["entropy"]
-            if (ix, root) not in conds:
-                conds[ix, root] = hashlib.sha256(
-                    f'{{"root_seed":{_canonical(root)},"spec":{canon[ix]}}}'.encode()
-                ).hexdigest()[:16]
-            if conds[ix, root] != t["condition"]:
-                return f"trial {t['key']}: its condition is not its spec's"
-    return None
 
 
 def check_run(cfg: DictConfig) -> None:
@@ -381,7 +238,7 @@ _CHECKED: dict[str, list] = {}  # the plan the command-line check made, taken on
 
 def _config_key(cfg: DictConfig) -> str | None:
     try:
-        return _canonical(OmegaConf.to_container(cfg, resolve=True))
+        return canonical(OmegaConf.to_container(cfg, resolve=True))
     except Exception:  # an interpolation only Hydra's own run resolves: no reuse
         return None
 
@@ -438,94 +295,6 @@ def _plan(cfg: DictConfig) -> list[dict]:
     return trials
 
 
-# ---- labels: what differs between a figure's conditions ------------------------------------
-SHORT = {"learner.variations": "V", "learner.radius": "R", "learner.targets_per_epoch": "K",
-         "learner.steps": "L", "learner.learning_rate": "eta", "learner.epochs": "epochs",
-         "learner.name": "learner", "body.name": "body", "root_seed": "seed"}
-GROWTH_AXIS = ("pattern", "period", "start_size", "end_size")  # named by the growth label
-
-
-def _settings(cond: dict) -> dict:
-    """A condition's settings as flat `section.field` -> value (the growth axis left out: its
-    growth label names it)."""
-    spec = cond["spec"]
-    flat = {"learner.epochs": spec["epochs"], "learner.evals_per_decade": spec["evals_per_decade"],
-            "snapshots": spec["snapshots"], "root_seed": cond["root_seed"]}
-    for section in ("body", "learner", "evaluation", "growth"):
-        for k, v in spec[section].items():
-            if not (section == "growth" and k in GROWTH_AXIS):
-                flat[f"{section}.{k}"] = v
-    return flat
-
-
-def _fmt(v) -> str:
-    if isinstance(v, float):
-        return repr(v)  # the shortest text that reads back as this float: distinct stays distinct
-    if isinstance(v, (list, dict)):
-        return json.dumps(v, separators=(",", ":"))
-    return str(v)
-
-
-def varying_keys(conds: list[dict]) -> list[str]:
-    """The settings that differ between conditions. A body or learner of another name differs
-    by its name alone (its fields only where they differ between conditions of one name)."""
-    flats = [_settings(c) for c in conds]
-    keys = sorted({k for f in flats for k in f})
-    differ = [k for k in keys if len({_canonical(f.get(k)) for f in flats}) > 1]
-    out = []
-    for k in differ:
-        section = k.split(".", 1)[0]
-        if section in ("body", "learner") and k != f"{section}.name" and f"{section}.name" in differ:
-            by_name = {}
-            for f in flats:
-                by_name.setdefault(_canonical(f.get(f"{section}.name")), set()).add(
-                    _canonical(f.get(k)))
-            if all(len(vals) == 1 for vals in by_name.values()):
-                continue
-        out.append(k)
-    return out
-
-
-def condition_labels(conds: list[dict]) -> list[str]:
-    """A label per condition, from what differs between them: `V=10`, `R=0.1, L=5`, the growth
-    label (`TG100`, `const0.5`) where the growth differs, or the variant's own label. Two
-    conditions that would share a label are a ConfigError naming both."""
-    keys = varying_keys([c for c in conds if not c.get("variant")])
-    per_variant = {}
-    for c in conds:
-        if c.get("variant"):
-            per_variant.setdefault(c["variant"]["label"], set()).add(c["growth_label"])
-    growth_varies = len({c["growth_label"] for c in conds}) > 1
-    labels = []
-    for c in conds:
-        if c.get("variant"):
-            name = c["variant"]["label"]
-            if len(per_variant[name]) > 1:
-                name = f"{name} | {c['growth_label']}"
-        else:
-            flat = _settings(c)
-            parts = [", ".join(f"{SHORT.get(k, k.split('.', 1)[-1])}={_fmt(flat.get(k))}"
-                               for k in keys)] if keys else []
-            if growth_varies or not parts:
-                parts.append(c["growth_label"])
-            name = " | ".join(parts)
-        labels.append(name)
-    seen = {}
-    for c, name in zip(conds, labels):
-        other = seen.setdefault(name, c)
-        if other is not c and other["id"] != c["id"]:
-            raise ConfigError(f"two different conditions share the label {name!r}: "
-                              f"{_diff(other, c)}; give them different variant labels")
-    return labels
-
-
-def _diff(a: dict, b: dict) -> str:
-    fa, fb = _settings(a), _settings(b)
-    keys = [k for k in sorted(set(fa) | set(fb)) if _canonical(fa.get(k)) != _canonical(fb.get(k))]
-    return "; ".join(f"{k}={_fmt(fa.get(k))} vs {_fmt(fb.get(k))}" for k in keys[:4]) or \
-        "same settings"
-
-
 def plan_conditions(trials: list[dict]) -> list[dict]:
     """The conditions of planned trials, in order: id, spec, root seed, growth label, variant and
     their trials' keys (one entry per variant and condition id)."""
@@ -548,7 +317,7 @@ SECONDS_PER_COST = 1.9e-9
 def cost(trial: dict) -> float:
     """Rough relative run time of a trial: samples per epoch x joints x epochs x the learner's
     cost per sample and joint (its sample_cost; 1 for a learner without one)."""
-    return _cost(_canonical(trial["spec"]))
+    return _cost(canonical(trial["spec"]))
 
 
 @lru_cache(maxsize=1024)

@@ -25,8 +25,9 @@ from omegaconf import DictConfig, OmegaConf
 
 from . import cache, cli, execute, io
 from .config import check_backend
-from .plan import (PLANNED, check_run, code_fingerprint, cost, misplanned, plan,
-                   plan_conditions, plan_digest)
+from .fingerprint import code_fingerprint
+from .plan import check_run, cost, plan, plan_conditions
+from .planned import PLANNED, misplanned, plan_digest
 from .progress import Progress, estimate
 
 log = logging.getLogger("pipeline.simulate")

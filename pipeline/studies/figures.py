@@ -77,7 +77,7 @@ MARKERS = ("o", "s", "^", "D", "v", "P", "X")
 
 def label_levels(labels) -> list[dict]:
     """Each condition label as {factor: level}: `R=0.1, L=5 | TG100` is {R: 0.1, L: 5,
-    growth: TG100} (pipeline.plan.condition_labels: `key=value` parts, joined by ", ", and the
+    growth: TG100} (pipeline.labels.condition_labels: `key=value` parts, joined by ", ", and the
     growth label or a variant's name after " | "); a part without `=` is a level of its own factor,
     named by its position."""
     out = []

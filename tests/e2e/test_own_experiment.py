@@ -12,7 +12,8 @@ import gbmodel
 from gbmodel.learners.goal_babbling import Params
 from pipeline import aggregate, models, simulate
 from pipeline.config import ConfigError, compose
-from pipeline.plan import condition_labels, plan, plan_conditions
+from pipeline.labels import condition_labels
+from pipeline.plan import plan, plan_conditions
 from conftest import figure_trials, run_cli, tiny_overrides
 
 

@@ -15,7 +15,7 @@ import gbmodel
 import pipeline.simulate as simulate_mod
 from pipeline import aggregate, cache, execute, io, report, simulate
 from pipeline.config import CONF_DIR, REPO_ROOT, compose
-from pipeline.plan import code_fingerprint
+from pipeline.fingerprint import code_fingerprint
 from pipeline.report import listed_files
 from conftest import figure_trials, files_of, run_cli, tiny_overrides
 

@@ -20,7 +20,8 @@ import pipeline.config
 from gbmodel.learners import goal_babbling
 from pipeline import aggregate, fingerprint, report, simulate
 from pipeline.config import CONF_DIR, REPO_ROOT, ConfigError, compose
-from pipeline.plan import code_fingerprint, cost, plan
+from pipeline.fingerprint import code_fingerprint
+from pipeline.plan import cost, plan
 from conftest import StayParams, stay_home_module, tiny_overrides  # noqa: F401
 
 EXPERIMENTS = sorted(p.stem for p in (CONF_DIR / "experiment").glob("*.yaml"))

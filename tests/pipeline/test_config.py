@@ -4,13 +4,14 @@ from pathlib import Path
 
 import pytest
 
-import pipeline.plan as plan_module
+import pipeline.fingerprint as fingerprint_module
 from hydra.errors import ConfigCompositionException
 from omegaconf import OmegaConf
 
 from gbmodel.learners import goal_babbling
 from pipeline.config import CONF_DIR, ConfigError, compose
-from pipeline.plan import code_fingerprint, conditions, plan
+from pipeline.fingerprint import code_fingerprint
+from pipeline.plan import conditions, plan
 
 EXPERIMENTS = sorted(p.stem for p in (CONF_DIR / "experiment").glob("*.yaml"))
 
@@ -194,7 +195,7 @@ def test_seeds_and_keys_are_distinct_and_stable():
 
 def test_code_fingerprint_follows_the_code_not_its_comments(tmp_path):
     def source_fingerprint(files, root):
-        return plan_module.source_fingerprint(
+        return fingerprint_module.source_fingerprint(
             [(f.relative_to(root).as_posix(), f.read_text()) for f in files])
 
     module = tmp_path / "m.py"

@@ -9,7 +9,8 @@ import pytest
 
 from pipeline import cache, io
 from pipeline.config import REPO_ROOT, compose
-from pipeline.plan import plan, trial_key
+from pipeline.keys import trial_key
+from pipeline.plan import plan
 
 SCRIPT = """
 import sys

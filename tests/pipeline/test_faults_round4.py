@@ -202,10 +202,10 @@ def test_r9_a_tampered_saved_plan_is_discarded_and_planned_again(tmp_path, compo
     import json
     from pathlib import Path
 
-    from pipeline import io, plan, simulate
+    from pipeline import io, planned, simulate
     cfg = compose_tiny(tmp_path)
     first = simulate.jobs_of(cfg)
-    (saved,) = (Path(cfg.paths.out) / plan.PLANNED).glob("*.json")
+    (saved,) = (Path(cfg.paths.out) / planned.PLANNED).glob("*.json")
     packed = io.read_json(saved)
     if edit == "rate":  # the issue's: the learning rate edited, the keys left as they were
         packed["specs"][0]["learner"]["learning_rate"] *= 10
@@ -222,18 +222,18 @@ def test_r9_a_tampered_saved_plan_is_discarded_and_planned_again(tmp_path, compo
     assert [vars(j) for j in again] == json.loads(io.dump_json([vars(j) for j in first]))
     warned = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
     assert len(warned) == 1 and str(saved) in warned[0] and "planned again" in warned[0], warned
-    assert plan.misplanned(*(io.read_json(saved)[k] for k in ("specs", "jobs"))) is None  # healed
+    assert planned.misplanned(*(io.read_json(saved)[k] for k in ("specs", "jobs"))) is None  # healed
 
 
 def test_r9_the_fast_check_of_a_saved_plan_is_trial_key_and_condition_id(tmp_path, compose_tiny):
-    from pipeline import plan, simulate
+    from pipeline import keys, planned, simulate
     cfg = compose_tiny(tmp_path, "trials.count=3")
     packed = simulate.pack_jobs(simulate.jobs_of(cfg))
-    assert plan.misplanned(packed["specs"], packed["jobs"]) is None
+    assert planned.misplanned(packed["specs"], packed["jobs"]) is None
     for t in packed["jobs"][0]["trials"]:
         spec = packed["specs"][t["spec"]]
-        assert t["key"] == plan.trial_key(spec, t["seed"], t["code"])
-        assert t["condition"] == plan.condition_id(spec, t["seed"]["entropy"])
+        assert t["key"] == keys.trial_key(spec, t["seed"], t["code"])
+        assert t["condition"] == keys.condition_id(spec, t["seed"]["entropy"])
 
 
 # ---- rows 10-13: Hydra cannot run code or write outside the root ---------------------------------
@@ -320,7 +320,7 @@ def test_r12_what_the_allow_list_permits_passes(tmp_path, args):
 
 
 def test_r13_a_link_at_planned_checked_is_neither_written_nor_read(tmp_path):
-    from pipeline import cli, plan
+    from pipeline import cli, planned
     from pipeline.config import compose
     root, elsewhere = tmp_path / "root", tmp_path / "elsewhere"
     elsewhere.mkdir()
@@ -330,14 +330,14 @@ def test_r13_a_link_at_planned_checked_is_neither_written_nor_read(tmp_path):
     assert cli.check(args) is None
     cli.finish(lambda cfg: 0, compose(args))  # the stage ran: the note would be written now
     assert not any(elsewhere.iterdir())  # never through the link
-    marker = plan.checked_marker(compose(args), args)
+    marker = planned.checked_marker(compose(args), args)
     marker.write_text('{"trials": 1, "body_files": []}')  # planted there (through the link)
     assert (elsewhere / marker.name).exists()
-    assert not plan.was_checked(marker, str(root))  # not a note of this root's
+    assert not planned.was_checked(marker, str(root))  # not a note of this root's
     os.unlink(root / "outputs" / "planned" / "checked")
     (root / "outputs" / "planned" / "checked").mkdir()
     marker.write_text('{"trials": 1, "body_files": []}')
-    assert plan.was_checked(marker, str(root))  # a real one inside the root is
+    assert planned.was_checked(marker, str(root))  # a real one inside the root is
 
 
 # ---- row 6: sealed models ------------------------------------------------------------------------

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from pipeline import cli, config, io, plan, simulate
+from pipeline import cli, config, io, plan, planned, simulate
 from pipeline.config import ConfigError, compose
 from conftest import tiny_overrides
 
@@ -27,7 +27,7 @@ def composes(monkeypatch):
 
 
 def saved(cfg) -> list[Path]:
-    return sorted((Path(cfg.paths.out) / plan.PLANNED).glob("*.json"))
+    return sorted((Path(cfg.paths.out) / planned.PLANNED).glob("*.json"))
 
 
 def test_a_planned_command_is_not_composed_again_and_gives_the_same_trials(
@@ -65,9 +65,9 @@ def test_the_runs_own_settings_are_checked_on_a_planned_command(tmp_path, compos
 
 def test_the_digest_follows_the_planning_sources(tmp_path, compose_tiny, monkeypatch):
     cfg = compose_tiny(tmp_path)
-    before = plan.plan_digest(cfg, [])
-    monkeypatch.setattr(plan, "planning_sources", lambda: "other code")
-    assert plan.plan_digest(cfg, []) != before
+    before = planned.plan_digest(cfg, [])
+    monkeypatch.setattr(planned, "planning_sources", lambda: "other code")
+    assert planned.plan_digest(cfg, []) != before
 
 
 def test_a_conditions_spec_is_stored_once(tmp_path, compose_tiny):
@@ -158,7 +158,7 @@ def check(argv: list[str]) -> str | None:
 
 
 def notes(root: Path) -> list[Path]:
-    return sorted(root.rglob(f"{plan.PLANNED}/checked/*.json"))
+    return sorted(root.rglob(f"{planned.PLANNED}/checked/*.json"))
 
 
 def test_a_checked_command_line_is_not_planned_again(tmp_path, plans):
@@ -193,17 +193,17 @@ def test_a_changed_body_file_plans_again(tmp_path):
     body.write_text("<robot/>")
     note = tmp_path / "note.json"
     trials = [{"spec": {"body": {"urdf": {"file": str(body), "sha256": "0" * 64}}}}]
-    plan.mark_checked(note, trials)
+    planned.mark_checked(note, trials)
     assert json.loads(note.read_text())["body_files"] == [["urdf", {"file": str(body)}, "0" * 64]]
-    assert not plan.was_checked(note)  # the file's bytes are not those it was planned with
+    assert not planned.was_checked(note)  # the file's bytes are not those it was planned with
     import gbmodel.urdf
 
     trials[0]["spec"]["body"]["urdf"]["sha256"] = gbmodel.urdf.digest(str(body))
-    plan.mark_checked(note, trials)
-    assert plan.was_checked(note)
+    planned.mark_checked(note, trials)
+    assert planned.was_checked(note)
     body.write_text("<robot name='other'/>")
-    assert not plan.was_checked(note)
-    assert not plan.was_checked(None) and not plan.was_checked(tmp_path / "missing.json")
+    assert not planned.was_checked(note)
+    assert not planned.was_checked(None) and not planned.was_checked(tmp_path / "missing.json")
 
 
 def test_a_sweep_is_planned_every_time(tmp_path, plans):

@@ -14,7 +14,8 @@ import pytest
 from pipeline import aggregate, cache, cli, report, simulate
 from pipeline.studies import claims, paper, scorecard
 from pipeline.config import REPO_ROOT, ConfigError, VariantConf, compose
-from pipeline.plan import code_fingerprint, plan
+from pipeline.fingerprint import code_fingerprint
+from pipeline.plan import plan
 from conftest import TINY, files_of, run_cli, tiny_overrides
 
 COMMITTED = REPO_ROOT / "outputs" / "report"

@@ -1,0 +1,137 @@
+"""Planned runs: a fully planned command plans nothing again.
+
+paths.out/planned/<digest>.json keeps a command's jobs (the cache holds trials), named by
+plan_digest: the config, the overrides and every file a plan is made from (planning_sources);
+misplanned checks a saved plan like a cache. A command line that planned without error leaves a
+note (checked_marker) so that its next run skips the check, unless a body file it read changed
+since."""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from functools import lru_cache
+from pathlib import Path
+
+import gbmodel.bodies
+from omegaconf import DictConfig, OmegaConf
+
+from .keys import canonical
+
+PLANNED = "planned"  # paths.out/planned/<digest>.json: a command's jobs (the cache holds trials)
+_PLAN_SOURCES = (("conf", ("*.yaml",)), ("pipeline", ("*.py",)),
+                 ("gbmodel", ("*.py", "*.yaml", "*.urdf", "*.json")))
+
+
+@lru_cache(maxsize=1)
+def planning_sources() -> str:
+    """The hash of every file a plan is made from (config files, pipeline's and gbmodel's code
+    and data) and of the versions of Hydra and OmegaConf that compose the config."""
+    import hydra
+    import omegaconf
+
+    root = Path(__file__).resolve().parents[1]
+    h = hashlib.sha256(f"{hydra.__version__} {omegaconf.__version__}".encode())
+    for folder, patterns in _PLAN_SOURCES:
+        files = sorted({p for pat in patterns for p in (root / folder).rglob(pat)
+                        if "__pycache__" not in p.parts})
+        for p in files:
+            h.update(str(p.relative_to(root)).encode() + b"\0" + p.read_bytes() + b"\0")
+    return h.hexdigest()
+
+
+def plan_digest(cfg: DictConfig, overrides) -> str:
+    """What a command's plan is made of: its config (resolved), its overrides and
+    planning_sources(). The same digest, the same trials."""
+    body = dict(config=OmegaConf.to_container(cfg, resolve=True), overrides=list(overrides),
+                sources=planning_sources())
+    return hashlib.sha256(canonical(body).encode()).hexdigest()[:24]
+
+
+def checked_marker(cfg: DictConfig, overrides) -> Path | None:
+    """Where the note that this command line's config planned without error is kept:
+    paths.out/planned/checked/<digest>.json (plan_digest of the config and `overrides`); None
+    when the config does not resolve outside Hydra's run (then it is planned every time)."""
+    try:
+        digest = plan_digest(cfg, ["checked", list(overrides)])
+    except Exception:  # an interpolation only Hydra's own run resolves
+        return None
+    return Path(cfg.paths.out) / PLANNED / "checked" / f"{digest}.json"
+
+
+def _body_files(trials: list[dict]) -> list[list]:
+    """(section, its description, sha256) of every file the trials' bodies read (a URDF, an MJCF
+    model, a body in the loop's function: outside plan_digest)."""
+    seen, out = set(), []
+    for t in trials:
+        if id(t["spec"]) in seen:
+            continue
+        seen.add(id(t["spec"]))
+        for section in gbmodel.bodies.READS:
+            value = t["spec"]["body"].get(section)
+            if isinstance(value, dict) and "sha256" in value:
+                entry = [section, {k: v for k, v in value.items() if k != "sha256"},
+                         value["sha256"]]
+                if entry not in out:
+                    out.append(entry)
+    return out
+
+
+def was_checked(marker: Path | None, root=None) -> bool:
+    """Whether `marker` (checked_marker) says the config planned without error, and every body
+    file it read still has those bytes. A marker reached through a link that leaves `root`
+    (paths.root) is no note of this project's (it could be planted to skip the checks)."""
+    if marker is None:
+        return False
+    from . import io
+
+    try:
+        with io.confined(root):
+            io.check_inside(marker)
+        fd = os.open(marker, os.O_RDONLY | os.O_NOFOLLOW)
+        with os.fdopen(fd, "rb") as fh:
+            note = json.loads(fh.read())
+        return all(gbmodel.bodies.source_digest(section, value) == sha
+                   for section, value, sha in note["body_files"])
+    except (OSError, ValueError, TypeError, KeyError):
+        return False
+
+
+def mark_checked(marker: Path | None, trials: list[dict], root=None) -> None:
+    """Keep `marker` for the next run of the same command line, confined to `root` (paths.root:
+    a link at planned/ or planned/checked that leads elsewhere is refused, never followed); a
+    folder that cannot be written leaves it out (the stage names that folder itself)."""
+    if marker is None:
+        return
+    from . import io
+
+    try:
+        with io.confined(root):
+            io.write_json(marker, dict(trials=len(trials), body_files=_body_files(trials)),
+                          compact=True)
+    except (OSError, io.UnsafeName):
+        pass
+
+
+def misplanned(specs: list[dict], jobs: list[dict]) -> str | None:
+    """What is wrong with a saved plan's trials (paths.out/planned/<digest>.json: specs once,
+    trials naming theirs by index), None when each trial's spec, seed and code hash to its key
+    and its condition is its spec's (condition_id): the file is a cache, checked like the trial
+    sidecars, so an edited spec is planned again instead of run under another spec's key. Each
+    spec's canonical JSON is made once: checking 100,000 trials costs what planning them did."""
+    canon = [canonical(spec) for spec in specs]
+    conds = {}
+    for job in jobs:
+        for t in job["trials"]:
+            ix, seed, code = t["spec"], t["seed"], t["code"]
+            body = f'{{"code":{canonical(code)},"seed":{canonical(seed)},"spec":{canon[ix]}}}'
+            if hashlib.sha256(body.encode()).hexdigest()[:20] != t["key"]:
+                return f"trial {t['key']}: its spec, seed and code do not hash to its key"
+            root = seed["entropy"]
+            if (ix, root) not in conds:
+                conds[ix, root] = hashlib.sha256(
+                    f'{{"root_seed":{canonical(root)},"spec":{canon[ix]}}}'.encode()
+                ).hexdigest()[:16]
+            if conds[ix, root] != t["condition"]:
+                return f"trial {t['key']}: its condition is not its spec's"
+    return None
