@@ -410,24 +410,33 @@ def aggregate_figure(cfg: DictConfig, fig: str) -> tuple[list[str], bool]:
     return problems, True
 
 
-def selected_figures(cfg: DictConfig, explicit: bool) -> list[str]:
-    """The figures a stage works on: every simulated one, or (figure= / experiment= /
-    experiments= on the command line) those named; an unknown one is a FileNotFoundError."""
-    known = cache.figures(cfg.paths.cache)
+def named_figures(cfg: DictConfig, explicit: bool, known: list[str], folder,
+                  state: str) -> list[str] | None:
+    """The figures the command line names (experiments=, or the one figure= / experiment=
+    names), or None where it names none; one that is not among `known` (the figures `state`,
+    simulated or aggregated, under `folder`) is a FileNotFoundError (one line)."""
     if cfg.get("experiments"):
         wanted = list(cfg.experiments)  # an experiment's figure is its name (tested)
     elif explicit:
         wanted = [cfg.figure]
     else:
-        wanted = known
+        return None
+    missing = [f for f in wanted if f not in known]
+    if missing:
+        raise FileNotFoundError(f"figure={missing[0]}: not {state} under {folder} "
+                                f"({state}: {', '.join(known) or 'none'})")
+    return wanted
+
+
+def selected_figures(cfg: DictConfig, explicit: bool) -> list[str]:
+    """The figures a stage works on: every simulated one, or (figure= / experiment= /
+    experiments= on the command line) those named; an unknown one is a FileNotFoundError."""
+    known = cache.figures(cfg.paths.cache)
     if not known:
         raise FileNotFoundError(f"no simulated figure under {cfg.paths.cache}: "
                                 "run pipeline.simulate first")
-    missing = [f for f in wanted if f not in known]
-    if missing:
-        raise FileNotFoundError(f"figure={missing[0]}: not simulated under {cfg.paths.cache} "
-                                f"(simulated: {', '.join(known)})")
-    return wanted
+    named = named_figures(cfg, explicit, known, cfg.paths.cache, "simulated")
+    return known if named is None else named
 
 
 def aggregate(cfg: DictConfig, explicit: bool = False) -> list[str]:

@@ -42,6 +42,7 @@ import pyarrow as pa
 from omegaconf import DictConfig, OmegaConf
 
 from . import cli, io
+from .aggregate import named_figures
 from .config import ConfigError, check_stamp
 from .studies import sections
 from .studies.sections import declares_claims
@@ -95,18 +96,7 @@ def selected(cfg: DictConfig, explicit: bool) -> list[str] | None:
     """The figures to report: those of `experiments=[...]`, or the one figure= / experiment=
     names, or None (every aggregated figure). An unknown one is a FileNotFoundError (one line)."""
     folder = Path(cfg.paths.aggregate)
-    known = aggregated(folder)
-    if cfg.get("experiments"):
-        wanted = list(cfg.experiments)  # an experiment's figure is its name (tested)
-    elif explicit:
-        wanted = [cfg.figure]
-    else:
-        return None
-    missing = [f for f in wanted if f not in known]
-    if missing:
-        raise FileNotFoundError(f"figure={missing[0]}: not aggregated under {folder} "
-                                f"(aggregated: {', '.join(known) or 'none'})")
-    return wanted
+    return named_figures(cfg, explicit, aggregated(folder), folder, "aggregated")
 
 
 def inputs_digest(cfg: DictConfig, inputs: dict) -> str:

@@ -1,7 +1,5 @@
-"""The coverage of the scorecard's intervals on fresh samples, per measure and trial count.
-
-    python -m pipeline.studies.coverage REPORT_DIR [--trials 3 5 10 20] [--draws 4000]
-        [--out pipeline/studies/coverage.csv] [--docs docs/scorecard.md]
+"""The coverage of the scorecard's intervals on fresh samples, per measure and trial count (the
+command that writes coverage.csv: pipeline.tools.coverage).
 
 For every measure with at least FIT trials in a report (its per-trial values: measures.parquet,
 or scorecard.csv's per_trial column in a report written before it), a model of its distribution
@@ -19,11 +17,9 @@ row. The draws are seeded by the measure's name, so the same values give the sam
 """
 from __future__ import annotations
 
-import argparse
 import functools
 import hashlib
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -169,33 +165,3 @@ def docs_updated(text: str, t: pd.DataFrame) -> str:
         raise ValueError(f"no {BEGIN} ... {END} block")
     head, rest = text.split(BEGIN, 1)
     return head + markdown(t) + rest.split(END, 1)[1]
-
-
-def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m pipeline.studies.coverage",
-                                description=__doc__.split("\n\n")[0])
-    p.add_argument("report", type=Path, help="a report folder (measures.parquet or scorecard.csv)")
-    p.add_argument("--trials", type=int, nargs="+", default=list(COUNTS))
-    p.add_argument("--draws", type=int, default=DRAWS)
-    p.add_argument("--out", type=Path, default=TABLE)
-    p.add_argument("--docs", type=Path, default=None,
-                   help="a Markdown file whose coverage table to regenerate (docs/scorecard.md)")
-    a = p.parse_args(argv)
-    if not ((a.report / "scorecard.csv").exists() or (a.report / "measures.parquet").exists()):
-        print(f"error: {a.report}: no measures.parquet or scorecard.csv", file=sys.stderr)
-        return 2
-    t = table(per_trial_values(a.report), a.trials, a.draws)
-    if not len(t):
-        print(f"error: {a.report}: no measure has {FIT} trials", file=sys.stderr)
-        return 2
-    from .. import io
-
-    io.write_text(a.out, to_csv(t))
-    if a.docs is not None:
-        io.write_text(a.docs, docs_updated(a.docs.read_text(), t))
-    print(markdown(t))
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -2,23 +2,18 @@
 
 The runs are experiments (conf/experiment/readings_fig4|fig5|fig7.yaml): each paper figure's
 conditions under every reading that can change a verdict, as variants with common random
-numbers. This module checks the paper's claims (pipeline.studies.claims) on each reading separately and
-lays them out as one table (rows: readings, columns: claims) and one figure. It also holds the
-rule that fixes the plain step's rate before the run (`weight_sum`), the compact readings x
-figures matrix (`matrix`, readings_matrix.csv, also shown in README.md) and the reading the
-project recommends per figure (RECOMMENDED, written by hand from the findings, checked against
-the verdicts by `contradictions`).
+numbers. This module checks the paper's claims (pipeline.studies.claims) on each reading
+separately and lays them out as one table (rows: readings, columns: claims) and one figure. It
+also holds the compact readings x figures matrix (`matrix`, readings_matrix.csv, also shown in
+README.md: `python -m pipeline.tools.readings` regenerates it there) and the reading the project
+recommends per figure (RECOMMENDED, written by hand from the findings, checked against the
+verdicts by `contradictions`).
 """
 from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
-
-import gbmodel
-from gbmodel.learners import goal_babbling as gb
-from gbmodel.learners.goal_babbling import reference
 
 from . import claims, figures, scorecard
 from .choices import escape
@@ -32,13 +27,6 @@ SHORT = {"final": "final", "rise": "rise", "blend": "blend", "after": "after",
          "bootstrap": "boot"}  # column heads of the matrix (claims.CLAIMS' words in its legend)
 BEGIN, END = "<!-- readings-table:begin -->", "<!-- readings-table:end -->"
 FIGURE_CHOICES = ("default", "learning rate", "solver")  # the readings readings_curves shows
-
-
-def weight_sum(body: str, params: dict, seeds=(0, 1, 2), epochs: int = 20_000,
-               probe: int = 50) -> float:
-    """W of the plain step's rule (gbmodel.learners.goal_babbling.weight_sum; arm5 W = 1142,
-    iCub W = 1791, arm2 W = 1931 when the rates were fixed)."""
-    return gb.weight_sum({"name": body}, params, seeds, epochs, probe)
 
 
 def split(agg: dict) -> dict:
@@ -213,6 +201,8 @@ def recommendations_markdown(cards: pd.DataFrame, recs: pd.DataFrame) -> str:
     shown = recs[recs["figure"].isin(figs)]
     if not len(shown):
         return ""
+    # the rule's home is pipeline/tools/rate.py: weight_sum now; the sentence keeps the committed
+    # report's bytes until the report is next regenerated
     lines = ["The project's default stays the plain step at 1 / W (its reasons: the paper's "
              "text and the stability rule, pipeline/studies/readings.py: weight_sum); the reading "
              "recommended per figure (pipeline/studies/recommended_readings.csv, written from the "
@@ -309,25 +299,3 @@ def readme_updated(text: str, csv) -> str:
         raise ValueError(f"no {BEGIN} ... {END} block")
     head, rest = text.split(BEGIN, 1)
     return head + readme_block(csv) + rest.split(END, 1)[1]
-
-
-def main(argv=None) -> int:
-    """python -m pipeline.studies.readings [README.md [readings_matrix.csv]]: regenerate the
-    README's readings table from the committed matrix."""
-    import sys
-
-    from ..config import REPO_ROOT
-
-    args = list(sys.argv[1:] if argv is None else argv)
-    readme = Path(args[0]) if args else REPO_ROOT / "README.md"
-    csv = Path(args[1]) if len(args) > 1 else REPO_ROOT / "outputs" / "report" / "readings_matrix.csv"
-    try:
-        readme.write_text(readme_updated(readme.read_text(), csv))
-    except (OSError, ValueError) as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -4,7 +4,7 @@
     python -m pipeline.tools.rate body=arm5 learner.variations=40 # at other V, K, L, R
 
 W is the median sum of the weights per epoch at full size after 20,000 epochs of the normalised
-step at rate 1.0 (3 seeds; gbmodel.learners.goal_babbling.weight_sum): the plain step at
+step at rate 1.0 (3 seeds; weight_sum): the plain step at
 eta = 1 / W equals the normalised step at full-size convergence. It prints the body's learner
 settings file (body_learner/<body>_goal_babbling.yaml of the config folder that holds the
 body's file, conf/ or a folder of hydra.searchpath: the command names it): the package line,
@@ -21,14 +21,42 @@ import sys
 from pathlib import Path
 
 import hydra
+import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
+from gbmodel.features import exponents
 from gbmodel.learners import goal_babbling as gb
+from gbmodel.learners.goal_babbling import reference
+from gbmodel.trial import TrialSpec, run_trial
 
 from .. import cli
 from ..config import REPO_ROOT
 
 EPOCHS, SEEDS, PROBE = 20_000, (0, 1, 2), 50  # the rule, as it was fixed before the runs
+
+
+def weight_sum(body: dict, params: dict, seeds=SEEDS, epochs: int = EPOCHS,
+               probe: int = PROBE) -> float:
+    """W, the rule that fixed the plain step's rates (eta = 1 / W): the median sum of the weights
+    per epoch at full size after `epochs` epochs of the normalised step at rate 1.0 (one trial per
+    seed, then `probe` epochs each of new draws, not learned from). It makes the plain step equal
+    to the normalised one at full-size convergence (arm5 W = 1142, iCub W = 1791, arm2 W = 1931
+    when the rates were fixed). body: a body description (make_body); params: Goal Babbling's
+    Params fields (V, R, K, L ...)."""
+    params = {**params, "step": "normalised", "learning_rate": 1.0}
+    sums = []
+    for seed in seeds:
+        spec = TrialSpec(body=body, learner={"name": "goal_babbling", **params}, epochs=epochs)
+        M = run_trial(spec, np.random.default_rng(seed)).M
+        b, p = spec.make_body(), gb.Params(**params)
+        rng = np.random.default_rng(1000 + seed)
+        idx, raw = gb.draw(p, b, probe, rng)[:2]
+        exps = exponents(b.n, p.degree)
+        for e in range(probe):
+            _, (_, _, _, w) = reference.epoch(M, b, 1.0, np.ones(b.m), exps, idx[e], raw[e],
+                                              p.radius, p.steps, 0.0)
+            sums.append(float(w.sum()))
+    return float(np.median(sums))
 
 
 def rate(cfg: DictConfig, epochs: int = EPOCHS, seeds=SEEDS) -> dict:
@@ -41,7 +69,7 @@ def rate(cfg: DictConfig, epochs: int = EPOCHS, seeds=SEEDS) -> dict:
     params = OmegaConf.to_container(cfg.learner)
     for k in ("name", "epochs", "evals_per_decade"):
         params.pop(k)
-    W = gb.weight_sum(OmegaConf.to_container(cfg.body), params, seeds, epochs, PROBE)
+    W = weight_sum(OmegaConf.to_container(cfg.body), params, seeds, epochs, PROBE)
     p = gb.Params(**params)
     samples = p.variations * (p.targets_per_epoch * p.steps + 1)
     return dict(body=cfg.body.name, W=W, learning_rate=1.0 / W, rate_samples=samples,

@@ -164,3 +164,22 @@ def test_a_model_line_edited_in_place_is_not_copied(sweep, tmp_path):
     scale.change_one_trial(Path(sweep.paths.cache))
     assert aggregate.aggregate(sweep) == []
     assert files_of(Path(sweep.paths.aggregate) / "custom") == built_from_nothing(sweep, tmp_path)
+
+
+def test_aggregate_and_report_select_figures_by_one_rule(tmp_path):
+    """Both stages take the figures the command line names (experiments=, or figure= when
+    explicit) by aggregate.named_figures; an unknown one is one line naming the folder."""
+    from omegaconf import OmegaConf
+
+    from pipeline import report
+
+    cfg = OmegaConf.create(dict(figure="fig4", experiments=None,
+                                paths=dict(aggregate=str(tmp_path / "agg"))))
+    assert report.selected(cfg, explicit=False) is None  # every aggregated figure
+    with pytest.raises(FileNotFoundError, match=r"^figure=fig4: not aggregated under .*agg "
+                                                r"\(aggregated: none\)$"):
+        report.selected(cfg, explicit=True)
+    cfg.experiments = ["fig2", "fig5"]
+    assert aggregate.named_figures(cfg, False, ["fig5", "fig2"], "x", "simulated") == ["fig2", "fig5"]
+    with pytest.raises(FileNotFoundError, match=r"^figure=fig5: not simulated under x \(simulated: fig2\)$"):
+        aggregate.named_figures(cfg, False, ["fig2"], "x", "simulated")

@@ -3,6 +3,7 @@ import pandas as pd
 
 from pipeline.config import REPO_ROOT
 from pipeline.studies import coverage, scorecard
+from pipeline.tools import coverage as coverage_tool
 
 
 def test_the_coverage_table_in_the_docs_is_coverage_csv():
@@ -31,7 +32,7 @@ def test_the_scorecard_decides_exactly_where_the_measured_coverage_allows():
 
 
 def test_the_coverage_command_refuses_a_folder_without_measures(tmp_path, capsys):
-    assert coverage.main([str(tmp_path)]) == 2
+    assert coverage_tool.main([str(tmp_path)]) == 2
     assert capsys.readouterr().err.startswith("error: ")
 
 

@@ -7,6 +7,7 @@ import pytest
 from pipeline.config import REPO_ROOT
 from pipeline.studies import readings
 from pipeline.studies import scorecard as sc
+from pipeline.tools import readings as readings_tool
 from test_claims import EPOCHS, RISING, _figure
 
 FLAT = list(np.linspace(0.5, 0.02, len(EPOCHS)))  # no rise during growth
@@ -71,7 +72,7 @@ def test_the_readme_block_is_what_the_committed_matrix_gives():
     csv = REPO_ROOT / "outputs" / "report" / "readings_matrix.csv"
     if not csv.exists():
         pytest.skip("outputs/report/readings_matrix.csv is not committed yet (the next full "
-                    "report writes it; then run python -m pipeline.studies.readings)")
+                    "report writes it; then run python -m pipeline.tools.readings)")
     text = (REPO_ROOT / "README.md").read_text()
     shown = text[text.index(readings.BEGIN):text.index(readings.END) + len(readings.END)]
     assert shown == readings.readme_block(csv)
@@ -80,7 +81,7 @@ def test_the_readme_block_is_what_the_committed_matrix_gives():
 def test_the_readme_command_refuses_a_missing_matrix(tmp_path, capsys):
     readme = tmp_path / "README.md"
     readme.write_text(readings.BEGIN + "\n" + readings.END + "\n")
-    assert readings.main([str(readme), str(tmp_path / "none.csv")]) == 2
+    assert readings_tool.main([str(readme), str(tmp_path / "none.csv")]) == 2
     assert capsys.readouterr().err.startswith("error: ")
 
 

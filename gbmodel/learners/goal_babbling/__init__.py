@@ -29,7 +29,7 @@ class Params:
     # eta of the gradient step on eq. 6 (reference.gradient_step); the paper gives none. The
     # plain step's rule, fixed before its runs: eta = 1 / W, W the median sum of the weights per
     # epoch at full size after 20,000 epochs of the normalised step at eta = 1.0, so that both
-    # steps agree at full-size convergence (pipeline/studies/readings.py: weight_sum); arm5 W = 1142, so
+    # steps agree at full-size convergence (pipeline/tools/rate.py: weight_sum); arm5 W = 1142, so
     # eta = 1 / 1142; the iCub's (1 / 1791) and the 2-DOF arm's (1 / 1931) come with the body
     # (conf/body_learner). Recomputed with today's kernel W is 1173 (arm5) and 1782 (iCub): the
     # rates were kept as fixed before the runs. Measured alternatives (0.5 to 2 / W, the
@@ -285,28 +285,3 @@ def notes(params: Params, body) -> list[str]:
 def predict_model(model, params: Params, body, x) -> np.ndarray:
     """predict from what `model` stored (M)."""
     return reference.predict(np.asarray(model, np.float64), x, _exps(params, body))
-
-
-
-def weight_sum(body, params: dict, seeds=(0, 1, 2), epochs: int = 20_000, probe: int = 50) -> float:
-    """W, the rule that fixed the plain step's rates (eta = 1 / W): the median sum of the weights
-    per epoch at full size after `epochs` epochs of the normalised step at rate 1.0 (one trial per
-    seed, then `probe` epochs each of new draws, not learned from). It makes the plain step equal
-    to the normalised one at full-size convergence. body: a body description (make_body);
-    params: this learner's Params fields (V, R, K, L ...). `python -m pipeline.tools.rate` prints it."""
-    from ...trial import TrialSpec, run_trial
-
-    params = {**params, "step": "normalised", "learning_rate": 1.0}
-    sums = []
-    for seed in seeds:
-        spec = TrialSpec(body=body, learner={"name": "goal_babbling", **params}, epochs=epochs)
-        M = run_trial(spec, np.random.default_rng(seed)).M
-        b, p = spec.make_body(), Params(**params)
-        rng = np.random.default_rng(1000 + seed)
-        idx, raw = draw(p, b, probe, rng)[:2]
-        exps = _exps(p, b)
-        for e in range(probe):
-            _, (_, _, _, w) = reference.epoch(M, b, 1.0, np.ones(b.m), exps, idx[e], raw[e],
-                                              p.radius, p.steps, 0.0)
-            sums.append(float(w.sum()))
-    return float(np.median(sums))

@@ -1,0 +1,43 @@
+"""The coverage of the scorecard's intervals on fresh samples (pipeline.studies.coverage), written
+to pipeline/studies/coverage.csv, which the scorecard reads, and into docs/scorecard.md's table.
+
+    python -m pipeline.tools.coverage REPORT_DIR [--trials 3 5 10 20] [--draws 4000]
+        [--out pipeline/studies/coverage.csv] [--docs docs/scorecard.md]
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from .. import io
+from ..studies.coverage import (COUNTS, DRAWS, FIT, TABLE, docs_updated, markdown,
+                                per_trial_values, table, to_csv)
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(prog="python -m pipeline.tools.coverage",
+                                description=__doc__.split("\n\n")[0])
+    p.add_argument("report", type=Path, help="a report folder (measures.parquet or scorecard.csv)")
+    p.add_argument("--trials", type=int, nargs="+", default=list(COUNTS))
+    p.add_argument("--draws", type=int, default=DRAWS)
+    p.add_argument("--out", type=Path, default=TABLE)
+    p.add_argument("--docs", type=Path, default=None,
+                   help="a Markdown file whose coverage table to regenerate (docs/scorecard.md)")
+    a = p.parse_args(argv)
+    if not ((a.report / "scorecard.csv").exists() or (a.report / "measures.parquet").exists()):
+        print(f"error: {a.report}: no measures.parquet or scorecard.csv", file=sys.stderr)
+        return 2
+    t = table(per_trial_values(a.report), a.trials, a.draws)
+    if not len(t):
+        print(f"error: {a.report}: no measure has {FIT} trials", file=sys.stderr)
+        return 2
+    io.write_text(a.out, to_csv(t))
+    if a.docs is not None:
+        io.write_text(a.docs, docs_updated(a.docs.read_text(), t))
+    print(markdown(t))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
