@@ -185,14 +185,16 @@ def test_gymnasium_grids_are_reachable(name, size):
     assert gbmodel.bodies.unreachable(body, np.random.default_rng(0), size=size).size == 0
 
 
-def test_a_planar_arm_in_degrees_without_mujoco(tmp_path):
+def test_a_planar_arm_in_degrees_without_mujoco(tmp_path, monkeypatch):
     """Read with the standard library alone: MuJoCo's default angle unit is the degree (range,
     ref, euler), a hinge turns by qpos - ref, a body's euler places it, a site is the tip."""
+    monkeypatch.chdir(tmp_path)  # MuJoCo's log file, if it writes one
     path = tmp_path / "planar.xml"
     path.write_text("""<mujoco><worldbody>
       <body name="upper" pos="0 0 0.1"><joint name="shoulder" axis="0 0 1" range="-150 150"/>
+        <geom size="0.05"/>
         <body name="fore" pos="0.3 0 0" euler="0 0 90">
-          <joint name="elbow" axis="0 0 1" range="-90 135" ref="30"/>
+          <joint name="elbow" axis="0 0 1" range="-90 135" ref="30"/><geom size="0.05"/>
           <site name="tip" pos="0.2 0 0"/></body></body></worldbody></mujoco>""")
     body = body_from({"name": "planar", "mjcf": {"file": str(path), "root": "world",
                                                  "tip": "tip"},
@@ -204,6 +206,9 @@ def test_a_planar_arm_in_degrees_without_mujoco(tmp_path):
     want = np.column_stack([0.3 * np.cos(a) + 0.2 * np.cos(elbow),
                             0.3 * np.sin(a) + 0.2 * np.sin(elbow), np.full(2, 0.1)])
     np.testing.assert_allclose(body.forward(q), want, atol=1e-15)
+    if importlib.util.find_spec("mujoco") is not None:  # and MuJoCo's reading of the same file
+        np.testing.assert_allclose(mujoco_positions(path, ["shoulder", "elbow"], np.column_stack(
+            [a, b]), "world", "tip", [0, 0, 0]), want, rtol=0, atol=1e-12)
 
 
 def test_growth_scales_the_links(tmp_path):
