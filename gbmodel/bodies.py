@@ -14,6 +14,7 @@ taken (the saturated one): that is the only posture whose outcome was observed.
 """
 from __future__ import annotations
 
+import importlib.util
 import math
 import re
 from dataclasses import MISSING, dataclass, field, fields
@@ -241,7 +242,23 @@ class Description:
 FIELDS = tuple(f.name for f in fields(Description))
 CHAINS = ("dh", "urdf", "mjcf", "callable")  # the fields of which a body gives exactly one
 UNITS = {"rad": 1.0, "deg": None}  # deg: np.deg2rad (the same bits as the tables' conversion)
-SHIPPED = Path(__file__).resolve().parents[1] / "conf" / "body"  # the shipped descriptions
+CONF_PACKAGE = "gbgrowth_conf"  # conf/ installed from a wheel (pyproject.toml: package-dir)
+
+
+def conf_dir() -> Path:
+    """The config folder: conf/ of the checkout beside this package (a clone, `pip install -e`),
+    else the installed package data (a wheel installs conf/ as gbgrowth_conf)."""
+    checkout = Path(__file__).resolve().parents[1]
+    if (checkout / "pyproject.toml").is_file() and (checkout / "conf" / "config.yaml").is_file():
+        return checkout / "conf"
+    spec = importlib.util.find_spec(CONF_PACKAGE)
+    if spec is None or not spec.submodule_search_locations:  # neither: no body is shipped
+        return checkout / "conf"
+    return Path(list(spec.submodule_search_locations)[0])
+
+
+CONF_DIR = conf_dir()
+SHIPPED = CONF_DIR / "body"  # the shipped descriptions
 
 
 class _Loader(yaml.SafeLoader):

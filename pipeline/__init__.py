@@ -5,6 +5,8 @@ Importing the package registers the config schema (pipeline.config) with Hydra's
 import os
 import sys
 
+__version__ = "0.1.0"  # the distribution's version (pyproject.toml reads it; CITATION.cff names it)
+
 from . import stop
 
 if sys.argv[:1] == ["-m"]:  # `python -m pipeline.<stage>` (argv[0] is "-m" while it is located)

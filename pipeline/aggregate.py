@@ -37,6 +37,7 @@ import pyarrow as pa
 from omegaconf import DictConfig
 
 from . import cache, cli, io
+from .config import CONFIG_PATH
 from .measures import finals, growth_peak
 from .fingerprint import source_fingerprint
 from .labels import condition_labels
@@ -463,7 +464,7 @@ def run(cfg: DictConfig) -> int:
     return 1 if problems else 0
 
 
-@hydra.main(config_path="../conf", config_name="config", version_base="1.3")
+@hydra.main(config_path=CONFIG_PATH, config_name="config", version_base="1.3")
 def main(cfg: DictConfig) -> None:
     cli.finish(run, cfg)
 

@@ -18,6 +18,10 @@ trial, its curve checksum proves the curve complete and its seal (pipeline.io.se
 model, the snapshots, the status). A trial that diverged is a result too (status `diverged`, no
 curve); a trial that failed with an error is not cached and runs again next time.
 
+Measured CPU time is kept apart, under paths.out/logs/times/ (write_times, read_times): one file
+per simulate run, trial key -> CPU seconds of the trials it ran (the cache's bytes do not vary
+with the machine's speed; the report's provenance sums them per figure).
+
 A figure is a *group* of plan records: one simulate run, or every job of one Hydra multirun (they
 share the sweep's folder). The group a run writes becomes the figure's current group; its
 conditions are the union of its records' (one per distinct setting).
@@ -27,8 +31,10 @@ from __future__ import annotations
 import errno
 import fcntl
 import hashlib
+import json
 import os
 import re
+import time
 from functools import lru_cache
 from pathlib import Path
 
@@ -331,3 +337,31 @@ def figure_conditions(cache_dir, figure: str) -> tuple[list[dict], dict, list[st
 
 def figures(cache_dir) -> list[str]:
     return sorted(p.parent.name for p in (Path(cache_dir) / PLANS).glob("*/current.json"))
+
+
+TIMES = ("logs", "times")  # under paths.out: the measured CPU seconds of each run's trials
+
+
+def write_times(out_dir, cpu: dict[str, float]) -> Path | None:
+    """One run's measured CPU seconds per trial key, in a file of its own (no two runs write
+    the same file); None when the run computed nothing."""
+    if not cpu:
+        return None
+    # nanoseconds since 1970 (19 digits): the names sort as the runs ended
+    path = Path(out_dir).joinpath(*TIMES) / f"{time.time_ns()}-{os.getpid()}.json"
+    io.write_json(path, {k: round(v, 3) for k, v in cpu.items()}, compact=True)
+    return path
+
+
+def read_times(out_dir) -> dict[str, float]:
+    """Trial key -> measured CPU seconds over every run's file (a later run's wins); a damaged
+    file is skipped (the times are provenance, not results)."""
+    out = {}
+    for p in sorted(Path(out_dir).joinpath(*TIMES).glob("*.json")):
+        try:
+            data = json.loads(p.read_bytes())
+        except (OSError, ValueError):
+            continue
+        if isinstance(data, dict):
+            out.update({k: float(v) for k, v in data.items() if isinstance(v, (int, float))})
+    return out

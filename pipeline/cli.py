@@ -316,6 +316,8 @@ def finish(run, cfg) -> None:
         try:  # no write or delete through a link leading elsewhere
             io.confine(cfg.paths.root if cfg is not None else None)
             rc = run(cfg)
+            if rc in (0, 1):  # it ran (1: some trials failed or inputs are missing)
+                snapshot(cfg)
         except (ConfigError, FileNotFoundError, NotADirectoryError) as err:
             print(f"error: {err}", file=sys.stderr)
             rc = 2
@@ -344,6 +346,36 @@ def finish(run, cfg) -> None:
     _PASSED.clear()
     if rc:
         sys.exit(rc)
+
+
+def snapshot(cfg):
+    """Keep the config this run composed (resolved: every path as used) and its command-line
+    overrides, Hydra's layout: .hydra/config.yaml and .hydra/overrides.yaml under
+    paths.out/logs/<stage>/<time>_<tag>/, a multirun job's in its folder of the sweep. Written
+    after the stage ran, so a refused run writes nothing; None outside @hydra.main (the API)."""
+    import time
+
+    from hydra.core.hydra_config import HydraConfig
+    from hydra.types import RunMode
+    from omegaconf import OmegaConf
+
+    from .config import sweep_tag
+
+    if cfg is None or not HydraConfig.initialized():
+        return None
+    hc = HydraConfig.get()
+    folder = Path(hc.runtime.output_dir).resolve()
+    if hc.mode != RunMode.MULTIRUN or not folder.is_relative_to(Path(cfg.paths.root).resolve()):
+        folder = (Path(cfg.paths.out) / "logs" / hc.job.name
+                  / f"{time.strftime('%Y-%m-%d_%H-%M-%S')}_{sweep_tag()}")
+    try:
+        text = OmegaConf.to_yaml(cfg, resolve=True)
+    except Exception:  # an interpolation only a later stage can resolve: kept as written
+        text = OmegaConf.to_yaml(cfg)
+    io.write_text(folder / ".hydra" / "config.yaml", text)
+    io.write_text(folder / ".hydra" / "overrides.yaml",
+                  OmegaConf.to_yaml(list(hc.overrides.task)))
+    return folder
 
 
 def disk_message(err: OSError) -> str:

@@ -28,8 +28,19 @@ from gbmodel import evaluation
 from gbmodel.growth import LIMITS as growth_limits
 from gbmodel.spec import MAX_EPOCHS, MAX_INT64, MAX_SIZE, Int, Number
 
-REPO_ROOT = Path(__file__).resolve().parents[1]
-CONF_DIR = REPO_ROOT / "conf"
+REPO_ROOT = Path(__file__).resolve().parents[1]  # the checkout (installed: site-packages)
+CONF_DIR = gbmodel.bodies.CONF_DIR  # conf/ of the checkout, else the installed gbgrowth_conf
+IN_CHECKOUT = CONF_DIR == REPO_ROOT / "conf"
+# every stage's @hydra.main(config_path=CONFIG_PATH): the checkout's folder, else the installed
+# package through Hydra's package search path; a conf/ of the working directory is added after
+# it (hydra_plugins/gbgrowth_searchpath), hydra.searchpath after that
+CONFIG_PATH = str(CONF_DIR) if IN_CHECKOUT else f"pkg://{gbmodel.bodies.CONF_PACKAGE}"
+
+
+def default_root() -> str:
+    """paths.root unless given: the checkout (make and every documented command write into its
+    outputs/, wherever they are started), else the working directory (an installed package)."""
+    return str(REPO_ROOT) if IN_CHECKOUT else os.getcwd()
 
 
 class ConfigError(ValueError):
@@ -252,8 +263,8 @@ def sweep_tag() -> str:
     return hashlib.sha256(who.encode()).hexdigest()[:8]
 
 
-if not OmegaConf.has_resolver("repo_root"):
-    OmegaConf.register_new_resolver("repo_root", lambda: str(REPO_ROOT))
+if not OmegaConf.has_resolver("default_root"):
+    OmegaConf.register_new_resolver("default_root", default_root)
 if not OmegaConf.has_resolver("sweep_tag"):
     OmegaConf.register_new_resolver("sweep_tag", sweep_tag, use_cache=True)
 register_schemas()
@@ -265,13 +276,21 @@ def compose(overrides: list[str] | tuple = (), hydra: bool = False) -> DictConfi
 
     Used by the tests and by callers that want a config without the command line."""
     from hydra import compose as hydra_compose
-    from hydra import initialize_config_dir
+
+    with initialized():
+        return hydra_compose(config_name="config", overrides=list(overrides),
+                             return_hydra_config=hydra)
+
+
+def initialized():
+    """Hydra's compose API on the stages' config (CONFIG_PATH), a fresh one each time."""
+    from hydra import initialize_config_dir, initialize_config_module
     from hydra.core.global_hydra import GlobalHydra
 
     GlobalHydra.instance().clear()
-    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
-        return hydra_compose(config_name="config", overrides=list(overrides),
-                             return_hydra_config=hydra)
+    if IN_CHECKOUT:
+        return initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3")
+    return initialize_config_module(gbmodel.bodies.CONF_PACKAGE, version_base="1.3")
 
 
 def check_experiments(cfg, overrides: list[str] | tuple = ()) -> None:
@@ -280,11 +299,9 @@ def check_experiments(cfg, overrides: list[str] | tuple = ()) -> None:
     names = list(cfg.get("experiments") or [])
     if not names:
         return
-    from hydra import initialize_config_dir
     from hydra.core.global_hydra import GlobalHydra
 
-    GlobalHydra.instance().clear()
-    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+    with initialized():
         search = [o for o in overrides if o.startswith("hydra.searchpath=")]
         if search:  # the options a searchpath adds: compose once to load it
             from hydra import compose as hydra_compose

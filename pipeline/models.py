@@ -26,6 +26,7 @@ mean and quartiles over trials at its last epoch, as curves.parquet beside it ho
 from __future__ import annotations
 
 import json
+import os
 import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -112,22 +113,16 @@ class Figure(Mapping):
         return len(self.models)
 
 
-def load(figure: str, aggregate_dir=None) -> Figure:
-    """The trained models of `figure` from paths.aggregate (default: outputs/aggregate of the
-    repository; pass the folder for another root or profile, e.g. outputs/smoke/aggregate), or
-    from a report folder's models/<figure>.json (the report stage writes them; without a local
-    aggregate, the committed report's, outputs/report/models/, are read: a fresh clone)."""
-    from .config import REPO_ROOT
-
-    folders = ([Path(aggregate_dir)] if aggregate_dir is not None else
-               [REPO_ROOT / "outputs" / "aggregate", REPO_ROOT / "outputs" / "report"])
-    tried = [p for d in folders
-             for p in (d / figure / "models.json", d / "models" / f"{figure}.json")]
-    path = next((p for p in tried if p.exists()), None)
-    if path is None:
-        raise FileNotFoundError(f"{tried[0]}: not aggregated (run pipeline.simulate and "
-                                "pipeline.aggregate for this figure, or pipeline.report for "
-                                "its models/<figure>.json)")
+def load(figure, aggregate_dir=None) -> Figure:
+    """The trained models of `figure`: a figure's name, found in paths.aggregate (default:
+    outputs/aggregate under the default paths.root, the checkout or, installed, the working
+    directory; pass the folder for another root or profile, e.g. outputs/smoke/aggregate), or
+    in a report folder's models/<figure>.json (the report stage writes them; without a local
+    aggregate, the committed report's, outputs/report/models/, are read: a fresh clone); or a
+    path: a models JSON file (outputs/report/models/fig4.json) or a figure's aggregate folder
+    (outputs/aggregate/fig4). A name is plain (no folder separator, no .json); anything else
+    is a path, relative to the working directory."""
+    path = locate(figure, aggregate_dir)
     data = read(path)
     out = {}
     for label, c in data["conditions"].items():
@@ -139,7 +134,33 @@ def load(figure: str, aggregate_dir=None) -> Figure:
             M={i: np.asarray(t["M"]) for i, t in trials.items()},
             snapshots={i: {int(e): np.asarray(m) for e, m in t.get("snapshots", {}).items()}
                        for i, t in trials.items()})
-    return Figure(figure, out)
+    return Figure(data.get("figure", str(figure)), out)
+
+
+def locate(figure, aggregate_dir=None) -> Path:
+    """The models file `load` reads (FileNotFoundError naming where it looked)."""
+    text = str(figure)
+    if isinstance(figure, Path) or "/" in text or os.sep in text or text.endswith(".json"):
+        path = Path(figure).expanduser()
+        if path.is_dir():
+            path = path / "models.json"
+        if not path.is_file():
+            raise FileNotFoundError(f"{path}: no models file (a models/<figure>.json of a "
+                                    "report, or an aggregate's <figure>/models.json)")
+        return path
+    from .config import default_root
+
+    root = Path(default_root()) / "outputs"
+    folders = ([Path(aggregate_dir)] if aggregate_dir is not None else
+               [root / "aggregate", root / "report"])
+    tried = [p for d in folders
+             for p in (d / figure / "models.json", d / "models" / f"{figure}.json")]
+    path = next((p for p in tried if p.exists()), None)
+    if path is None:
+        raise FileNotFoundError(f"{tried[0]}: not aggregated (run pipeline.simulate and "
+                                "pipeline.aggregate for this figure, or pipeline.report for "
+                                "its models/<figure>.json)")
+    return path
 
 
 def _remedy(path: Path) -> str:

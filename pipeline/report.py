@@ -43,7 +43,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from . import cli, io
 from .aggregate import named_figures
-from .config import ConfigError, check_stamp
+from .config import CONFIG_PATH, ConfigError, check_stamp
 from .studies import sections
 from .studies.sections import declares_claims
 
@@ -278,7 +278,7 @@ def run(cfg: DictConfig) -> int:
     return 0
 
 
-@hydra.main(config_path="../conf", config_name="config", version_base="1.3")
+@hydra.main(config_path=CONFIG_PATH, config_name="config", version_base="1.3")
 def main(cfg: DictConfig) -> None:
     cli.finish(run, cfg)
 

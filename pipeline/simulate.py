@@ -24,7 +24,7 @@ import hydra
 from omegaconf import DictConfig, OmegaConf
 
 from . import cache, cli, execute, io
-from .config import check_backend
+from .config import CONFIG_PATH, check_backend
 from .fingerprint import code_fingerprint
 from .plan import check_run, cost, plan, plan_conditions
 from .planned import PLANNED, misplanned, plan_digest
@@ -42,6 +42,7 @@ class Summary:
     ran: int = 0
     failed: dict = field(default_factory=dict)  # key -> error (failed or diverged)
     labels: dict = field(default_factory=dict)  # key -> "condition trial i", for messages
+    cpu: dict = field(default_factory=dict)  # key -> measured CPU seconds of the trials run
 
     def lines(self) -> list[str]:
         head = (f"[{self.figure}] {self.total} trials: {self.cached} cached, {self.ran} run, "
@@ -55,6 +56,8 @@ def record(cache_dir, trial: dict, result: dict, summary: Summary) -> None:
     if result["status"] in ("ok", "diverged"):
         cache.write_trial(cache_dir, trial, result)
         failure.unlink(missing_ok=True)
+        if isinstance(result.get("cpu"), (int, float)):
+            summary.cpu[key] = result["cpu"]
     if result["status"] != "ok":
         summary.failed[key] = result["error"]
         where = summary.labels[key]
@@ -255,6 +258,7 @@ def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = Non
         progress.close()
         for c in claims.values():
             c.release()
+        cache.write_times(cfg.paths.out, summary.cpu)  # the report's provenance sums them
     for j in jobs:
         write_figure(cache_dir, j, group, job)
     return summary
@@ -300,7 +304,7 @@ def run(cfg: DictConfig) -> int:
     return 1 if summary.failed else 0
 
 
-@hydra.main(config_path="../conf", config_name="config", version_base="1.3")
+@hydra.main(config_path=CONFIG_PATH, config_name="config", version_base="1.3")
 def main(cfg: DictConfig) -> None:
     cli.finish(run, cfg)
 

@@ -25,7 +25,7 @@ def run_one(trial: dict) -> dict:
 
     status: ok (a learning curve), diverged (the error became non-finite: a result, with the
     epoch), or failed (an exception; not cached, so the next run tries again)."""
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     try:
         from .fingerprint import code_fingerprint
 
@@ -49,6 +49,7 @@ def run_one(trial: dict) -> dict:
         out = dict(status="failed", error=f"{type(err).__name__}: {err}",
                    traceback=traceback.format_exc())
     out["key"], out["seconds"] = trial["key"], time.perf_counter() - start
+    out["cpu"] = time.process_time() - cpu  # this worker's CPU seconds (one thread)
     return out
 
 

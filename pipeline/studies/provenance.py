@@ -4,24 +4,31 @@ the credits of the third-party robot models.
 - `write_models`: models/<figure>.json in the report folder, per condition its trial spec and
   every trial's final inverse estimate M (no snapshots: a few kB per condition), the layout of
   the aggregate's models.json, so `pipeline.models.load(figure)` reads it on a fresh clone.
-- `markdown`: the provenance block (commit, lock file hash, Python and key package versions,
-  CPU model, trials per figure and their estimated CPU time) and the credits section.
+- `markdown`: the provenance block (when, by which command line and gbgrowth version, commit,
+  lock file hash, Python and key package versions, CPU model, trials per figure and their CPU
+  time, measured and estimated) and the credits section.
 
-The block holds nothing that varies between two runs of the same checkout on the same machine
-(no dates, no measured times), so the report's bytes stay reproducible. CPU time per figure is
-the plan's cost model (pipeline.plan.cost) times SECONDS_PER_COST, not a measurement of this run: the cache does not keep
-timings, so a cached trial costs the same whoever computed it.
+Two lines vary between two runs of the same checkout: the date and command line, and the
+measured CPU time (the seconds each trial took when it was computed, whichever run computed
+it: pipeline.cache.read_times; a trial computed before times were kept counts as unmeasured).
+Everything else in the report is reproducible byte for byte, and so is the block within one
+process (the date is taken once). The estimate beside it is the plan's cost model
+(pipeline.plan.cost) times SECONDS_PER_COST.
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import platform
+import shlex
 import subprocess
+import sys
+import time
 from importlib import metadata
 from pathlib import Path
 
-from ..config import REPO_ROOT
+from ..config import IN_CHECKOUT, REPO_ROOT
 from ..plan import SECONDS_PER_COST  # CPU seconds per unit of pipeline.plan.cost
 from .sections import Context, register
 
@@ -72,6 +79,8 @@ def _rounded(M):
 
 
 def _git(*args) -> str | None:
+    if not IN_CHECKOUT:  # installed: site-packages may lie in some other repository
+        return None
     try:
         r = subprocess.run(["git", "-C", str(REPO_ROOT), *args], capture_output=True, text=True,
                            timeout=30)
@@ -110,6 +119,43 @@ def versions() -> dict[str, str]:
     return out
 
 
+@functools.lru_cache(maxsize=None)
+def made_at() -> str:
+    """This process's date and time (UTC, to the minute), taken once."""
+    return time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
+
+
+def command_line() -> str:
+    """The command line that runs this report stage with its overrides, as typed (`gbgrowth
+    report ...` or `python -m pipeline.report ...`); for a call from Python, says so."""
+    from hydra.core.hydra_config import HydraConfig
+
+    if not HydraConfig.initialized():
+        return "pipeline.report.report(cfg) from Python"
+    hc = HydraConfig.get()
+    prog = sys.argv[0]  # `gbgrowth report` (pipeline.__main__), else a file's path
+    if not prog.startswith("gbgrowth "):
+        prog = f"python -m pipeline.{hc.job.name}"
+    return " ".join([prog, *(shlex.quote(o) for o in hc.overrides.task)])
+
+
+def measured_costs(aggs: dict, out_dir) -> dict[str, tuple[int, float]]:
+    """figure -> (trials measured, their CPU seconds) from the times each run kept
+    (pipeline.cache.read_times under paths.out)."""
+    from ..cache import read_times
+
+    times, out = read_times(out_dir), {}
+    for name, agg in aggs.items():
+        found = [times[t["key"]] for c in agg["models"]["conditions"].values()
+                 for t in c["trials"].values() if isinstance(t, dict) and t.get("key") in times]
+        out[name] = (len(found), sum(found))
+    return out
+
+
+def _duration(seconds: float) -> str:
+    return f"{seconds:.1f} s" if seconds < 60 else f"{seconds / 60:.1f} min"
+
+
 def figure_costs(aggs: dict) -> dict[str, tuple[int, float]]:
     """figure -> (trials, estimated CPU seconds) from each trial's spec (pipeline.plan.cost)."""
     from ..plan import cost
@@ -134,23 +180,33 @@ def credits(aggs: dict) -> list[str]:
     return lines
 
 
-def markdown(aggs: dict) -> list[str]:
-    """The report's provenance block and credits section (markdown lines)."""
+def markdown(aggs: dict, out_dir=None) -> list[str]:
+    """The report's provenance block and credits section (markdown lines); out_dir: paths.out,
+    whose runs kept the measured CPU times (None: not measured)."""
+    from .. import __version__
+
     lock = (hashlib.sha256(LOCK.read_bytes()).hexdigest()[:16] if LOCK.exists()
             else "no requirements.lock")
     v = versions()
+    measured = measured_costs(aggs, out_dir) if out_dir is not None else {}
     md = ["## Provenance", "",
+          f"- made {made_at()} by gbgrowth {__version__}: `{command_line()}`",
           f"- commit: `{commit()}`",
           f"- requirements.lock: sha256 `{lock}`",
           "- " + ", ".join(f"{k} {val}" for k, val in v.items()),
           f"- CPU: {cpu_model()}", "",
-          "| figure | trials | CPU time (estimated) |", "|---|---|---|"]
+          "| figure | trials | CPU time (measured) | CPU time (estimated) |",
+          "|---|---|---|---|"]
     for name, (n, seconds) in figure_costs(aggs).items():
-        md.append(f"| {name} | {n} | " + (f"{seconds:.1f} s |" if seconds < 60
-                                           else f"{seconds / 60:.1f} min |"))
-    md += ["", "CPU time: the plan's cost model (pipeline.plan.cost) on Goal Babbling's "
-           "calibration (pipeline.tools.bench_costs), not a measurement of this run. The final models of every "
-           "condition: `models/<figure>.json` (`pipeline.models.load(figure)`).", ""]
+        k, spent = measured.get(name, (0, 0.0))
+        mine = ("not measured" if k == 0 else _duration(spent)
+                + (f" ({k} of {n} trials)" if k < n else ""))
+        md.append(f"| {name} | {n} | {mine} | {_duration(seconds)} |")
+    md += ["", "CPU time: measured, the CPU seconds each trial took when it was computed (any "
+           "run; a trial cached before times were kept is not measured); estimated, the plan's "
+           "cost model (pipeline.plan.cost) on Goal Babbling's calibration "
+           "(pipeline.tools.bench_costs). The final models of every condition: "
+           "`models/<figure>.json` (`pipeline.models.load(path)`).", ""]
     lines = credits(aggs)
     md += ["## Credits", "",
            "The Goal Babbling model and the paper's bodies: Rolf, Steil and Gienger (2010), "
@@ -167,4 +223,4 @@ def section(ctx: Context) -> list[str]:
         return []
     ctx.written.extend(write_models(ctx.of("figures"), ctx.out))
     every = {k: a for group in ctx.groups.values() for k, a in group.items()}
-    return markdown(dict(sorted(every.items())))
+    return markdown(dict(sorted(every.items())), ctx.cfg.paths.out)

@@ -30,7 +30,7 @@ from omegaconf import DictConfig
 import gbmodel
 
 from .. import cli, execute, io
-from ..config import compose
+from ..config import CONFIG_PATH, compose
 from ..plan import plan
 
 # epochs per timed trial: long enough to swamp timer noise, short enough for the reference path
@@ -166,7 +166,7 @@ def run(cfg: DictConfig) -> int:
     return 0
 
 
-@hydra.main(config_path="../../conf", config_name="config", version_base="1.3")
+@hydra.main(config_path=CONFIG_PATH, config_name="config", version_base="1.3")
 def main(cfg: DictConfig) -> None:
     with execute.single_threaded_children():
         cli.finish(run, cfg)

@@ -30,7 +30,7 @@ from gbmodel.learners.goal_babbling import reference
 from gbmodel.trial import TrialSpec, run_trial
 
 from .. import cli
-from ..config import REPO_ROOT
+from ..config import CONF_DIR, CONFIG_PATH, IN_CHECKOUT
 
 EPOCHS, SEEDS, PROBE = 20_000, (0, 1, 2), 50  # the rule, as it was fixed before the runs
 
@@ -85,13 +85,14 @@ def own_settings(cfg: DictConfig) -> dict:
 
 def destination(cfg: DictConfig) -> Path:
     """Where the body's learner settings go: body_learner/<body>_goal_babbling.yaml in the
-    config folder that holds the body's file (a folder of hydra.searchpath, or conf/)."""
+    config folder that holds the body's file (a folder of hydra.searchpath, or conf/: the
+    checkout's, or, installed, the working directory's)."""
     from hydra.core.hydra_config import HydraConfig
 
     folders = [Path(s.path) for s in HydraConfig.get().runtime.config_sources
                if s.schema == "file"] if HydraConfig.initialized() else []
     home = next((f for f in folders if (f / "body" / f"{cfg.body.name}.yaml").is_file()),
-                REPO_ROOT / "conf")
+                CONF_DIR if IN_CHECKOUT else Path.cwd() / "conf")
     return home / "body_learner" / f"{cfg.body.name}_goal_babbling.yaml"
 
 
@@ -121,7 +122,7 @@ def run(cfg: DictConfig) -> int:
     return 0
 
 
-@hydra.main(config_path="../../conf", config_name="config", version_base="1.3")
+@hydra.main(config_path=CONFIG_PATH, config_name="config", version_base="1.3")
 def main(cfg: DictConfig) -> None:
     cli.finish(run, cfg)
 

@@ -505,16 +505,19 @@ def test_a_growth_pattern_becomes_factors_in_one_place():
 
 
 def test_every_hydra_command_finds_the_config_folder():
-    """A stage or tool's @hydra.main(config_path=...) is relative to its own file: moving a
-    command into a sub-package must move its path with it (else: 'Primary config directory
-    not found' at start)."""
+    """A stage or tool's @hydra.main takes config_path=CONFIG_PATH (pipeline.config): the
+    checkout's conf/ here, pkg://gbgrowth_conf when installed (tests/e2e/test_wheel.py); a path
+    of its own would fail from a wheel ('Primary config directory not found')."""
     import re
+
+    from pipeline.config import CONFIG_PATH
     found = 0
     for path in (REPO_ROOT / "pipeline").rglob("*.py"):
-        for rel in re.findall(r'hydra\.main\(config_path="([^"]+)"', path.read_text()):
+        for arg in re.findall(r'hydra\.main\(config_path=([^,]+),', path.read_text()):
             found += 1
-            assert (path.parent / rel).resolve() == (REPO_ROOT / "conf").resolve(), path
+            assert arg == "CONFIG_PATH", path
     assert found >= 5
+    assert Path(CONFIG_PATH) == REPO_ROOT / "conf"
 
 
 def test_every_test_file_and_command_the_project_names_exists():

@@ -59,7 +59,30 @@ def test_report_has_the_provenance_block_and_credits(smoke):
     assert f"numpy {numpy.__version__}" in block and f"python {sys.version.split()[0]}" in block
     assert f"CPU: {provenance.cpu_model()}" in block
     assert "| prov | 4 |" in block  # 2 conditions x 2 trials
+    from pipeline import __version__
+    made = next(ln for ln in block.splitlines() if ln.startswith("- made "))
+    assert f"by gbgrowth {__version__}: `python -m pipeline.report profile=smoke " in made
+    assert f"paths.root={smoke['root']}" in made and "figure=prov" in made
+    # each stage's run kept its config and overrides (pipeline.cli.snapshot), under paths.root
+    logs = smoke["root"] / "outputs" / "smoke" / "logs"
+    for stage in ("simulate", "aggregate", "report"):
+        (snap,) = logs.glob(f"{stage}/*/.hydra")
+        assert "- figure=prov" in (snap / "overrides.yaml").read_text()
+        assert f"root: {smoke['root']}" in (snap / "config.yaml").read_text()  # resolved
+    row = next(ln for ln in block.splitlines() if ln.startswith("| prov |")).split("|")
+    assert row[3].strip().endswith(" s") and "of" not in row[3]  # all 4 trials measured
     assert "## Credits" in block and "CC-BY-SA" not in block  # arm5 only: nothing to credit
+
+
+def test_measured_cpu_time_sums_each_trials_own_record(tmp_path):
+    from pipeline import cache
+    cache.write_times(tmp_path, {"a": 1.5, "b": 2.0})
+    cache.write_times(tmp_path, {"b": 3.0})  # a later run computed b again
+    (tmp_path / "logs" / "times" / "zz-damaged.json").write_text("{")
+    assert cache.write_times(tmp_path, {}) is None
+    trials = {"0": {"key": "a"}, "1": {"key": "b"}, "2": {"key": "c"}}
+    aggs = {"f": dict(models=dict(conditions={"c": dict(trials=trials)}))}
+    assert provenance.measured_costs(aggs, tmp_path) == {"f": (2, 4.5)}
 
 
 def test_credits_name_the_third_party_robots_used():

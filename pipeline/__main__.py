@@ -1,0 +1,91 @@
+"""The `gbgrowth` command (and `python -m pipeline`): one subcommand per stage, Hydra's overrides
+after it, as `python -m pipeline.<stage>` takes them.
+
+    gbgrowth simulate experiment=fig4 profile=smoke     # = python -m pipeline.simulate ...
+    gbgrowth aggregate experiment=fig4 profile=smoke
+    gbgrowth report experiment=fig4 profile=smoke
+    gbgrowth rate body=my_arm                           # = python -m pipeline.tools.rate ...
+    gbgrowth bench                                      # = python -m pipeline.tools.bench ...
+    gbgrowth models fig4                                # the trained models of a figure (or a path)
+    gbgrowth --version
+
+Outside a checkout every output goes under the working directory (paths.root), and a conf/
+folder there adds the user's own configs (docs/install.md).
+"""
+from __future__ import annotations
+
+import importlib
+import sys
+
+from . import __version__
+
+STAGES = {  # subcommand -> the module whose @hydra.main it runs
+    "simulate": "pipeline.simulate",
+    "aggregate": "pipeline.aggregate",
+    "report": "pipeline.report",
+    "rate": "pipeline.tools.rate",
+    "bench": "pipeline.tools.bench",
+}
+USAGE = f"""usage: gbgrowth COMMAND [HYDRA OVERRIDES ...]
+
+commands:
+  simulate    run the trials of a config that are not cached (paths.cache)
+  aggregate   the cache into curves and summaries per figure (paths.aggregate)
+  report      figures, tables and report.md (paths.report)
+  rate        rate a body's learning rate for Goal Babbling (body=NAME)
+  bench       time the fast path against the numpy reference
+  models      FIGURE|PATH [AGGREGATE_DIR]: the trained models of a figure, one line per condition
+              (models seal FILE...: verify a report's models file against its curves, seal it)
+
+  gbgrowth COMMAND --help    Hydra's help of a stage (its config groups and options)
+  gbgrowth --version
+
+Outputs go under paths.root: the working directory outside a checkout (docs/install.md)."""
+
+
+def models(args: list[str]) -> int:
+    """`gbgrowth models FIGURE|PATH [AGGREGATE_DIR]`: one line per condition of the figure;
+    `gbgrowth models seal FILE...` is `python -m pipeline.models seal FILE...`."""
+    from . import models as loader
+
+    if args[:1] == ["seal"]:  # python -m pipeline.models seal FILE...
+        return loader.main(args)
+    if not args or len(args) > 2 or args[0].startswith("-"):
+        print("usage: gbgrowth models FIGURE|PATH [AGGREGATE_DIR]", file=sys.stderr)
+        return 2
+    try:
+        fig = loader.load(*args)
+    except (FileNotFoundError, ValueError) as err:  # io.DamagedFile too
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    print(f"{fig.name}: {len(fig)} condition(s)")
+    for label, m in fig.items():
+        print(f"  {label}: {m.body.name}, {len(m.M)} trial(s), size {m.size:g} at epoch "
+              f"{m.spec.epochs}")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> None:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] in ("-h", "--help", "help"):
+        print(USAGE)
+        sys.exit(0 if argv else 2)
+    command, rest = argv[0], argv[1:]
+    if command in ("--version", "-V", "version"):
+        print(f"gbgrowth {__version__}")
+        sys.exit(0)
+    if command == "models":
+        sys.exit(models(rest))
+    if command not in STAGES:
+        print(f"error: {command!r} is not a command; choose one of "
+              f"{', '.join([*STAGES, 'models'])} (gbgrowth --help)", file=sys.stderr)
+        sys.exit(2)
+    from . import cli
+
+    module = importlib.import_module(STAGES[command])
+    sys.argv = [f"gbgrowth {command}", *rest]  # what Hydra and the stage read
+    cli.main(module.main)
+
+
+if __name__ == "__main__":
+    main()
