@@ -28,12 +28,14 @@ from gbmodel import evaluation
 from gbmodel.growth import LIMITS as growth_limits
 from gbmodel.spec import MAX_EPOCHS, MAX_INT64, MAX_SIZE, Int, Number
 
+from . import searchpath
+
 REPO_ROOT = Path(__file__).resolve().parents[1]  # the checkout (installed: site-packages)
 CONF_DIR = gbmodel.bodies.CONF_DIR  # conf/ of the checkout, else the installed gbgrowth_conf
 IN_CHECKOUT = CONF_DIR == REPO_ROOT / "conf"
-# every stage's @hydra.main(config_path=CONFIG_PATH): the checkout's folder, else the installed
-# package through Hydra's package search path; a conf/ of the working directory is added after
-# it (hydra_plugins/gbgrowth_searchpath), hydra.searchpath after that
+# every stage's @hydra.main takes config_path=CONFIG_PATH: the checkout's folder, else the
+# installed package through Hydra's package search path; a conf/ of the working directory is
+# added after it (pipeline/searchpath.py), hydra.searchpath after that
 CONFIG_PATH = str(CONF_DIR) if IN_CHECKOUT else f"pkg://{gbmodel.bodies.CONF_PACKAGE}"
 
 
@@ -268,6 +270,7 @@ if not OmegaConf.has_resolver("default_root"):
 if not OmegaConf.has_resolver("sweep_tag"):
     OmegaConf.register_new_resolver("sweep_tag", sweep_tag, use_cache=True)
 register_schemas()
+searchpath.register(CONFIG_PATH)
 
 
 def compose(overrides: list[str] | tuple = (), hydra: bool = False) -> DictConfig:

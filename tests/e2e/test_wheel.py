@@ -25,8 +25,7 @@ from pipeline import __version__
 from pipeline.config import REPO_ROOT
 
 # what the wheel is built from (pyproject.toml names the packages and the package data)
-SOURCES = ("pyproject.toml", "README.md", "LICENSE", "conf", "gbmodel", "pipeline",
-           "hydra_plugins")
+SOURCES = ("pyproject.toml", "README.md", "LICENSE", "conf", "gbmodel", "pipeline")
 IGNORE = shutil.ignore_patterns("__pycache__", "*.pyc", "*.nbi", "*.nbc")
 SKIP = {".git", ".venv", "__pycache__", ".pytest_cache"}  # caches, not the project's files
 # the user's own experiment, in a conf/ of the working folder: found by convention
@@ -182,12 +181,17 @@ def test_the_wheel_lists_every_package_and_the_configs():
     package folder must be listed, else the wheel lacks it."""
     tool = tomllib.loads((REPO_ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
     on_disk = {p.parent.relative_to(REPO_ROOT).as_posix().replace("/", ".")
-               for top in ("gbmodel", "pipeline", "hydra_plugins")
+               for top in ("gbmodel", "pipeline")
                for p in (REPO_ROOT / top).rglob("__init__.py") if "__pycache__" not in p.parts}
     assert set(tool["packages"]) == on_disk | {"gbgrowth_conf"}
     assert tool["package-dir"] == {"gbgrowth_conf": "conf"}
     assert (REPO_ROOT / "conf" / "__init__.py").is_file()  # Hydra's pkg:// needs it
     assert not list((REPO_ROOT / "conf").glob("*/*/*.yaml"))  # package-data: two levels
+    data = tool["package-data"]
+    for top in ("gbmodel", "pipeline"):  # every data file a module reads is package data
+        for p in (REPO_ROOT / top).rglob("*"):
+            if p.is_file() and p.suffix not in (".py", ".pyc", ".nbi", ".nbc"):
+                assert any(p.match(pattern) for pattern in data["*"]), p
 
 
 @pytest.mark.slow

@@ -1,0 +1,41 @@
+"""A conf/ folder of the working directory on Hydra's search path, by convention.
+
+A user's own bodies, learners and experiments in ./conf/body/, ./conf/experiment/, ... are found
+as if named on hydra.searchpath: after the shipped configs (a shipped name wins) and before
+hydra.searchpath's folders. pipeline.config registers the plugin with Hydra when it is imported
+(Hydra's manual registration: no hydra_plugins package to install or discover); it acts only
+when the primary config is gbgrowth's own (pipeline.config.CONFIG_PATH, given to register).
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from hydra.core.config_search_path import ConfigSearchPath
+from hydra.core.plugins import Plugins
+from hydra.plugins.search_path_plugin import SearchPathPlugin
+
+PROVIDER = "gbgrowth: conf/ of the working directory"
+
+
+def _folder(path: str) -> str:
+    return path[len("file://"):] if path.startswith("file://") else path
+
+
+class WorkingDirConf(SearchPathPlugin):
+    config_path = None  # the stages' primary config (register)
+
+    def manipulate_search_path(self, search_path: ConfigSearchPath) -> None:
+        mains = [e.path for e in search_path.get_path() if e.provider == "main" and e.path]
+        if self.config_path not in {_folder(p) for p in mains} | set(mains):
+            return  # another app's config
+        here = Path(os.getcwd()) / "conf"
+        if here.is_dir() and not any(Path(_folder(p)).resolve() == here.resolve()
+                                     for p in mains if not p.startswith("pkg://")):
+            search_path.append(provider=PROVIDER, path=f"file://{here}")
+
+
+def register(config_path: str) -> None:
+    """Make Hydra call the plugin for the stages' primary config `config_path`."""
+    WorkingDirConf.config_path = config_path
+    Plugins.instance().register(WorkingDirConf)
