@@ -515,10 +515,21 @@ def figure_measures(aggs: dict, stages: dict | None = None) -> list:
     return ms
 
 
+def calibrate(ms: list, table: pd.DataFrame | None = None) -> list:
+    """Each measure's t level (m.calibrated), found once for all its readings (the coverage of a
+    t interval is the same for a measure and its multiples, as a reading per unit size is)."""
+    table = coverage_table() if table is None else table
+    for m in ms:
+        if m.calibrated is None and not (m.exact or m.diverged):
+            m.calibrated = calibration(Test(m.figure, m.claim, m.where, m.values, kind=m.kind,
+                                            measure=m.claim), len(m.values), table)
+    return ms
+
+
 def judged(ms: list, table: pd.DataFrame | None = None, register=None) -> list[dict]:
     """Every measure judged under every reading of `register` (default: this one's)."""
     table = coverage_table() if table is None else table
-    return [run_test(t, table) for t in judge(ms, register)]
+    return [run_test(t, table) for t in judge(calibrate(ms, table), register)]
 
 
 def results(aggs: dict, stages: dict | None = None, table: pd.DataFrame | None = None) -> list[dict]:

@@ -149,6 +149,15 @@ def test_report_regenerates_byte_for_byte_and_publishes_the_committed_reports_fi
     # explanations.csv, which the committed report predates.
 
 
+def test_rescore_judges_the_smoke_reports_measures_again(smoke_tree):
+    """python -m pipeline.tools.rescore on the smoke report's measures.parquet: the same
+    verdicts (none: a smoke run decides nothing), no trial run."""
+    _, cfg, _ = smoke_tree
+    r = run_cli("pipeline.tools.rescore", str(cfg.paths.report))
+    assert r.returncode == 0, r.stderr
+    assert "no verdict" in r.stdout and "no cell changed" in r.stdout
+
+
 def test_rerun_computes_nothing(smoke_tree, monkeypatch):
     root, _, _ = smoke_tree
 

@@ -139,3 +139,18 @@ def test_each_reading_of_the_readings_study_gets_its_own_intervals():
     assert t.loc[("noisy", "rise"), "verdict"] != sc.REPRODUCED  # the spread hides the rise
     md = readings.intervals_markdown(readings.intervals({"readings_fig4": agg}))
     assert "(6 trials per condition and reading)" in md and "| noisy |" in md
+
+
+def test_no_estimate_of_trials_to_decide_beyond_a_thousand():
+    # point 1.0, bound 1.1, half-width 10 toward it on 2 trials: 20,000 trials is no estimate
+    assert sc.trials_to_decide(1.0, -9.0, 11.0, -np.inf, 1.1, 2) is None
+    assert sc.trials_to_decide(1.0, 0.9, 1.2, -np.inf, 1.1, 5) == 20
+
+
+def test_a_reduced_scale_run_decides_nothing():
+    res = sc.no_verdicts(sc.results({"figX": _figure(20, 0.01)}, table=COVERED), "a smoke run")
+    cards = sc.cells(res)
+    assert set(cards["verdict"]) == {sc.NOT_A_VERDICT}
+    md = sc.markdown(cards, res, counted=["figX"])
+    assert "**no verdict" in md and "would decide" not in md and "our reading" not in md
+    assert "**reproduced**" not in md and "**not reproduced**" not in md
