@@ -396,14 +396,12 @@ def user_groups(overrides: list[str] = ()) -> dict[str, list[str]]:
     """group -> the options a user can choose (conf/ and the folders of hydra.searchpath among
     `overrides`): no internal group, no generated `<learner>_schema` a learner's file extends."""
     from hydra import compose as hydra_compose
-    from hydra import initialize_config_dir
     from hydra.core.global_hydra import GlobalHydra
 
-    from .config import CONF_DIR
+    from .config import initialized
 
     search = [o for o in overrides if o.startswith("hydra.searchpath=")]
-    GlobalHydra.instance().clear()
-    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+    with initialized():  # the stages' configs: a checkout's conf/ or the installed package
         hydra_compose(config_name="config", overrides=search)
         loader = GlobalHydra.instance().config_loader()
         return {g: [o for o in sorted(loader.get_group_options(g)) if not o.endswith("_schema")]
@@ -438,8 +436,14 @@ def main(hydra_main) -> None:
     if "--help" in sys.argv[1:] or "-h" in sys.argv[1:]:
         import __main__
 
-        stage = getattr(__main__, "__spec__", None)
-        sys.stdout.write(help_text(stage.name if stage else "pipeline", sys.argv[1:]))
+        spec = getattr(__main__, "__spec__", None)
+        stage = spec.name if spec else "pipeline"
+        if getattr(hydra_main, "__module__", "__main__") != "__main__":  # `gbgrowth <stage>`
+            stage = hydra_main.__module__
+        text = help_text(stage, sys.argv[1:])
+        if sys.argv[0].startswith("gbgrowth "):  # as typed (pipeline.__main__ sets argv[0])
+            text = text.replace(f"python -m {stage}", sys.argv[0], 1)
+        sys.stdout.write(text)
         sys.exit(0)
     problem = check(sys.argv[1:])
     if problem is not None:
