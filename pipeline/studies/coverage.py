@@ -91,12 +91,11 @@ def per_trial_values(report: Path) -> pd.DataFrame:
     """One row per measure of a report's figures (figure, claim, where, kind, values): from
     measures.parquet (study "figures", the measures, not their controls), or from scorecard.csv's
     per_trial column (the primary reading's values) in a report written before it."""
-    from . import measures_table
-
-    parquet = report / measures_table.NAME
+    parquet = report / "measures.parquet"  # measures_table.NAME (which reads the scorecard)
     if parquet.exists():
-        t = measures_table.read(parquet)
-        t = t[(t["study"] == "figures") & (t["role"] == "value") & ~t["exact"]]
+        t = pd.read_parquet(parquet)
+        t = t[(t["study"] == "figures") & (t["role"] == "value") & ~t["exact"]
+              & ~t["diverged"]]
         rows = [dict(figure=f, claim=c, where=w, kind=g["kind"].iloc[0],
                      values=g.sort_values("trial")["value"].to_numpy())
                 for (f, c, w), g in t.groupby(["figure", "claim", "where"], sort=False)]

@@ -241,7 +241,7 @@ def _write_measures(ctx: Context, measured: list, counted: list) -> None:
     recs = set(zip(*readings.recommended()[["figure", "reading"]].to_numpy().T))
     frames += [measures_table.frame(ms, "readings", reading=label,
                                     recommended=(fig, label) in recs)
-               for (fig, label), ms in scorecard.readings_measures(read).items()]
+               for (fig, label), ms in readings.readings_measures(read).items()]
     frames += measures_table.study_frames(ctx.of("baselines"), ctx.of("choices"))
     ctx.written.append(measures_table.write(ctx.out / measures_table.NAME, frames,
                                             ctx.cfg.report.scale))

@@ -50,11 +50,26 @@ def _rename(frame: pd.DataFrame, names: list) -> pd.DataFrame:
     return f
 
 
+def readings_measures(read: dict) -> dict:
+    """(figure, reading) -> every measure of that reading of the readings study (read: its
+    aggregates, by experiment), as `intervals` judges them."""
+    out = {}
+    for study, fig in STUDIES.items():
+        if study not in read or "trials" not in read[study]:
+            continue
+        s = read[study]["summary"]
+        for label in s["variant"].drop_duplicates():
+            names = s[s["variant"] == label]["condition"].tolist()
+            out[(fig, label)] = claims.measures(
+                fig, _rename(read[study]["trials"], names), _rename(s, names))
+    return out
+
+
 def intervals(aggs: dict) -> pd.DataFrame:
     """One row per (figure, reading, claim): the scorecard's verdict with its 95 % interval over
     the reading's trials (pipeline/studies/scorecard.py), the measure that decides it."""
     rows = []
-    for (_, label), ms in scorecard.readings_measures(aggs).items():
+    for (_, label), ms in readings_measures(aggs).items():
         cards = scorecard.cells(scorecard.judged(ms))
         rows += [dict(c, reading=label) for c in cards.to_dict("records")]
     return pd.DataFrame(rows)

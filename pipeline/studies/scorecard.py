@@ -537,23 +537,6 @@ def results(aggs: dict, stages: dict | None = None, table: pd.DataFrame | None =
     return judged(figure_measures(aggs, stages), table)
 
 
-def readings_measures(read: dict) -> dict:
-    """(figure, reading) -> every measure of that reading of the readings study (read: its
-    aggregates, by experiment), as readings.intervals judges them."""
-    from . import readings
-
-    out = {}
-    for study, fig in readings.STUDIES.items():
-        if study not in read or "trials" not in read[study]:
-            continue
-        s = read[study]["summary"]
-        for label in s["variant"].drop_duplicates():
-            names = s[s["variant"] == label]["condition"].tolist()
-            out[(fig, label)] = claims_measures(
-                fig, readings._rename(read[study]["trials"], names), readings._rename(s, names))
-    return out
-
-
 def recommended_headline(cards: pd.DataFrame, recs: pd.DataFrame) -> str:
     """The headline of the recommended reading (recommended_readings.csv) over the readings
     study's cells (cards: one per figure, reading and claim), beside the default's: "" when the
