@@ -1,6 +1,7 @@
 """The pipeline around gbmodel: simulate -> aggregate -> report, configured by Hydra (conf/).
 
-Importing the package registers the config schema (pipeline.config) with Hydra's ConfigStore.
+Importing the package registers the config schema (pipeline.config) and the engines' config group
+(pipeline.engines: one node per registered engine) with Hydra's ConfigStore.
 """
 import os
 import sys
@@ -21,3 +22,6 @@ if sys.argv[:1] == ["-m"]:  # `python -m pipeline.<stage>` (argv[0] is "-m" whil
             os.environ.setdefault(_var, "1")
 
 from . import config  # noqa: E402,F401  (registers the schema)
+from . import engines  # noqa: E402
+
+engines.register_configs()

@@ -113,6 +113,19 @@ def missing_folder(searchpath) -> str | None:
     return None
 
 
+def renamed_group(override: str) -> str | None:
+    """One line for an override of the group `executor`, which is `engine` now (one name for
+    one thing), saying what to write instead; None for any other override."""
+    bare = override.lstrip("+~")
+    key, _, value = bare.partition("=")
+    if key.split(".", 1)[0] != "executor":
+        return None
+    rest = key.removeprefix("executor").removeprefix(".").removeprefix("slurm").removeprefix(".")
+    new = "engine" if rest in ("", "backend") else f"engine.{rest}"
+    return (f"{override}: the group executor is named engine now; write "
+            f"{override[:len(override) - len(bare)]}{new}={value} (docs/engines.md)")
+
+
 _PASSED: list = []  # (note, trials) of the command line check() passed, for finish() to keep
 
 
@@ -147,6 +160,10 @@ def check(argv: list[str]) -> str | None:
         if o.is_hydra_override() and o.is_sweep_override():
             return (f"{o.input_line}: Hydra's own settings take one value per command; "
                     "sweep the stage's keys only")
+    for o in parsed:
+        renamed = renamed_group(o.input_line)
+        if renamed:
+            return renamed
     choices, sweeps = [], []
     for o in parsed:
         if o.is_hydra_override():
@@ -253,7 +270,7 @@ def check_sweep_values(sweeps, cfg) -> None:
 
 
 # Overrides that leave an experiment's conditions as they are (where, how and how many)
-_KEEPS_CONDITIONS = ("profile", "paths.", "workers", "executor", "trials.count", "report.",
+_KEEPS_CONDITIONS = ("profile", "paths.", "workers", "engine", "trials.count", "report.",
                      "aggregate.", "bench.", "experiments")
 
 

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-import importlib.util
 import os
 import socket
 import time
@@ -47,23 +46,6 @@ def default_root() -> str:
 
 class ConfigError(ValueError):
     """A bad value in the config; its message is one line naming the key and the value."""
-
-
-BACKENDS = ("local", "ray", "slurm", "submitit_local")
-EXTRA = {"ray": ("ray", "ray"), "slurm": ("submitit", "slurm"),
-         "submitit_local": ("submitit", "slurm")}  # backend -> (package, pyproject extra)
-
-
-def check_backend(backend: str, package: bool = True) -> None:
-    """ConfigError (one line) for an unknown backend, or (package) one whose package is not
-    installed: only the stage that submits (simulate) needs it, aggregate and report do not."""
-    if backend not in BACKENDS:
-        raise ConfigError(f"executor.backend={backend!r}: choose one of {', '.join(BACKENDS)}")
-    if package and backend in EXTRA:
-        package, extra = EXTRA[backend]
-        if importlib.util.find_spec(package) is None:
-            raise ConfigError(f"executor.backend={backend!r} needs the package {package}: "
-                              f"pip install -e '.[{extra}]'")
 
 
 def schema_of(cls, name: str, extra: tuple = ()) -> type:
@@ -186,39 +168,6 @@ class ReportConf:
 
 
 @dataclass
-class SlurmConf:
-    """SLURM jobs through submitit (executor=slurm; pipeline/backends.py)."""
-
-    partition: Optional[str] = None  # --partition; null: the cluster's default
-    account: Optional[str] = None  # --account (the allocation charged); null: your default
-    qos: Optional[str] = None  # --qos; null: the partition's default
-    gres: Optional[str] = None  # --gres, e.g. "tmpdisk:10" (the trials need no GPU)
-    constraint: Optional[str] = None  # --constraint, node features, e.g. "intel&avx2"
-    # any other sbatch option, name without the dashes -> value, e.g. {reservation: lab,
-    # exclude: "node[01-02]"}: `#SBATCH --reservation=lab` (submitit's additional_parameters)
-    extra: dict[str, Any] = field(default_factory=dict)
-    timeout_min: int = 1440  # --time of each job, minutes (a job runs a whole shard)
-    mem_gb: float = 2.0  # --mem per job
-    shards: Optional[int] = None  # array jobs; null: `workers`
-    setup: list[str] = field(default_factory=list)  # shell lines before each job
-    poll_s: float = 10.0  # how often the driver asks SLURM (sacct, squeue) about its jobs
-    # SIGUSR2 this many seconds before --time (submitit's --signal=USR2@N). SLURM may send it up
-    # to 60 s earlier; a shard that gets it is requeued, keeping its finished trials. null:
-    # submitit's 90 s, but at most a tenth of timeout_min (so timeout_min=2 is not cut at ~30 s)
-    signal_delay_s: Optional[int] = None
-    # a job SLURM no longer lists (squeue) that left no result is lost after this many seconds:
-    # its unfinished trials fail and the run goes on (with or without accounting, no hang)
-    lost_s: float = 60.0
-
-
-@dataclass
-class ExecutorConf:
-    backend: str = MISSING  # local | ray | slurm | submitit_local (conf/executor/)
-    address: Optional[str] = None  # a Ray cluster's address (`auto`, `ray://host:10001`)
-    slurm: SlurmConf = field(default_factory=SlurmConf)
-
-
-@dataclass
 class BenchConf:
     repeats: int = 5  # timed trials per body and path (medians are reported)
     parallel: bool = True  # also time 8 arm5 trials on 1 and on 2 workers
@@ -236,7 +185,7 @@ class Config:
     paper: PaperConf = field(default_factory=PaperConf)
     aggregate: AggregateConf = field(default_factory=AggregateConf)
     report: ReportConf = field(default_factory=ReportConf)
-    executor: ExecutorConf = field(default_factory=ExecutorConf)
+    engine: Any = MISSING  # where the trials run: engine=<name> (pipeline.engines, generated)
     bench: BenchConf = field(default_factory=BenchConf)
     figure: str = MISSING
     workers: int = MISSING

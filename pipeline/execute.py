@@ -1,12 +1,14 @@
-"""Running trials: the executor that spreads them (one trial in a worker: pipeline.worker).
+"""Running trials on this machine: the local pool that spreads them (one trial in a worker:
+pipeline.worker).
 
-The executor takes plain-data trials, runs them longest first and yields each result as soon as
+The pool takes plain-data trials, runs them longest first and yields each result as soon as
 it is there, so the driver can write it to the cache at once: an interrupted run loses only the
 trials in flight. Short trials travel to a worker in batches (batches), long ones alone. Locally it is a `concurrent.futures.ProcessPoolExecutor` of spawned workers with
 one BLAS/OpenMP/numba thread each. Ctrl-C, SIGTERM and SIGHUP reach the driver only (workers
 ignore them, pipeline.worker.quiet_worker), which kills every worker at once (stop_pools), so
 neither a worker nor multiprocessing's resource tracker outlives it; a worker whose driver died
-(kill -9) is killed by the kernel (PR_SET_PDEATHSIG). Cluster backends plug in here (`backends`).
+(kill -9) is killed by the kernel (PR_SET_PDEATHSIG). It is engine=local's run
+(pipeline.engines.local); the cluster engines are the other modules of pipeline.engines.
 """
 from __future__ import annotations
 
@@ -108,19 +110,6 @@ def batches(todo: list[dict], workers: int) -> list[list[dict]]:
         batch.append(t)
         total += c
     return out + [batch] if batch else out
-
-
-def results(todo: list[dict], workers: int, backend: str = "local", address=None, fn=run_one,
-            options=None, logs=None):
-    """Yield (trial, result) for every trial of `todo` on the chosen backend: `local`, or a
-    cluster engine of pipeline.backends (optional extras; options and logs: its settings)."""
-    if backend == "local":
-        yield from local(todo, workers, fn)
-        return
-    from . import backends  # imports an engine only when it is asked for
-
-    yield from backends.run(backend, todo, workers, fn=fn, address=address, options=options,
-                            logs=logs)
 
 
 def warm_up(trials: list[dict]) -> None:

@@ -25,8 +25,8 @@ import gbmodel.bodies
 from gbmodel.spec import check_int
 from omegaconf import DictConfig, OmegaConf
 
-from .config import (ConfigError, check_backend, check_limits, check_names, check_ranges,
-                     check_root, check_stamp)
+from .config import (ConfigError, check_limits, check_names, check_ranges, check_root,
+                     check_stamp)
 from .fingerprint import code_fingerprint
 from .keys import canonical, condition_id, stable_hash32, trial_key
 
@@ -223,8 +223,6 @@ def check_run(cfg: DictConfig) -> None:
     check_int("trials.root_seed", cfg.trials.root_seed, 0)
     check_int("workers", cfg.workers, 1)
     check_ranges(cfg)  # the stages' own ranges (aggregate, report): not in a variant's copy
-    check_backend(cfg.executor.backend, package=False)  # an unknown engine (its package:
-    # simulate, the stage that submits)
     if not cfg.figure or "/" in cfg.figure or cfg.figure.startswith("."):
         _bad("figure", cfg.figure, "must be a plain name (it names a folder)")
     check_root(cfg)

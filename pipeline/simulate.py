@@ -4,7 +4,7 @@
     python -m pipeline.simulate -m growth.period=10,100 trials.count=2   # a Hydra sweep
     python -m pipeline.simulate 'experiments=[fig2,fig4]'      # several figures, one process
 
-Trials run longest first on the executor (pipeline.execute), and each finished trial is written
+Trials run longest first on the engine (pipeline.engines), and each finished trial is written
 to the cache at once, so an interrupted run loses only the trials in flight. A trial another run
 is computing (its claim is held) is left to that run and waited for. A failing or diverging
 trial is recorded with its error, the others go on, and the stage exits non-zero with a summary.
@@ -23,8 +23,8 @@ import gbmodel.bodies
 import hydra
 from omegaconf import DictConfig, OmegaConf
 
-from . import cache, cli, execute, io
-from .config import CONFIG_PATH, check_backend
+from . import cache, cli, engines, execute, io
+from .config import CONFIG_PATH
 from .fingerprint import code_fingerprint
 from .plan import check_run, cost, plan, plan_conditions
 from .planned import PLANNED, misplanned, plan_digest
@@ -84,7 +84,7 @@ def jobs_of(cfg: DictConfig, overrides: list[str] = ()) -> list[Job]:
     experiment in one process). A command planned before (the same plan_digest: config,
     overrides, config files and code) takes its jobs from paths.out/planned/ instead of
     composing and planning again; the run's own settings are checked either way."""
-    check_backend(cfg.executor.backend)  # this stage submits: the engine's package is needed
+    engines.check(cfg.engine.name)  # this stage submits: the engine's package is needed
     experiment = None if cfg.get("experiments") else _experiment_of(cfg)
     saved = Path(cfg.paths.out) / PLANNED / f"{plan_digest(cfg, [overrides, experiment])}.json"
     jobs = None
@@ -231,9 +231,8 @@ def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = Non
     try:
         if mine:
             execute.warm_up(mine)
-        for trial, result in execute.results(
-                mine, cfg.workers, cfg.executor.backend, cfg.executor.address,
-                options=OmegaConf.to_container(cfg.executor.slurm),
+        for trial, result in engines.run(  # the chosen engine, with its own settings only
+                OmegaConf.to_container(cfg.engine), mine, cfg.workers,
                 logs=Path(cfg.paths.out) / "logs" / "submitit"):
             record(cache_dir, trial, result, summary)
             claims[trial["key"]].release()

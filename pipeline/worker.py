@@ -1,6 +1,6 @@
 """What runs in a worker process, whichever engine started it: one trial, plain data in and out,
-with one BLAS/OpenMP/numba thread. The executor (pipeline.execute) and the cluster engines
-(pipeline.backends) both import it; it imports neither."""
+with one BLAS/OpenMP/numba thread. The local pool (pipeline.execute) and the engines
+(pipeline.engines) import it; it imports neither."""
 from __future__ import annotations
 
 import ctypes

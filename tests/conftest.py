@@ -34,9 +34,13 @@ def compose_tiny():
     return _compose
 
 
-def run_cli(module: str, *args: str, timeout: int = 300) -> subprocess.CompletedProcess:
-    """`python -m module args` from a foreign working directory (the code must not rely on it)."""
-    env = dict(os.environ, PYTHONPATH=str(REPO_ROOT))
+def run_cli(module: str, *args: str, timeout: int = 300, env: dict | None = None
+            ) -> subprocess.CompletedProcess:
+    """`python -m module args` from a foreign working directory (the code must not rely on it);
+    env: more environment (a PYTHONPATH in it comes after the repository's)."""
+    extra = dict(env or {})
+    path = os.pathsep.join([str(REPO_ROOT), *filter(None, [extra.pop("PYTHONPATH", None)])])
+    env = dict(os.environ, **extra, PYTHONPATH=path)
     return subprocess.run([sys.executable, "-m", module, *args], capture_output=True, text=True,
                           cwd="/", env=env, timeout=timeout)
 
@@ -59,7 +63,7 @@ def files_of(folder: Path) -> dict[str, bytes]:
     return out
 
 
-# ---- the engines' runs (pipeline/test_backends_slow, pipeline/test_engines_cluster): fig4 at smoke scale --------
+# ---- the engines' runs (pipeline/test_engines_slow, pipeline/test_engines_cluster): fig4 at smoke scale --------
 ENGINE_SMOKE = ("experiment=fig4", "profile=smoke", "learner.epochs=200", "trials.count=1")
 
 

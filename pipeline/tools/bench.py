@@ -14,7 +14,7 @@ instead of the gradient step) against the gradient epoch, and Goal Babbling with
 learner.updates=online (one step per sample) against the batch epoch. The paths' trials are
 interleaved (pipeline.tools.bench.paired), so that a shared machine's drifting speed moves them alike.
 With bench.parallel, it also times the same batch of arm5 trials on one and on two worker
-processes of the pipeline's executor. Writes paths.bench/bench.json.
+processes of the pipeline's local engine. Writes paths.bench/bench.json.
 """
 from __future__ import annotations
 
@@ -97,7 +97,7 @@ def _arm5_trial(job: dict) -> float:
 
 def parallel_speedup(trials: int = 8) -> dict:
     """Wall time of `trials` 100,000-epoch arm5 trials (about 2 s each, long against a worker's
-    start-up) on 1 and on 2 workers of the executor."""
+    start-up) on 1 and on 2 workers of the local engine."""
     base = paper_spec("arm5", 100_000, True)
     jobs = [dict(spec=base, seed=s, key=str(s)) for s in range(trials)]
     walls = {}

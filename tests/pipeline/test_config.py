@@ -188,7 +188,7 @@ def test_seeds_and_keys_are_distinct_and_stable():
     d = plan(compose(["experiment=fig4", "learner.radius=0.3"]))
     assert not {t["key"] for t in d} & {t["key"] for t in a}
     assert [t["seed"] for t in d] == [t["seed"] for t in a]
-    # what does not change a trial (workers, the executor) does not change its key
+    # what does not change a trial (workers, the engine) does not change its key
     e = plan(compose(["experiment=fig4", "workers=1"]))
     assert [t["key"] for t in e] == [t["key"] for t in a]
 

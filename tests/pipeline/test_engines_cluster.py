@@ -18,14 +18,14 @@ import pytest
 
 from cluster_engines import Slurm, slurm_missing, stop_ray, two_node_ray, wait
 from conftest import cfg_of, trial_files
-from pipeline import backends
+from pipeline import engines
+from pipeline.engines import ray as ray_engine, submitit_jobs
 from pipeline.plan import cost, plan
 from pipeline.simulate import simulate
 
 pytestmark = pytest.mark.cluster
 
-SLURM_FAST = ("executor=slurm", "executor.slurm.poll_s=1", "executor.slurm.lost_s=10",
-              "executor.slurm.timeout_min=10")
+SLURM_FAST = ("engine=slurm", "engine.poll_s=1", "engine.lost_s=10", "engine.timeout_min=10")
 
 
 class Slow:
@@ -69,8 +69,8 @@ def with_fn(monkeypatch, fn):
         ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])
     except ImportError:
         pass
-    original = backends.run
-    monkeypatch.setattr(backends, "run", lambda *a, **kw: original(*a, **dict(kw, fn=fn)))
+    original = engines.run
+    monkeypatch.setattr(engines, "run", lambda *a, **kw: original(*a, **dict(kw, fn=fn)))
 
 
 def in_thread(fn):
@@ -115,7 +115,7 @@ def slurm(tmp_path_factory):
 
 def shard_keys(cfg, n):
     todo = sorted(plan(cfg), key=cost, reverse=True)
-    return [[t["key"] for t in part] for part in backends.shards(todo, n)]
+    return [[t["key"] for t in part] for part in submitit_jobs.shards(todo, n)]
 
 
 def test_slurm_run_matches_local_run(slurm, tmp_path, local_files):
@@ -127,10 +127,10 @@ def test_slurm_run_matches_local_run(slurm, tmp_path, local_files):
 
 
 def test_slurm_lab_options_reach_the_jobs(slurm, tmp_path, local_files):
-    """executor.slurm.extra (a free-form sbatch option) and gres-less defaults: the jobs run
+    """engine.extra (a free-form sbatch option) and gres-less defaults: the jobs run
     with the option in their script and compute the same trial files."""
     summary = simulate(cfg_of(tmp_path, *SLURM_FAST, "workers=2",
-                              "+executor.slurm.extra.comment=gbgrowth-lab"))
+                              "+engine.extra.comment=gbgrowth-lab"))
     assert summary.ran == 6 and not summary.failed, summary.lines()
     assert trial_files(tmp_path) == local_files
     scripts = list(tmp_path.rglob("*_submission.sh"))
@@ -146,7 +146,7 @@ def test_slurm_jobs_cancelled_or_killed_lose_only_their_trials_without_accountin
     (bin_dir / "sacct").write_text("#!/bin/sh\necho 'sacct: accounting disabled' >&2\nexit 1\n")
     (bin_dir / "sacct").chmod(0o755)
     monkeypatch.setenv("PATH", f"{bin_dir}:{os.environ['PATH']}")
-    cfg = cfg_of(tmp_path, *SLURM_FAST, "workers=3", "executor.slurm.shards=3")
+    cfg = cfg_of(tmp_path, *SLURM_FAST, "workers=3", "engine.shards=3")
     parts = shard_keys(cfg, 3)
     marks = tmp_path / "marks"
     with_fn(monkeypatch, Slow(marks, sleep=20))
@@ -186,7 +186,7 @@ def test_slurm_killed_job_is_seen_within_seconds_with_accounting(slurm, tmp_path
     """SIGKILL a shard's python: sacct says FAILED after a few seconds, and the driver asks
     every poll_s (1 s here), not at submitit's back-off (up to 10 minutes). lost_s is long,
     so the job must be seen through accounting, not through its absence from squeue."""
-    cfg = cfg_of(tmp_path, *SLURM_FAST, "executor.slurm.lost_s=300", "workers=1",
+    cfg = cfg_of(tmp_path, *SLURM_FAST, "engine.lost_s=300", "workers=1",
                  "trials.count=1", "conditions.periods=[10]", "conditions.references=[1.0]")
     marks = tmp_path / "marks"
     with_fn(monkeypatch, Slow(marks, sleep=60))
@@ -206,7 +206,7 @@ def test_slurm_preempted_job_requeued_loses_only_its_trial_in_flight(
         slurm, tmp_path, local_files, monkeypatch):
     """`scontrol requeue` (SIGTERM, then the job is queued again) once a shard has finished one
     trial: nothing fails, the finished trial is not computed again."""
-    cfg = cfg_of(tmp_path, *SLURM_FAST, "workers=1", "executor.slurm.shards=1")
+    cfg = cfg_of(tmp_path, *SLURM_FAST, "workers=1", "engine.shards=1")
     marks = tmp_path / "marks"
     with_fn(monkeypatch, Slow(marks, sleep=2))
     spool = Path(cfg.paths.out) / "logs" / "submitit" / "spool"
@@ -231,7 +231,7 @@ def test_slurm_preempted_job_requeued_loses_only_its_trial_in_flight(
 def test_slurm_short_time_limit_does_not_fail_a_healthy_shard(slurm, tmp_path, monkeypatch):
     """timeout_min=2 and a shard of ~65 s (two trials): with submitit's USR2@90 SLURM signals at
     0-30 s and the shard fails "timed-out and not checkpointable"."""
-    cfg = cfg_of(tmp_path, *SLURM_FAST, "executor.slurm.timeout_min=2", "workers=1",
+    cfg = cfg_of(tmp_path, *SLURM_FAST, "engine.timeout_min=2", "workers=1",
                  "trials.count=1", "conditions.periods=[10]", "conditions.references=[1.0]")
     with_fn(monkeypatch, Slow(tmp_path / "marks", sleep=25))
     t0 = time.monotonic()
@@ -256,7 +256,7 @@ def ray_cluster():
 
 def test_ray_two_nodes_match_local_run(ray_cluster, tmp_path, local_files):
     t0 = time.monotonic()
-    summary = simulate(cfg_of(tmp_path, "executor=ray", f"executor.address={ray_cluster.address}",
+    summary = simulate(cfg_of(tmp_path, "engine=ray", f"engine.address={ray_cluster.address}",
                               "workers=2"))
     print(f"6 trials on two Ray nodes: {time.monotonic() - t0:.1f} s")
     assert summary.ran == 6 and not summary.failed, summary.lines()
@@ -265,7 +265,7 @@ def test_ray_two_nodes_match_local_run(ray_cluster, tmp_path, local_files):
 
 def test_ray_worker_node_removed_loses_only_its_trial(ray_cluster, tmp_path, local_files,
                                                      monkeypatch):
-    cfg = cfg_of(tmp_path, "executor=ray", f"executor.address={ray_cluster.address}",
+    cfg = cfg_of(tmp_path, "engine=ray", f"engine.address={ray_cluster.address}",
                  "workers=2")
     marks = tmp_path / "marks"
     with_fn(monkeypatch, Slow(marks, sleep=4))
@@ -294,9 +294,9 @@ def test_ray_trials_that_can_never_be_scheduled_fail_instead_of_waiting(ray_clus
     """Every worker node removed (the head has no CPU): the trials left can never run; the
     driver fails them after RAY_LOST_S instead of waiting forever. Runs last: it empties the
     cluster."""
-    monkeypatch.setattr(backends, "RAY_POLL_S", 0.5)
-    monkeypatch.setattr(backends, "RAY_LOST_S", 2.0)
-    cfg = cfg_of(tmp_path, "executor=ray", f"executor.address={ray_cluster.address}",
+    monkeypatch.setattr(ray_engine, "RAY_POLL_S", 0.5)
+    monkeypatch.setattr(ray_engine, "RAY_LOST_S", 2.0)
+    cfg = cfg_of(tmp_path, "engine=ray", f"engine.address={ray_cluster.address}",
                  "workers=2")
     marks = tmp_path / "marks"
     with_fn(monkeypatch, Slow(marks, sleep=30))

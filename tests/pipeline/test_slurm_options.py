@@ -6,19 +6,22 @@ import shutil
 import pytest
 
 from conftest import tiny_overrides
-from pipeline import backends, simulate
+import dataclasses
+
+from pipeline import engines, simulate
+from pipeline.engines import submitit_jobs
 from pipeline.config import ConfigError, compose
 from pipeline.plan import plan
 
-LAB = ["executor=slurm", "executor.slurm.account=lab42", "executor.slurm.qos=short",
-       "executor.slurm.gres=tmpdisk:10", "executor.slurm.constraint=avx2",
-       "+executor.slurm.extra.reservation=course", "executor.slurm.partition=cpu"]
+LAB = ["engine=slurm", "engine.account=lab42", "engine.qos=short", "engine.gres=tmpdisk:10",
+       "engine.constraint=avx2", "+engine.extra.reservation=course", "engine.partition=cpu"]
 
 
 def _params(cfg):
-    opts = dict(backends.SLURM_DEFAULTS)
-    opts.update({k: v for k, v in dict(cfg.executor.slurm).items() if v is not None})
-    return backends.job_parameters(opts, 4, "slurm", "fig4")
+    from omegaconf import OmegaConf
+
+    _, settings = engines.settings_of(OmegaConf.to_container(cfg.engine))
+    return submitit_jobs.job_parameters(dataclasses.asdict(settings), 4, "slurm", "fig4")
 
 
 def test_lab_options_compose_and_become_submitit_parameters():
@@ -26,7 +29,7 @@ def test_lab_options_compose_and_become_submitit_parameters():
     assert params["slurm_account"] == "lab42" and params["slurm_qos"] == "short"
     assert params["slurm_gres"] == "tmpdisk:10" and params["slurm_constraint"] == "avx2"
     assert params["slurm_additional_parameters"] == {"reservation": "course"}
-    plain = _params(compose(["executor=slurm"]))  # unset: nothing is passed, SLURM's defaults
+    plain = _params(compose(["engine=slurm"]))  # unset: nothing is passed, SLURM's defaults
     assert not {"slurm_account", "slurm_qos", "slurm_gres", "slurm_constraint",
                 "slurm_additional_parameters"} & set(plain)
 
@@ -49,7 +52,7 @@ def test_only_the_stage_that_submits_needs_submitit(monkeypatch, tmp_path):
     real = importlib.util.find_spec
     monkeypatch.setattr(importlib.util, "find_spec",
                         lambda name, *a: None if name == "submitit" else real(name, *a))
-    cfg = compose(tiny_overrides(tmp_path, "executor=slurm"))
+    cfg = compose(tiny_overrides(tmp_path, "engine=slurm"))
     assert plan(cfg)  # aggregate and report plan the figure: no package needed
     with pytest.raises(ConfigError, match=r"needs the package submitit"):
         simulate.jobs_of(cfg)

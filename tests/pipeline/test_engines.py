@@ -1,7 +1,9 @@
-"""The cluster engines' plain parts, without Ray or a cluster: sharding, backend choice, errors.
+"""The engines' plain parts, without Ray or a cluster: the registry and its config group, each
+engine's own settings, sharding, errors; a toy engine added as one module runs a figure.
 
-The engines themselves run end to end in pipeline/test_backends_slow.py (-m slow).
+The cluster engines themselves run end to end in pipeline/test_engines_slow.py (-m slow).
 """
+import dataclasses
 import importlib.util
 import random
 import tempfile
@@ -11,8 +13,9 @@ from types import SimpleNamespace
 import pytest
 
 from conftest import run_cli, tiny_overrides
-from pipeline import backends, execute
-from pipeline.config import ConfigError, compose
+from pipeline import engines, execute, simulate
+from pipeline.engines import submitit_jobs
+from pipeline.config import REPO_ROOT, ConfigError, compose
 from pipeline.plan import cost, plan
 
 
@@ -47,7 +50,7 @@ def test_cost_weighs_each_learners_path():
                                         (271, 16)])
 def test_shards_partition_todo_in_order_and_balance_cost(n_trials, n):
     todo = fake(n_trials, seed=n_trials * 100 + n)
-    parts = backends.shards(todo, n, cost=fake_cost)
+    parts = submitit_jobs.shards(todo, n, cost=fake_cost)
     assert len(parts) == min(n, n_trials) and all(parts)
     keys = [t["key"] for p in parts for t in p]
     assert sorted(keys) == sorted(t["key"] for t in todo) and len(set(keys)) == len(keys)
@@ -61,11 +64,11 @@ def test_shards_partition_todo_in_order_and_balance_cost(n_trials, n):
 
 def test_shards_of_equal_trials_are_even_and_empty_todo_has_none():
     todo = [dict(key=str(i), c=1.0) for i in range(10)]
-    assert [len(p) for p in backends.shards(todo, 4, cost=fake_cost)] == [3, 3, 2, 2]
-    assert backends.shards([], 4, cost=fake_cost) == []
+    assert [len(p) for p in submitit_jobs.shards(todo, 4, cost=fake_cost)] == [3, 3, 2, 2]
+    assert submitit_jobs.shards([], 4, cost=fake_cost) == []
     for bad in (0, -1, 2.0, True):
         with pytest.raises(ValueError):
-            backends.shards(todo, bad, cost=fake_cost)
+            submitit_jobs.shards(todo, bad, cost=fake_cost)
 
 
 def test_shards_hold_the_trials_a_local_run_computes(tmp_path):
@@ -74,43 +77,118 @@ def test_shards_hold_the_trials_a_local_run_computes(tmp_path):
                                  "conditions.periods=[10,100]"))
     trials = plan(cfg)
     todo = sorted(trials, key=cost, reverse=True)
-    parts = backends.shards(todo, 4)
+    parts = submitit_jobs.shards(todo, 4)
     assert sorted(t["key"] for p in parts for t in p) == sorted(t["key"] for t in trials)
     by_key = {t["key"]: t for t in trials}
     assert all(t == by_key[t["key"]] for p in parts for t in p)
     assert len(parts) == 4 and max(map(len, parts)) - min(map(len, parts)) <= 1  # equal costs
 
 
-def test_unknown_backend_and_missing_package_are_one_line_config_errors(monkeypatch):
-    with pytest.raises(ConfigError, match=r"^executor.backend='dask': choose one of local, ray, "
+def test_unknown_engine_and_missing_package_are_one_line_config_errors(monkeypatch):
+    with pytest.raises(ConfigError, match=r"^engine='dask': choose one of local, ray, "
                                           r"slurm, submitit_local$"):
-        backends.check("dask")
+        engines.check("dask")
     with pytest.raises(ConfigError, match="choose one of"):
-        next(backends.run("dask", [dict(key="k")], 2))
+        next(engines.run(dict(name="dask"), [dict(key="k")], 2))
     real = importlib.util.find_spec
     monkeypatch.setattr(importlib.util, "find_spec",
                         lambda name, *a: None if name in ("ray", "submitit") else real(name, *a))
-    for backend, extra in (("ray", "ray"), ("slurm", "slurm"), ("submitit_local", "slurm")):
-        with pytest.raises(ConfigError, match=rf"pip install -e '\.\[{extra}\]'$") as err:
-            backends.check(backend)
+    for name, extra in (("ray", "ray"), ("slurm", "slurm"), ("submitit_local", "slurm")):
+        with pytest.raises(ConfigError, match=rf"^engine={name} needs the package \w+: "
+                                              rf"pip install -e '\.\[{extra}\]'$") as err:
+            engines.check(name)
         assert "\n" not in str(err.value)
-    backends.check("local")
+    engines.check("local")
 
 
-def test_slurm_refuses_an_address_and_a_machine_without_sbatch(monkeypatch, tmp_path):
+def test_slurm_refuses_another_engines_setting_and_a_machine_without_sbatch(monkeypatch, tmp_path):
+    with pytest.raises(ConfigError, match=r"^engine=slurm: .*address"):
+        next(engines.run(dict(name="slurm", address="head:6379"), [dict(key="k")], 2))
     pytest.importorskip("submitit")
-    with pytest.raises(ConfigError, match="takes no address"):
-        next(backends.run("slurm", [dict(key="k")], 2, address="head:6379"))
-    monkeypatch.setattr(backends.shutil, "which", lambda name: None)
+    monkeypatch.setattr(submitit_jobs.shutil, "which", lambda name: None)
     with pytest.raises(ConfigError, match="sbatch not found"):
-        next(backends.run("slurm", [dict(key="k")], 2, fn=len, logs=tmp_path))
+        next(engines.run(dict(name="slurm"), [dict(key="k")], 2, fn=len, logs=tmp_path))
     assert not any(tmp_path.iterdir())  # nothing submitted
 
 
-def test_engine_configs_compose_and_name_their_backend():
-    for name in ("local", "ray", "slurm", "submitit_local"):
-        executor = compose([f"executor={name}"]).executor
-        assert executor.backend == name and executor.address is None
+def test_the_engine_group_is_generated_from_the_registered_engines():
+    """engine=<name> for every engine module of pipeline/engines/, its settings those of its
+    dataclass (typed: a wrong type or another engine's setting is refused); no YAML file."""
+    assert set(engines.available()) >= {"local", "ray", "slurm", "submitit_local"}
+    assert not (REPO_ROOT / "conf" / "engine").exists()
+    for name in engines.available():
+        conf = compose([f"engine={name}"]).engine
+        fields = {f.name for f in dataclasses.fields(engines.get(name).settings)}
+        assert conf.name == name and set(conf) == {"name", *fields}
+    assert compose(["engine=ray", "engine.address=auto"]).engine.address == "auto"
+    assert compose(["engine=slurm", "engine.timeout_min=5"]).engine.timeout_min == 5
+    for bad in (["engine=slurm", "engine.timeout_min=soon"], ["engine=ray", "engine.partition=x"]):
+        with pytest.raises(Exception, match="timeout_min|partition"):
+            compose(bad)
+
+
+def test_each_engine_gets_its_own_settings_only(tmp_path, compose_tiny, monkeypatch):
+    """simulate hands the chosen engine its own settings (engine.<field>), never another
+    engine's (before: every engine got executor.slurm, the SLURM options)."""
+    got = []
+
+    def spy(name):
+        def run(todo, workers, fn, settings, logs):
+            got.append((name, settings, logs))
+            yield from execute.local(todo, workers, fn)
+        return run
+
+    for name in ("ray", "slurm"):
+        monkeypatch.setitem(engines._ENGINES, name, dataclasses.replace(
+            engines.get(name), run=spy(name), package=None))
+    summary = simulate.simulate(compose_tiny(tmp_path / "a", "engine=ray", "engine.address=auto"))
+    assert summary.failed == {}
+    summary = simulate.simulate(compose_tiny(tmp_path / "b", "engine=slurm", "engine.mem_gb=4",
+                                             "+engine.extra.reservation=course"))
+    assert summary.failed == {}
+    (ray, ray_settings, _), (slurm, slurm_settings, logs) = got
+    assert ray == "ray" and ray_settings == engines.get("ray").settings(address="auto")
+    assert slurm == "slurm" and slurm_settings.mem_gb == 4.0
+    assert slurm_settings.extra == {"reservation": "course"} and logs.name == "submitit"
+
+
+TOY = """
+import sys
+from dataclasses import dataclass
+
+from pipeline.engines import engine
+
+
+@dataclass
+class ToySettings:
+    greeting: str = "hello"
+
+
+@engine("toy", ToySettings)
+def run(todo, workers, fn, settings, logs):
+    for trial in todo:
+        print(f"toy engine ({settings.greeting}): {trial['key']}", file=sys.stderr)
+        yield trial, fn(trial)
+"""
+
+
+def test_a_toy_engine_in_one_module_runs_a_figure_with_no_other_edit(tmp_path):
+    """An engine added as one module (here gbgrowth_engine_toy.py on the Python path; in the
+    repository: pipeline/engines/toy.py) is engine=toy on the command line, its settings
+    engine.<field>, and runs the trials; the unknown-engine line names it."""
+    plugins = tmp_path / "plugins"
+    plugins.mkdir()
+    (plugins / "gbgrowth_engine_toy.py").write_text(TOY)
+    env = {"PYTHONPATH": str(plugins)}
+    out = tmp_path / "run"
+    r = run_cli("pipeline.simulate", *tiny_overrides(out, "engine=toy", "engine.greeting=hi",
+                                                     "trials.count=2"), env=env)
+    assert r.returncode == 0, r.stderr
+    ran = [ln for ln in r.stderr.splitlines() if ln.startswith("toy engine (hi): ")]
+    assert len(ran) == 2, r.stderr  # the tiny figure's trials, through the toy engine
+    assert "2 trials: 0 cached, 2 run, 0 failed" in r.stderr, r.stderr
+    r = run_cli("pipeline.simulate", *tiny_overrides(tmp_path / "x", "engine=dask"), env=env)
+    assert r.returncode == 2 and "toy" in r.stderr.strip().splitlines()[-1], r.stderr
 
 
 def test_a_worker_with_other_code_fails_the_trial_instead_of_caching_it(tmp_path):
@@ -123,18 +201,26 @@ def test_a_worker_with_other_code_fails_the_trial_instead_of_caching_it(tmp_path
 
 
 def test_failed_result_has_what_simulate_records():
-    out = backends.failed(dict(key="abc"), "WorkerCrashedError: The worker died.\n  details")
+    out = engines.failed(dict(key="abc"), "WorkerCrashedError: The worker died.\n  details")
     assert out["status"] == "failed" and out["key"] == "abc" and out["seconds"] == 0.0
     assert out["error"] == "WorkerCrashedError: The worker died." and "details" in out["traceback"]
 
 
-def test_unknown_backend_on_the_command_line_exits_2_with_one_line(tmp_path):
-    r = run_cli("pipeline.simulate", *tiny_overrides(tmp_path, "executor.backend=dask"))
+def test_unknown_engine_and_the_old_group_on_the_command_line_exit_2_with_one_line(tmp_path):
+    r = run_cli("pipeline.simulate", *tiny_overrides(tmp_path, "engine=dask"))
     assert r.returncode == 2, r.stderr
     lines = r.stderr.strip().splitlines()
-    assert lines[-1] == ("error: executor.backend='dask': choose one of local, ray, slurm, "
+    assert lines[-1] == ("error: engine=dask: unknown option; choose one of: local, ray, slurm, "
                          "submitit_local"), r.stderr
     assert len(lines) == 1 and not any(tmp_path.iterdir()), "refused before anything is written"
+    for old, new in (("executor=slurm", "engine=slurm"), ("executor.backend=ray", "engine=ray"),
+                     ("executor.slurm.partition=cpu", "engine.partition=cpu"),
+                     ("+executor.slurm.extra.reservation=x", "+engine.extra.reservation=x")):
+        r = run_cli("pipeline.simulate", *tiny_overrides(tmp_path, old))
+        assert r.returncode == 2 and r.stderr.strip() == (
+            f"error: {old}: the group executor is named engine now; write {new} "
+            "(docs/engines.md)"), r.stderr
+    assert not any(tmp_path.iterdir())
 
 
 # --- waiting for submitit jobs (what the real SLURM cluster showed; tests/pipeline/test_engines_cluster.py)
@@ -178,7 +264,7 @@ def test_a_job_slurm_no_longer_lists_is_lost_after_lost_s_not_waited_for(tmp_pat
     dead, fine = FakeJob("7_0"), FakeJob("7_1", results=[dict(key="b", status="ok")])
     parts = [[dict(key="a")], [dict(key="b")]]
     t0 = time.monotonic()
-    out = list(backends.watch([dead, fine], parts, tmp_path, poll=0.05, lost_s=0.3,
+    out = list(submitit_jobs.watch([dead, fine], parts, tmp_path, poll=0.05, lost_s=0.3,
                               queued=lambda: set(), refresh=FakeJob.watcher.update))
     assert time.monotonic() - t0 < 5
     got = {t["key"]: r for t, r in out}
@@ -190,7 +276,7 @@ def test_a_job_slurm_no_longer_lists_is_lost_after_lost_s_not_waited_for(tmp_pat
 def test_a_listed_job_is_waited_for_and_squeue_failing_loses_nothing(tmp_path):
     FakeJob.watcher = FakeWatcher()
     job = FakeJob("8_0")
-    gen = backends.watch([job], [[dict(key="a")]], tmp_path, poll=0.01, lost_s=0.0,
+    gen = submitit_jobs.watch([job], [[dict(key="a")]], tmp_path, poll=0.01, lost_s=0.0,
                          queued=lambda: {"8_0"})
     import threading
     box = []
@@ -198,20 +284,20 @@ def test_a_listed_job_is_waited_for_and_squeue_failing_loses_nothing(tmp_path):
     th.start()
     th.join(0.5)
     assert th.is_alive() and not box  # still waiting: the job is queued or running
-    backends.spool(tmp_path, "a", dict(key="a", status="ok"))  # its shard finishes the trial
+    submitit_jobs.spool(tmp_path, "a", dict(key="a", status="ok"))  # its shard finishes the trial
     th.join(5)
     assert box and box[0][1]["status"] == "ok"
-    assert list(gen) == [] and not backends.spool_path(tmp_path, "a").exists()  # handed over
-    assert list(backends.watch([FakeJob("9_0", results=[dict(key="c", status="ok")])],
+    assert list(gen) == [] and not submitit_jobs.spool_path(tmp_path, "a").exists()  # handed over
+    assert list(submitit_jobs.watch([FakeJob("9_0", results=[dict(key="c", status="ok")])],
                                [[dict(key="c")]], tmp_path, poll=0.01, lost_s=0.0,
                                queued=lambda: None))[0][1]["status"] == "ok"
 
 
 def test_a_lost_job_hands_over_what_it_spooled(tmp_path):
     FakeJob.watcher = FakeWatcher()
-    backends.spool(tmp_path / "s", "a", dict(key="a", status="ok", seconds=1.0))
+    submitit_jobs.spool(tmp_path / "s", "a", dict(key="a", status="ok", seconds=1.0))
     job = FakeJob("3_0")
-    out = list(backends.watch([job], [[dict(key="a"), dict(key="b")]], tmp_path / "s",
+    out = list(submitit_jobs.watch([job], [[dict(key="a"), dict(key="b")]], tmp_path / "s",
                               poll=0.01, lost_s=0.0, queued=lambda: set()))
     assert {t["key"]: r["status"] for t, r in out} == {"a": "ok", "b": "failed"}
 
@@ -220,13 +306,13 @@ def test_a_job_that_ended_without_a_result_fails_after_the_grace_without_blockin
                                                                                   monkeypatch):
     import time
 
-    monkeypatch.setattr(backends, "RESULT_GRACE_S", 0.3)
+    monkeypatch.setattr(submitit_jobs, "RESULT_GRACE_S", 0.3)
     dead = FakeJob("5_0", folder=tmp_path)
     dead.done, dead.state = (lambda: True), "FAILED"  # sacct says FAILED, no result file
     other = FakeJob("5_1", folder=tmp_path)
-    gen = backends.watch([dead, other], [[dict(key="a")], [dict(key="b")]], tmp_path / "s",
+    gen = submitit_jobs.watch([dead, other], [[dict(key="a")], [dict(key="b")]], tmp_path / "s",
                          poll=0.05, lost_s=60, queued=lambda: {"5_0", "5_1"})
-    backends.spool(tmp_path / "s", "b", dict(key="b", status="ok"))
+    submitit_jobs.spool(tmp_path / "s", "b", dict(key="b", status="ok"))
     t0 = time.monotonic()
     first = next(gen)  # the other job's trial is not held up by the failed one
     assert first[0]["key"] == "b" and time.monotonic() - t0 < 0.2
@@ -242,7 +328,7 @@ def test_a_requeued_shard_skips_the_trials_it_spooled(tmp_path):
         calls.append(t["key"])
         return dict(key=t["key"], status="ok" if t["key"] != "x" else "failed", seconds=0.0)
 
-    shard = backends.Shard(fn, str(tmp_path))
+    shard = submitit_jobs.Shard(fn, str(tmp_path))
     trials = [dict(key="a"), dict(key="x"), dict(key="b")]
     assert [r["key"] for r in shard(trials)] == ["a", "x", "b"]
     assert shard(trials)[0]["status"] == "ok"  # the same job again after a requeue
@@ -253,21 +339,20 @@ def test_a_requeued_shard_skips_the_trials_it_spooled(tmp_path):
 
 
 def test_the_signal_delay_leaves_a_short_time_limit_room():
-    opts = dict(backends.SLURM_DEFAULTS, timeout_min=2)
-    params = backends.job_parameters(opts, 2, "slurm", "fig4")
+    opts = dataclasses.asdict(engines.get("slurm").settings(timeout_min=2))
+    params = submitit_jobs.job_parameters(opts, 2, "slurm", "fig4")
     assert params["slurm_signal_delay_s"] == 12 and params["timeout_min"] == 2
-    assert backends.signal_delay(dict(opts, timeout_min=1440)) == 90  # submitit's default
-    assert backends.signal_delay(dict(opts, signal_delay_s=30)) == 30
-    cfg = compose(["executor=slurm", "executor.slurm.signal_delay_s=30",
-                   "executor.slurm.lost_s=5"])
-    assert cfg.executor.slurm.signal_delay_s == 30 and cfg.executor.slurm.lost_s == 5
-    assert "slurm_signal_delay_s" not in backends.job_parameters(opts, 2, "local", "fig4")
+    assert submitit_jobs.signal_delay(dict(opts, timeout_min=1440)) == 90  # submitit's default
+    assert submitit_jobs.signal_delay(dict(opts, signal_delay_s=30)) == 30
+    cfg = compose(["engine=slurm", "engine.signal_delay_s=30", "engine.lost_s=5"])
+    assert cfg.engine.signal_delay_s == 30 and cfg.engine.lost_s == 5
+    assert "slurm_signal_delay_s" not in submitit_jobs.job_parameters(opts, 2, "local", "fig4")
 
 
 def test_a_failing_sacct_is_reported_once_not_every_poll():
     import logging
 
-    f = backends.OnceFilter("Bypassing sacct error")
+    f = submitit_jobs.OnceFilter("Bypassing sacct error")
     rec = lambda msg: logging.LogRecord("submitit", logging.WARNING, "", 0, msg, None, None)  # noqa: E731
     assert [f.filter(rec(m)) for m in ("Call #1 - Bypassing sacct error x", "other",
                                        "Call #2 - Bypassing sacct error x")] == [True, True, False]

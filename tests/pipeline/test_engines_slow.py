@@ -11,16 +11,17 @@ from pathlib import Path
 import pytest
 
 from conftest import cfg_of, trial_files
-from pipeline import backends, cache
+from pipeline import cache, engines
+from pipeline.engines import submitit_jobs
 from pipeline.simulate import simulate
 
 pytestmark = pytest.mark.slow
 
 
 def with_options(monkeypatch, fn=None, **extra):
-    """backends.run as execute.results calls it, plus what the schema cannot carry yet (extra,
-    unless given), and with another trial function (fn)."""
-    original = backends.run
+    """engines.run as simulate calls it, plus what the schema cannot carry yet (extra, unless
+    given), and with another trial function (fn)."""
+    original = engines.run
 
     def run(*args, **kw):
         for k, v in extra.items():
@@ -29,12 +30,12 @@ def with_options(monkeypatch, fn=None, **extra):
             kw["fn"] = fn
         return original(*args, **kw)
 
-    monkeypatch.setattr(backends, "run", run)
+    monkeypatch.setattr(engines, "run", run)
 
 
 def test_ray_local_instance_matches_local_run(tmp_path, local_files):
     pytest.importorskip("ray")
-    summary = simulate(cfg_of(tmp_path, "executor=ray", "workers=2"))
+    summary = simulate(cfg_of(tmp_path, "engine=ray", "workers=2"))
     assert summary.ran == 6 and not summary.failed, summary.lines()
     assert trial_files(tmp_path) == local_files
     import ray
@@ -43,7 +44,7 @@ def test_ray_local_instance_matches_local_run(tmp_path, local_files):
 
 def test_submitit_local_matches_local_run(tmp_path, local_files, monkeypatch):
     pytest.importorskip("submitit")
-    cfg = cfg_of(tmp_path, "executor=submitit_local", "workers=2")
+    cfg = cfg_of(tmp_path, "engine=submitit_local", "workers=2")
     summary = simulate(cfg)
     assert summary.ran == 6 and not summary.failed, summary.lines()
     assert trial_files(tmp_path) == local_files
@@ -74,7 +75,7 @@ def test_ray_worker_killed_is_recorded_failed_and_rerun_completes(tmp_path, loca
     from pipeline.plan import plan
 
     ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])  # tests/ is not on the
-    cfg = cfg_of(tmp_path, "executor=ray", "workers=2")              # workers' sys.path
+    cfg = cfg_of(tmp_path, "engine=ray", "workers=2")              # workers' sys.path
     trial = plan(cfg)[2]
     victim = trial["key"]
     with_options(monkeypatch, fn=KillOnce(victim, tmp_path / "killed"))
@@ -98,10 +99,10 @@ def test_a_failed_submitit_job_returns_its_shard_as_failed_trials(tmp_path):
     cloudpickle.register_pickle_by_value(sys.modules[__name__])
     todo = plan(cfg_of(tmp_path, "trials.count=1", "conditions.periods=[10]",
                        "conditions.references=[0.5,0.7,1.0]"))
-    parts = backends.shards(todo, 2)
+    parts = submitit_jobs.shards(todo, 2)
     victim = parts[1][0]["key"]
-    out = list(backends.run("submitit_local", todo, 2, fn=KillOnce(victim, tmp_path / "killed"),
-                            logs=tmp_path / "submitit"))
+    out = list(engines.run(dict(name="submitit_local"), todo, 2,
+                           fn=KillOnce(victim, tmp_path / "killed"), logs=tmp_path / "submitit"))
     assert all(t["key"] == r["key"] for t, r in out)
     got = {r["key"]: r for _, r in out}
     assert sorted(got) == sorted(t["key"] for t in todo)

@@ -1,39 +1,12 @@
-"""Cluster engines for the simulate stage: Ray, and SLURM (or a local stand-in) through submitit.
+"""submitit's jobs, shared by engine=slurm and engine=submitit_local: the trials packed into
+shards (one array job each), balanced by their estimated cost; `workers` jobs run at once.
 
-    python -m pipeline.simulate experiment=fig4 executor=ray                    # a local Ray
-    python -m pipeline.simulate experiment=fig4 executor=ray executor.address=auto   # a cluster
-    python -m pipeline.simulate experiment=fig4 executor=slurm workers=64       # 64 array jobs
-
-Each engine takes the same plain-data trials as the local executor (pipeline.execute.local) and
-yields (trial, result) as trials finish; the driver (pipeline.simulate) writes every result to
-the cache itself. So no cache file is ever written by a worker or by two jobs, the per-trial
-claims and plan records stay where they are, and the trial files are byte for byte those of a
-local run (a result is the same plain data whichever process computed it).
-
-Why Ray core and submitit rather than Hydra's launchers (hydra-ray-launcher, submitit-launcher):
-a Hydra launcher's unit of work is a whole stage run (one composed config, one `simulate`); here
-the unit of work is a trial, and one figure is hundreds of trials of very different lengths. A
-launcher would either run each figure on one node, or run many `simulate` processes that all
-write into one cache. Driver-side engines keep one writer and schedule trials longest first.
-
-- Ray (`executor=ray`): one Ray task per trial (num_cpus=1, one BLAS/numba thread), all submitted
-  longest first, collected with ray.wait as they finish. Without an address a local Ray instance
-  of `workers` CPUs is started for the run and shut down after it. A task whose worker died
-  (killed, out of memory, node lost) is not retried by Ray (max_retries=0, never pinned to a
-  node, so nothing waits for a node that is gone): it comes back as a failed result, which the
-  driver records and the next run of the same command computes again. When no node with a CPU
-  is left for RAY_LOST_S, the trials left fail instead of waiting forever.
-- submitit (`executor=slurm`, `executor=submitit_local`): trials are packed into shards (one
-  array job each, `shards`), balanced by their estimated cost; `workers` jobs run at once. A job
-  spools each finished trial (Shard), so results arrive one by one, a requeued job (preempted or
-  timed out) skips what it finished, and a lost job still hands over its finished trials. The
-  driver asks sacct every `poll_s` and squeue too: a job that ended without a result, or that
-  SLURM no longer lists for `lost_s` (a cluster without accounting), fails its unfinished trials
-  instead of hanging the run. Job files, logs and the spool: <paths.out>/logs/submitit/.
-
-Every worker checks that its gbmodel code has the fingerprint the driver put into the trial's key
-(pipeline.plan.code_fingerprint), so a node with other code fails the trial instead of caching a
-result computed by code the key does not name.
+A job spools each finished trial (Shard), so results arrive one by one, a requeued job
+(preempted or timed out) skips what it finished, and a lost job still hands over its finished
+trials. With SLURM the driver asks sacct every `poll_s` and squeue too: a job that ended without
+a result, or that SLURM no longer lists for `lost_s` (a cluster without accounting), fails its
+unfinished trials instead of hanging the run. Job files, logs and the spool:
+<paths.out>/logs/submitit/. This module registers no engine itself.
 """
 from __future__ import annotations
 
@@ -47,50 +20,14 @@ import time
 import traceback
 from pathlib import Path
 
-from dataclasses import asdict
+from ..config import REPO_ROOT, ConfigError
+from ..worker import THREAD_VARS
+from . import call, failed
 
-from .config import BACKENDS, EXTRA, REPO_ROOT, ConfigError, SlurmConf
-from .config import check_backend as check
-from .worker import THREAD_VARS
-
-SLURM_DEFAULTS = asdict(SlurmConf())  # executor.slurm.* (pipeline/config.py SlurmConf)
 LOCAL_POLL_S = 0.5
 # a job that ended without its result file: how long to look for the file before calling the
 # job's trials failed (the job writes it before it exits; this covers a shared file system's lag)
 RESULT_GRACE_S = 5.0
-RAY_OBJECT_STORE_BYTES = 100 * 1000**2  # a result is a few hundred kB at most
-RAY_POLL_S = 5.0  # how often the driver looks at the cluster while no trial finishes
-RAY_LOST_S = 60.0  # no node with a CPU for this long: the trials left fail (a node may rejoin)
-
-
-def run(backend: str, todo: list[dict], workers: int, fn=None, address=None, options=None,
-        logs=None):
-    """Yield (trial, fn(trial)) for every trial of `todo` on a cluster engine, as they finish.
-
-    options: the backend's settings (for slurm/submitit_local: keys of SLURM_DEFAULTS);
-    logs: the folder for submitit's job files (default <repo>/outputs/logs/submitit)."""
-    check(backend)
-    if backend == "local":
-        raise ConfigError("executor.backend='local' runs through pipeline.execute.local")
-    if fn is None:
-        from .worker import run_one as fn
-    if not todo:
-        return
-    if backend == "ray":
-        yield from ray_results(todo, workers, fn, address)
-    else:
-        if address:
-            raise ConfigError(f"executor.address={address!r}: the {backend} backend takes no "
-                              "address (submitit submits from this machine)")
-        yield from submitit_results(todo, workers, fn, cluster="slurm" if backend == "slurm"
-                                    else "local", options=options, logs=logs)
-
-
-# --- what runs in a worker ---------------------------------------------------------------------
-
-def call(fn, trial: dict) -> dict:
-    """fn(trial) in a worker (pipeline.worker.run_one checks the worker's code fingerprint)."""
-    return fn(trial)
 
 
 class Shard:
@@ -151,15 +88,6 @@ def spooled(folder, key: str) -> dict | None:
         return None
 
 
-def failed(trial: dict, error: str, seconds: float = 0.0, tb: str | None = None) -> dict:
-    """A failed result as pipeline.worker.run_one makes one: not cached, retried next run."""
-    lines = [ln for ln in str(error).splitlines() if ln.strip()]
-    out = dict(status="failed", error=lines[0] if lines else "failed", key=trial["key"],
-               seconds=seconds)
-    out["traceback"] = tb or str(error)
-    return out
-
-
 # --- sharding ----------------------------------------------------------------------------------
 
 def shards(todo: list[dict], n: int, cost=None) -> list[list[dict]]:
@@ -171,7 +99,7 @@ def shards(todo: list[dict], n: int, cost=None) -> list[list[dict]]:
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise ValueError(f"shards: n={n!r} must be an int >= 1")
     if cost is None:
-        from .plan import cost
+        from ..plan import cost
     costs = [float(cost(t)) for t in todo]
     n = min(n, len(todo))
     loads, members = [0.0] * n, [[] for _ in range(n)]
@@ -183,66 +111,10 @@ def shards(todo: list[dict], n: int, cost=None) -> list[list[dict]]:
     return [[todo[i] for i in sorted(members[s])] for s in order]
 
 
-# --- Ray ---------------------------------------------------------------------------------------
-
-def ray_results(todo: list[dict], workers: int, fn, address=None):
-    """One Ray task per trial, submitted in the order of `todo`, yielded as they finish."""
-    import ray
-    from ray.exceptions import RayError
-
-    own = not ray.is_initialized()
-    if own:
-        kw = dict(address=address or None, include_dashboard=False, log_to_driver=False,
-                  logging_level=logging.WARNING, configure_logging=True)
-        if not address:  # a local instance for this run only
-            kw.update(num_cpus=workers, object_store_memory=RAY_OBJECT_STORE_BYTES)
-        ray.init(**kw)
-    task = ray.remote(call).options(
-        num_cpus=1, max_retries=0, name="gbgrowth-trial",
-        runtime_env={"env_vars": {k: "1" for k in THREAD_VARS}})
-    pending = {}
-    try:
-        fn_ref = ray.put(fn)
-        pending = {task.remote(fn_ref, t): t for t in todo}
-        no_cpu_since = None
-        while pending:
-            ready, _ = ray.wait(list(pending), num_returns=1, timeout=RAY_POLL_S)
-            if not ready:
-                if ray.cluster_resources().get("CPU", 0) >= 1:
-                    no_cpu_since = None
-                    continue
-                # every node that could run a trial is gone: the tasks left can never be
-                # scheduled, and ray.wait would wait for them forever
-                no_cpu_since = no_cpu_since or time.monotonic()
-                if time.monotonic() - no_cpu_since < RAY_LOST_S:
-                    continue
-                for ref, trial in list(pending.items()):
-                    del pending[ref]
-                    ray.cancel(ref, force=True)
-                    yield trial, failed(trial, f"no Ray node with a CPU left for "
-                                        f"{RAY_LOST_S:.0f} s: the trial cannot be scheduled")
-                break
-            (ref,) = ready
-            trial = pending.pop(ref)
-            try:
-                result = ray.get(ref)
-            except RayError as err:  # the worker died, the node was lost, the task was cancelled
-                result = failed(trial, f"{type(err).__name__}: {err}", tb=traceback.format_exc())
-            yield trial, result
-    finally:
-        for ref in pending:  # Ctrl-C, an error or a dropped generator: stop the rest now
-            try:
-                ray.cancel(ref, force=True)
-            except Exception:  # noqa: BLE001 - already finished or gone
-                pass
-        if own:
-            ray.shutdown()
-
-
-# --- submitit (SLURM, or local processes) ------------------------------------------------------
+# --- submitting and watching -------------------------------------------------------------------
 
 def signal_delay(opts: dict) -> int:
-    """Seconds before --time at which SLURM sends SIGUSR2 (executor.slurm.signal_delay_s).
+    """Seconds before --time at which SLURM sends SIGUSR2 (engine.signal_delay_s).
 
     submitit asks for 90 s, and SLURM may send the signal up to 60 s before that; with
     timeout_min=2 a healthy shard was cut at ~38 s. The default is therefore at most a tenth of
@@ -280,21 +152,16 @@ def queued_jobs() -> set[str] | None:
     return set(out.split())
 
 
-def submitit_results(todo: list[dict], workers: int, fn, cluster: str = "slurm", options=None,
-                     logs=None):
+def results(todo: list[dict], workers: int, fn, cluster: str, opts: dict, logs=None):
     """The trials in shards, one array job each, `workers` at a time; yield each trial's result
-    as its job spools it, and a failed or lost job's unfinished trials as failed results."""
+    as its job spools it, and a failed or lost job's unfinished trials as failed results.
+    cluster: slurm or local (submitit's); opts: the engine's settings (SlurmSettings' fields;
+    submitit_local: timeout_min, shards, setup)."""
     import submitit
 
-    opts = dict(SLURM_DEFAULTS)
-    opts.update({k: v for k, v in dict(options or {}).items() if v is not None})
-    unknown = set(opts) - set(SLURM_DEFAULTS)
-    if unknown:
-        raise ConfigError(f"executor.slurm: unknown setting(s) {sorted(unknown)}; "
-                          f"known: {', '.join(SLURM_DEFAULTS)}")
     if cluster == "slurm" and shutil.which("sbatch") is None:
-        raise ConfigError("executor.backend='slurm': sbatch not found; submit from a SLURM login "
-                          "node, or use executor=submitit_local (or ray) on this machine")
+        raise ConfigError("engine=slurm: sbatch not found; submit from a SLURM login node, or use "
+                          "engine=submitit_local (or ray) on this machine")
     n = opts["shards"] or workers
     if cluster == "local":
         n = min(n, workers)  # every local job starts at once
@@ -310,7 +177,8 @@ def submitit_results(todo: list[dict], workers: int, fn, cluster: str = "slurm",
     once = OnceFilter("Bypassing sacct error")  # no accounting: say so once, not every poll
     logging.getLogger("submitit").addFilter(once)
     try:
-        yield from watch(jobs, parts, folder / "spool", poll=poll, lost_s=float(opts["lost_s"]),
+        yield from watch(jobs, parts, folder / "spool", poll=poll,
+                         lost_s=float(opts.get("lost_s", 0.0)),
                          queued=queued_jobs if slurm else None,
                          refresh=jobs[0].watcher.update if slurm else None)
     finally:

@@ -1,0 +1,169 @@
+"""Engines: where the simulate stage runs its trials, one module each, registered by name.
+
+    python -m pipeline.simulate experiment=fig4 engine=ray engine.address=auto
+    python -m pipeline.simulate experiment=fig4 engine=slurm engine.partition=short workers=64
+
+An engine is a module of this package (or a module named gbgrowth_engine_<name> anywhere on the
+Python path, for one kept outside the repository): a settings dataclass and a run function,
+registered with `@engine(name, Settings)`. The config group `engine` is generated from them
+(register_configs: `engine=<name>` picks one, `engine.<field>=...` sets its settings, typed by
+the dataclass), so an engine added is an engine on the command line, with no other edit.
+
+run(todo, workers, fn, settings, logs) yields (trial, fn(trial)) for every trial of `todo`
+(plain data, longest first) as they finish; the driver (pipeline.simulate) writes every result
+to the cache itself. So no cache file is ever written by a worker or by two jobs, the per-trial
+claims and plan records stay where they are, and the trial files are byte for byte those of a
+local run (a result is the same plain data whichever process computed it). A worker checks that
+its gbmodel code has the fingerprint the driver put into the trial's key
+(pipeline.fingerprint.code_fingerprint; pipeline.worker.run_one), so a node with other code
+fails the trial instead of caching a result computed by code the key does not name.
+
+Why driver-side engines rather than Hydra's launchers (hydra-ray-launcher, submitit-launcher):
+a launcher's unit of work is a whole stage run (one composed config, one `simulate`); here the
+unit of work is a trial, and one figure is hundreds of trials of very different lengths. A
+launcher would either run each figure on one node, or run many `simulate` processes that all
+write into one cache. Driver-side engines keep one writer and schedule trials longest first.
+"""
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import importlib.util
+import pkgutil
+import typing
+from dataclasses import dataclass
+from typing import Callable
+
+PLUGIN_PREFIX = "gbgrowth_engine_"  # a module of this name on the Python path is an engine too
+
+
+@dataclass
+class NoSettings:
+    """An engine without settings of its own (engine=local)."""
+
+
+@dataclass(frozen=True)
+class Engine:
+    name: str
+    settings: type  # a dataclass: the engine's settings, engine.<field> on the command line
+    run: Callable  # run(todo, workers, fn, settings, logs) -> iterator of (trial, result)
+    package: str | None = None  # the module it needs (imported only when it runs)
+    extra: str | None = None  # the pyproject extra that installs that module
+
+
+_ENGINES: dict[str, Engine] = {}
+
+
+def engine(name: str, settings: type = NoSettings, package: str | None = None,
+           extra: str | None = None):
+    """Register the decorated run function as engine `name`, with its settings dataclass and
+    the package it needs (checked by the stage that submits, before anything runs)."""
+    if not dataclasses.is_dataclass(settings):
+        raise TypeError(f"engine {name!r}: settings must be a dataclass, not {settings!r}")
+
+    def register(run: Callable) -> Callable:
+        other = _ENGINES.get(name)
+        if other is not None and other.run.__module__ != run.__module__:
+            raise ValueError(f"engine {name!r} is registered by {other.run.__module__} and "
+                             f"{run.__module__}")
+        _ENGINES[name] = Engine(name, settings, run, package, extra)
+        return run
+
+    return register
+
+
+def discover() -> tuple[str, ...]:
+    """Import every engine module (this package's, and gbgrowth_engine_* on the Python path);
+    the names registered, sorted."""
+    for m in pkgutil.iter_modules(__path__):
+        importlib.import_module(f"{__name__}.{m.name}")
+    for m in pkgutil.iter_modules():
+        if m.name.startswith(PLUGIN_PREFIX):
+            importlib.import_module(m.name)
+    return available()
+
+
+def available() -> tuple[str, ...]:
+    return tuple(sorted(_ENGINES))
+
+
+def _error(message: str) -> Exception:
+    from ..config import ConfigError  # the config imports no engine: no import circle
+
+    return ConfigError(message)
+
+
+def get(name: str) -> Engine:
+    if name not in _ENGINES:
+        raise _error(f"engine={name!r}: choose one of {', '.join(available())}")
+    return _ENGINES[name]
+
+
+def check(name: str, package: bool = True) -> Engine:
+    """The engine `name`, or a ConfigError (one line) for an unknown one or (package) one whose
+    package is not installed: only the stage that submits (simulate) needs it."""
+    e = get(name)
+    if package and e.package and importlib.util.find_spec(e.package) is None:
+        raise _error(f"engine={name} needs the package {e.package}: pip install -e "
+                     f"'.[{e.extra or e.package}]'")
+    return e
+
+
+def schema(e: Engine) -> type:
+    """The config node of engine `e`: its name, then its settings' fields (types, defaults)."""
+    hints = typing.get_type_hints(e.settings)
+
+    def default(f):
+        if f.default_factory is not dataclasses.MISSING:
+            return dataclasses.field(default_factory=f.default_factory)
+        return dataclasses.field(default=f.default)
+
+    return dataclasses.make_dataclass(f"{e.name}_engine", [
+        ("name", str, dataclasses.field(default=e.name)),
+        *[(f.name, hints[f.name], default(f)) for f in dataclasses.fields(e.settings)]])
+
+
+def register_configs() -> None:
+    """The config group `engine`: one node per registered engine (Hydra's ConfigStore)."""
+    from hydra.core.config_store import ConfigStore
+
+    cs = ConfigStore.instance()
+    for name in discover():
+        cs.store(group="engine", name=name, node=schema(_ENGINES[name]))
+
+
+def settings_of(conf: dict) -> tuple[Engine, object]:
+    """(engine, its settings) of an `engine` config section (plain data: name and settings)."""
+    conf = dict(conf)
+    e = get(conf.pop("name", None))
+    try:
+        return e, e.settings(**conf)
+    except TypeError as err:
+        raise _error(f"engine={e.name}: {err}") from None
+
+
+def run(conf: dict, todo: list[dict], workers: int, fn=None, logs=None):
+    """Yield (trial, fn(trial)) for every trial of `todo` on the engine `conf` names, with its
+    settings (the `engine` config section as plain data); logs: a folder for its job files."""
+    e, settings = settings_of(conf)
+    if fn is None:
+        from ..worker import run_one as fn
+    if not todo:
+        return
+    yield from e.run(todo, workers, fn, settings, logs)
+
+
+# --- shared by the engines ------------------------------------------------------------------
+
+def call(fn, trial: dict) -> dict:
+    """fn(trial) in a worker (pipeline.worker.run_one checks the worker's code fingerprint)."""
+    return fn(trial)
+
+
+def failed(trial: dict, error: str, seconds: float = 0.0, tb: str | None = None) -> dict:
+    """A failed result as pipeline.worker.run_one makes one: not cached, retried next run."""
+    lines = [ln for ln in str(error).splitlines() if ln.strip()]
+    out = dict(status="failed", error=lines[0] if lines else "failed", key=trial["key"],
+               seconds=seconds)
+    out["traceback"] = tb or str(error)
+    return out

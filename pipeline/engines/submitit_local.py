@@ -1,0 +1,23 @@
+"""engine=submitit_local: the slurm engine's code path on this machine, its shards as `workers`
+local submitit jobs (each a process with one BLAS/numba thread). For tests and for trying a
+SLURM setup without a cluster. Job files and logs: <paths.out>/logs/submitit/. Needs
+`pip install -e '.[slurm]'`.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Optional
+
+from . import engine, submitit_jobs
+
+
+@dataclass
+class SubmititLocalSettings:
+    timeout_min: int = 1440  # the time limit of each job, minutes (a job runs a whole shard)
+    shards: Optional[int] = None  # jobs; null (and at most): `workers`, all started at once
+    setup: list[str] = field(default_factory=list)  # shell lines before each job
+
+
+@engine("submitit_local", SubmititLocalSettings, package="submitit", extra="slurm")
+def run(todo: list[dict], workers: int, fn, settings: SubmititLocalSettings, logs=None):
+    yield from submitit_jobs.results(todo, workers, fn, "local", asdict(settings), logs)
