@@ -301,6 +301,11 @@ def curve_stats(trials: pd.DataFrame) -> pd.DataFrame:
     return out.reset_index()
 
 
+def _by_condition(frame: pd.DataFrame) -> dict:
+    """condition -> its rows of `frame`, in their order."""
+    return {name: rows for name, rows in frame.groupby("condition", sort=False, observed=True)}
+
+
 def summarize(trials: pd.DataFrame, curves: pd.DataFrame, conds: dict, paper: dict,
               fail_factor: float) -> pd.DataFrame:
     """One row per condition: final errors (mean, std over trials), the temporary increase of the
@@ -308,8 +313,9 @@ def summarize(trials: pd.DataFrame, curves: pd.DataFrame, conds: dict, paper: di
     or are missing, trials that failed to bootstrap, and the paper's stated final accuracy."""
     paper_abs = paper.get("final_abs_error")
     rows, last = [], finals(trials)
+    final_of, curve_of = _by_condition(last), _by_condition(curves)  # one pass, not one per condition
     for name, c in conds.items():
-        final = last[last["condition"] == name]
+        final = final_of.get(name, last.iloc[:0])
         v = c["variant"] or {}
         row = {k: c["labels"][k] for k in GROUP}
         row.update(variant=v.get("label", ""), choice=v.get("choice", ""),
@@ -322,8 +328,8 @@ def summarize(trials: pd.DataFrame, curves: pd.DataFrame, conds: dict, paper: di
         for col in ERRORS:
             row[f"final_{col}_mean"] = float(final[col].mean()) if len(final) else np.nan
             row[f"final_{col}_std"] = float(final[col].std(ddof=1)) if len(final) > 1 else np.nan
-        cu = curves[(curves["condition"] == name)
-                    & (curves["epoch"] <= c["labels"]["growth_period"] + 1)]
+        cu = curve_of.get(name, curves.iloc[:0])
+        cu = cu[cu["epoch"] <= c["labels"]["growth_period"] + 1]
         peak = growth_peak(cu) if c["labels"]["growth"] != "none" and len(cu) else None
         row["peak_abs_error_growth"] = peak[1] if peak else np.nan
         row["rise_abs_error_growth"] = peak[2] if peak else np.nan
