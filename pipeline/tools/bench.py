@@ -12,7 +12,10 @@ batch fast path's median of the same run (the target: at most 2), in wall-clock 
 time, and Goal Babbling with learner.solver=lstsq (its epoch: the Gram sums and the p x p solve
 instead of the gradient step) against the gradient epoch, and Goal Babbling with
 learner.updates=online (one step per sample) against the batch epoch. The paths' trials are
-interleaved (pipeline.tools.bench.paired), so that a shared machine's drifting speed moves them alike.
+interleaved (pipeline.tools.bench.paired), so that a shared machine's drifting speed moves them alike;
+beside each ratio of the wall-clock medians (`speedup`, `*_over_*`) stands the median over repeats
+of the same ratio in CPU time, pair by pair (`*_cpu`, paired_ratio): on a loaded machine a path's
+wall clock also counts the time it waited for a core, which hides a regression that CPU time shows.
 With bench.parallel, it also times the same batch of arm5 trials on one and on two worker
 processes of the pipeline's local engine. Writes paths.bench/bench.json.
 """
@@ -76,6 +79,17 @@ def paired(specs: dict, repeats: int) -> dict:
     return out
 
 
+def paired_ratio(times: dict, a: str, b: str, clock: int = 1) -> float:
+    """The median over repeats of a's time over b's in the same repeat (`paired` times; clock 0:
+    wall, 1: CPU), each pair run back to back under the same load."""
+    return float(np.median([ta[clock] / tb[clock] for ta, tb in zip(times[a], times[b])]))
+
+
+RATIOS = {"speedup": ("reference", "fast"), "online_over_batch": ("online", "fast"),
+          "lstsq_over_gradient": ("lstsq", "fast"),
+          "updates_online_over_batch": ("updates_online", "fast")}  # speedup: fast is b's
+
+
 def draw_time(spec: dict, epochs: int = 200) -> float:
     """Seconds per epoch of the learner's random draws alone (median of 3): the share of a
     trial-epoch that no kernel can remove (online Goal Babbling draws m (n + 1) normals per
@@ -132,8 +146,8 @@ def bench(cfg: DictConfig) -> dict:
             row[f"{path}_cpu_us_per_trial_epoch"] = 1e6 * float(np.median(cpu))
         row["speedup"] = row["reference_us_per_trial_epoch"] / row["fast_us_per_trial_epoch"]
         row["online_over_batch"] = row["online_us_per_trial_epoch"] / row["fast_us_per_trial_epoch"]
-        row["online_over_batch_cpu"] = (row["online_cpu_us_per_trial_epoch"]
-                                        / row["fast_cpu_us_per_trial_epoch"])
+        for name, (a, b) in RATIOS.items():
+            row[f"{name}_cpu"] = paired_ratio(times, a, b)
         row["online_draw_us_per_epoch"] = 1e6 * draw_time(specs["online"])
         row["lstsq_over_gradient"] = (row["lstsq_us_per_trial_epoch"]
                                       / row["fast_us_per_trial_epoch"])
@@ -151,6 +165,9 @@ def bench(cfg: DictConfig) -> dict:
               f"{row['lstsq_over_gradient']:.2f}   updates=online "
               f"{row['updates_online_us_per_trial_epoch']:8.1f} us/trial-epoch, online/batch "
               f"{row['updates_online_over_batch']:.2f}", flush=True)
+        print(f"{body}: CPU time, paired: " + "   ".join(
+            f"{name} {row[name]:.2f} wall, {row[name + '_cpu']:.2f} CPU" for name in RATIOS),
+            flush=True)
     if cfg.bench.parallel:
         result["parallel"] = p = parallel_speedup()
         print(f"parallel: {p['trials']} arm5 trials, 1 worker {p['wall_s_1_worker']:.1f} s, "
