@@ -74,8 +74,8 @@ choices: ## the open-choices experiments only (choices_*), then aggregate and re
 bench: $(STAMP) ## time the fast path against the numpy reference (outputs/bench/bench.json)
 	$(PY) -m pipeline.tools.bench $(ARGS)
 
-scale: $(STAMP) ## time sweeps of 1,000 and 10,000 short trials stage by stage (outputs/bench/scale.json; ARGS="--baseline DIR")
-	$(PY) -m pipeline.tools.scale $(ARGS)
+scale: $(STAMP) ## time sweeps of 1,000 and 10,000 short trials stage by stage and a cached make smoke (outputs/bench/scale.json; ARGS="--baseline DIR")
+	$(PY) -m pipeline.tools.scale --smoke-experiments '$(shell echo $(FIGURES) | tr ' ' ',')' $(ARGS)
 
 test: $(STAMP) ## run the test suite (slow tests excluded)
 	$(PY) -m pytest

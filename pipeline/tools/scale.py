@@ -22,6 +22,13 @@ does (compose, plan, the saved plan written; then again, the saved plan read), i
 its own, and every stage above on a sample of --sample trials (1,000) whose costs per trial,
 times N, estimate the stages at N (recorded as `estimated_cpu_s`, with `sampled`).
 
+--smoke-experiments E1,E2,... (make scale passes make smoke's FIGURES) also times a fully
+cached `make smoke`: its three stage commands (simulate, aggregate, report at profile=smoke in the
+checkout's own outputs/smoke) once to bring the cache and the report up to date, then again,
+measured (`cached_smoke`). The last lines say the two start-up numbers the targets are set on:
+the cached smoke's CPU (target at most SMOKE_TARGET_S) and aggregate's after one changed trial of
+the 10,000-trial sweep (at most ONE_TRIAL_TARGET_S).
+
 With --baseline, every size runs on the baseline checkout right after this one (paired: the
 load of a shared machine falls on both alike). The results go to --out as JSON and are printed as
 a table; per-trial figures (ms CPU per trial) make sizes comparable.
@@ -43,6 +50,8 @@ from pipeline import io
 REPO = Path(__file__).resolve().parents[2]
 CONDITIONS = 10  # growth periods 1 ... 10: trials.count = size / CONDITIONS
 STAGES = ("simulate", "simulate_cached", "aggregate", "aggregate_cached", "aggregate_one")
+SMOKE_STAGES = ("simulate", "aggregate", "report")  # make smoke's commands
+SMOKE_TARGET_S, ONE_TRIAL_TARGET_S = 8.0, 2.0  # CPU seconds (issue 43)
 
 
 def overrides(root: Path, size: int, epochs: int, workers: int) -> list[str]:
@@ -68,6 +77,28 @@ def run_stage(code: Path, stage: str, args: list[str]) -> dict:
                            f"{err.decode(errors='replace')[-2000:]}")
     return dict(wall_s=round(wall, 3), cpu_s=round(usage.ru_utime + usage.ru_stime, 3),
                 peak_mb=round(usage.ru_maxrss / 1024, 1))
+
+
+def cached_smoke(code: Path, experiments: str) -> dict:
+    """make smoke's three commands in checkout `code` (its outputs/smoke), once to bring them up
+    to date (unmeasured), then again: each stage's wall, CPU and peak memory, and their CPU sum."""
+    args = [f"experiments=[{experiments}]", "profile=smoke"]
+    for stage in SMOKE_STAGES:
+        run_stage(code, stage, args)
+    out = {stage: run_stage(code, stage, args) for stage in SMOKE_STAGES}
+    return dict(out, code=str(code), cpu_s=round(sum(out[s]["cpu_s"] for s in SMOKE_STAGES), 3))
+
+
+def headline(results: list[dict], smokes: list[dict]) -> list[str]:
+    """The start-up numbers against their targets: a cached make smoke's CPU, and aggregate's
+    after one changed trial of a 10,000-trial sweep, per checkout."""
+    lines = [f"cached make smoke ({r['code'][-28:]}): {r['cpu_s']:.2f} s CPU ("
+             + ", ".join(f"{s} {r[s]['cpu_s']:.2f}" for s in SMOKE_STAGES)
+             + f"); target at most {SMOKE_TARGET_S:g} s" for r in smokes]
+    lines += [f"aggregate after one changed trial of {r['size']:,} ({r['code'][-28:]}): "
+              f"{r['aggregate_one']['cpu_s']:.2f} s CPU; target at most {ONE_TRIAL_TARGET_S:g} s"
+              for r in results if r["size"] == 10_000 and "sampled" not in r]
+    return lines
 
 
 def change_one_trial(cache: Path) -> str:
@@ -242,6 +273,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sampled", type=int, metavar="N",
                     help="instead of --sizes: plan N trials, run a sample of --sample of them")
     ap.add_argument("--sample", type=int, default=1000, help="trials run for --sampled (1000)")
+    ap.add_argument("--smoke-experiments", metavar="E1,E2,...",
+                    help="also time a fully cached make smoke of these experiments")
     ap.add_argument("--packing", type=int, metavar="N",
                     help="instead: the cache's files against one packed file, for N trials")
     a = ap.parse_args(argv)
@@ -277,11 +310,16 @@ def main(argv: list[str] | None = None) -> int:
                            else sampled(code, size, a.sample, a.epochs, a.workers, a.keep))
             loads.append(load())
             print("\n".join(table(results[-1:]).splitlines()[2:]), file=sys.stderr)
+    smokes = []
+    for code in codes if a.smoke_experiments else ():
+        smokes.append(cached_smoke(code, a.smoke_experiments))
+        loads.append(load())
     record = dict(epochs=a.epochs, workers=a.workers, conditions=CONDITIONS, loads=loads,
-                  results=results)
+                  results=results, cached_smoke=smokes)
     a.out.parent.mkdir(parents=True, exist_ok=True)
     a.out.write_text(json.dumps(record, indent=1) + "\n")
     print(table(results))
+    print("\n".join(headline(results, smokes)))
     print(f"machine: {loads[0]} before, {loads[-1]} after; written to {a.out}")
     return 0
 

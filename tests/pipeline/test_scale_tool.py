@@ -52,3 +52,16 @@ def test_a_sampled_sweep_plans_all_and_runs_the_sample(tmp_path):
     for stage in scale.STAGES:
         assert r["estimated_cpu_s"][stage] == pytest.approx(
             r[stage]["cpu_ms_per_trial"] * 40 / 1000, abs=0.06)
+
+
+def test_the_last_lines_give_the_start_up_numbers_against_their_targets():
+    stage = lambda cpu: dict(wall_s=cpu, cpu_s=cpu, peak_mb=1.0)  # noqa: E731
+    smoke = dict({s: stage(c) for s, c in zip(scale.SMOKE_STAGES, (2.0, 1.5, 3.25))},
+                 code="/x/checkout", cpu_s=6.75)
+    sweeps = [dict(code="/x/checkout", size=s, aggregate_one=stage(c))
+              for s, c in ((1000, 1.1), (10_000, 1.75))]
+    assert scale.headline(sweeps, [smoke]) == [
+        "cached make smoke (/x/checkout): 6.75 s CPU (simulate 2.00, aggregate 1.50, report "
+        "3.25); target at most 8 s",
+        "aggregate after one changed trial of 10,000 (/x/checkout): 1.75 s CPU; target at most 2 s"]
+    assert scale.headline(sweeps[:1], []) == []
