@@ -12,14 +12,24 @@ from . import stop
 
 if sys.argv[:1] == ["-m"]:  # `python -m pipeline.<stage>` (argv[0] is "-m" while it is located)
     stop.install()  # a signal during the slow imports: one line, not a traceback (pipeline.stop)
+
+
+def _runs_the_report(orig_argv: list, argv: list) -> bool:
+    """Whether this process is the report stage: python -m pipeline.report, python -m pipeline
+    report, gbgrowth report."""
+    if "-m" in orig_argv[:-1]:
+        i = orig_argv.index("-m") + 1
+        return orig_argv[i] == "pipeline.report" or orig_argv[i:i + 2] == ["pipeline", "report"]
+    return os.path.basename(argv[0] if argv else "") == "gbgrowth" and argv[1:2] == ["report"]
+
+
+if _runs_the_report(getattr(sys, "orig_argv", []), sys.argv):
     # the report's linear algebra is small (least squares over at most a few hundred
     # parameters): a second BLAS thread only spins, at up to 35x the CPU on a loaded machine.
     # Set before numpy loads its BLAS; a user's own setting wins.
-    _argv = getattr(sys, "orig_argv", [])
-    if "-m" in _argv[:-1] and _argv[_argv.index("-m") + 1] == "pipeline.report":
-        for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS",
-                     "VECLIB_MAXIMUM_THREADS"):
-            os.environ.setdefault(_var, "1")
+    for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS",
+                 "VECLIB_MAXIMUM_THREADS"):
+        os.environ.setdefault(_var, "1")
 
 from . import config  # noqa: E402,F401  (registers the schema)
 from . import engines  # noqa: E402
