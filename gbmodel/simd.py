@@ -19,6 +19,10 @@ tests/core/test_kernel_targets.py checks the kernels bit for bit across CPU targ
 """
 from __future__ import annotations
 
+import hashlib
+import os
+from pathlib import Path
+
 import numpy as np
 from llvmlite import ir
 from numba import njit, types
@@ -26,6 +30,41 @@ from numba.core import cgutils
 from numba.extending import intrinsic, models, register_model
 
 F4 = np.float32
+
+
+def fresh_cache(folder, files=()) -> bool:
+    """Remove numba's cached kernels of `folder` (its __pycache__/*.nbi, *.nbc) when the code
+    they were compiled from changed: numba checks a kernel's cache against its own file only,
+    but a kernel's machine code holds the kernels it calls from other files (the driver of
+    goal_babbling/fast.py holds the rollout's and the update rules'), so an edit of a callee's
+    file would otherwise leave its callers running the old code. The stamp is a hash of the
+    folder's *.py files, this file and `files`; returns whether the caches were removed. A
+    folder that cannot be written (an installed package) is left alone."""
+    folder = Path(folder)
+    sources = sorted(folder.glob("*.py")) + [Path(__file__)] + [Path(f) for f in files]
+    h = hashlib.sha256()
+    for f in sources:
+        h.update(f.read_bytes())
+    stamp = h.hexdigest()[:16]
+    cache = folder / "__pycache__"
+    mark = cache / "kernels.stamp"
+    try:
+        if mark.read_text() == stamp:
+            return False
+    except OSError:
+        pass
+    try:
+        for f in [*cache.glob("*.nbi"), *cache.glob("*.nbc")]:
+            f.unlink(missing_ok=True)
+        cache.mkdir(exist_ok=True)
+        tmp = cache / f"kernels.stamp.{os.getpid()}"
+        tmp.write_text(stamp)
+        os.replace(tmp, mark)
+    except OSError:
+        return False
+    return True
+
+
 LANES = 16  # width of the explicit vectors (F32x16)
 
 # ---- explicit float32 vectors of LANES lanes -----------------------------------------------------

@@ -70,11 +70,16 @@ class Params:
     # how M learns from an epoch's samples: gradient (the paper's step on eq. 6, at the rate
     # above) or lstsq (solve.py: M solved from eq. 6's weighted normal equations over the
     # samples of the last `window` epochs, with a ridge relative to each feature's scale that
-    # pulls towards the current M; no rate). Neither enters a trial's key at its default
-    # (keyed).
+    # pulls towards the current M and an anchor towards the initial M over the targets; no
+    # rate). Neither enters a trial's key at its default (keyed).
     solver: str = "gradient"
     window: int = 10  # epochs whose samples the lstsq solve fits
     ridge: float = 1e-3  # the lstsq solve's ridge, times each feature's sum of w Phi_k^2
+    # the lstsq solve's pull towards the initial M over the targets, times the window's sum of
+    # weights (solve.py says why); on a body with joint limits it decays as tau / (tau + e - 1),
+    # tau = anchor_epochs (solve.anchor_at). Measured: docs/bodies.md, "The exact solver"
+    anchor: float = 0.01
+    anchor_epochs: float = 100.0
 
     def validate(self) -> "Params":
         check_fields(self, "learner", LIMITS)
@@ -131,8 +136,11 @@ LIMITS = dict(
     rate_step_factor=Number(0.0, 1e3, lo_open=True), targets=Choice("distinct", "any"),
     **goals.LIMITS, solver=Choice(*SOLVERS),
     window=Int(1, MAX_WINDOW, " epochs (a window of Gram sums is held in memory)"),
-    ridge=Number(MIN_RIDGE, MAX_RIDGE, why=" (beyond it nothing is learned)"))
-KEYED_DEFAULTS = dict(solver="gradient", window=10, ridge=1e-3)
+    ridge=Number(MIN_RIDGE, MAX_RIDGE, why=" (beyond it nothing is learned)"),
+    anchor=Number(0.0, MAX_RIDGE, why=" (beyond it nothing is learned)"),
+    anchor_epochs=Number(0.0, 1e12, lo_open=True))
+KEYED_DEFAULTS = dict(solver="gradient", window=10, ridge=1e-3, anchor=0.01,
+                      anchor_epochs=100.0)
 
 
 def keyed(learner: dict) -> dict:
@@ -228,7 +236,9 @@ def _train(M, params: Params, body, sizes, scales, draws, epochs) -> np.ndarray:
         for e in range(len(sizes)):
             _, x, q, w = reference.samples(M.M, body, sizes[e], scales[e], exps, idx[e], raw[e],
                                            params.radius, params.steps, amp[0][e] if amp else None)
-            M = solve.solve(M, solve.grams(x, q, w, exps), params.ridge)
+            P = solve.target_gram(body.target_set(sizes[e]), exps)
+            anchor = solve.anchor_at(params.anchor, params.anchor_epochs, M.epochs + 1, body)
+            M = solve.solve(M, solve.grams(x, q, w, exps), params.ridge, P, anchor)
         return M
     for e in range(len(sizes)):
         M, _ = reference.epoch(M, body, sizes[e], scales[e], exps, idx[e], raw[e], params.radius,

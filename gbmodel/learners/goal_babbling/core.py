@@ -16,10 +16,18 @@ over many trials at once can call them per trial.
 """
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 from numba import njit
 
-from ...simd import LANES, W8, _1, vadd, vfma, vload, vload1, vmul, vsplat, vstore, vsub, vsum
+from ...simd import (
+    LANES, W8, _1, fresh_cache, vadd, vfma, vload, vload1, vmul, vsplat, vstore, vsub, vsum,
+)
+
+# every kernel file imports this one first: numba's caches of this folder are removed when any
+# of its files (or simd.py) changed, before a kernel is loaded from them
+fresh_cache(Path(__file__).parent)
 
 _BLOCK = 512  # columns per block of features, residuals and gradient (multiple of LANES)
 _TILE = 5  # rows of a register tile of M Phi and of the gradient (m = 5, 10; p = 10, 20)

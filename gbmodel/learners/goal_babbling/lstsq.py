@@ -43,10 +43,32 @@ _cholesky_solve = njit(cache=True)(cholesky_solve)
 
 
 @njit(cache=True)
-def solve(M, ring, slot, ridge, X, Q, w, Npad, parent, var, Phi, solver_work):
+def _target_gram(targets, s, parent, var, phi, P):
+    """P = mean over the targets at size s of Phi(x*) Phi(x*)^T (solve.target_gram), float64
+    in a fixed order."""
+    NT, n = targets.shape
+    p = P.shape[0]
+    P[:] = 0
+    for t in range(NT):
+        phi[0] = 1.0
+        for k in range(1, p):
+            phi[k] = phi[parent[k]] * (s * float(targets[t, var[k]]))
+        for i in range(p):
+            for j in range(i + 1):
+                P[i, j] += phi[i] * phi[j]
+    for i in range(p):
+        for j in range(i + 1):
+            P[i, j] /= NT
+            P[j, i] = P[i, j]
+
+
+@njit(cache=True)
+def solve(M, M0, ring, slot, ridge, anchor, X, Q, w, Npad, parent, var, Phi, targets, s,
+          solver_work):
     """solver=lstsq (solve.solve): this epoch's Gram sums into ring[slot], then M from the sum
-    of the slots (in slot order) by the ridge system, in place."""
-    Z, GG, total, A, B, L, out = solver_work
+    of the slots (in slot order) by solve.system (the ridge towards M, the anchor towards M0
+    over the targets at size s), in place."""
+    Z, GG, total, A, B, L, out, P, phi = solver_work
     m, p = M.shape
     _gram_sums(X, Q, w, Npad, parent, var, Phi, Z, GG, ring[slot])
     total[:] = ring[0]
@@ -54,13 +76,19 @@ def solve(M, ring, slot, ridge, X, Q, w, Npad, parent, var, Phi, solver_work):
         for i in range(p + m):
             for j in range(p):
                 total[i, j] += ring[k, i, j]
+    _target_gram(targets, s, parent, var, phi, P)
+    la = anchor * total[0, 0]  # the anchor's weight: anchor (solve.anchor_at) times the
+    # window's sum of weights
     for i in range(p):
         for j in range(p):
-            A[i, j] = total[i, j]
+            A[i, j] = total[i, j] + la * P[i, j]
         d = ridge * total[i, i] if total[i, i] > 0 else 1.0
         A[i, i] += d
         for r in range(m):
-            B[i, r] = total[p + r, i] + d * M[r, i]
+            pm = 0.0
+            for k in range(p):
+                pm += P[i, k] * M0[r, k]
+            B[i, r] = total[p + r, i] + d * M[r, i] + la * pm
     _cholesky_solve(A, B, L, out)
     for r in range(m):
         for i in range(p):
@@ -74,4 +102,5 @@ def solver_work(m, n, p, V, T, solving):
     cols = min(Npad, _BLOCK) if solving else LANES
     f4 = np.float32
     return (np.empty((p + m, cols), f4), np.empty((p + m, p * LANES), f4), np.empty((p + m, p)),
-            np.empty((p, p)), np.empty((p, m)), np.zeros((p, p)), np.empty((p, m)))
+            np.empty((p, p)), np.empty((p, m)), np.zeros((p, p)), np.empty((p, m)),
+            np.empty((p, p)), np.empty(p))

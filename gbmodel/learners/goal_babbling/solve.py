@@ -4,16 +4,29 @@ The paper updates M by a gradient step on the weighted command error (eq. 6) and
 "any regression algorithm can be used for this step (e.g. linear regression schemes)". Here M
 minimises that error exactly over the samples of the last `window` epochs:
 
-    min_M  sum_{e in window} sum_t w_t |M Phi(x_t) - q_t|^2  +  ridge sum_k G_kk |M_:k - M0_:k|^2
+    min_M  sum_{e in window} sum_t w_t |M Phi(x_t) - q_t|^2  +  ridge sum_k G_kk |M_:k - Mc_:k|^2
+           +  a W mean_{x* in targets} |(M - M0) Phi(x*)|^2
 
-with M0 the M before the solve. Each epoch contributes its Gram sums G_e = sum_t w Phi Phi^T
-(p x p) and H_e = sum_t w q Phi^T (m x p), the home example (weight 1, eq. 5) included, as a
-slot of a ring of `window` slots (the oldest is overwritten); the solve sums the slots in slot
-order and solves (G + D) M^T = H^T + D M0^T, D = ridge diag(G) (1 where a feature never varies,
-G_kk = 0: its column keeps M0's). The ridge is relative to each feature's own scale, so it does
-not depend on the body's units; it pulls towards the current M, not towards zero.
+with Mc the M before the solve, M0 the initial M, W the window's sum of weights and a the
+anchor (anchor_at). Each epoch contributes its Gram sums G_e = sum_t w Phi Phi^T (p x p) and
+H_e = sum_t w q Phi^T (m x p), the home example (weight 1, eq. 5) included, as a slot of a ring
+of `window` slots (the oldest is overwritten); the solve sums the slots in slot order and solves
+(G + D + a W P) M^T = H^T + D Mc^T + a W P M0^T, D = ridge diag(G) (1 where a feature never
+varies, G_kk = 0: its column keeps Mc's), P = mean Phi(x*) Phi(x*)^T over the targets at the
+current size (target_gram). The ridge is relative to each feature's own scale and keeps the
+system well conditioned; the anchor is relative to the data's weight and measured where the
+inverse is used, so neither depends on the body's units, its outputs or its sample count.
 
-The fast path (fast.py) accumulates G_e and H_e in the kernel and solves the same p x p system
+Why the anchor (docs/bodies.md, "The exact solver"): the exact solve gives every direction of M
+the data of 10 epochs, also those the data barely determine: the first solves, from samples
+clustered at home, extrapolate over the targets (on a body with joint limits past them, where
+the exploration then collects no weight and the run stays stuck; the 2-DOF arm never recovers),
+and joints that barely move the hand and have no limits wander without end (Fig. 5's half-size
+arm winds them up to 3-20 rad). The anchor holds what the data do not determine at the initial
+inverse: on a body without joint limits for good, on one with limits only while its first
+solves need it (a tau / (tau + e - 1), tau = anchor_epochs), so that it costs no accuracy later.
+
+The fast path (lstsq.py) accumulates G_e and H_e in the kernel and solves the same p x p system
 by `cholesky_solve` below, compiled; this module states it with numpy's solver.
 """
 from __future__ import annotations
@@ -27,18 +40,21 @@ from ...features import features
 
 @dataclass(frozen=True)
 class Solved:
-    """The state under solver=lstsq: M and the ring of per-epoch Gram sums.
+    """The state under solver=lstsq: M, the ring of per-epoch Gram sums, and the initial M.
 
     ring (window, p + m, p): rows 0 ... p-1 of a slot are G_e, rows p ... p+m-1 are H_e;
-    epochs: the epochs learned so far (the next slot is epochs % window)."""
+    epochs: the epochs learned so far (the next slot is epochs % window); M0: the initial
+    inverse, the anchor of the prior."""
     M: np.ndarray
     ring: np.ndarray
     epochs: int = 0
+    M0: np.ndarray | None = None
 
 
 def start(M: np.ndarray, window: int) -> Solved:
     m, p = M.shape
-    return Solved(np.array(M, dtype=np.float64), np.zeros((window, p + m, p)), 0)
+    M = np.array(M, dtype=np.float64)
+    return Solved(M, np.zeros((window, p + m, p)), 0, M.copy())
 
 
 def grams(x, q, w, exps) -> np.ndarray:
@@ -49,16 +65,40 @@ def grams(x, q, w, exps) -> np.ndarray:
     return np.concatenate([wphi.T @ phi, (w[:, None] * q).T @ phi])
 
 
-def system(M, total, ridge):
-    """The p x p system (A, B) of A M^T = B for the summed Gram sums `total` (p + m, p)."""
+def target_gram(targets, exps) -> np.ndarray:
+    """P = mean over the targets of Phi(x*) Phi(x*)^T (p x p): |M Phi|^2 averaged over the
+    targets is the trace of M P M^T."""
+    phi = features(targets, exps)
+    return phi.T @ phi / len(phi)
+
+
+def system(M, total, ridge, P=None, M0=None, anchor=0.0):
+    """The p x p system (A, B) of A M^T = B for the summed Gram sums `total` (p + m, p): the
+    ridge on each coefficient, relative to its feature's G_kk, towards M, and (with P, the
+    targets' target_gram) the anchor anchor |(M' - M0) Phi|^2 averaged over the targets, times
+    the window's sum of weights (G_00, the constant feature's), towards M0."""
     p = total.shape[1]
     G, H = total[:p], total[p:]
     diag = np.diag(G)
     D = np.where(diag > 0, ridge * diag, 1.0)
-    return G + np.diag(D), H.T + D[:, None] * M.T
+    A, B = G + np.diag(D), H.T + D[:, None] * M.T
+    if P is None:
+        return A, B
+    la = anchor * G[0, 0]
+    return A + la * P, B + la * (P @ M0.T)
 
 
-def solve(state: Solved, slot_grams: np.ndarray, ridge: float) -> Solved:
+def anchor_at(anchor, anchor_epochs, epoch, body) -> float:
+    """The anchor's factor in (1-based) epoch `epoch`: anchor on a body without joint limits
+    (nothing else holds a joint that barely moves the hand), anchor tau / (tau + epoch - 1),
+    tau = anchor_epochs, on a body with limits (they hold the joints; the anchor only keeps
+    the first solves' commands within them)."""
+    if not (body.normalized and body.saturates):
+        return anchor
+    return anchor * anchor_epochs / (anchor_epochs + epoch - 1)
+
+
+def solve(state: Solved, slot_grams: np.ndarray, ridge: float, P=None, anchor=0.0) -> Solved:
     """The state after one epoch whose Gram sums are slot_grams: the slot stored, M solved."""
     window = len(state.ring)
     ring = state.ring.copy()
@@ -66,19 +106,21 @@ def solve(state: Solved, slot_grams: np.ndarray, ridge: float) -> Solved:
     total = ring[0].copy()
     for k in range(1, window):
         total += ring[k]
-    A, B = system(state.M, total, ridge)
-    return Solved(np.linalg.solve(A, B).T, ring, state.epochs + 1)
+    A, B = system(state.M, total, ridge, P, state.M0, anchor)
+    return Solved(np.linalg.solve(A, B).T, ring, state.epochs + 1, state.M0)
 
 
 def cholesky_solve(A, B, L, out):
     """out = A^-1 B by the Cholesky factor L of A (A symmetric positive definite; plain loops in
-    a fixed order, compiled by fast.py so that every CPU computes the same bits)."""
+    a fixed order, compiled by lstsq.py so that every CPU computes the same bits)."""
     p, r = B.shape
     for j in range(p):
         s = A[j, j]
         for k in range(j):
             s -= L[j, k] * L[j, k]
-        L[j, j] = np.sqrt(s)
+        # a pivot lost to rounding (A nearly singular, its Gram sums from float32 lanes): the
+        # smallest positive one instead of a square root of a negative number
+        L[j, j] = np.sqrt(max(s, 1e-12 * A[j, j]))
         for i in range(j + 1, p):
             s = A[i, j]
             for k in range(j):

@@ -1,0 +1,119 @@
+"""The measurements of learner.solver=lstsq on the paper's bodies (docs/bodies.md, "The exact
+solver"): one figure's conditions on the committed seeds, each trial's final error, the trials
+stuck far above their condition's median, and where the inverse commands a joint past its limit.
+
+    python -m pipeline.tools.lstsq_study fig7 --epochs 2000 --trials 20
+    python -m pipeline.tools.lstsq_study fig5 --epochs 10000 --trials 5 --only const0.5
+    python -m pipeline.tools.lstsq_study arm2 --epochs 1000 --trials 3    # the 2-DOF arm
+    python -m pipeline.tools.lstsq_study fig7 --epochs 2000 -- learner.ridge=0.1   # any override
+
+The seeds are the committed report's (the plan's streams depend on the body and the growth, not
+on the epochs, so a shorter run is the first epochs of the committed trials). One process, trials
+in turn; prints one line per condition and, with --curve, the condition's median curve.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+import numpy as np
+
+import gbmodel
+from gbmodel.learners import goal_babbling as gb
+from pipeline.config import compose
+from pipeline.plan import plan
+
+
+def saturated(M, spec, size) -> float:
+    """The share of the targets (at the final size) at which g commands a joint past its limit
+    (normalised bodies; 0 for a body without limits)."""
+    body = spec.make_body()
+    if not (body.normalized and body.saturates):
+        return 0.0
+    _, params = spec.make_learner()
+    q = gb.predict(M, params, body, body.target_set(size))
+    return float((np.abs(q) > 1.0).any(axis=1).mean())
+
+
+def drift(M1, M2, spec, size) -> float:
+    """How far the inverse's postures moved between two models: the mean over the targets (at
+    the final size) of |g2(x*) - g1(x*)| (command units): the redundancy resolution wandering
+    shows here, while the hand's error may stay put."""
+    body = spec.make_body()
+    _, params = spec.make_learner()
+    x = body.target_set(size)
+    return float(np.linalg.norm(gb.predict_model(M2, params, body, x)
+                                - gb.predict_model(M1, params, body, x), axis=1).mean())
+
+
+def run(figure: str, epochs: int, trials: int, overrides: list[str], only=(), curve=False):
+    base = [f"body={figure}", "growth=none", "conditions.references=[1.0]"] \
+        if figure in ("arm2", "arm5", "icub") else [f"experiment={figure}"]
+    cfg = compose([*base, "learner.solver=lstsq", f"learner.epochs={epochs}",
+                   f"trials.count={trials}", *overrides])
+    rows: dict[str, list] = {}
+    t0 = time.process_time()
+    for t in plan(cfg):
+        label = t["growth_label"]
+        if only and label not in only:
+            continue
+        mark = 1000 if epochs > 1000 else epochs
+        spec = gbmodel.TrialSpec.from_dict({**t["spec"], "snapshots": [mark]})
+        r = gbmodel.run_trial(spec, np.random.default_rng(np.random.SeedSequence(**t["seed"])))
+        rows.setdefault(label, []).append(
+            (r.abs_error[-1], r.heldout_abs_error[-1], saturated(r.M, spec, r.size[-1]),
+             r.epoch, r.abs_error, drift(r.snapshots[mark], r.M, spec, r.size[-1])))
+    cpu = time.process_time() - t0
+    out = {}
+    for label, rs in rows.items():
+        err = np.array([r[0] for r in rs])
+        held = np.array([r[1] for r in rs])
+        sat = np.array([r[2] for r in rs])
+        moved = np.array([r[5] for r in rs])
+        med = float(np.median(err))
+        curves = np.array([r[4] for r in rs])
+        best = float(np.median(curves, axis=0).min())
+        out[label] = dict(median=med, worst_ratio=float(err.max() / med),
+                          stuck=int((err > 3 * med).sum()), heldout_median=float(np.median(held)),
+                          heldout_max=float(held.max()), saturated_max=float(sat.max()),
+                          end_over_best=float(np.median(err) / best),
+                          moved=float(np.median(moved)))
+        print(f"{label:>10}: n={len(rs)} median {1e3 * med:.2f} mm, worst/median "
+              f"{err.max() / med:.2f}, >3x median {out[label]['stuck']}, end/best "
+              f"{out[label]['end_over_best']:.2f}, held out median {1e3 * np.median(held):.2f} "
+              f"max {1e3 * held.max():.2f} mm, past a limit max {100 * sat.max():.0f} % of "
+              f"targets, postures moved since epoch {min(1000, epochs)} "
+              f"{np.median(moved):.3f}", flush=True)
+        if curve:
+            m = np.median(curves, axis=0)
+            pts = [i for i, e in enumerate(rs[0][3]) if e in (10, 100, 1000, 2000, 5000, 10000,
+                                                                20000, 50000, 100000)
+                   or i == len(m) - 1]
+            print("            median curve: " + ", ".join(
+                f"{rs[0][3][i]}: {1e3 * m[i]:.2f}" for i in pts))
+    refs = {k: v["median"] for k, v in out.items() if k.startswith("const1")}
+    if refs:
+        ref = next(iter(refs.values()))
+        grown = {k: v["median"] / ref for k, v in out.items() if not k.startswith("const")}
+        if grown:
+            print("grown / const1.0: " + ", ".join(f"{k} {v:.2f}" for k, v in grown.items()))
+    print(f"CPU {cpu:.0f} s", flush=True)
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("figure", help="fig4 | fig5 | fig7 | arm2 | arm5 | icub (constant size)")
+    ap.add_argument("--epochs", type=int, default=2000)
+    ap.add_argument("--trials", type=int, default=20)
+    ap.add_argument("--only", nargs="*", default=(), help="condition labels (const0.5, TG100)")
+    ap.add_argument("--curve", action="store_true", help="print the median curve")
+    ap.add_argument("overrides", nargs="*", help="config overrides (after --)")
+    a = ap.parse_args(argv)
+    run(a.figure, a.epochs, a.trials, a.overrides, a.only, a.curve)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
