@@ -135,7 +135,9 @@ def test_a_constant_body_does_not_drift():
                                      "end_size": 0.5, "period": 0},
                              learner={"name": "goal_babbling", "solver": "lstsq"})
     r = gbmodel.run_trial(spec, np.random.default_rng(1))
-    assert r.abs_error[-1] < 1.1 * r.abs_error.min(), (r.abs_error[-1], r.abs_error.min())
+    early = r.abs_error[(r.epoch >= 500) & (r.epoch <= 1500)].mean()
+    late = r.abs_error[r.epoch >= 5000].max()  # before the anchor: 1.6-3x early by 10,000
+    assert late < 1.3 * early, (late, early)
     assert np.abs(r.M).max() < 100
 
 
