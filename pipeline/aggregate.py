@@ -9,7 +9,8 @@ paths.aggregate/<figure>/:
     trials.parquet    every trial's learning curve (pipeline.io.CURVE, concatenated)
     curves.parquet    per condition and epoch: mean, std (over trials, ddof 1), 25 % and 75 %
                       quantiles of abs_error and rel_error, and n_trials
-    summary.parquet   per condition: final errors, peak error during growth, failures, diverged
+    summary.parquet   per condition: final errors (the held-out one also in % of the body's
+                      reach, gbmodel.workspace), peak error during growth, failures, diverged
     models.json       per condition and trial: the final model M and its snapshots (compact
                       JSON, one line per condition: a rebuild copies the line of a condition
                       whose trials did not change; manifest.json holds each line's checksum)
@@ -340,8 +341,48 @@ def summarize(trials: pd.DataFrame, curves: pd.DataFrame, conds: dict, paper: di
         row["largest_jump_mean"] = float(np.mean(jumps)) if jumps else np.nan
         row["final_samples"] = int(final["samples"].max()) if len(final) else 0
         row["paper_final_abs_error"] = np.nan if paper_abs is None else float(paper_abs)
+        row["reach"] = reach_of(c["spec"])  # the final body's; the held-out error in % of it:
+        row["final_heldout_abs_error_pct_reach"] = (  # comparable across robots of any size
+            100 * row["final_heldout_abs_error_mean"] / row["reach"] if row["reach"] > 0
+            else np.nan)
         rows.append(row)
     return pd.DataFrame(rows)
+
+
+def reach_of(spec: dict) -> float:
+    """The reach [m] of a condition's body at its final size (gbmodel.workspace.reach: half the
+    largest distance between two hand positions within the limits)."""
+    return _reach(json.dumps(spec["body"], sort_keys=True),
+                  json.dumps(spec["growth"], sort_keys=True))
+
+
+@lru_cache(maxsize=256)
+def _reach(body_json: str, growth_json: str) -> float:
+    import gbmodel
+    from gbmodel import workspace
+
+    body, g = gbmodel.make_body(json.loads(body_json)), json.loads(growth_json)
+    try:  # the end body of its growth pattern (non-proportional: its own segments' sizes)
+        k = gbmodel.Growth(**g).scales(body, g["end_size"])
+    except (TypeError, ValueError, KeyError):
+        k = np.full(body.m, float(g.get("end_size", 1.0)))
+    return workspace.reach(body, k)
+
+
+def heldout_lines(fig: str, summary: pd.DataFrame) -> list[str]:
+    """Per condition: the held-out error (the points no learner is told to reach) in mm and in
+    % of the body's reach, the grid error and the trials: what a first run of one's own robot
+    wants to read."""
+    out = []
+    for r in summary.itertuples():
+        if not np.isfinite(r.final_heldout_abs_error_mean):
+            out.append(f"[{fig}] {r.condition}: no finished trial")
+            continue
+        out.append(f"[{fig}] {r.condition}: held out {1e3 * r.final_heldout_abs_error_mean:.1f} mm"
+                   f" = {r.final_heldout_abs_error_pct_reach:.2f} % of the reach "
+                   f"({r.reach:.3f} m); grid {1e3 * r.final_abs_error_mean:.1f} mm; "
+                   f"{r.n_trials} trial(s) of {r.epochs:,} epochs")
+    return out
 
 
 # what an aggregate's bytes depend on
@@ -454,8 +495,27 @@ def aggregate(cfg: DictConfig, explicit: bool = False) -> list[str]:
         found, new = aggregate_figure(cfg, fig)
         problems += [f"[{fig}] {p}" for p in found]
         rebuilt += new
+        show_heldout(Path(cfg.paths.aggregate) / io.safe_name("figure", fig), fig,
+                     explicit or len(figures) == 1)
     log.info("aggregate: %d of %d figure(s) rebuilt, the others unchanged", rebuilt, len(figures))
     return problems
+
+
+SHOWN_CONDITIONS = 8  # a figure of more conditions (make smoke's) is not listed unless named
+
+
+def show_heldout(folder: Path, fig: str, named: bool) -> None:
+    """Log heldout_lines for a figure named on the command line (or the only one), or one of at
+    most SHOWN_CONDITIONS conditions."""
+    try:
+        summary = io.read_table(io.set_of(folder) / "summary.parquet").to_pandas()
+    except (OSError, ValueError):
+        return  # nothing aggregated (a problem already named)
+    if "final_heldout_abs_error_pct_reach" not in summary or not (
+            named or len(summary) <= SHOWN_CONDITIONS):
+        return
+    for line in heldout_lines(fig, summary):
+        log.info("%s", line)
 
 
 def names_a_figure(overrides: list[str]) -> bool:

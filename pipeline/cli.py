@@ -126,6 +126,28 @@ def renamed_group(override: str) -> str | None:
             f"{override[:len(override) - len(bare)]}{new}={value} (docs/engines.md)")
 
 
+def empty_config_file(err: BaseException, overrides: list[str]) -> str | None:
+    """One line when composing failed on a config file that is empty (a body's learner settings
+    from a shell redirect `tool > file` whose command failed: Hydra then says "Key
+    'body_learner' not in 'Config'")."""
+    from .config import CONF_DIR
+
+    found = re.search(r"In '([\w./-]+)'", str(err))
+    if not found:
+        return None
+    folders = [CONF_DIR] + [Path(str(e)[len("file://"):]) for o in overrides
+                            if o.startswith("hydra.searchpath=")
+                            for e in OverridesParser.create().parse_override(o).value()
+                            if str(e).startswith("file://")]
+    for folder in folders:
+        path = folder / f"{found.group(1)}.yaml"
+        if path.is_file() and not path.read_text().strip():
+            return (f"{path}: the file is empty; write it with `python -m pipeline.tools.rate "
+                    "... --write` (a shell redirect `> file` leaves it empty when the command "
+                    "fails), or remove it")
+    return None
+
+
 _PASSED: list = []  # (note, trials) of the command line check() passed, for finish() to keep
 
 
@@ -212,7 +234,7 @@ def check(argv: list[str]) -> str | None:
         except ConfigError as err:
             return str(err)
         except Exception as err:
-            return _one_line(err)
+            return empty_config_file(err, list(combination)) or _one_line(err)
     try:
         for trials in planned.values():  # a sweep's jobs make one figure: their labels must differ
             condition_labels(plan_conditions(trials))

@@ -9,7 +9,8 @@ Writes under paths.report (all bytes reproducible, no timestamps, only relative 
     fig3_postures.png/.pdf     target grid vs reached grid with postures, 5-DOF arm (Fig. 3)
     fig6_postures.png/.pdf     the same for the iCub (Fig. 6)
     models/<figure>.json       every condition's trained models (pipeline.models.load reads them)
-    summary.csv, summary.md    per condition: final errors, peak during growth, failures, paper
+    summary.csv, summary.md    per condition: final errors (held out: also in % of the body's
+                               reach), peak during growth, failures, paper
     scorecard.png, scorecard.csv  each claim of the paper on each figure: the verdict of its 95 %
                                interval over trials (pipeline/studies/scorecard.py)
     claims.csv                 each claim of the paper, what was measured, and the verdict on the

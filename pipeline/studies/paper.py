@@ -39,10 +39,18 @@ def _pm(mean, std) -> str:
     return _mm(mean) + (f" ± {_mm(std)}" if np.isfinite(std) else "")
 
 
+def _heldout(r) -> str:
+    """The held-out error [mm] ± its std, and its mean in % of the body's reach."""
+    text = _pm(r.get("final_heldout_abs_error_mean", np.nan),
+               r.get("final_heldout_abs_error_std", np.nan))
+    pct = r.get("final_heldout_abs_error_pct_reach", np.nan)
+    return f"{text} ({pct:.2f} %)" if text and np.isfinite(pct) else text
+
+
 def summary_markdown(summary: pd.DataFrame) -> str:
     """The summary as a Markdown table, errors in mm (relative errors: mm per unit body size)."""
     head = ("| figure | condition | body | growth | T_G | trials | final abs. error [mm] "
-            "| final rel. error [mm/size] | peak abs. error during growth [mm] (rise, epoch) "
+            "| held-out error [mm] (% of reach) | final rel. error [mm/size] | peak abs. error during growth [mm] (rise, epoch) "
             "| run failures | diverged | failed to bootstrap | paper: final abs. error [mm] |")
     lines = [head, "|" + "---|" * head.count(" | ") + "---|"]
     dead = set(diverged_conditions(summary))
@@ -55,6 +63,7 @@ def summary_markdown(summary: pd.DataFrame) -> str:
             f"| {escape(r['growth'])} "
             f"| {r['growth_period'] if r['growth'] != 'none' else ''} | {r['n_trials']} "
             f"| {_pm(r['final_abs_error_mean'], r['final_abs_error_std']) or gone} "
+            f"| {_heldout(r) or gone} "
             f"| {_pm(r['final_rel_error_mean'], r['final_rel_error_std']) or gone} | {peak or gone} "
             f"| {r['n_run_failures']} | {r['n_diverged']} | {r['n_bootstrap_failures']} "
             f"| {_mm(r['paper_final_abs_error'])} |")

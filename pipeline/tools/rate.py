@@ -9,10 +9,11 @@ eta = 1 / W equals the normalised step at full-size convergence. It prints the b
 settings file (body_learner/<body>_goal_babbling.yaml of the config folder that holds the
 body's file, conf/ or a folder of hydra.searchpath: the command names it): the package line,
 the settings given on the command line that differ from the core's defaults, and eta and the
-samples it holds for. With learner.solver=lstsq there is no rate, and no W to compute:
+samples it holds for. With --write it writes that file itself (as one rename: a failed run
+leaves no empty file behind, as `> file` would). With learner.solver=lstsq there is no rate, and no W to compute:
 
     python -m pipeline.tools.rate 'hydra.searchpath=[file:///my/conf]' body=my_arm \
-        learner.solver=lstsq learner.radius=0.1 learner.targets_per_epoch=30 learner.steps=10
+        learner.solver=lstsq learner.radius=0.1 learner.targets_per_epoch=30 learner.steps=10 --write
 """
 from __future__ import annotations
 
@@ -107,18 +108,59 @@ def settings_file(cfg: DictConfig, path: Path, r: dict | None) -> str:
     return "\n".join(lines) + "\n"
 
 
-def run(cfg: DictConfig) -> int:
+WRITE = "--write"  # write the settings file where it goes, instead of printing it
+_WRITE = [False]
+
+
+def write_settings(path: Path, text: str) -> None:
+    """Put the settings file at `path` as one rename (a failed run leaves what was there, never
+    an empty file); refuse a file without a setting (ConfigError): nothing to write."""
+    import os
+
+    if not [ln for ln in text.splitlines() if ln.strip() and not ln.startswith("#")]:
+        from ..config import ConfigError
+
+        raise ConfigError(f"{path}: no setting to write (these are the core's defaults); give "
+                          "the learner's settings on the command line, e.g. learner.solver=lstsq")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        tmp.write_text(text)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def cpu_estimate(cfg: DictConfig) -> str:
+    """The rule's CPU time by the cost model (pipeline.plan.cost): its trials are the config's
+    first trial at EPOCHS epochs, once per seed."""
+    from ..plan import SECONDS_PER_COST, cost, plan
+    from ..progress import fmt_duration
+
+    spec = {**plan(cfg)[0]["spec"], "epochs": EPOCHS}
+    return fmt_duration(len(SEEDS) * cost(dict(spec=spec)) * SECONDS_PER_COST)
+
+
+def run(cfg: DictConfig, write: bool | None = None) -> int:
+    """Print the body's learner settings file, or (`--write`) write it where it goes."""
+    write = _WRITE[0] if write is None else write
     path = destination(cfg)
     r = None
     if cfg.learner.solver == "gradient":
-        print(f"computing W for {cfg.body.name}: {len(SEEDS)} trials of {EPOCHS} epochs of the "
-              "normalised step ...", file=sys.stderr, flush=True)
+        print(f"computing W for {cfg.body.name}: {len(SEEDS)} trials of {EPOCHS:,} epochs of "
+              f"the normalised step, about {cpu_estimate(cfg)} of CPU time (the cost model) ...",
+              file=sys.stderr, flush=True)
         r = rate(cfg)
         print(f"{r['body']}: W = {r['W']:.0f}, eta = 1 / W = {r['learning_rate']:.6g} at "
               f"{r['rate_samples']} samples per epoch (this config's eta: {r['current']:.6g})",
               file=sys.stderr)
-    print(f"put these lines into {path}:", file=sys.stderr)
-    print(settings_file(cfg, path, r), end="")
+    text = settings_file(cfg, path, r)
+    if write:
+        write_settings(path, text)
+        print(f"wrote {path}:", file=sys.stderr)
+    else:
+        print(f"put these lines into {path} (or run this again with {WRITE}):", file=sys.stderr)
+    print(text, end="")
     return 0
 
 
@@ -128,4 +170,7 @@ def main(cfg: DictConfig) -> None:
 
 
 if __name__ == "__main__":
+    if WRITE in sys.argv[1:]:  # the tool's own flag, not Hydra's
+        sys.argv.remove(WRITE)
+        _WRITE[0] = True
     cli.main(main)

@@ -1,5 +1,6 @@
-"""Every command of the README's "Your own experiment" section runs as written (on tiny
-settings in a temporary root), and its Python example loads a model and draws the arm."""
+"""Every command of the README's "Your own experiment" section and of the recipes it links to
+(docs/running.md, "Recipes") runs as written (on tiny settings in a temporary root), and the
+README's Python example loads a model and draws the arm."""
 import os
 import re
 import shlex
@@ -13,8 +14,11 @@ from pipeline.config import REPO_ROOT
 
 SECTION = REPO_ROOT.joinpath("README.md").read_text().split("## Your own experiment", 1)[-1]
 SECTION = SECTION.split("\n## ", 1)[0]
+RECIPES = REPO_ROOT.joinpath("docs", "running.md").read_text().split("\n## Recipes", 1)[-1]
+RECIPES = RECIPES.split("\n## ", 1)[0]
 BLOCKS = re.findall(r"```(bash|python)\n(.*?)```", SECTION, re.S)
-COMMANDS = [ln.strip() for kind, text in BLOCKS if kind == "bash" for ln in text.splitlines()
+COMMANDS = [ln.strip() for kind, text in BLOCKS + re.findall(r"```(bash)\n(.*?)```", RECIPES, re.S)
+            if kind == "bash" for ln in text.splitlines()
             if ln.strip().startswith(".venv/bin/python -m pipeline.")]
 PYTHON = [text for kind, text in BLOCKS if kind == "python"]
 # tiny settings appended to each command: short trials, one of each, this test's own root
@@ -36,6 +40,15 @@ def test_the_section_has_every_kind_of_example():
     assert len(PYTHON) == 1 and "models.load" in PYTHON[0]
 
 
+def _short_periods(arg: str) -> str:
+    """growth.period=100,1000 -> growth.period=10,15: as many distinct periods, each within the
+    tiny run (a period longer than the run is refused)."""
+    if not arg.startswith("growth.period="):
+        return arg
+    n = len(arg.split("=", 1)[1].split(","))
+    return "growth.period=" + ",".join(str(10 + 5 * i) for i in range(n))
+
+
 @pytest.fixture(scope="module")
 def tree(tmp_path_factory):
     """Every command of the section, in order, into one root; then the Python example."""
@@ -44,8 +57,8 @@ def tree(tmp_path_factory):
     for command in COMMANDS:
         args = shlex.split(command)[1:]  # `-m pipeline.<stage> ...` under this interpreter
         stage = args[1]
-        if stage == "pipeline.simulate":  # a growth period within the tiny run's 30 epochs
-            args = [re.sub(r"^growth\.period=\d+$", "growth.period=20", a) for a in args] + list(TINY)
+        if stage == "pipeline.simulate":  # growth periods within the tiny run's 30 epochs
+            args = [_short_periods(a) for a in args] + list(TINY)
         if stage == "pipeline.tools.rate":
             continue  # its rule runs 3 x 20,000 epochs: tests/e2e/test_own_experiment.py runs it small
         r = run(args + [f"paths.root={root}"], root)
@@ -66,4 +79,4 @@ def test_the_readme_loads_a_model_and_draws_the_arm(tree):
     root, _ = tree
     r = run(["-c", PYTHON[0]], root)
     assert r.returncode == 0, r.stderr[-2000:]
-    assert (root / "reach.png").exists()
+    assert (root / "outputs" / "reach.png").exists()

@@ -62,3 +62,17 @@ def test_every_row_has_its_headers_cells(sweep_report, name):
             assert cells(row) == width, f"{name}: {row!r} against {table[0]!r}"
             rows += 1
     assert rows >= 4  # the four conditions at least
+
+
+def test_the_summary_shows_the_held_out_error_in_mm_and_in_percent_of_the_reach(sweep_report):
+    import pandas as pd
+
+    summary = pd.read_csv(sweep_report / "summary.csv")
+    assert (summary["reach"].between(0.9, 1.0)).all()  # arm5: 1 m of links, sampled
+    pct = 100 * summary["final_heldout_abs_error_mean"] / summary["reach"]
+    assert ((summary["final_heldout_abs_error_pct_reach"] - pct).abs() <= 1e-5 * pct).all()  # %.6g
+    text = (sweep_report / "summary.md").read_text()
+    assert "| held-out error [mm] (% of reach) |" in text
+    first = summary.iloc[0]  # one trial per condition: no std, the mean and its % of the reach
+    assert (f"| {1e3 * first['final_heldout_abs_error_mean']:.1f} "
+            f"({first['final_heldout_abs_error_pct_reach']:.2f} %) |") in text

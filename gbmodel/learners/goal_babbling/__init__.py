@@ -283,12 +283,14 @@ def sample_cost(params: Params) -> float:
 def notes(params: Params, body) -> list[str]:
     """What a user should know about these settings on this body: a body other than arm5 whose
     plain step runs at the default rate, which the 1 / W rule fixed for arm5 (nothing wrong,
-    but a rate not made for it)."""
-    if params.step == "plain" and params.learning_rate == Params().learning_rate \
-            and body.name != "arm5":
+    but a rate not made for it). Only where that rate is in effect: the gradient solver's plain
+    step (solver=lstsq solves M exactly and has no rate)."""
+    if params.solver == "gradient" and params.step == "plain" \
+            and params.learning_rate == Params().learning_rate and body.name != "arm5":
         return [f"body {body.name} learns at the 5-DOF arm's plain-step rate (learner."
                 "learning_rate = 1 / W fixed for arm5); `python -m pipeline.tools.rate "
-                f"body={body.name}` prints its own"]
+                f"body={body.name} --write` (with this command's hydra.searchpath, if any) writes "
+                "its own, or learner.solver=lstsq needs none"]
     return []
 
 
