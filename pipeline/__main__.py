@@ -24,6 +24,7 @@ STAGES = {  # subcommand -> the module whose @hydra.main it runs
     "aggregate": "pipeline.aggregate",
     "report": "pipeline.report",
     "rate": "pipeline.tools.rate",
+    "body": "pipeline.tools.body",
     "bench": "pipeline.tools.bench",
 }
 USAGE = f"""usage: gbgrowth COMMAND [HYDRA OVERRIDES ...]
@@ -32,12 +33,13 @@ commands:
   simulate    run the trials of a config that are not cached (paths.cache)
   aggregate   the cache into curves and summaries per figure (paths.aggregate)
   report      figures, tables and report.md (paths.report)
-  rate        rate a body's learning rate for Goal Babbling (body=NAME)
+  rate        rate a body's learning rate for Goal Babbling (body=NAME; --write: into its file)
+  body        a body's chain, joints, limits, reach and a reachable target grid (body=NAME)
   bench       time the fast path against the numpy reference
   models      FIGURE|PATH [AGGREGATE_DIR]: the trained models of a figure, one line per condition
               (models seal FILE...: verify a report's models file against its curves, seal it)
 
-  gbgrowth COMMAND --help    Hydra's help of a stage (its config groups and options)
+  gbgrowth COMMAND --help    a stage's help (the config groups and options you choose)
   gbgrowth --version
 
 Outputs go under paths.root: the working directory outside a checkout (docs/install.md)."""
@@ -83,6 +85,8 @@ def main(argv: list[str] | None = None) -> None:
     from . import cli
 
     module = importlib.import_module(STAGES[command])
+    if hasattr(module, "take_flags"):  # a tool's own flags (rate --write), before Hydra's parser
+        rest = module.take_flags(rest)
     sys.argv = [f"gbgrowth {command}", *rest]  # what Hydra and the stage read
     cli.main(module.main)
 

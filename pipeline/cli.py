@@ -135,7 +135,7 @@ def empty_config_file(err: BaseException, overrides: list[str]) -> str | None:
     found = re.search(r"In '([\w./-]+)'", str(err))
     if not found:
         return None
-    folders = [CONF_DIR] + [Path(str(e)[len("file://"):]) for o in overrides
+    folders = [CONF_DIR, Path.cwd() / "conf"] + [Path(str(e)[len("file://"):]) for o in overrides
                             if o.startswith("hydra.searchpath=")
                             for e in OverridesParser.create().parse_override(o).value()
                             if str(e).startswith("file://")]

@@ -169,8 +169,13 @@ def main(cfg: DictConfig) -> None:
     cli.finish(run, cfg)
 
 
-if __name__ == "__main__":
-    if WRITE in sys.argv[1:]:  # the tool's own flag, not Hydra's
-        sys.argv.remove(WRITE)
+def take_flags(argv: list[str]) -> list[str]:
+    """argv without the tool's own flag (--write, which Hydra's parser would refuse), noted."""
+    if WRITE in argv:
         _WRITE[0] = True
+    return [a for a in argv if a != WRITE]
+
+
+if __name__ == "__main__":
+    sys.argv = [sys.argv[0], *take_flags(sys.argv[1:])]
     cli.main(main)
