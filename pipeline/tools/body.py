@@ -21,7 +21,7 @@ import gbmodel
 from gbmodel import workspace
 
 from .. import cli
-from ..config import ConfigError
+from ..config import CONFIG_PATH, ConfigError
 
 AXES = "xyz"
 
@@ -93,7 +93,7 @@ def run(cfg: DictConfig) -> int:
     return 0
 
 
-@hydra.main(config_path="../../conf", config_name="config", version_base="1.3")
+@hydra.main(config_path=CONFIG_PATH, config_name="config", version_base="1.3")
 def main(cfg: DictConfig) -> None:
     cli.finish(run, cfg)
 
