@@ -30,7 +30,7 @@ def committed_report_untouched():
 
 
 # ---- 1. divergence -----------------------------------------------------------------------------
-WILD = "learner.learning_rate=1e6"
+WILD = "learner.learning_rate=1000"  # the largest rate allowed (gbmodel.spec); diverges in a few epochs
 
 
 def test_a_diverging_trial_is_a_result_named_with_its_epoch(tmp_path, compose_tiny):
