@@ -7,17 +7,20 @@ STAMP   := $(VENV)/.installed
 # make reproduce: the paper's figures (Fig. 7 also at 20 trials: the scorecard judges it there),
 # the choices it leaves open and the experiments behind the report's explanations; make studies
 # adds the studies beyond the paper (readings x figures, baselines) and publishes the report of
-# everything (the committed one).
-PAPER   := fig2 fig4 fig5 fig7 fig7_20trials
-CHOICES := choices_arm2 choices_arm5 choices_icub
-EXPLAIN := explain_fig2_boundary explain_fig7_continuation explain_fig4_half_size
-STUDIES := readings_fig4 readings_fig5 readings_fig7 baselines_arm5 baselines_icub
+# everything (the committed one). Each experiment file says which list it is in and where
+# (conf/experiment/*.yaml: declares.group, declares.order); the lists are read from them once,
+# when first used (pipeline.tools.experiments: after make setup, which installs what it needs).
+LISTED   = $(eval LISTED := $(shell test -x $(PY) && $(PY) -m pipeline.tools.experiments --make))$(LISTED)
+PAPER    = $(patsubst paper:%,%,$(filter paper:%,$(LISTED)))
+CHOICES  = $(patsubst choices:%,%,$(filter choices:%,$(LISTED)))
+EXPLAIN  = $(patsubst explain:%,%,$(filter explain:%,$(LISTED)))
+STUDIES  = $(patsubst studies:%,%,$(filter studies:%,$(LISTED)))
 FIGURES ?= $(PAPER) $(CHOICES) $(EXPLAIN) $(STUDIES)
 PROFILE ?= full
 ARGS    ?=
 
 .DEFAULT_GOAL := help
-.PHONY: help setup reproduce studies stamp smoke simulate aggregate choices report pipeline bench scale test test-slow test-cluster clean
+.PHONY: help experiments setup reproduce studies stamp smoke simulate aggregate choices report pipeline bench scale test test-slow test-cluster clean
 
 help: ## list the targets
 	@awk 'BEGIN {FS = ":.*## "} /^[a-z-]+:.*## / {printf "  make %-10s %s\n", $$1, $$2}' $(MAKEFILE_LIST)
@@ -40,9 +43,12 @@ $(STAMP): pyproject.toml requirements.lock
 	$(PY) -m pipeline.warm
 	@touch $@
 
+experiments: ## the experiments of each list (PAPER, CHOICES, EXPLAIN, STUDIES), as declared
+	@echo "PAPER   = $(PAPER)"; echo "CHOICES = $(CHOICES)"; echo "EXPLAIN = $(EXPLAIN)"; echo "STUDIES = $(STUDIES)"
+
 setup: $(STAMP) ## create .venv, install the locked packages, compile the kernels
 
-reproduce: ## the paper's figures, its open choices and the explanations, published to outputs/report/
+reproduce: $(STAMP) ## the paper's figures, its open choices and the explanations, published to outputs/report/
 	@$(MAKE) --no-print-directory pipeline PROFILE=full FIGURES="$(PAPER) $(CHOICES) $(EXPLAIN)" \
 	  PUBLISH="report.publish=true 'report.paper_experiments=[$(shell echo $(PAPER) $(CHOICES) $(EXPLAIN) | tr ' ' ',')]'"
 
@@ -68,7 +74,7 @@ aggregate: $(STAMP) ## stage 2: the cache into curves.parquet and summaries per 
 report: $(STAMP) ## stage 3: figures, tables and report.md (outputs/latest/; make reproduce: outputs/report/)
 	$(PY) -m pipeline.report $(EXPS) profile=$(PROFILE) $(PUBLISH) $(ARGS)
 
-choices: ## the open-choices experiments only (choices_*), then aggregate and report
+choices: $(STAMP) ## the open-choices experiments only (choices_*), then aggregate and report
 	@$(MAKE) --no-print-directory pipeline FIGURES="$(CHOICES)"
 
 bench: $(STAMP) ## time the fast path against the numpy reference (outputs/bench/bench.json)

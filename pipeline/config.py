@@ -28,6 +28,7 @@ from gbmodel.growth import LIMITS as growth_limits
 from gbmodel.spec import MAX_EPOCHS, MAX_INT64, MAX_SIZE, Int, Number
 
 from . import searchpath
+from .experiments import Declares, listed
 
 REPO_ROOT = Path(__file__).resolve().parents[1]  # the checkout (installed: site-packages)
 CONF_DIR = gbmodel.bodies.CONF_DIR  # conf/ of the checkout, else the installed gbgrowth_conf
@@ -183,6 +184,8 @@ class Config:
     paths: PathsConf = field(default_factory=PathsConf)
     conditions: ConditionsConf = field(default_factory=ConditionsConf)
     paper: PaperConf = field(default_factory=PaperConf)
+    # where the experiment belongs: its make list and place, what it reads (pipeline.experiments)
+    declares: Declares = field(default_factory=Declares)
     aggregate: AggregateConf = field(default_factory=AggregateConf)
     report: ReportConf = field(default_factory=ReportConf)
     engine: Any = MISSING  # where the trials run: engine=<name> (pipeline.engines, generated)
@@ -214,6 +217,22 @@ def sweep_tag() -> str:
     return hashlib.sha256(who.encode()).hexdigest()[:8]
 
 
+def config_folders() -> tuple[Path, ...]:
+    """The config folders whose experiment files the project's lists are read from: conf/ (the
+    checkout's, or the installed package's) and, in a running stage, every folder of Hydra's
+    search path (an experiment of one's own)."""
+    folders = [Path(CONF_DIR)]
+    from hydra.core.hydra_config import HydraConfig
+
+    if HydraConfig.initialized():
+        folders += [Path(s.path) for s in HydraConfig.get().runtime.config_sources
+                    if s.schema == "file"]
+    return tuple(dict.fromkeys(f.resolve() for f in folders))
+
+
+if not OmegaConf.has_resolver("experiments"):  # report.paper_experiments: ${experiments:}
+    OmegaConf.register_new_resolver("experiments", lambda *groups: listed(config_folders(),
+                                                                          *groups))
 if not OmegaConf.has_resolver("default_root"):
     OmegaConf.register_new_resolver("default_root", default_root)
 if not OmegaConf.has_resolver("sweep_tag"):

@@ -23,9 +23,8 @@ from scipy.optimize import brentq
 from . import figures
 from ..measures import finals
 from .choices import escape
-from .sections import Context, register
+from .sections import Context, of_study, register
 
-STUDIES = ("baselines_arm5", "baselines_icub")
 GB, GB_PROGRESS = "Goal Babbling", "Goal Babbling (goals by progress)"
 GB_LSTSQ = "Goal Babbling (least squares)"  # learner.solver=lstsq: fits M like motor babbling
 ONLINE, ONLINE_PROGRESS = "online Goal Babbling", "online Goal Babbling (goals by progress)"
@@ -118,7 +117,7 @@ def per_trial(aggs: dict) -> pd.DataFrame:
     held-out error [mm] and its final inverse's largest jump (from the aggregate's models; NaN
     where it has none)."""
     rows = []
-    for study in STUDIES:
+    for study in of_study("baselines"):
         agg = aggs.get(study, {})
         if "trials" not in agg or not len(agg["trials"]):
             continue
@@ -243,7 +242,7 @@ def smoothness(t: pd.DataFrame) -> list[str]:
 def table(aggs: dict) -> pd.DataFrame:
     """One row per (body, learner, budget, growth): final errors on the grid and held out."""
     rows = []
-    for study in STUDIES:
+    for study in of_study("baselines"):
         if study not in aggs:
             continue
         for r in aggs[study]["summary"].itertuples():
@@ -467,7 +466,7 @@ def markdown(t: pd.DataFrame, claim_rows: list[dict], pt: pd.DataFrame | None = 
 def figure(aggs: dict, title: str):
     """Mean held-out error against samples: one panel per body and growth, a line per learner at
     its largest budget (every learner on the same axis)."""
-    studies = [s for s in STUDIES if s in aggs]
+    studies = [s for s in of_study("baselines") if s in aggs]
     fig, axes = figures.plt.subplots(len(studies), 3, squeeze=False, sharey="row",
                                      figsize=(9.0, 2.8 * len(studies)))
     colors = dict(zip(LEARNERS, figures.plt.get_cmap("tab10")(np.arange(len(LEARNERS)))))

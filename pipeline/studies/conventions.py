@@ -2,7 +2,7 @@
 
 Some rows of the README's table of choices are conventions of the report, not of the learner;
 their alternatives need no new simulation. This module measures them on the paper's figures
-(FIGURES, those aggregated) and returns conventions.csv / the report's section:
+(figures_declared(): declares.conventions, those aggregated) and returns conventions.csv / the report's section:
 - spread over trials: the standard deviation of the final errors with ddof 0 against ddof 1,
   computed from the per-trial finals (and checked against sqrt((n - 1) / n));
 - failed to bootstrap: the trials flagged at other factors than aggregate.fail_factor, and the
@@ -26,17 +26,26 @@ from gbmodel import evaluation
 
 from ..measures import finals as trial_finals, growth_peak
 from .choices import escape
+from .sections import declared
 
-FIGURES = ("fig2", "fig4", "fig5", "fig7")
+
+
+def figures_declared() -> tuple[str, ...]:
+    """The paper's figures the conventions are measured on: the experiments whose file declares
+    `conventions: true` (fig2, fig4, fig5, fig7), in declared order."""
+    return tuple(n for n, e in declared().items() if e.declares.conventions)
+
+
 FACTORS = (1.5, 2.0, 5.0)  # alternatives to aggregate.fail_factor
 STRIDES = (2, 4)  # every 2nd, every 4th evaluation point
 COLUMNS = ["convention", "ours", "alternative", "measured_effect"]
 
 
 def read_trials(folder, figures) -> dict:
-    """figure -> its per-trial learning curves (aggregate's trials.parquet) for the FIGURES
+    """figure -> its per-trial learning curves (aggregate's trials.parquet) for the declared
     among `figures` whose file is present."""
-    paths = {f: Path(folder) / f / "trials.parquet" for f in figures if f in FIGURES}
+    paper_figures = figures_declared()
+    paths = {f: Path(folder) / f / "trials.parquet" for f in figures if f in paper_figures}
     return {f: pd.read_parquet(p) for f, p in paths.items() if p.exists()}
 
 
@@ -155,7 +164,7 @@ def table(aggs: dict, trials: dict, fail_factor: float, postures: dict) -> pd.Da
     """The conventions' rows from the paper's aggregates (figure -> aggregate), their per-trial
     curves (read_trials), aggregate.fail_factor and report.postures (panel -> [[figure,
     condition], ...])."""
-    aggs = {k: a for k, a in aggs.items() if k in FIGURES}
+    aggs = {k: a for k, a in aggs.items() if k in figures_declared()}
     fin = finals({k: t for k, t in trials.items() if k in aggs})
     rows = []
     sp = spread(fin) if len(fin) else None
@@ -235,7 +244,8 @@ def table(aggs: dict, trials: dict, fail_factor: float, postures: dict) -> pd.Da
 def markdown(t: pd.DataFrame) -> str:
     """The section of report.md: the table of conventions."""
     lines = ["## Reporting conventions: measured effect of the alternative", "",
-             "Measured on the paper's figures (" + ", ".join(FIGURES) + ", those aggregated) "
+             "Measured on the paper's figures (" + ", ".join(figures_declared())
+             + ", those aggregated) "
              "from the aggregated data, without new runs (pipeline/studies/conventions.py).", "",
              "| convention | ours | alternative | measured effect |", "|---|---|---|---|"]
     lines += ["| " + " | ".join(escape(str(getattr(r, c))) for c in COLUMNS) + " |"

@@ -29,7 +29,7 @@ from gbmodel.growth import factors
 from . import claims, scorecard
 from .choices import escape
 from .figures import final_body
-from .sections import Context, register
+from .sections import Context, declared, register
 
 
 def _errors(body, size, pattern, predict, M, xs):
@@ -102,7 +102,10 @@ def _extremes(spec, M) -> float:
     return 1e3 * float(max(d[0], d[-1]))
 
 
-STUDIES = ("explain_fig2_boundary", "explain_fig7_continuation")
+def explained() -> dict[str, str]:
+    """explanation -> the experiment that feeds it (declares.explains in its file: boundary,
+    continuation, half_size, rise)."""
+    return {e.declares.explains: n for n, e in declared().items() if e.declares.explains}
 
 
 def _variants(agg: dict):
@@ -329,6 +332,7 @@ def rises_text(found: list[dict]) -> str:
 
 def rows(aggs: dict) -> list[dict]:
     """The explanation experiments that the aggregated figures allow (reads only)."""
+    by = explained()
     out = []
     fig2 = aggs.get("fig2", {}).get("models", {}).get("conditions", {})
     for cond in fig2.values():
@@ -341,10 +345,10 @@ def rows(aggs: dict) -> list[dict]:
                                  f" (Goal Babbling, trial 0: mean {c['learned_mean_mm']:.1f} mm, "
                                  f"worst {c['learned_worst_mm']:.1f} mm)"))
         break
-    if "explain_fig2_boundary" in aggs:
-        b = boundary(aggs["explain_fig2_boundary"])
+    if by.get("boundary") in aggs:
+        b = boundary(aggs[by["boundary"]])
         if b:
-            out.append(dict(figure="fig2", experiment="boundary (explain_fig2_boundary): learned "
+            out.append(dict(figure="fig2", experiment=f"boundary ({by['boundary']}): learned "
                             f"on heights +-lim (21 targets, {b[0]['trials']} trials), error at "
                             "+-lim", measured="; ".join(
                                 f"{r['label']}: Goal Babbling {r['learned_mm']:.1f} mm, best "
@@ -358,26 +362,25 @@ def rows(aggs: dict) -> list[dict]:
                         measured=f"mean {c['best_mean_mm']:.2f} mm, worst {c['best_worst_mm']:.1f} mm"
                                  f" (Goal Babbling, const1.0 trial 0: mean "
                                  f"{c['learned_mean_mm']:.1f} mm, worst {c['learned_worst_mm']:.1f} mm)"))
-    k = continuation(aggs["explain_fig7_continuation"]) if "explain_fig7_continuation" in aggs \
-        else None
+    k = continuation(aggs[by["continuation"]]) if by.get("continuation") in aggs else None
     if k and k["later"] <= 0:
-        out.append(dict(figure="fig7", experiment="continuation (explain_fig7_continuation)",
+        out.append(dict(figure="fig7", experiment=f"continuation ({by['continuation']})",
                         measured=f"the rate step at epoch {k['epoch']:,} lies beyond this run "
                                  f"({k['epoch'] + k['later']:,} epochs): nothing to compare"))
     elif k:
-        out.append(dict(figure="fig7", experiment="continuation (explain_fig7_continuation): "
+        out.append(dict(figure="fig7", experiment=f"continuation ({by['continuation']}): "
                         f"{k['later']:,} more epochs after epoch {k['epoch']:,}",
                         measured=f"{k['before_mm']:.2f} mm -> {k['same_mm']:.2f} mm at the same "
                                  f"rate, {k['smaller_mm']:.2f} mm at {k['factor']:g} x the rate "
                                  f"(mean over {k['trials']} trials)"))
-    h = half_size(aggs["explain_fig4_half_size"]) if "explain_fig4_half_size" in aggs else []
+    h = half_size(aggs[by["half_size"]]) if by.get("half_size") in aggs else []
     if h:
-        out.append(dict(figure="fig4", experiment="half size (explain_fig4_half_size): the "
+        out.append(dict(figure="fig4", experiment=f"half size ({by['half_size']}): the "
                         "half-size arm against the full-size one, per variant",
                         measured=half_size_text(h)))
-    r = rises(aggs["readings_fig4"]) if "readings_fig4" in aggs else []
+    r = rises(aggs[by["rise"]]) if by.get("rise") in aggs else []
     if r:
-        out.append(dict(figure="fig4", experiment="rise (readings_fig4): the temporary rise "
+        out.append(dict(figure="fig4", experiment=f"rise ({by['rise']}): the temporary rise "
                         "during growth per T_G, rate and solver", measured=rises_text(r)))
     return out
 
@@ -400,10 +403,11 @@ def section(ctx: Context) -> list[str]:
            "| figure | experiment | measured |", "|---|---|---|"]
           + [f"| {r['figure']} | {escape(r['experiment'])} | {escape(r['measured'])} |"
              for r in found] + [""])
-    r = rises(aggs["readings_fig4"]) if "readings_fig4" in aggs else []
+    rise = explained().get("rise")
+    r = rises(aggs[rise]) if rise in aggs else []
     if r:
         ctx.text("explain_rise.csv", pd.DataFrame(r).to_csv(index=False, float_format="%.6g"))
-        md += ["The temporary rise during growth on Fig. 4 (readings_fig4, explain_rise.csv; "
+        md += [f"The temporary rise during growth on Fig. 4 ({rise}, explain_rise.csv; "
                "the scorecard's measure, mean over trials with its 95 % t interval):", "",
                rises_markdown(r)]
     return md

@@ -17,9 +17,8 @@ import pandas as pd
 
 from . import claims, figures, scorecard
 from .choices import escape
-from .sections import Context, declares_claims, register
+from .sections import Context, declared, declares_claims, register
 
-STUDIES = {"readings_fig4": "fig4", "readings_fig5": "fig5", "readings_fig7": "fig7"}
 RECOMMENDED = Path(__file__).parent / "recommended_readings.csv"
 SYMBOLS = {scorecard.REPRODUCED: "✓", scorecard.NOT: "✗", scorecard.INCONCLUSIVE: "?",
            claims.DIVERGED: "÷"}
@@ -27,6 +26,13 @@ SHORT = {"final": "final", "rise": "rise", "blend": "blend", "after": "after",
          "bootstrap": "boot"}  # column heads of the matrix (claims.CLAIMS' words in its legend)
 BEGIN, END = "<!-- readings-table:begin -->", "<!-- readings-table:end -->"
 FIGURE_CHOICES = ("default", "learning rate", "solver")  # the readings readings_curves shows
+
+
+def reading_studies() -> dict[str, str]:
+    """experiment -> the paper figure it reads, for the experiments of the readings study
+    (paper.study: readings; declares.reads in their files), in declared order."""
+    return {n: e.declares.reads for n, e in declared().items()
+            if e.study == "readings" and e.declares.reads}
 
 
 def split(agg: dict) -> dict:
@@ -54,7 +60,7 @@ def readings_measures(read: dict) -> dict:
     """(figure, reading) -> every measure of that reading of the readings study (read: its
     aggregates, by experiment), as `intervals` judges them."""
     out = {}
-    for study, fig in STUDIES.items():
+    for study, fig in reading_studies().items():
         if study not in read or "trials" not in read[study]:
             continue
         s = read[study]["summary"]
@@ -79,7 +85,7 @@ def finals(aggs: dict) -> pd.DataFrame:
     """readings_summary.csv: per figure, reading and condition, the trials and the final errors
     (mean over trials), the numbers the findings quote beside the verdicts."""
     rows = []
-    for study, fig in STUDIES.items():
+    for study, fig in reading_studies().items():
         if study not in aggs:
             continue
         for label, (_, sv) in split(aggs[study]).items():
@@ -176,7 +182,7 @@ def recommended(path=RECOMMENDED) -> pd.DataFrame:
     ("final; rise"), and the reason."""
     t = pd.read_csv(path, dtype=str, keep_default_na=False)
     for r in t.to_dict("records"):
-        if r["figure"] not in STUDIES.values():
+        if r["figure"] not in reading_studies().values():
             raise ValueError(f"{path}: no readings figure {r['figure']!r}")
         for c in _named(r):
             if c not in claims.BY_ID or claims.BY_ID[c].diagnostic:
@@ -250,7 +256,8 @@ def figure(aggs: dict, title: str):
     reading (rows: figures, columns: readings), the end of growth marked, one legend below."""
     import textwrap
 
-    studies = [s for s in STUDIES if s in aggs]
+    reads = reading_studies()
+    studies = [s for s in reads if s in aggs]
     per = {s: split(aggs[s]) for s in studies}
     readings = _figure_readings(per)
     fig, axes = figures.plt.subplots(len(studies), len(readings), squeeze=False,
@@ -273,7 +280,7 @@ def figure(aggs: dict, title: str):
                 handles.setdefault(label, line)
             figures.mark_growth_end(ax, sv, styles)
             ax.set(xscale="log", yscale="log")
-            ax.set_title(textwrap.fill(f"{STUDIES[s]}: {reading}", 30), fontsize=8)
+            ax.set_title(textwrap.fill(f"{reads[s]}: {reading}", 30), fontsize=8)
             if j == 0:
                 ax.set_ylabel("absolute error [m]")
             if i == len(studies) - 1:

@@ -23,6 +23,20 @@ def register(study: str, place: int):
     return deco
 
 
+def declared() -> dict:
+    """experiment -> what its file declares (pipeline.experiments: study, group, order, reads,
+    conventions, explains), for every experiment file of the config folders, in order."""
+    from ..config import config_folders
+    from ..experiments import declared as read
+
+    return read(config_folders())
+
+
+def of_study(study: str) -> list[str]:
+    """The experiments whose file names `study` as theirs (paper.study), in declared order."""
+    return [n for n, e in declared().items() if e.study == study]
+
+
 def study_of(agg: dict) -> str:
     return agg["models"].get("paper", {}).get("study") or DEFAULT
 

@@ -1,0 +1,37 @@
+"""The experiments of the project's runs, from what each experiment file declares
+(conf/experiment/*.yaml: declares.group, declares.order; pipeline.experiments).
+
+    python -m pipeline.tools.experiments paper choices   # fig2 fig4 ... choices_icub
+    python -m pipeline.tools.experiments --make          # paper:fig2 ... studies:baselines_icub
+
+The Makefile reads its lists (PAPER, CHOICES, EXPLAIN, STUDIES) from `--make`, once per make.
+"""
+from __future__ import annotations
+
+import sys
+
+from ..config import config_folders
+from ..experiments import GROUPS, declared, listed
+
+
+def main(argv=None) -> int:
+    args = list(sys.argv[1:] if argv is None else argv)
+    try:
+        if args == ["--make"]:
+            found = declared(config_folders())
+            print(" ".join(f"{e.declares.group}:{n}" for n, e in found.items() if e.declares.group))
+            return 0
+        bad = [a for a in args if a not in GROUPS]
+        if bad:
+            print(f"error: {bad[0]}: choose groups of {', '.join(GROUPS)}, or --make",
+                  file=sys.stderr)
+            return 2
+        print(" ".join(listed(config_folders(), *args)))
+    except (OSError, ValueError) as err:
+        print(f"error: {err}".splitlines()[0], file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
