@@ -160,7 +160,9 @@ def quotes(page: str, text: str, blocks=None) -> list[Quote]:
             # so the search is bounded however long the line is
             lo = max(0, m.start() - MAX_QUOTED)
             tail = list(line[lo:m.start()])
-            for a, b in spans[:n]:
+            for a, b in reversed(spans[:n]):  # only the markers that reach into the tail:
+                if b <= lo:                       # the spans are sorted, so the rest end earlier
+                    break
                 for j in range(max(a, lo), min(b, m.start())):
                     tail[j - lo] = "\0"
             before = "".join(tail)
