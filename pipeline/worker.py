@@ -14,7 +14,6 @@ import numpy as np
 
 import gbmodel
 
-from .warm import recovering
 
 THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
                "NUMBA_NUM_THREADS", "VECLIB_MAXIMUM_THREADS")
@@ -38,6 +37,8 @@ def run_one(trial: dict) -> dict:
         seed = np.random.SeedSequence(trial["seed"]["entropy"],
                                       spawn_key=tuple(trial["seed"]["spawn_key"]))
         # a damaged numba cache is removed and the trial run again, from the same seed
+        from .warm import recovering  # here, not at the top: importing the package imports
+        # this module (the engines), and `python -m pipeline.warm` warns when it finds itself imported
         res = recovering(lambda: gbmodel.run_trial(spec, np.random.default_rng(seed)))
         out = dict(status="ok", epoch=res.epoch, samples=res.epoch * res.samples_per_epoch,
                    size=res.size, abs_error=res.abs_error, rel_error=res.rel_error, M=res.M,
