@@ -13,7 +13,7 @@ import pytest
 
 import gbmodel
 import pipeline.simulate as simulate_mod
-from pipeline import aggregate, cache, execute, io, report, simulate
+from pipeline import aggregate, cache, engines, execute, io, report, simulate
 from pipeline.config import CONF_DIR, REPO_ROOT, compose
 from pipeline.fingerprint import code_fingerprint
 from pipeline.report import listed_files
@@ -161,11 +161,11 @@ def test_rescore_judges_the_smoke_reports_measures_again(smoke_tree):
 def test_rerun_computes_nothing(smoke_tree, monkeypatch):
     root, _, _ = smoke_tree
 
-    def no_trials(todo, *args, **kwargs):
+    def no_trials(conf, todo, *args, **kwargs):
         assert not todo, "a cached trial ran"
         return iter(())
 
-    monkeypatch.setattr(execute, "results", no_trials)
+    monkeypatch.setattr(engines, "run", no_trials)  # the engine that would run them
     monkeypatch.setattr(execute, "run_one", lambda t: pytest.fail("a cached trial ran"))
     monkeypatch.setattr(execute, "warm_up", lambda t: pytest.fail("nothing to warm up for"))
     for workers in (1, 2):
