@@ -31,7 +31,7 @@ def _summary(trials, fail_factor=3.0):
         labels = dict(figure="fig4", body="arm5", learner="goal_babbling", growth=g,
                       growth_period=p, condition=c)
         conds[c] = dict(labels=labels, variant=None, trials={}, diverged={}, missing=[],
-                        spec=dict(epochs=int(trials["epoch"].max()),
+                        spec=dict(epochs=int(trials["epoch"].max()), body=dict(name="arm5"),
                                   growth=dict(start_size=1.0, end_size=1.0)))
     curves = aggregate.curve_stats(trials)
     return aggregate.summarize(trials, curves, conds, {}, fail_factor), curves
