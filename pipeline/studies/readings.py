@@ -222,10 +222,8 @@ def recommendations_markdown(cards: pd.DataFrame, recs: pd.DataFrame) -> str:
     shown = recs[recs["figure"].isin(figs)]
     if not len(shown):
         return ""
-    # the rule's home is pipeline/tools/rate.py: weight_sum now; the sentence keeps the committed
-    # report's bytes until the report is next regenerated
     lines = ["The project's default stays the plain step at 1 / W (its reasons: the paper's "
-             "text and the stability rule, pipeline/studies/readings.py: weight_sum); the reading "
+             "text and the stability rule, pipeline/tools/rate.py: weight_sum); the reading "
              "recommended per figure (pipeline/studies/recommended_readings.csv, written from the "
              "findings, checked against the verdicts above):", "",
              "| figure | recommended reading | reproduces (as written) | reason |",
