@@ -40,11 +40,37 @@ def planning_sources() -> str:
     return h.hexdigest()
 
 
+def config_sources() -> str | None:
+    """The hash of the config files outside the checkout's conf/ (which planning_sources holds)
+    that a plan may be composed from: the installed package's configs, a conf/ of the working
+    directory (pipeline/searchpath.py) and, in a running stage, the folders of hydra.searchpath.
+    `experiments=[mine]` and a variant's `learner=...` compose files that the run's resolved
+    config does not hold: an edit there must plan again. None when there is no such folder.
+    Read on every call (the files are few and small; they may change within a process)."""
+    from .config import config_folders
+
+    checkout = (Path(__file__).resolve().parents[1] / "conf").resolve()
+    here = Path.cwd() / "conf"
+    folders = [*config_folders(), *([here.resolve()] if here.is_dir() else [])]
+    folders = [f for f in dict.fromkeys(folders) if f != checkout and f.is_dir()]
+    if not folders:
+        return None
+    h = hashlib.sha256()
+    for folder in folders:
+        h.update(str(folder).encode() + b"\0")
+        for p in sorted(p for p in folder.rglob("*.yaml") if "__pycache__" not in p.parts):
+            h.update(str(p.relative_to(folder)).encode() + b"\0" + p.read_bytes() + b"\0")
+    return h.hexdigest()
+
+
 def plan_digest(cfg: DictConfig, overrides) -> str:
-    """What a command's plan is made of: its config (resolved), its overrides and
-    planning_sources(). The same digest, the same trials."""
+    """What a command's plan is made of: its config (resolved), its overrides,
+    planning_sources() and config_sources(). The same digest, the same trials."""
     body = dict(config=OmegaConf.to_container(cfg, resolve=True), overrides=list(overrides),
                 sources=planning_sources())
+    own = config_sources()
+    if own is not None:  # (absent: the digests of a checkout's runs stay as they were)
+        body["config_sources"] = own
     return hashlib.sha256(canonical(body).encode()).hexdigest()[:24]
 
 

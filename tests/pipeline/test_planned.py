@@ -218,3 +218,22 @@ def test_a_refused_stage_leaves_no_note(tmp_path, plans):
     with pytest.raises(SystemExit):
         cli.finish(lambda cfg: 2, None)
     assert notes(tmp_path) == [] and cli._PASSED == []
+
+
+def test_an_edited_experiment_of_the_working_directory_plans_again(tmp_path, compose_tiny,
+                                                                  monkeypatch):
+    """`experiments=[mine]` composes mine from a conf/ of the working directory (the search-path
+    plugin), a folder planning_sources does not hash: an edit there plans again instead of
+    running the saved plan of the file as it was."""
+    own = tmp_path / "work" / "conf" / "experiment"
+    own.mkdir(parents=True)
+    text = ("# @package _global_\ndefaults:\n  - override /growth: proportional\n"
+            "figure: mine\nconditions:\n  periods: [10]\n  references: []\n")
+    (own / "mine.yaml").write_text(text)
+    monkeypatch.chdir(tmp_path / "work")
+    cfg = compose_tiny(tmp_path, "experiments=[mine]")
+    first = simulate.jobs_of(cfg, ["experiments=[mine]"])
+    assert {t["labels"]["growth_period"] for t in first[0].trials} == {10}
+    (own / "mine.yaml").write_text(text.replace("[10]", "[20]"))
+    again = simulate.jobs_of(cfg, ["experiments=[mine]"])
+    assert {t["labels"]["growth_period"] for t in again[0].trials} == {20}
