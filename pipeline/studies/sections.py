@@ -4,7 +4,9 @@ Each experiment declares its study in its config (`paper.study`, next to `paper.
 "figures" unless it says otherwise). A study's section is a function registered here under
 that name with its place in the report; it gets a Context (the settings, the output folder,
 every study's aggregates) and returns its Markdown lines, writing its files through the
-Context. Adding a study is one module that registers its section, and its experiments.
+Context. Adding a study is one module that registers its section (in this package, or a
+gbgrowth_study_<name> module anywhere on the Python path), and its experiment files (conf/ or
+./conf/experiment/ of the working directory); tests/studies/test_toy_study.py adds one so.
 """
 from __future__ import annotations
 
@@ -12,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 DEFAULT = "figures"
+PLUGIN_PREFIX = "gbgrowth_study_"  # a module of this name on the Python path is a study too
 SECTIONS: dict[str, tuple[int, object]] = {}  # study -> (place in the report, section)
 
 
@@ -42,26 +45,33 @@ def study_of(agg: dict) -> str:
 
 
 def _load() -> None:
-    """Import every module of the studies package: each registers its section when imported,
-    so a new study needs no edit anywhere else."""
+    """Import every module of the studies package, and every module named gbgrowth_study_<name>
+    on the Python path (a study kept outside the repository, as an engine is
+    gbgrowth_engine_<name>): each registers its section when imported, so a new study is its
+    module and its experiment file, with no edit anywhere else."""
     import importlib
     import pkgutil
 
     for m in pkgutil.iter_modules([str(Path(__file__).parent)]):
         if m.name != "__main__":
             importlib.import_module(f"{__package__}.{m.name}")
+    for m in pkgutil.iter_modules():
+        if m.name.startswith(PLUGIN_PREFIX):
+            importlib.import_module(m.name)
 
 
 def group(aggs: dict) -> dict:
     """study -> {figure: aggregate}, by each experiment's declared study. A study no section is
-    registered for is a ValueError naming it."""
+    registered for is a ConfigError naming it (one line, exit 2)."""
+    from ..config import ConfigError
+
     _load()
     out = {}
     for name, agg in aggs.items():
         s = study_of(agg)
         if s not in SECTIONS:
-            raise ValueError(f"{name}: paper.study={s!r} names no report section (known: "
-                             f"{', '.join(sorted(SECTIONS))})")
+            raise ConfigError(f"{name}: paper.study={s!r} names no report section (known: "
+                              f"{', '.join(sorted(SECTIONS))})")
         out.setdefault(s, {})[name] = agg
     return out
 
