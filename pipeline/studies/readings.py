@@ -71,12 +71,16 @@ def readings_measures(read: dict) -> dict:
     return out
 
 
-def intervals(aggs: dict) -> pd.DataFrame:
+def intervals(aggs: dict, scale: str = "") -> pd.DataFrame:
     """One row per (figure, reading, claim): the scorecard's verdict with its 95 % interval over
-    the reading's trials (pipeline/studies/scorecard.py), the measure that decides it."""
+    the reading's trials (pipeline/studies/scorecard.py), the measure that decides it. scale: the
+    run's reduced scale (report.scale): every verdict "not a verdict", as on the figures."""
     rows = []
     for (_, label), ms in readings_measures(aggs).items():
-        cards = scorecard.cells(scorecard.judged(ms))
+        results = scorecard.judged(ms)
+        if scale:
+            results = scorecard.no_verdicts(results, scorecard.reduced_scale(scale))
+        cards = scorecard.cells(results)
         rows += [dict(c, reading=label) for c in cards.to_dict("records")]
     return pd.DataFrame(rows)
 
@@ -296,7 +300,7 @@ def section(ctx: Context) -> list[str]:
     reading_table = table(read)
     if not len(reading_table):
         return []
-    cards = intervals(read)
+    cards = intervals(read, ctx.cfg.report.scale)
     ctx.text("readings_scorecard.csv", cards.to_csv(index=False, float_format="%.6g"))
     ctx.text("readings.csv", reading_table.to_csv(index=False, float_format="%.6g"))
     ctx.text("readings_summary.csv", finals(read).to_csv(index=False, float_format="%.6g"))

@@ -200,6 +200,11 @@ def run_test(t: Test, table: pd.DataFrame | None = None) -> dict:
     return t.result
 
 
+def reduced_scale(scale: str) -> str:
+    """Why a run at a reduced scale (report.scale, e.g. "smoke") decides nothing."""
+    return f"a {scale} run, not the paper's scale"
+
+
 def no_verdicts(results: list[dict], why: str) -> list[dict]:
     """The results with every verdict replaced by "not a verdict" (`why`: "a smoke run"): a run
     at a reduced scale measures the claims and decides none of them."""

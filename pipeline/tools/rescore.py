@@ -35,7 +35,7 @@ def rescore(report: Path, register: Path) -> dict:
 
     def judged(ms):
         res = [scorecard.run_test(x) for x in claims.judge(ms, reg)]
-        return scorecard.no_verdicts(res, f"a {scale} run, not the paper's scale") if scale \
+        return scorecard.no_verdicts(res, scorecard.reduced_scale(scale)) if scale \
             else res
     res = judged(fig_ms)
     cards = scorecard.cells(res) if res else pd.DataFrame()

@@ -140,3 +140,13 @@ def test_each_readings_final_errors_are_its_summary_rows():
     assert set(t["reading"]) == {DEFAULT, "eta = 0.1 / W"}
     assert not t["condition"].str.contains(" | ").any()  # named as in the paper's figure
     assert np.allclose(sorted(t["final_abs_error_mean"]), sorted(s["final_abs_error_mean"]))
+
+
+def test_a_reduced_scale_run_decides_no_reading_either(cards):
+    """make smoke's readings run 5 trials on some readings (their own trials.count): at a reduced
+    scale (report.scale) the readings study measures them and decides nothing, as the figures'
+    scorecard and a rescored measures.parquet do."""
+    assert {sc.REPRODUCED, sc.NOT} & set(cards["verdict"])  # decided at the paper's scale
+    smoke = readings.intervals(AGG, scale="smoke")
+    assert set(smoke["verdict"]) <= {sc.NOT_A_VERDICT, readings.claims.DIVERGED}
+    assert (smoke["note"] == "a smoke run, not the paper's scale").all()
