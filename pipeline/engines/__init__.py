@@ -52,6 +52,7 @@ class Engine:
 
 
 _ENGINES: dict[str, Engine] = {}
+_BROKEN: dict[str, str] = {}  # engine name -> why its gbgrowth_engine_<name> module did not import
 
 
 def engine(name: str, settings: type = NoSettings, package: str | None = None,
@@ -79,7 +80,12 @@ def discover() -> tuple[str, ...]:
         importlib.import_module(f"{__name__}.{m.name}")
     for m in pkgutil.iter_modules():
         if m.name.startswith(PLUGIN_PREFIX):
-            importlib.import_module(m.name)
+            try:  # someone else's module: a failure is named when its engine is chosen, and
+                # costs no other command (every command imports this registry)
+                importlib.import_module(m.name)
+            except Exception as err:
+                why = str(err).splitlines()[0] if str(err) else ""
+                _BROKEN[m.name[len(PLUGIN_PREFIX):]] = f"{m.name}: {type(err).__name__}: {why}"
     return available()
 
 
@@ -94,6 +100,8 @@ def _error(message: str) -> Exception:
 
 
 def get(name: str) -> Engine:
+    if name in _BROKEN and name not in _ENGINES:
+        raise _error(f"engine={name}: its module did not import ({_BROKEN[name]})")
     if name not in _ENGINES:
         raise _error(f"engine={name!r}: choose one of {', '.join(available())}")
     return _ENGINES[name]
@@ -130,6 +138,9 @@ def register_configs() -> None:
     cs = ConfigStore.instance()
     for name in discover():
         cs.store(group="engine", name=name, node=schema(_ENGINES[name]))
+    for name in sorted(set(_BROKEN) - set(_ENGINES)):  # engine=<name> composes; the stage that
+        # submits names the import error (check)
+        cs.store(group="engine", name=name, node={"name": name})
 
 
 def settings_of(conf: dict) -> tuple[Engine, object]:

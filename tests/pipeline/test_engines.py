@@ -356,3 +356,20 @@ def test_a_failing_sacct_is_reported_once_not_every_poll():
     rec = lambda msg: logging.LogRecord("submitit", logging.WARNING, "", 0, msg, None, None)  # noqa: E731
     assert [f.filter(rec(m)) for m in ("Call #1 - Bypassing sacct error x", "other",
                                        "Call #2 - Bypassing sacct error x")] == [True, True, False]
+
+
+def test_a_plugin_that_does_not_import_costs_no_other_command(tmp_path):
+    """A gbgrowth_engine_<name> module on the Python path that fails to import (a missing
+    package) left every command a traceback, since every command imports the registry; now
+    only engine=<name> is refused, in one line naming the module and its error."""
+    plugins = tmp_path / "plugins"
+    plugins.mkdir()
+    (plugins / "gbgrowth_engine_broken.py").write_text("import a_package_not_installed_zz\n")
+    env = {"PYTHONPATH": str(plugins)}
+    r = run_cli("pipeline", "--version", env=env)
+    assert r.returncode == 0 and r.stdout.startswith("gbgrowth "), r.stderr
+    r = run_cli("pipeline.simulate", *tiny_overrides(tmp_path / "run", "engine=broken"), env=env)
+    assert r.returncode == 2, r.stderr
+    assert r.stderr.strip() == ("error: engine=broken: its module did not import "
+                                "(gbgrowth_engine_broken: ModuleNotFoundError: No module named "
+                                "'a_package_not_installed_zz')"), r.stderr
