@@ -18,6 +18,8 @@ import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
 import gbmodel
+import gbmodel.mjcf
+import gbmodel.urdf
 from gbmodel import workspace
 
 from .. import cli
@@ -37,11 +39,19 @@ def describe(desc: dict) -> list[str]:
     except ValueError as err:
         raise ConfigError(str(err)) from None
     out = [f"body {body.name}: {body.description or '(no description)'}"]
-    urdf = desc.get("urdf")
-    if isinstance(urdf, dict) and "file" in urdf:
-        names = list(gbmodel.urdf.read_chain(**urdf)["names"])
-        out.append(f"chain: URDF {urdf['file']}, link {urdf['root']} -> {urdf['tip']}, "
-                   f"{body.m} commanded joints")
+    kind = next((k for k in ("urdf", "mjcf") if isinstance(desc.get(k), dict)
+                 and "file" in desc[k]), None)
+    loop = desc.get("callable")
+    if kind is not None:  # a URDF or an MJCF model: its chain and its joints' names
+        section = desc[kind]
+        module = gbmodel.urdf if kind == "urdf" else gbmodel.mjcf
+        names = list(module.read_chain(**section)["names"])
+        out.append(f"chain: {kind.upper()} {section['file']}, "
+                   f"{'link' if kind == 'urdf' else 'body'} {section['root']} -> "
+                   f"{section['tip']}, {body.m} commanded joints")
+    elif isinstance(loop, dict) and loop.get("factory"):
+        names = [f"joint {i + 1}" for i in range(body.m)]
+        out.append(f"chain: a forward function in the loop, {loop['factory']}, {body.m} joints")
     else:
         names = [f"row {i + 1}" for i in range(body.m)]
         out.append(f"chain: {body.m} DH rows (a, d, alpha, theta offset)")
