@@ -194,7 +194,7 @@ def test_a_toy_engine_in_one_module_runs_a_figure_with_no_other_edit(tmp_path):
 def test_a_worker_with_other_code_fails_the_trial_instead_of_caching_it(tmp_path):
     trial = plan(compose(tiny_overrides(tmp_path)))[0]
     assert execute.run_one(trial)["status"] == "ok"
-    out = execute.run_one(dict(trial, code="0" * 16))  # what every backend's workers run
+    out = execute.run_one(dict(trial, code="0" * 16))  # what every engine's workers run
     assert out["status"] == "failed" and out["key"] == trial["key"]
     assert "fingerprint" in out["error"] and "\n" not in out["error"]
     assert isinstance(out["seconds"], float)
