@@ -102,17 +102,20 @@ def selected(cfg: DictConfig, explicit: bool) -> list[str] | None:
 
 def inputs_digest(cfg: DictConfig, inputs: dict) -> str:
     """What a report is made of: each figure's aggregate digest (`inputs`: figure -> the digest
-    in its manifest), the report's settings, the
-    failure factor, whether it publishes, and the code that draws it (studies included, with the
-    discussion and its numbers). The same digest, the same files: nothing to redo."""
+    in its manifest), the report's settings (resolved: the paper's experiments as their files
+    declare them), the failure factor, whether it publishes, and the code that draws it (studies
+    included, with the discussion and its numbers, and the register of criteria the verdicts come
+    from). The same digest, the same files: nothing to redo."""
     here = Path(__file__).parent
     files = [here / "report.py", here / "io.py",
-             *sorted(p for p in (here / "studies").iterdir() if p.suffix in (".py", ".md", ".csv"))]
+             *sorted(p for p in (here / "studies").iterdir()
+                     if p.suffix in (".py", ".md", ".csv", ".yaml"))]
     code = hashlib.sha256()
     for f in files:
         code.update(f.name.encode() + b"\0" + f.read_bytes() + b"\0")
     body = dict(figures=inputs, code=code.hexdigest(),
-                report=OmegaConf.to_container(cfg.report), fail_factor=cfg.aggregate.fail_factor)
+                report=OmegaConf.to_container(cfg.report, resolve=True),
+                fail_factor=cfg.aggregate.fail_factor)
     return hashlib.sha256(io.dump_json(body).encode()).hexdigest()[:20]
 
 

@@ -93,3 +93,32 @@ def test_a_plain_report_after_two_figure_reports_leaves_both(tmp_path, compose_t
                    for f in report.listed_files(root / name / "report.md"))
         assert report.report(cfgs[name], explicit=True) == []  # still up to date: its record kept
     assert report.report(plain) == []
+
+
+def test_an_edited_register_of_criteria_makes_the_report_again(tmp_path, compose_tiny,
+                                                               monkeypatch):
+    """register.yaml holds the criteria the report's verdicts come from: a report made before a
+    criterion changed is not up to date (it was: the report's code digest read the studies'
+    .py, .md and .csv files, not the register)."""
+    cfg = compose_tiny(tmp_path)
+    before = report.inputs_digest(cfg, {"fig": "its aggregate"})
+    read = Path.read_bytes
+
+    def edited(self):
+        data = read(self)
+        return data.replace(b"factor: 1.5", b"factor: 2.0") if self.name == "register.yaml" \
+            else data
+    monkeypatch.setattr(Path, "read_bytes", edited)
+    assert report.inputs_digest(cfg, {"fig": "its aggregate"}) != before
+
+
+def test_the_report_follows_what_the_experiment_files_declare(tmp_path, compose_tiny,
+                                                              monkeypatch):
+    """report.paper_experiments is ${experiments:} (each file's declares.group): a declaration
+    changed makes the report again (the digest held the interpolation's text, unresolved)."""
+    from pipeline import config
+
+    cfg = compose_tiny(tmp_path)
+    before = report.inputs_digest(cfg, {"fig": "its aggregate"})
+    monkeypatch.setattr(config, "listed", lambda folders, *groups: ["fig4"])
+    assert report.inputs_digest(cfg, {"fig": "its aggregate"}) != before
