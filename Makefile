@@ -18,6 +18,9 @@ STUDIES  = $(patsubst studies:%,%,$(filter studies:%,$(LISTED)))
 FIGURES ?= $(PAPER) $(CHOICES) $(EXPLAIN) $(STUDIES)
 PROFILE ?= full
 ARGS    ?=
+# make test's processes (pytest-xdist): one per core of the 2-core machine it is sized for; a test
+# file stays on one process, so a file's shared fixtures are built once
+TESTJOBS ?= 2
 
 .DEFAULT_GOAL := help
 .PHONY: help experiments setup reproduce studies stamp smoke simulate aggregate choices report pipeline bench scale test test-slow test-cluster clean
@@ -83,8 +86,8 @@ bench: $(STAMP) ## time the fast path against the numpy reference (outputs/bench
 scale: $(STAMP) ## time sweeps of 1,000 and 10,000 short trials stage by stage and a cached make smoke (outputs/bench/scale.json; ARGS="--baseline DIR")
 	$(PY) -m pipeline.tools.scale --smoke-experiments '$(shell echo $(FIGURES) | tr ' ' ',')' $(ARGS)
 
-test: $(STAMP) ## run the test suite (slow tests excluded)
-	$(PY) -m pytest
+test: $(STAMP) ## run the test suite (slow tests excluded) on TESTJOBS processes
+	$(PY) -m pytest -n $(TESTJOBS) --dist loadfile
 
 test-slow: $(STAMP) ## install the cluster extras (Ray, submitit), then run the slow tests only
 	$(PY) -m pip install --quiet -c requirements.lock -e '.[test,ray,slurm]'
