@@ -60,13 +60,18 @@ def weight_sum(body: dict, params: dict, seeds=SEEDS, epochs: int = EPOCHS,
     return float(np.median(sums))
 
 
-def rate(cfg: DictConfig, epochs: int = EPOCHS, seeds=SEEDS) -> dict:
-    """W, eta = 1 / W and the samples per epoch it holds for, for cfg's body and learner."""
+def goal_babbling_only(cfg: DictConfig) -> None:
+    """ConfigError (one line) unless cfg's learner is Goal Babbling, whose rule this is."""
     if cfg.learner.name != "goal_babbling":
         from ..config import ConfigError
 
         raise ConfigError(f"learner={cfg.learner.name}: the rate rule is Goal Babbling's plain "
                           "step (learner=goal_babbling)")
+
+
+def rate(cfg: DictConfig, epochs: int = EPOCHS, seeds=SEEDS) -> dict:
+    """W, eta = 1 / W and the samples per epoch it holds for, for cfg's body and learner."""
+    goal_babbling_only(cfg)
     params = OmegaConf.to_container(cfg.learner)
     for k in ("name", "epochs", "evals_per_decade"):
         params.pop(k)
@@ -144,6 +149,7 @@ def cpu_estimate(cfg: DictConfig) -> str:
 def run(cfg: DictConfig, write: bool | None = None) -> int:
     """Print the body's learner settings file, or (`--write`) write it where it goes."""
     write = _WRITE[0] if write is None else write
+    goal_babbling_only(cfg)  # before its settings are read: another learner has no `solver`
     path = destination(cfg)
     r = None
     if cfg.learner.solver == "gradient":

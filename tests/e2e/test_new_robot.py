@@ -144,6 +144,16 @@ def test_rate_names_the_shipped_folder_and_prints_the_rate():
                     "learning_rate": float(f"{r['learning_rate']:.3g}"), "rate_samples": 6020}
 
 
+@pytest.mark.parametrize("learner", ["motor_babbling", "example_memory"])
+def test_rate_refuses_another_learner_in_one_line(learner):
+    """The rule is Goal Babbling's: another learner is a ConfigError (one line, exit 2); it was
+    a traceback, the learner's missing `solver` read before the learner was checked."""
+    from pipeline.config import ConfigError
+
+    with pytest.raises(ConfigError, match=f"^learner={learner}: the rate rule is Goal "):
+        rate.run(compose([f"learner={learner}"]), write=True)
+
+
 @pytest.mark.parametrize("name", new_robots.NAMES)
 def test_new_robots_are_sound_urdf_bodies(tmp_path, name):
     """Both arms compose from their own folder, are 7-DOF 3-D bodies of about a metre's reach,
