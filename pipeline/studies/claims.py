@@ -39,7 +39,6 @@ from .figures import final_body
 
 SMOOTH = 5  # rebounds and blending: each trial's curve averaged over this many evaluation points
 REGISTER = Path(__file__).parent / "register.yaml"
-CONTROL = "const1.0"  # the control of a growing body: the constant reference of its final size
 HASHED = ("id", "diagnostic", "min_trials", "readings")  # what a changelog entry must cover
 HASHED_READING = ("id", "primary", "diagnostic", "params")
 
