@@ -7,6 +7,7 @@ made it (studies/settings.py).
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -115,117 +116,191 @@ def _posture_panels(aggs: dict, wanted) -> list:
     return panels
 
 
+@dataclass
+class Paper:
+    """What the parts of the figures section share, computed once (Paper.of)."""
+
+    aggs: dict  # figure -> aggregate: every figure of the section
+    declared: dict  # the figures that declare the paper's claims (paper.claims: true)
+    js: str  # Fig. 2's figure: stages in a joint space over one target axis
+    stages: tuple | None  # its (spec, [(label, M)]), when it has a one-joint-axis body
+    summary: pd.DataFrame  # every figure's summary
+    measured: list  # the claims' per-trial measures (scorecard.figure_measures)
+    measures: list  # judged under every reading (none decided at a reduced scale)
+    cards: pd.DataFrame | None  # the scorecard's cells
+    claim_rows: list  # the claims table, a row per cell
+    discussion: str  # findings.md, if these are its run's numbers, else a note
+
+    @classmethod
+    def of(cls, ctx: Context, aggs: dict) -> "Paper":
+        cfg = ctx.cfg
+        declared = {k: a for k, a in aggs.items() if declares_claims(a)}
+        js = cfg.report.joint_space_figure
+        stages = _stages_figure(aggs[js]) if js in aggs else None
+        if stages is not None and figures.final_body(stages[0])[0].n != 1:
+            stages = None
+        summary = pd.concat([a["summary"] for a in aggs.values()], ignore_index=True)
+        judge_stages = stages is not None and js in declared
+        measured = scorecard.figure_measures(declared, dict(
+            figure=js, spec=stages[0], trials=_trial_stages(aggs[js])) if judge_stages else None)
+        measures = scorecard.judged(measured) if measured else []
+        if cfg.report.scale:  # a reduced scale (the smoke profile): measured, never decided
+            measures = scorecard.no_verdicts(measures, scorecard.reduced_scale(cfg.report.scale))
+        cards = scorecard.cells(measures) if measures else None
+        claim_rows = scorecard.claims_table(cards).to_dict("records") if measures else []
+        discussion = ""
+        if claim_rows:
+            if cfg.report.stamp_findings:
+                stamp_findings(summary, claim_rows)
+            discussion = findings(summary, claim_rows)  # of the committed run, if it is
+        return cls(aggs, declared, js, stages, summary, measured, measures, cards, claim_rows,
+                   discussion)
+
+
 @register("figures", 10)
 def section(ctx: Context) -> list[str]:
-    cfg, out, aggs = ctx.cfg, ctx.out, ctx.of("figures")
+    """The section's parts in their order; each draws and writes its own files."""
+    aggs = ctx.of("figures")
     if not aggs:
         return []
-    declared = {k: a for k, a in aggs.items() if declares_claims(a)}
-    sections, extra = [], []
-    js = cfg.report.joint_space_figure  # Fig. 2: stages in a joint space over one target axis
-    stages = _stages_figure(aggs[js]) if js in aggs else None
-    if stages is not None and figures.final_body(stages[0])[0].n != 1:
-        stages = None
-    for name, agg in aggs.items():
+    p = Paper.of(ctx, aggs)
+    return [line for part in PARTS for line in part(ctx, p)]
+
+
+def scorecard_part(ctx: Context, p: Paper) -> list[str]:
+    """The scorecard of the paper's claims: its figure, its tables and measures.parquet."""
+    if not p.claim_rows:
+        return []
+    counted = counted_figures(p.declared)
+    readings_cards, recommended = _recommended(ctx)
+    ctx.text("claims.csv", pd.DataFrame(p.claim_rows).to_csv(index=False))
+    every = pd.DataFrame(p.measures)  # the primary reading's; the others' beside
+    ctx.text("scorecard.csv", every[every["primary"]].to_csv(index=False, float_format="%.6g"))
+    ctx.text("scorecard_readings.csv", every[~every["primary"]].to_csv(
+        index=False, float_format="%.6g"))
+    _write_measures(ctx, p.measured, counted)
+    ctx.save(scorecard.figure(p.cards, ctx.title.split(":")[0] + ": the paper's claims, "
+                              "calibrated intervals over trials"), "scorecard")
+    ours = claims.our_reading(p.cards) if p.discussion == FINDINGS.read_text() else None
+    return ["## Scorecard: the paper's claims, with their uncertainty", "",
+            "![scorecard](scorecard.png)", "",
+            scorecard.markdown(p.cards, p.measures, counted, ours,
+                               "" if ctx.cfg.report.scale else
+                               scorecard.recommended_headline(readings_cards, recommended)),
+            "Each cell: its verdict, how many of its conditions are reproduced, and its worst "
+            "condition: the mean over trials of the measure and its interval "
+            "(`scorecard.csv` holds every measure, `scorecard_readings.csv` the same under "
+            "the other registered readings, `claims.csv` every "
+            "cell, `measures.parquet` every per-trial value: `python -m "
+            "pipeline.tools.rescore` judges them again under an edited register); "
+            "pipeline/studies/scorecard.py says how.", ""]
+
+
+def claims_part(ctx: Context, p: Paper) -> list[str]:
+    """The claims, their criteria and every registered reading (pipeline/studies/register.yaml)."""
+    if not p.claim_rows:
+        return []
+    return ["## The claims, their criteria and measures", "", claims.markdown(), "",
+            "Every registered reading of a criterion (pipeline/studies/register.yaml; the "
+            "cells above show a reading's verdict where it differs from the primary's):", "",
+            claims.readings_markdown()]
+
+
+def findings_part(ctx: Context, p: Paper) -> list[str]:
+    """The discussion of the committed run (findings.md), or the note that it is left out."""
+    return [p.discussion] if p.claim_rows else []
+
+
+def curves_part(ctx: Context, p: Paper) -> list[str]:
+    """Each figure's learning curves and summary (one's own: the settings that made it too);
+    summary.csv, summary.md and curves.parquet of them all."""
+    cfg, md = ctx.cfg, []
+    ctx.text("summary.csv", p.summary.to_csv(index=False, float_format="%.6g"))
+    ctx.text("summary.md", summary_markdown(p.summary))
+    curves = pd.concat([a["curves"] for a in p.aggs.values()], ignore_index=True)
+    io.write_table(ctx.out / "curves.parquet", io.frame_to_table(curves))
+    ctx.written.append(ctx.out / "curves.parquet")
+    for name, agg in p.aggs.items():
+        title, summ = _title(name, agg), agg["summary"]
         fig = figures.learning_curves(
-            agg["curves"], agg["summary"], _title(name, agg), log_y=cfg.report.log_error_axis,
+            agg["curves"], summ, title, log_y=cfg.report.log_error_axis,
             paper_abs=agg["models"].get("paper", {}).get("final_abs_error"))
-        paths = ctx.save(fig, f"{name}_curves")
-        sections.append((name, _title(name, agg), [paths[0].name], agg["summary"]))
-    if stages is not None:
-        fig = figures.joint_space_stages(
-            *stages, "Fig. 2: inverse estimate of the 2-DOF arm in joint space "
-            "(contours: equal hand height)")
-        extra.append(("Fig. 2: stages of learning (joint space)", ctx.save(fig, f"{js}_stages")))
-    posture_sets = OmegaConf.to_container(cfg.report.postures)
-    posture_sets = {name: wanted for name, wanted in posture_sets.items()
-                    if any(f in declared for f, _ in wanted)}
-    drawn = {f for wanted in posture_sets.values() for f, _ in wanted if f in aggs}
-    for name in aggs:  # every other figure: trial 0 of each of its first conditions
-        if name not in drawn and name != js:
+        image = ctx.save(fig, f"{name}_curves")[0].name
+        md += [f"## {title}", ""]
+        if len(summ):
+            r0 = summ.iloc[0]
+            md += [f"Body `{r0['body']}`, {int(r0['epochs'])} epochs, "
+                   f"{int(summ['n_trials'].max())} trials per condition.", ""]
+        if name not in p.declared:  # one's own experiment: what made it
+            md += ["Settings of each condition that differ from the defaults:", "",
+                   settings.markdown(agg)]
+        md += [f"![{name}]({image})", "", summary_markdown(summ)]
+    return md
+
+
+def _drawing(title: str, paths: list[Path]) -> list[str]:
+    return [f"## {title}", "", f"![{paths[0].stem}]({paths[0].name})", ""]
+
+
+def stages_part(ctx: Context, p: Paper) -> list[str]:
+    """Fig. 2: the inverse estimate in joint space at each stage of learning."""
+    if p.stages is None:
+        return []
+    fig = figures.joint_space_stages(
+        *p.stages, "Fig. 2: inverse estimate of the 2-DOF arm in joint space "
+        "(contours: equal hand height)")
+    return _drawing("Fig. 2: stages of learning (joint space)", ctx.save(fig, f"{p.js}_stages"))
+
+
+def postures_part(ctx: Context, p: Paper) -> list[str]:
+    """Targets, reached positions and postures at the final size: the sets report.postures
+    names (the paper's Fig. 3 and 6), and trial 0 of the first conditions of every other figure."""
+    posture_sets = {name: wanted for name, wanted in
+                    OmegaConf.to_container(ctx.cfg.report.postures).items()
+                    if any(f in p.declared for f, _ in wanted)}
+    drawn = {f for wanted in posture_sets.values() for f, _ in wanted if f in p.aggs}
+    for name in p.aggs:
+        if name not in drawn and name != p.js:
             posture_sets[name] = [[name, c] for c in
-                                  list(aggs[name]["models"]["conditions"])[:MAX_PANELS]]
+                                  list(p.aggs[name]["models"]["conditions"])[:MAX_PANELS]]
+    md = []
     for name, wanted in posture_sets.items():
-        panels = _posture_panels(aggs, wanted)
+        panels = _posture_panels(p.aggs, wanted)
         if panels:
             fig = figures.postures(panels, f"{name}: targets, reached positions and "
                                    "postures at the final size")
-            extra.append((f"{name}: targets, reached positions and postures",
-                          ctx.save(fig, f"{name}_postures")))
-    if cfg.report.animate:  # a GIF per condition whose trial 0 stored its stages
-        from . import animation
-        for title, path in animation.write(aggs, out):
-            ctx.written.append(path)
-            extra.append((f"Watch it learn: {title}", [path]))
-
-    summary = pd.concat([a["summary"] for a in aggs.values()], ignore_index=True)
-    ctx.text("summary.csv", summary.to_csv(index=False, float_format="%.6g"))
-    ctx.text("summary.md", summary_markdown(summary))
-
-    judge_stages = stages is not None and js in declared
-    measured = scorecard.figure_measures(declared, dict(
-        figure=js, spec=stages[0], trials=_trial_stages(aggs[js])) if judge_stages else None)
-    measures = scorecard.judged(measured) if measured else []
-    if cfg.report.scale:  # a reduced scale (the smoke profile): measured, never decided
-        measures = scorecard.no_verdicts(measures, scorecard.reduced_scale(cfg.report.scale))
-    cards = scorecard.cells(measures) if measures else None
-    claim_rows = scorecard.claims_table(cards).to_dict("records") if measures else []
-    md = []
-    if claim_rows:
-        counted = counted_figures(declared)
-        readings_cards, recommended = _recommended(ctx)
-        ctx.text("claims.csv", pd.DataFrame(claim_rows).to_csv(index=False))
-        every = pd.DataFrame(measures)  # the primary reading's; the others' beside
-        ctx.text("scorecard.csv", every[every["primary"]].to_csv(index=False,
-                                                                  float_format="%.6g"))
-        ctx.text("scorecard_readings.csv", every[~every["primary"]].to_csv(
-            index=False, float_format="%.6g"))
-        _write_measures(ctx, measured, counted)
-        ctx.save(scorecard.figure(cards, ctx.title.split(":")[0] + ": the paper's claims, "
-                                  "calibrated intervals over trials"), "scorecard")
-        if cfg.report.stamp_findings:
-            stamp_findings(summary, claim_rows)
-        discussion = findings(summary, claim_rows)  # of the committed run, if it is
-        ours = claims.our_reading(cards) if discussion == FINDINGS.read_text() else None
-        md += ["## Scorecard: the paper's claims, with their uncertainty", "",
-               "![scorecard](scorecard.png)", "",
-               scorecard.markdown(cards, measures, counted, ours,
-                                  "" if cfg.report.scale else
-                                  scorecard.recommended_headline(readings_cards, recommended)),
-               "Each cell: its verdict, how many of its conditions are reproduced, and its worst "
-               "condition: the mean over trials of the measure and its interval "
-               "(`scorecard.csv` holds every measure, `scorecard_readings.csv` the same under "
-               "the other registered readings, `claims.csv` every "
-               "cell, `measures.parquet` every per-trial value: `python -m "
-               "pipeline.tools.rescore` judges them again under an edited register); "
-               "pipeline/studies/scorecard.py says how.", "",
-               "## The claims, their criteria and measures", "", claims.markdown(), "",
-               "Every registered reading of a criterion (pipeline/studies/register.yaml; the "
-               "cells above show a reading's verdict where it differs from the primary's):", "",
-               claims.readings_markdown()]
-        md += [discussion]
-    curves = pd.concat([a["curves"] for a in aggs.values()], ignore_index=True)
-    io.write_table(out / "curves.parquet", io.frame_to_table(curves))
-    ctx.written.append(out / "curves.parquet")
-    for name, title, images, summ in sections:
-        r0 = summ.iloc[0] if len(summ) else None
-        md += [f"## {title}", ""]
-        if r0 is not None:
-            md += [f"Body `{r0['body']}`, {int(r0['epochs'])} epochs, "
-                   f"{int(summ['n_trials'].max())} trials per condition.", ""]
-        if name not in declared:  # one's own experiment: what made it
-            md += ["Settings of each condition that differ from the defaults:", "",
-                   settings.markdown(aggs[name])]
-        md += [f"![{name}]({img})" for img in images] + ["", summary_markdown(summ)]
-    for title, paths in extra:
-        md += [f"## {title}", "", f"![{paths[0].stem}]({paths[0].name})", ""]
-    convention_table = conventions.table(  # the paper's figures: reporting conventions
-        aggs, conventions.read_trials(cfg.paths.aggregate, aggs), cfg.aggregate.fail_factor,
-        OmegaConf.to_container(cfg.report.postures))
-    if len(convention_table):
-        ctx.text("conventions.csv", convention_table.to_csv(index=False, float_format="%.6g"))
-        md += [conventions.markdown(convention_table)]
+            md += _drawing(f"{name}: targets, reached positions and postures",
+                           ctx.save(fig, f"{name}_postures"))
     return md
+
+
+def animation_part(ctx: Context, p: Paper) -> list[str]:
+    """A GIF per condition whose trial 0 stored its stages (report.animate)."""
+    if not ctx.cfg.report.animate:
+        return []
+    from . import animation
+
+    md = []
+    for title, path in animation.write(p.aggs, ctx.out):
+        ctx.written.append(path)
+        md += _drawing(f"Watch it learn: {title}", [path])
+    return md
+
+
+def conventions_part(ctx: Context, p: Paper) -> list[str]:
+    """The reporting conventions: the measured effect of each alternative on the paper's figures."""
+    cfg = ctx.cfg
+    table = conventions.table(
+        p.aggs, conventions.read_trials(cfg.paths.aggregate, p.aggs), cfg.aggregate.fail_factor,
+        OmegaConf.to_container(cfg.report.postures))
+    if not len(table):
+        return []
+    ctx.text("conventions.csv", table.to_csv(index=False, float_format="%.6g"))
+    return [conventions.markdown(table)]
+
+
+PARTS = (scorecard_part, claims_part, findings_part, curves_part, stages_part, postures_part,
+         animation_part, conventions_part)  # the section's order
 
 
 def _recommended(ctx: Context) -> tuple[pd.DataFrame, pd.DataFrame]:
