@@ -1,6 +1,7 @@
 """The learners beside Goal Babbling: motor babbling (direct inverse learning), an example memory
 (nearest neighbour) and online Goal Babbling, each through the plug-in protocol and the one trial
 loop. Learning thresholds come from measured runs (numbers in the comments), with margin."""
+import dataclasses
 import math
 
 import numpy as np
@@ -13,6 +14,7 @@ from gbmodel.learners import example_memory, motor_babbling, online_goal_babblin
 from gbmodel.simd import sincos64
 
 NEW = ["motor_babbling", "example_memory", "online_goal_babbling"]
+ALL = learners.available()  # every registered learner: the protocol tests run over each
 STATIC = {"start_size": 1.0, "end_size": 1.0}  # no growth, the full body
 ICUB = {"online_goal_babbling": {"targets_per_epoch": 30, "steps": 10, "radius": 0.1,
                                  "learning_rate": 0.3}}
@@ -29,26 +31,75 @@ def _at(result, epoch):
     return result.abs_error[np.searchsorted(result.epoch, epoch)]
 
 
-# ---- the protocol -----------------------------------------------------------------------------
-@pytest.mark.parametrize("name", NEW)
+# ---- the protocol: every registered learner, Goal Babbling included ------------------------------
+def _trained(module, params, body, epochs, seed=0, split=None):
+    """The state after `epochs` epochs of the full body from init(seed), trained in one call or
+    in two (split: the first call's epochs), and the draws it consumed."""
+    rng = np.random.default_rng(seed)
+    state = module.init(params, body, 1.0, rng)
+    draws = module.draw(params, body, epochs, rng)
+    sizes = np.ones(epochs)
+    scales = gbmodel.Growth().scales(body, sizes)
+    numbers = np.arange(1, epochs + 1)
+    for lo, hi in ((0, split), (split, epochs)) if split else ((0, epochs),):
+        state = module.train(state, params, body, sizes[lo:hi], scales[lo:hi],
+                             tuple(d[lo:hi] for d in draws), numbers[lo:hi])
+    return state, draws
+
+
+@pytest.mark.parametrize("name", ALL)
 def test_satisfies_the_protocol(name):
-    assert name in learners.available()
+    """What gbmodel/learners/__init__.py asks of a learner, REQUIRED and OPTIONAL, on arm5."""
     module = learners.get(name)
     assert all(hasattr(module, attr) for attr in learners.REQUIRED)
     params = module.Params().validate()
-    body, rng = gbmodel.make_body("arm5"), np.random.default_rng(0)
-    state = module.init(params, body, 1.0, rng)
-    draws = module.draw(params, body, 3, rng)
-    assert all(len(d) == 3 for d in draws)
-    sizes = np.ones(3)
-    scales = gbmodel.Growth().scales(body, sizes)
-    state = module.train(state, params, body, sizes, scales, draws)
-    q = module.predict(state, params, body, body.targets[:4])
+    assert dataclasses.is_dataclass(params) and type(params).__dataclass_params__.frozen
+    body = gbmodel.make_body("arm5")
+    state, draws = _trained(module, params, body, 3)
+    assert isinstance(draws, tuple) and all(len(d) == 3 for d in draws)  # leading axis: epochs
+    x = body.targets[:4]
+    q = module.predict(state, params, body, x)
     assert q.shape == (4, body.m) and np.isfinite(q).all()
-    assert isinstance(module.samples_per_epoch(params, body), int)
+    n = module.samples_per_epoch(params, body)
+    assert isinstance(n, int) and n > 0
+    stored = module.model(state)
+    assert stored is None or isinstance(stored, np.ndarray)
+    if stored is not None:  # a copy: what is stored never moves the learner
+        stored[...] = 0.0
+        np.testing.assert_array_equal(module.predict(state, params, body, x), q)
+        stored = module.model(state)
+    if hasattr(module, "sample_cost"):
+        cost = module.sample_cost(params)
+        assert isinstance(cost, float) and 0 < cost < math.inf
+    if hasattr(module, "notes"):
+        notes = module.notes(params, body)
+        assert isinstance(notes, list) and all(isinstance(t, str) for t in notes)
+    if hasattr(module, "predict_model"):  # the report draws postures with it
+        assert stored is not None, "predict_model needs a stored model"
+        np.testing.assert_array_equal(module.predict_model(stored, params, body, x), q)
+    if hasattr(module, "distances"):  # its own way to f(g(x*)) - x*: the shared one's numbers
+        scale = gbmodel.Growth().scales(body, np.ones(1))[0]
+        own = module.distances(state, params, body, scale, body.targets)
+        shared = gbmodel.evaluation.distances(lambda x: module.predict(state, params, body, x),
+                                              body, scale, body.targets)
+        assert own.shape == (len(body.targets),)
+        np.testing.assert_allclose(own, shared, rtol=1e-5, atol=1e-6)  # a float32 rollout
 
 
-@pytest.mark.parametrize("name", NEW)
+@pytest.mark.parametrize("name", ALL)
+def test_training_in_two_calls_is_training_in_one(name):
+    """train consumes the draws of its epochs only: the trial loop cuts a trial into calls at
+    every evaluation and snapshot, and that must change no number."""
+    module = learners.get(name)
+    params, body = module.Params().validate(), gbmodel.make_body("arm5")
+    one, _ = _trained(module, params, body, 5)
+    two, _ = _trained(module, params, body, 5, split=2)
+    x = body.targets[::7]
+    np.testing.assert_array_equal(module.predict(two, params, body, x),
+                                  module.predict(one, params, body, x))
+
+
+@pytest.mark.parametrize("name", ALL)
 def test_deterministic(name):
     a = _run(name, 12, snapshots=(5,), growth={"period": 6})
     b = _run(name, 12, growth={"period": 6})  # snapshots cut the blocks, change no number
