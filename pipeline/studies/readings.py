@@ -119,9 +119,8 @@ def intervals_markdown(t: pd.DataFrame) -> str:
     return "\n".join(lines)
 
 
-def table(aggs: dict) -> pd.DataFrame:
-    """readings.csv: one row per (figure, reading, claim), the cells of `intervals`."""
-    t = intervals(aggs)
+def table(t: pd.DataFrame) -> pd.DataFrame:
+    """readings.csv: one row per (figure, reading, claim), the cells `t` of `intervals`."""
     if not len(t):
         return pd.DataFrame()
     return pd.DataFrame(dict(
@@ -297,10 +296,10 @@ def figure(aggs: dict, title: str):
 def section(ctx: Context) -> list[str]:
     studies = ctx.of("readings")
     read = {k: a for k, a in studies.items() if declares_claims(a)}
-    reading_table = table(read)
+    cards = intervals(read, ctx.cfg.report.scale)  # once, at the run's scale, for every file
+    reading_table = table(cards)
     if not len(reading_table):
         return []
-    cards = intervals(read, ctx.cfg.report.scale)
     ctx.text("readings_scorecard.csv", cards.to_csv(index=False, float_format="%.6g"))
     ctx.text("readings.csv", reading_table.to_csv(index=False, float_format="%.6g"))
     ctx.text("readings_summary.csv", finals(read).to_csv(index=False, float_format="%.6g"))

@@ -150,3 +150,23 @@ def test_a_reduced_scale_run_decides_no_reading_either(cards):
     smoke = readings.intervals(AGG, scale="smoke")
     assert set(smoke["verdict"]) <= {sc.NOT_A_VERDICT, readings.claims.DIVERGED}
     assert (smoke["note"] == "a smoke run, not the paper's scale").all()
+
+
+def test_a_reduced_scale_report_writes_no_readings_verdict(tmp_path):
+    """The readings section of a smoke report: readings.csv, readings_scorecard.csv and
+    readings_matrix.csv all say "not a verdict" (readings.csv was judged at full strength)."""
+    from omegaconf import OmegaConf
+
+    from pipeline.studies.sections import Context
+
+    summary = AGG["readings_fig4"]["summary"].assign(final_abs_error_mean=0.02,
+                                                     final_rel_error_mean=0.02)
+    agg = dict(AGG["readings_fig4"], summary=summary,
+               models=dict(paper=dict(claims=True, study="readings")))
+    cfg = OmegaConf.create(dict(report=dict(scale="smoke", dpi=30)))
+    readings.section(Context(cfg, tmp_path, "t", {"readings": {"readings_fig4": agg}}))
+    for name in ("readings.csv", "readings_scorecard.csv"):
+        assert set(pd.read_csv(tmp_path / name)["verdict"]) == {sc.NOT_A_VERDICT}, name
+    m = pd.read_csv(tmp_path / "readings_matrix.csv", dtype=str)
+    assert set(m[[c for c in m if c.startswith("fig4 ") and c != "fig4 n"]].stack()) == {
+        sc.NOT_A_VERDICT}
