@@ -57,7 +57,14 @@ def _load() -> None:
             importlib.import_module(f"{__package__}.{m.name}")
     for m in pkgutil.iter_modules():
         if m.name.startswith(PLUGIN_PREFIX):
-            importlib.import_module(m.name)
+            try:  # someone else's module: its failure is named where its study is asked for
+                importlib.import_module(m.name)
+            except Exception as err:
+                why = str(err).splitlines()[0] if str(err) else ""
+                _BROKEN[m.name[len(PLUGIN_PREFIX):]] = f"{m.name}: {type(err).__name__}: {why}"
+
+
+_BROKEN: dict[str, str] = {}  # study -> why its gbgrowth_study_<name> module did not import
 
 
 def group(aggs: dict) -> dict:
@@ -69,6 +76,9 @@ def group(aggs: dict) -> dict:
     out = {}
     for name, agg in aggs.items():
         s = study_of(agg)
+        if s not in SECTIONS and s in _BROKEN:
+            raise ConfigError(f"{name}: paper.study={s!r}: its module did not import "
+                              f"({_BROKEN[s]})")
         if s not in SECTIONS:
             raise ConfigError(f"{name}: paper.study={s!r} names no report section (known: "
                               f"{', '.join(sorted(SECTIONS))})")

@@ -74,3 +74,25 @@ def test_a_toy_study_in_two_files_is_run_and_reported_with_no_other_edit(tmp_pat
     csv = (out / "toy_study.csv").read_text().splitlines()
     assert csv[0] == "figure,condition,final_heldout_abs_error" and len(csv) == 3
     assert all(float(ln.rsplit(",", 1)[1]) > 0 for ln in csv[1:])  # errors the trials measured
+
+
+def test_a_study_module_that_does_not_import_costs_only_its_own_experiments(tmp_path,
+                                                                            monkeypatch):
+    """A gbgrowth_study_<name> module on the Python path that fails to import made every report
+    a traceback (the registry imports each one); now a report without its study is made, and
+    an experiment naming it is refused in one line naming the module's error."""
+    import pytest
+
+    from pipeline.config import ConfigError
+    from pipeline.studies import sections
+
+    (tmp_path / "gbgrowth_study_broken.py").write_text("import a_package_not_installed_zz\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    mine = dict(models=dict(paper=dict(study="figures")))
+    assert list(sections.group({"fig": mine})) == ["figures"]
+    theirs = dict(models=dict(paper=dict(study="broken")))
+    with pytest.raises(ConfigError) as err:
+        sections.group({"exp": theirs})
+    assert str(err.value) == ("exp: paper.study='broken': its module did not import "
+                              "(gbgrowth_study_broken: ModuleNotFoundError: No module named "
+                              "'a_package_not_installed_zz')")
