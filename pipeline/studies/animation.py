@@ -32,8 +32,8 @@ def stages(cond: dict) -> list[tuple[int, np.ndarray]]:
     """(epoch, M) of trial 0 of an aggregated condition (models.json): its snapshots, then the
     final model unless a snapshot is already of the last epoch."""
     trial = cond["trials"].get("0")
-    if trial is None or "degree" not in cond["spec"]["learner"]:
-        return []  # a learner without a polynomial inverse M has nothing to draw
+    if trial is None or not figures.draws_model(cond["spec"]):
+        return []  # a learner without predict_model has nothing to draw
     out = [(int(e), np.asarray(M, float)) for e, M in trial["snapshots"].items()]
     epochs = int(cond["spec"]["epochs"])
     if epochs not in {e for e, _ in out} and trial.get("M") is not None:
@@ -45,10 +45,9 @@ def frame_data(spec: dict, epoch: int, M: np.ndarray) -> dict:
     """What one frame draws: the body's size at `epoch`, targets, reached points, postures."""
     body, growth = gbmodel.make_body(spec["body"]), gbmodel.Growth(**spec["growth"])
     size = float(growth.sizes(np.array([epoch]), body)[0])
-    params = gbmodel.TrialSpec.from_dict(spec).make_learner()[1]
-    exps = gbmodel.exponents(body.n, params.degree)
+    learner, params = gbmodel.TrialSpec.from_dict(spec).make_learner()
     targets = body.target_set(size)
-    q = gbmodel.predict(M, targets, exps)
+    q = learner.predict_model(M, params, body, targets)
     k = gbmodel.growth.factors(body, size, growth)
     reached = body.forward(q, k)
     picks = np.linspace(0, len(targets) - 1, N_POSTURES).round().astype(int)

@@ -227,6 +227,18 @@ def growth_end_handle():
                       label="end of growth (T_G)")
 
 
+def draws_model(spec: dict) -> bool:
+    """Whether a trial's stored model can be drawn: its learner has predict_model (the commands
+    the stored model chooses), whatever its parameters (a polynomial degree or not). A learner
+    this process does not know (registered at run time elsewhere) cannot be drawn."""
+    from gbmodel import learners
+
+    try:
+        return hasattr(learners.get(spec["learner"]["name"]), "predict_model")
+    except ValueError:
+        return False
+
+
 def final_body(spec: dict) -> tuple:
     """(body, size, growth, predict) of a trial's spec: the body (variant) at its final size, its
     gbmodel.Growth (gbmodel.growth.factors maps it to the body's per-segment factors) and

@@ -109,8 +109,9 @@ def _posture_panels(aggs: dict, wanted) -> list:
     panels = []
     for figure, condition in wanted:
         cond = aggs.get(figure, {}).get("models", {}).get("conditions", {}).get(condition)
-        # a posture needs a polynomial inverse M (Goal Babbling's); other learners have none
-        if cond and "0" in cond["trials"] and "degree" in cond["spec"]["learner"]:
+        # a posture needs a stored model its learner predicts from (predict_model)
+        if cond and cond["trials"].get("0", {}).get("M") is not None \
+                and figures.draws_model(cond["spec"]):
             label = f"{figure} {condition}, trial 0"
             panels.append((label, cond["spec"], cond["trials"]["0"]["M"]))
     return panels

@@ -88,6 +88,28 @@ def test_a_learner_registered_at_run_time_runs_through_every_stage(tmp_path, sta
     assert set(summary["learner"]) == {"stay_home"}
 
 
+def test_postures_are_drawn_for_any_learner_whose_stored_model_predicts(tmp_path, stay_home):
+    """The report draws postures for a learner with predict_model, whatever its parameters (not
+    only for one with a polynomial `degree`); without predict_model, none and no error."""
+    m = gbmodel.learners.get("stay_home")
+    m.init = lambda params, body, size, rng: np.array(body.home, dtype=float)
+    m.model = lambda state: np.array(state, copy=True)  # it stores its home posture
+    m.predict_model = lambda model, params, body, x: np.tile(model, (len(x), 1))
+    over = tiny_overrides(tmp_path / "out", stay_home, "learner=stay_home", "body=arm5",
+                          "growth=none", "figure=stay_home", "report.explain=false")
+    cfg = compose(over)
+    simulate.simulate(cfg)
+    aggregate.aggregate(cfg)
+    out = Path(cfg.paths.report)
+    assert "stay_home_postures.png" in {p.name for p in report.report(cfg)}
+    assert "## stay_home: targets, reached positions and postures" in \
+        (out / "report.md").read_text()
+    del m.predict_model
+    written = report.report(compose([*over, "report.dpi=50"]))  # a setting: not "up to date"
+    assert written and "stay_home_postures.png" not in {p.name for p in written}
+    assert "postures" not in (out / "report.md").read_text()
+
+
 def test_a_learners_schema_is_generated_from_its_params(tmp_path, stay_home):
     base = tiny_overrides(tmp_path, stay_home, "learner=stay_home", "growth=none")
     with pytest.raises(ConfigError, match=r"^learner\.reach=-1\.0: must be >= 0$"):
