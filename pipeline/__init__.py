@@ -1,7 +1,8 @@
 """The pipeline around gbmodel: simulate -> aggregate -> report, configured by Hydra (conf/).
 
-Importing the package registers the config schema (pipeline.config) and the engines' config group
-(pipeline.engines: one node per registered engine) with Hydra's ConfigStore.
+Importing the package loads nothing heavy (`gbgrowth --version` is a few imports): the config
+schema and the engines' config group (one node per registered engine) are registered with
+Hydra's ConfigStore by pipeline.config, which every stage imports (tests/pipeline/test_imports.py).
 """
 import os
 import sys
@@ -30,8 +31,3 @@ if _runs_the_report(getattr(sys, "orig_argv", []), sys.argv):
     for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS",
                  "VECLIB_MAXIMUM_THREADS"):
         os.environ.setdefault(_var, "1")
-
-from . import config  # noqa: E402,F401  (registers the schema)
-from . import engines  # noqa: E402
-
-engines.register_configs()

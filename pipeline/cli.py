@@ -24,7 +24,7 @@ from . import execute, io, stop
 from .fingerprint import CodeChanged
 from .io import BadInput
 from .config import (ConfigError, check_choices, check_experiments, check_hydra, check_keys,
-                     compose, config_notes)
+                     compose, config_notes, without_hydra)
 from .labels import condition_labels
 from .plan import check_run, plan, plan_conditions
 from .planned import checked_marker, mark_checked, was_checked
@@ -210,14 +210,17 @@ def check(argv: list[str]) -> str | None:
     for n, combination in enumerate(itertools.islice(_one_at_a_time(choices),
                                                      _MAX_COMBINATIONS)):
         try:  # values too: every sweep job is checked up front
-            cfg = compose(list(combination))
+            if n == 0:  # Hydra's own section: callbacks, launcher, logging, folders (also
+                # for a checked command line: a note is never a reason to skip it)
+                full = compose(list(combination) + hydra_own, hydra=True)
+                check_hydra(full)
+            # without Hydra's own overrides the config is that composition without its section
+            # (what Hydra's compose API returns): one compose, not two (each about 0.2 s CPU)
+            cfg = without_hydra(full) if n == 0 and not hydra_own else compose(list(combination))
             # one job checked before with the same config, overrides, config files and code:
             # only the run's own settings (paths, engine) are checked again
             marker = checked_marker(cfg, list(combination) + hydra_own) if n_jobs == 1 else None
             known = was_checked(marker, cfg.paths.root)
-            if n == 0:  # Hydra's own section: callbacks, launcher, logging, folders (also
-                # for a checked command line: a note is never a reason to skip it)
-                check_hydra(compose(list(combination) + hydra_own, hydra=True))
             if n == 0:
                 check_experiments(cfg, list(combination))
                 check_sweep_values(sweeps, cfg)

@@ -20,14 +20,15 @@ from pathlib import Path
 from typing import Any, Optional
 
 from hydra.core.config_store import ConfigStore
-from omegaconf import MISSING, DictConfig, OmegaConf
+from omegaconf import MISSING, DictConfig, OmegaConf, open_dict
 
 import gbmodel
 from gbmodel import evaluation
 from gbmodel.growth import LIMITS as growth_limits
 from gbmodel.spec import MAX_EPOCHS, MAX_INT64, MAX_SIZE, Int, Number
 
-from . import searchpath
+from . import engines, searchpath
+from .errors import ConfigError
 from .experiments import Declares, listed
 
 REPO_ROOT = Path(__file__).resolve().parents[1]  # the checkout (installed: site-packages)
@@ -43,10 +44,6 @@ def default_root() -> str:
     """paths.root unless given: the checkout (make and every documented command write into its
     outputs/, wherever they are started), else the working directory (an installed package)."""
     return str(REPO_ROOT) if IN_CHECKOUT else os.getcwd()
-
-
-class ConfigError(ValueError):
-    """A bad value in the config; its message is one line naming the key and the value."""
 
 
 def schema_of(cls, name: str, extra: tuple = ()) -> type:
@@ -238,6 +235,7 @@ if not OmegaConf.has_resolver("default_root"):
 if not OmegaConf.has_resolver("sweep_tag"):
     OmegaConf.register_new_resolver("sweep_tag", sweep_tag, use_cache=True)
 register_schemas()
+engines.register_configs()  # the config group `engine`: one node per engine
 searchpath.register(CONFIG_PATH)
 
 
@@ -251,6 +249,15 @@ def compose(overrides: list[str] | tuple = (), hydra: bool = False) -> DictConfi
     with initialized():
         return hydra_compose(config_name="config", overrides=list(overrides),
                              return_hydra_config=hydra)
+
+
+def without_hydra(full: DictConfig) -> DictConfig:
+    """`full` (composed with hydra=True) without Hydra's section, in place: what compose() returns
+    for the same overrides (Hydra's compose API drops the section just so), with no second
+    compose."""
+    with open_dict(full):
+        del full["hydra"]
+    return full
 
 
 def initialized():

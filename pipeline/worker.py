@@ -10,11 +10,6 @@ import time
 import traceback
 from contextlib import contextmanager
 
-import numpy as np
-
-import gbmodel
-
-
 THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
                "NUMBA_NUM_THREADS", "VECLIB_MAXIMUM_THREADS")
 
@@ -25,6 +20,10 @@ def run_one(trial: dict) -> dict:
     status: ok (a learning curve), diverged (the error became non-finite: a result, with the
     epoch), or failed (an exception; not cached, so the next run tries again)."""
     start, cpu = time.perf_counter(), time.process_time()
+    import numpy as np  # here: the engines import this module, and naming an engine (every
+
+    import gbmodel  # stage's config) should not load the numerical core
+
     try:
         from .fingerprint import code_fingerprint
 

@@ -73,9 +73,13 @@ def engine(name: str, settings: type = NoSettings, package: str | None = None,
     return register
 
 
+_DISCOVERED: list = []  # [True] once discover() ran in this process
+
+
 def discover() -> tuple[str, ...]:
     """Import every engine module (this package's, and gbgrowth_engine_* on the Python path);
-    the names registered, sorted."""
+    the names registered, sorted. An engine module imports what it runs on (a pool, Ray,
+    submitit) inside its run function: naming the engines costs no such import."""
     for m in pkgutil.iter_modules(__path__):
         importlib.import_module(f"{__name__}.{m.name}")
     for m in pkgutil.iter_modules():
@@ -86,20 +90,24 @@ def discover() -> tuple[str, ...]:
             except Exception as err:
                 why = str(err).splitlines()[0] if str(err) else ""
                 _BROKEN[m.name[len(PLUGIN_PREFIX):]] = f"{m.name}: {type(err).__name__}: {why}"
-    return available()
-
-
-def available() -> tuple[str, ...]:
+    _DISCOVERED[:] = [True]
     return tuple(sorted(_ENGINES))
 
 
+def available() -> tuple[str, ...]:
+    """The names of the engines (discovered on first use)."""
+    return tuple(sorted(_ENGINES)) if _DISCOVERED else discover()
+
+
 def _error(message: str) -> Exception:
-    from ..config import ConfigError  # the config imports no engine: no import circle
+    from ..errors import ConfigError  # not from ..config: the config imports this registry
 
     return ConfigError(message)
 
 
 def get(name: str) -> Engine:
+    if name not in _ENGINES and not _DISCOVERED:
+        discover()
     if name in _BROKEN and name not in _ENGINES:
         raise _error(f"engine={name}: its module did not import ({_BROKEN[name]})")
     if name not in _ENGINES:

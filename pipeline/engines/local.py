@@ -2,10 +2,11 @@
 longest trial first; short trials travel in batches (pipeline.execute)."""
 from __future__ import annotations
 
-from ..execute import local
 from . import engine
 
 
 @engine("local")
 def run(todo: list[dict], workers: int, fn, settings, logs):
+    from ..execute import local  # here: naming the engine (the config group) imports no pool
+
     yield from local(todo, workers, fn)

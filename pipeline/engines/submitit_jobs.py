@@ -20,9 +20,8 @@ import time
 import traceback
 from pathlib import Path
 
-from ..config import REPO_ROOT, ConfigError
 from ..worker import THREAD_VARS
-from . import call, failed
+from . import _error, call, failed
 
 LOCAL_POLL_S = 0.5
 # a job that ended without its result file: how long to look for the file before calling the
@@ -160,13 +159,18 @@ def results(todo: list[dict], workers: int, fn, cluster: str, opts: dict, logs=N
     import submitit
 
     if cluster == "slurm" and shutil.which("sbatch") is None:
-        raise ConfigError("engine=slurm: sbatch not found; submit from a SLURM login node, or use "
+        raise _error("engine=slurm: sbatch not found; submit from a SLURM login node, or use "
                           "engine=submitit_local (or ray) on this machine")
     n = opts["shards"] or workers
     if cluster == "local":
         n = min(n, workers)  # every local job starts at once
     parts = shards(todo, n)
-    folder = Path(logs) if logs else REPO_ROOT / "outputs" / "logs" / "submitit"
+    if logs:
+        folder = Path(logs)
+    else:  # imported here: naming an engine (the config group) loads no config
+        from ..config import REPO_ROOT
+
+        folder = REPO_ROOT / "outputs" / "logs" / "submitit"
     folder.mkdir(parents=True, exist_ok=True)
     executor = submitit.AutoExecutor(folder=str(folder / "%j"), cluster=cluster)
     executor.update_parameters(**job_parameters(opts, workers, cluster,

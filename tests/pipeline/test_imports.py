@@ -1,0 +1,62 @@
+"""Start-up: the heavy packages are imported only where they are used (issue 43, item 4).
+
+`import pipeline` (which every stage, tool and `gbgrowth` command runs first) and the
+`gbgrowth --version` / `--help` paths load none of the numerical or drawing stack; the engines'
+names are known without importing what each engine runs on. Each check runs in a fresh
+interpreter, so what this test process imported does not count.
+"""
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+from pipeline.config import REPO_ROOT
+
+HEAVY = ("pandas", "pyarrow", "matplotlib", "numba", "scipy")
+LOADED = "import json, sys; print(json.dumps(sorted({m.split('.')[0] for m in sys.modules})))"
+
+
+def loaded(code: str) -> set[str]:
+    """The top-level packages a fresh interpreter holds after running `code` (then LOADED)."""
+    env = dict(os.environ, PYTHONPATH=str(REPO_ROOT))
+    proc = subprocess.run([sys.executable, "-c", f"{code}\n{LOADED}"], capture_output=True,
+                          text=True, cwd="/", env=env, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    return set(json.loads(proc.stdout.strip().splitlines()[-1]))
+
+
+def command(argv: list[str]) -> str:
+    """`python -m pipeline ARGV` run in-process, its exit swallowed (then LOADED)."""
+    return (f"import runpy, sys\nsys.argv = ['gbgrowth', *{argv!r}]\n"
+            "try:\n    runpy.run_module('pipeline', run_name='__main__', alter_sys=True)\n"
+            "except SystemExit:\n    pass")
+
+
+@pytest.mark.parametrize("code", [
+    "import pipeline",
+    command(["--version"]),
+    command(["--help"]),
+], ids=["import pipeline", "gbgrowth --version", "gbgrowth --help"])
+def test_the_package_and_version_load_no_heavy_package(code):
+    """Before: importing the package registered the config (gbmodel's learners: numba, scipy)
+    and the engines (the local pool: numpy, gbmodel) in every process, 1.8 s CPU for
+    `gbgrowth --version`."""
+    heavy = loaded(code) & {*HEAVY, "numpy", "hydra", "omegaconf", "gbmodel"}
+    assert not heavy, f"{code!r} imported {sorted(heavy)}"
+
+
+def test_naming_the_engines_imports_none_of_what_they_run_on():
+    """The engine registry discovers every engine module (the config group `engine` is made
+    from them) without the pool, the numerical core or a cluster package."""
+    code = "from pipeline import engines\nassert 'local' in engines.available()"
+    heavy = loaded(code) & {*HEAVY, "numpy", "gbmodel", "ray", "submitit"}
+    assert not heavy, f"naming the engines imported {sorted(heavy)}"
+
+
+def test_a_stage_config_loads_no_table_or_drawing_package():
+    """The config every stage composes (pipeline.config) needs no table or drawing package."""
+    heavy = loaded("import pipeline.config") & {"pandas", "pyarrow", "matplotlib"}
+    assert not heavy, f"pipeline.config imported {sorted(heavy)}"
+
