@@ -30,10 +30,10 @@ import logging
 import sys
 from functools import lru_cache
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import hydra
 import numpy as np
-import pandas as pd
 import pyarrow as pa
 from omegaconf import DictConfig
 
@@ -42,6 +42,9 @@ from .config import CONFIG_PATH
 from .measures import finals, growth_peak
 from .fingerprint import source_fingerprint
 from .labels import condition_labels
+
+if TYPE_CHECKING:  # pandas is imported where a figure is rebuilt (summarize): not when cached
+    import pandas as pd
 
 log = logging.getLogger("pipeline.aggregate")
 
@@ -346,6 +349,8 @@ def summarize(trials: pd.DataFrame, curves: pd.DataFrame, conds: dict, paper: di
             100 * row["final_heldout_abs_error_mean"] / row["reach"] if row["reach"] > 0
             else np.nan)
         rows.append(row)
+    import pandas as pd
+
     return pd.DataFrame(rows)
 
 
@@ -369,19 +374,22 @@ def _reach(body_json: str, growth_json: str) -> float:
     return workspace.reach(body, k)
 
 
-def heldout_lines(fig: str, summary: pd.DataFrame) -> list[str]:
+def heldout_lines(fig: str, summary: pa.Table) -> list[str]:
     """Per condition: the held-out error (the points no learner is told to reach) in mm and in
     % of the body's reach, the grid error and the trials: what a first run of one's own robot
-    wants to read."""
+    wants to read. `summary`: a figure's summary.parquet, read with pyarrow (a null is NaN, as
+    pandas reads it)."""
     out = []
-    for r in summary.itertuples():
-        if not np.isfinite(r.final_heldout_abs_error_mean):
-            out.append(f"[{fig}] {r.condition}: no finished trial")
+    for r in summary.to_pylist():
+        r = {k: np.nan if v is None else v for k, v in r.items()}
+        if not np.isfinite(r["final_heldout_abs_error_mean"]):
+            out.append(f"[{fig}] {r['condition']}: no finished trial")
             continue
-        out.append(f"[{fig}] {r.condition}: held out {1e3 * r.final_heldout_abs_error_mean:.1f} mm"
-                   f" = {r.final_heldout_abs_error_pct_reach:.2f} % of the reach "
-                   f"({r.reach:.3f} m); grid {1e3 * r.final_abs_error_mean:.1f} mm; "
-                   f"{r.n_trials} trial(s) of {r.epochs:,} epochs")
+        out.append(f"[{fig}] {r['condition']}: held out "
+                   f"{1e3 * r['final_heldout_abs_error_mean']:.1f} mm"
+                   f" = {r['final_heldout_abs_error_pct_reach']:.2f} % of the reach "
+                   f"({r['reach']:.3f} m); grid {1e3 * r['final_abs_error_mean']:.1f} mm; "
+                   f"{r['n_trials']} trial(s) of {r['epochs']:,} epochs")
     return out
 
 
@@ -507,12 +515,12 @@ SHOWN_CONDITIONS = 8  # a figure of more conditions (make smoke's) is not listed
 def show_heldout(folder: Path, fig: str, named: bool) -> None:
     """Log heldout_lines for a figure named on the command line (or the only one), or one of at
     most SHOWN_CONDITIONS conditions."""
-    try:
-        summary = io.read_table(io.set_of(folder) / "summary.parquet").to_pandas()
+    try:  # a pyarrow table: a figure left as it was loads no pandas
+        summary = io.read_table(io.set_of(folder) / "summary.parquet")
     except (OSError, ValueError):
         return  # nothing aggregated (a problem already named)
-    if "final_heldout_abs_error_pct_reach" not in summary or not (
-            named or len(summary) <= SHOWN_CONDITIONS):
+    if "final_heldout_abs_error_pct_reach" not in summary.column_names or not (
+            named or summary.num_rows <= SHOWN_CONDITIONS):
         return
     for line in heldout_lines(fig, summary):
         log.info("%s", line)

@@ -10,9 +10,13 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import json
 import os
+import pkgutil
 import socket
+import sys
 import time
+import types
 import typing
 from functools import lru_cache
 from dataclasses import dataclass, field
@@ -46,12 +50,18 @@ def default_root() -> str:
     return str(REPO_ROOT) if IN_CHECKOUT else os.getcwd()
 
 
-def schema_of(cls, name: str, extra: tuple = ()) -> type:
-    """A Hydra schema with the fields (types and defaults) of gbmodel dataclass `cls`, plus
-    `extra` (name, type, default) fields."""
+def defaults_of(cls) -> list[tuple[str, Any, Any]]:
+    """(name, type, default) of each field of dataclass `cls` that has a default."""
     hints = typing.get_type_hints(cls)
-    fields = [(f.name, hints[f.name], field(default=f.default)) for f in dataclasses.fields(cls)
-              if f.default is not dataclasses.MISSING]
+    return [(f.name, hints[f.name], f.default) for f in dataclasses.fields(cls)
+            if f.default is not dataclasses.MISSING]
+
+
+def schema_of(cls, name: str, extra: tuple = (), defaults: list | None = None) -> type:
+    """A Hydra schema with the fields (types and defaults) of gbmodel dataclass `cls` (or the
+    `defaults` of defaults_of(cls) given), plus `extra` (name, type, default) fields."""
+    fields = [(k, kind, field(default=v))
+              for k, kind, v in (defaults_of(cls) if defaults is None else defaults)]
     return dataclasses.make_dataclass(name, list(extra) + fields)
 
 
@@ -196,13 +206,72 @@ class Config:
 
 def register_schemas() -> None:
     """The primary schema, and one schema per learner (`learner/<name>_schema`) that its YAML
-    file extends: the learner's Params fields with their defaults, plus name and epochs."""
+    file extends: the learner's Params fields with their defaults, plus name and epochs. A
+    learner module not imported yet is described by shipped_params (no import of its kernels:
+    numba, scipy)."""
     cs = ConfigStore.instance()
     cs.store(name="base_config", node=Config)
+    shipped = shipped_params()
     for name in gbmodel.learners.available():
-        params = gbmodel.learners.get(name).Params
+        defaults = None if name in gbmodel.learners._REGISTERED or (
+            f"{gbmodel.learners.__name__}.{name}" in sys.modules) else shipped.get(name)
+        params = None if defaults is not None else gbmodel.learners.get(name).Params
         cs.store(group="learner", name=f"{name}_schema",
-                 node=schema_of(params, f"{name}_conf", LEARNER_EXTRA))
+                 node=schema_of(params, f"{name}_conf", LEARNER_EXTRA, defaults))
+
+
+PARAMS_FORMAT = 1  # the layout of shipped_params' record: a new one is a new file name
+_PLAIN_TYPES = {t.__name__: t for t in (int, float, str, bool)}
+
+
+def _type_name(kind) -> str | None:
+    """`int`, `float`, `str`, `bool` or one of them `| None` by name; None for any other type."""
+    args = typing.get_args(kind)
+    if kind in _PLAIN_TYPES.values():
+        return kind.__name__
+    if len(args) == 2 and type(None) in args and typing.get_origin(kind) in (
+            typing.Union, types.UnionType):
+        inner = _type_name(next(a for a in args if a is not type(None)))
+        return None if inner is None or inner.endswith("| None") else f"{inner} | None"
+    return None
+
+
+def _type_of(name: str):
+    plain, _, optional = name.partition(" | ")
+    return _PLAIN_TYPES[plain] | None if optional else _PLAIN_TYPES[plain]
+
+
+def shipped_params() -> dict[str, list]:
+    """learner -> defaults_of(its Params), for every learner module under gbmodel/learners/,
+    without importing them where it can: kept in gbmodel/__pycache__/ under the SHA-256 of every
+    gbmodel source file's path and bytes (parsed never, trusted from no modification time; a
+    changed byte anywhere in gbmodel is a new record). Made by importing the learners once per
+    content; {} where a field's type or default is not a plain one (then each is imported)."""
+    from .fingerprint import keep, kept
+
+    root = Path(gbmodel.__file__).resolve().parent
+    h = hashlib.sha256()
+    for p in sorted(root.rglob("*.py")):
+        h.update(p.relative_to(root).as_posix().encode() + b"\0" + p.read_bytes() + b"\0")
+    path = root / "__pycache__" / f"params.{PARAMS_FORMAT}" / f"{h.hexdigest()}.json"
+    try:
+        found = json.loads(kept(path) or b"null")
+    except ValueError:
+        found = None
+    if not isinstance(found, dict):
+        found = {}
+        for m in pkgutil.iter_modules([str(root / "learners")]):
+            fields = defaults_of(gbmodel.learners.get(m.name).Params)
+            if any(_type_name(kind) is None or type(v) not in (*_PLAIN_TYPES.values(), type(None))
+                   for _, kind, v in fields):
+                return {}
+            found[m.name] = [(k, _type_name(kind), v) for k, kind, v in fields]
+        keep(path, json.dumps(found).encode())
+    try:
+        return {name: [(k, _type_of(kind), v) for k, kind, v in fields]
+                for name, fields in found.items()}
+    except (KeyError, TypeError, ValueError):
+        return {}
 
 
 def sweep_tag() -> str:

@@ -124,6 +124,32 @@ def _learn(text: str) -> dict:
                 imports=imports)
 
 
+def kept(path: Path) -> bytes | None:
+    """The body of a record `keep` wrote at `path`, or None when there is none or its checksum
+    fails (a damaged or foreign file is never trusted)."""
+    try:
+        data = path.read_bytes()
+    except OSError:
+        return None
+    body = data[64:]
+    return body if data[:64] == hashlib.sha256(body).hexdigest().encode() else None
+
+
+def keep(path: Path, body: bytes) -> None:
+    """Write `body` to `path` behind its SHA-256 (atomically); a folder that cannot be written
+    is only not kept."""
+    tmp = None
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem[:16]}.")
+        with os.fdopen(fd, "wb") as f:
+            f.write(hashlib.sha256(body).hexdigest().encode() + body)
+        os.replace(tmp, path)
+    except OSError:
+        if tmp is not None:
+            Path(tmp).unlink(missing_ok=True)
+
+
 @lru_cache(maxsize=512)
 def _facts(text: str) -> dict:
     """_learn(text), kept on disk by the SHA-256 of `text` with a checksum of the record: read
@@ -131,27 +157,16 @@ def _facts(text: str) -> dict:
     cannot be written is only not kept)."""
     key = hashlib.sha256(text.encode()).hexdigest()
     path = _facts_folder() / f"{key}.marshal"
-    try:
-        data = path.read_bytes()
-        body = data[64:]
-        if data[:64] == hashlib.sha256(body).hexdigest().encode():
+    body = kept(path)
+    if body is not None:
+        try:
             facts = marshal.loads(body)
             if isinstance(facts, dict) and facts.get("key") == key:
                 return facts
-    except (OSError, ValueError, EOFError, TypeError):
-        pass
+        except (ValueError, EOFError, TypeError):
+            pass
     facts = dict(_learn(text), key=key)
-    body = marshal.dumps(facts)
-    tmp = None
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{key[:16]}.")
-        with os.fdopen(fd, "wb") as f:
-            f.write(hashlib.sha256(body).hexdigest().encode() + body)
-        os.replace(tmp, path)
-    except OSError:
-        if tmp is not None:
-            Path(tmp).unlink(missing_ok=True)
+    keep(path, marshal.dumps(facts))
     return facts
 
 

@@ -3,8 +3,12 @@ temporary rise of the error during growth (the paper's "significant temporary in
 3.1) and each trial's final row."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import pandas as pd
+
+if TYPE_CHECKING:  # the frames come from the callers: a cached aggregate loads no pandas
+    import pandas as pd
 
 
 def rise(values: np.ndarray) -> tuple:

@@ -37,8 +37,6 @@ import logging
 from pathlib import Path
 
 import hydra
-import numpy as np
-import pandas as pd
 import pyarrow as pa
 from omegaconf import DictConfig, OmegaConf
 

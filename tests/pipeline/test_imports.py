@@ -60,3 +60,50 @@ def test_a_stage_config_loads_no_table_or_drawing_package():
     heavy = loaded("import pipeline.config") & {"pandas", "pyarrow", "matplotlib"}
     assert not heavy, f"pipeline.config imported {sorted(heavy)}"
 
+
+LEARNERS_IMPORTED = ("import sys\nimport pipeline.config as c\n"
+                     "print([m for m in sys.modules if m.startswith('gbmodel.learners.')])\n")
+
+
+def test_the_learner_schemas_need_no_learner_import_and_equal_their_params():
+    """The config's learner schemas come from a record of each learner's Params (kept by the
+    content of gbmodel's files), not from importing the learners (numba, scipy: 0.6 s CPU in
+    every stage); what the record says is what the imported Params say."""
+    import gbmodel
+    from pipeline import config
+
+    shipped = config.shipped_params()  # this process imported pipeline.config: the record exists
+    assert set(shipped) == set(gbmodel.learners.available()) - set(gbmodel.learners._REGISTERED)
+    for name, fields in shipped.items():
+        assert fields == config.defaults_of(gbmodel.learners.get(name).Params), name
+    env = dict(os.environ, PYTHONPATH=str(REPO_ROOT))
+    out = subprocess.run([sys.executable, "-c", LEARNERS_IMPORTED], capture_output=True,
+                         text=True, cwd="/", env=env, timeout=120)
+    assert out.returncode == 0 and out.stdout.strip() == "[]", out.stderr + out.stdout
+
+
+def test_a_changed_gbmodel_file_makes_a_new_learner_record(tmp_path):
+    """A learner's default edited in its file is in the schema at once: the record is named by
+    every gbmodel file's bytes (no modification time), so the old one is never read for it."""
+    import shutil
+
+    shutil.copytree(REPO_ROOT / "gbmodel", tmp_path / "gbmodel",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tmp_path), str(REPO_ROOT)]))
+    show = ("import gbmodel, pipeline.config as c\nassert gbmodel.__file__.startswith(%r)\n"
+            "print(dict((k, v) for k, _, v in c.shipped_params()['motor_babbling'])['spread'])\n"
+            % str(tmp_path))
+
+    def spread() -> str:
+        out = subprocess.run([sys.executable, "-c", show], capture_output=True, text=True,
+                             cwd="/", env=env, timeout=120)
+        assert out.returncode == 0, out.stderr
+        return out.stdout.strip()
+
+    assert spread() == spread() == "0.4"  # made, then read back
+    assert len(list((tmp_path / "gbmodel/__pycache__").glob("params.*/*.json"))) == 1
+    learner = tmp_path / "gbmodel/learners/motor_babbling.py"
+    text = learner.read_text()
+    assert "    spread: float = 0.4\n" in text
+    learner.write_text(text.replace("    spread: float = 0.4\n", "    spread: float = 0.25\n"))
+    assert spread() == "0.25"
