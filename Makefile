@@ -89,9 +89,11 @@ scale: $(STAMP) ## time sweeps of 1,000 and 10,000 short trials stage by stage a
 test: $(STAMP) ## run the test suite (slow tests excluded) on TESTJOBS processes
 	$(PY) -m pytest -n $(TESTJOBS) --dist loadfile
 
-test-slow: $(STAMP) ## install the cluster extras (Ray, submitit), then run the slow tests only
-	$(PY) -m pip install --quiet -c requirements.lock -e '.[test,ray,slurm]'
+test-slow: $(STAMP) ## install the extras (Ray, submitit, MuJoCo), run the slow tests and the MuJoCo cross-checks
+	$(PY) -m pip install --quiet -c requirements.lock -e '.[test,ray,slurm,mujoco]'
 	$(PY) -m pytest -m slow
+	# the MJCF bodies against MuJoCo itself (make test skips them: mujoco is an extra)
+	$(PY) -m pytest tests/core/test_bodies_mjcf.py tests/core/test_body_loop.py
 
 test-cluster: $(STAMP) ## start a one-host SLURM (as root: apt-get installs it) and a two-node Ray, run the cluster tests
 	@if [ "$$(id -u)" = 0 ] && ! command -v slurmctld >/dev/null; then apt-get update -q; \
