@@ -66,7 +66,10 @@ smoke: ## the same at smoke scale (1000 epochs, 2 trials) into outputs/smoke/lat
 
 pipeline: simulate aggregate report
 
-EXPS     = 'experiments=[$(shell echo $(FIGURES) | tr ' ' ',')]'
+# no experiment listed (the experiments tool failed: its error is printed above) stops here, rather
+# than running the default config under experiments=[]
+EXPS     = $(if $(strip $(FIGURES)),'experiments=[$(shell echo $(FIGURES) | tr ' ' ',')]',$(error no experiments \
+           listed: '$(PY) -m pipeline.tools.experiments --make' failed (FIGURES=... names them by hand)))
 
 simulate: $(STAMP) ## stage 1: run the trials of FIGURES that are not cached, in one process (PROFILE, ARGS)
 	$(PY) -m pipeline.simulate $(EXPS) profile=$(PROFILE) $(ARGS)

@@ -305,6 +305,17 @@ def test_make_refuses_a_python_older_than_311_and_says_which(tmp_path):
     assert f"{fake} is Python 3.9.0; need >= 3.11" in r.stdout + r.stderr
 
 
+def test_make_stops_when_no_experiment_is_listed():
+    """The Makefile's lists come from the experiments tool; when it fails (here: a Python that
+    fails), make stops with one line instead of running the default config under experiments=[]."""
+    r = subprocess.run(["make", "-n", "-s", "simulate", "PY=/bin/false"], cwd=REPO_ROOT,
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode != 0
+    assert "no experiments listed: '/bin/false -m pipeline.tools.experiments --make' failed" \
+        in r.stderr, r.stderr
+    assert "pipeline.simulate" not in r.stdout
+
+
 def test_an_edited_model_in_a_sidecar_is_caught_by_its_seal_and_recomputed(tmp_path,
                                                                            compose_tiny):
     cfg = compose_tiny(tmp_path, "growth=none")
