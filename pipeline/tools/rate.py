@@ -117,9 +117,11 @@ WRITE = "--write"  # write the settings file where it goes, instead of printing 
 _WRITE = [False]
 
 
-def write_settings(path: Path, text: str) -> None:
+def write_settings(path: Path, text: str) -> Path | None:
     """Put the settings file at `path` as one rename (a failed run leaves what was there, never
-    an empty file); refuse a file without a setting (ConfigError): nothing to write."""
+    an empty file); refuse a file without a setting (ConfigError): nothing to write. A file that
+    was there with other settings is kept beside it as `.<name>.previous` (Hydra reads no such
+    file), which is returned; an empty one (left by `rate > file`) is simply replaced."""
     import os
 
     if not [ln for ln in text.splitlines() if ln.strip() and not ln.startswith("#")]:
@@ -128,12 +130,17 @@ def write_settings(path: Path, text: str) -> None:
         raise ConfigError(f"{path}: no setting to write (these are the core's defaults); give "
                           "the learner's settings on the command line, e.g. learner.solver=lstsq")
     path.parent.mkdir(parents=True, exist_ok=True)
+    old = path.read_text() if path.is_file() else ""
+    kept = path.with_name(f".{path.name}.previous") if old.strip() and old != text else None
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
         tmp.write_text(text)
+        if kept is not None:
+            kept.write_text(old)
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
+    return kept
 
 
 def cpu_estimate(cfg: DictConfig) -> str:
@@ -162,8 +169,9 @@ def run(cfg: DictConfig, write: bool | None = None) -> int:
               file=sys.stderr)
     text = settings_file(cfg, path, r)
     if write:
-        write_settings(path, text)
-        print(f"wrote {path}:", file=sys.stderr)
+        kept = write_settings(path, text)
+        print(f"wrote {path}" + (f" (its previous settings kept in {kept})" if kept else "")
+              + ":", file=sys.stderr)
     else:
         print(f"put these lines into {path} (or run this again with {WRITE}):", file=sys.stderr)
     print(text, end="")

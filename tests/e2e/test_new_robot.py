@@ -104,8 +104,23 @@ def test_rate_writes_no_empty_file_and_an_empty_one_is_named(tmp_path):
     empty.write_text("")
     line = cli.check([search, "body=panda_like"])
     assert line and line.startswith(f"{empty}: the file is empty"), line
-    rate.write_settings(empty, rate.settings_file(cfg, empty, None))
+    assert rate.write_settings(empty, rate.settings_file(cfg, empty, None)) is None
     assert cli.check([search, "body=panda_like", "profile=smoke"]) is None
+
+
+def test_rate_write_keeps_the_settings_it_replaces(tmp_path):
+    """--write over a file with other settings keeps them beside it (nothing silently replaced);
+    the same settings again keep nothing."""
+    target = tmp_path / "conf" / "body_learner" / "arm5_goal_babbling.yaml"
+    target.parent.mkdir(parents=True)
+    target.write_text("solver: gradient\nlearning_rate: 0.001\n")
+    text = rate.settings_file(compose(["body=arm5", "learner.solver=lstsq"]), target, None)
+    kept = rate.write_settings(target, text)
+    assert target.read_text() == text
+    assert kept == target.with_name(".arm5_goal_babbling.yaml.previous")
+    assert kept.read_text() == "solver: gradient\nlearning_rate: 0.001\n"
+    kept.unlink()
+    assert rate.write_settings(target, text) is None and not kept.exists()
 
 
 @pytest.mark.parametrize("name", new_robots.NAMES)
