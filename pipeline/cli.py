@@ -348,8 +348,9 @@ def _parse_error(override: str) -> str | None:
 DISK_ERRNOS = (errno.ENOSPC, errno.EROFS, errno.EACCES, errno.EPERM, errno.EDQUOT)
 
 
-def finish(run, cfg) -> None:
-    """Run a stage on its composed config and exit with its status. What every stage can meet
+def finish(run, cfg, record: bool = True) -> None:
+    """Run a stage on its composed config and exit with its status (record=False: a tool that
+    only reads and prints leaves no config snapshot and no checked-plan note behind). What every stage can meet
     is one line: a bad value (ConfigError), missing or damaged input (FileNotFoundError,
     pipeline.io's BadInput: DamagedFile, UnsafeName), gbmodel code edited since the import
     (CodeChanged) or a full, read-only or forbidden folder (OSError) exits 2; Ctrl-C, SIGTERM and SIGHUP stop the workers, release the claims (the stage's
@@ -358,7 +359,7 @@ def finish(run, cfg) -> None:
         try:  # no write or delete through a link leading elsewhere
             io.confine(cfg.paths.root if cfg is not None else None)
             rc = run(cfg)
-            if rc in (0, 1):  # it ran (1: some trials failed or inputs are missing)
+            if rc in (0, 1) and record:  # it ran (1: some trials failed or inputs are missing)
                 snapshot(cfg)
         except (ConfigError, FileNotFoundError, NotADirectoryError) as err:
             print(f"error: {err}", file=sys.stderr)
@@ -382,7 +383,7 @@ def finish(run, cfg) -> None:
             rc = stop.exit_status(err)
         finally:
             io.confine(None)
-    if rc in (0, 1):  # the stage ran (1: some trials failed or inputs are missing)
+    if rc in (0, 1) and record:  # the stage ran (1: some trials failed or inputs are missing)
         for marker, trials, root in _PASSED:
             mark_checked(marker, trials, root)
     _PASSED.clear()

@@ -105,7 +105,7 @@ def run(cfg: DictConfig) -> int:
 
 @hydra.main(config_path=CONFIG_PATH, config_name="config", version_base="1.3")
 def main(cfg: DictConfig) -> None:
-    cli.finish(run, cfg)
+    cli.finish(run, cfg, record=False)  # it only prints: no snapshot, no checked-plan note
 
 
 if __name__ == "__main__":

@@ -26,3 +26,14 @@ def test_an_mjcf_body_is_named_as_one_with_its_joints():
     assert lines[1].startswith("chain: MJCF ") and "body world -> fingertip" in lines[1]
     assert lines[1].endswith("2 commanded joints")
     assert "joint0" in lines[4] and "joint1" in lines[5]
+
+
+def test_it_prints_and_writes_nothing(tmp_path):
+    """The tool only reads and prints: no config snapshot (outputs/logs/body/) and no
+    checked-plan note (outputs/planned/) under the root it runs in."""
+    from conftest import run_cli
+
+    r = run_cli("pipeline.tools.body", "body=arm2", f"paths.root={tmp_path}")
+    assert r.returncode == 0, r.stderr
+    assert "chain: 2 DH rows" in r.stdout
+    assert list(tmp_path.rglob("*")) == []
