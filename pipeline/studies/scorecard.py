@@ -307,12 +307,14 @@ def all_cells(results: list[dict]) -> pd.DataFrame:
                          in df.groupby(["claim", "figure", "reading"], sort=False)])
 
 
-def cells(results: list[dict]) -> pd.DataFrame:
+def cells(results: list[dict], register=None) -> pd.DataFrame:
     """One cell per (claim, figure) under the claim's primary reading: the verdict of all its
     measures (not reproduced if any is, else inconclusive if any is, else reproduced), how many
     are reproduced (k of n), the worst measure that gives the cell its verdict (the smallest
     margin to the criterion among them), which the cell shows, and `others`: the cells of the other registered readings whose verdict differs
-    ("reading: verdict (worst ...)", "; "-joined), and those the register always shows."""
+    ("reading: verdict (worst ...)", "; "-joined), and those the register always shows
+    (`register`: a list of claims, claims.load_register's; default this one's)."""
+    by_id = BY_ID if register is None else {c.id: c for c in register}
     every = all_cells(results)
     if not len(every):
         return every
@@ -321,7 +323,7 @@ def cells(results: list[dict]) -> pd.DataFrame:
     notes = []
     for r in primary.to_dict("records"):
         o = other[(other["claim"] == r["claim"]) & (other["figure"] == r["figure"])]
-        shown = {rd.id for rd in BY_ID[r["claim"]].readings if rd.always_shown}
+        shown = {rd.id for rd in by_id[r["claim"]].readings if rd.always_shown}
         notes.append("; ".join(f"{x['reading']}: {x['verdict']} (worst: {x['where']}: "
                                f"{fmt_measure(x)})" for x in o.to_dict("records")
                                if x["verdict"] != r["verdict"] or x["reading"] in shown))
@@ -379,13 +381,15 @@ def headline_text(n: dict) -> str:
     return text + (f", {n[NOT_A_VERDICT]} not a verdict" if n[NOT_A_VERDICT] else "")
 
 
-def claims_table(cards: pd.DataFrame) -> pd.DataFrame:
+def claims_table(cards: pd.DataFrame, register=None) -> pd.DataFrame:
     """claims.csv: one row per cell, the claim's words, criterion and measure from the table of
     claims, and the cell's verdict, worst condition and k of n, from the same results as
-    scorecard.csv, and the verdicts under the other readings where they differ."""
+    scorecard.csv, and the verdicts under the other readings where they differ (`register`: as
+    in cells)."""
+    by_id = BY_ID if register is None else {c.id: c for c in register}
     rows = []
     for r in cards.to_dict("records"):
-        c = BY_ID[r["claim"]]
+        c = by_id[r["claim"]]
         rows.append(dict(figure=r["figure"], claim=r["claim"], words=c.words,
                          diagnostic=c.diagnostic, criterion=c.criterion, measure=c.measure,
                          verdict=r["verdict"], reproduced=r["reproduced"],

@@ -38,14 +38,14 @@ def rescore(report: Path, register: Path) -> dict:
         return scorecard.no_verdicts(res, scorecard.reduced_scale(scale)) if scale \
             else res
     res = judged(fig_ms)
-    cards = scorecard.cells(res) if res else pd.DataFrame()
+    cards = scorecard.cells(res, reg) if res else pd.DataFrame()
     out = dict(default=scorecard.headline(cards, counted) if len(cards) else None,
                counted=counted, cells=cards, recommended=None, recommended_on=[])
     rec = [(fig, reading) for (study, reading, fig) in groups
            if study == "readings" and t.loc[(t["study"] == "readings") & (t["figure"] == fig)
                                             & (t["reading"] == reading), "recommended"].any()]
     if rec:
-        rc = pd.concat([scorecard.cells(judged(groups[("readings", reading, fig)]))
+        rc = pd.concat([scorecard.cells(judged(groups[("readings", reading, fig)]), reg)
                         for fig, reading in rec])
         out.update(recommended=scorecard.headline(rc), recommended_on=rec)
     before = report / "claims.csv"

@@ -94,3 +94,19 @@ def test_rescoring_draws_no_fresh_samples(tmp_path, monkeypatch):
     monkeypatch.setattr(coverage, "row", fail)
     sc._FRESH.clear()
     assert rescore.rescore(tmp_path, claims.REGISTER)["changed"] == []
+
+
+def test_the_edited_registers_readings_are_the_ones_shown(tmp_path):
+    """The cells take which readings they show from the register being rescored, not the
+    shipped one: every reading of the final error marked always_shown appears in the cell."""
+    _report(tmp_path)
+    ids = []
+
+    def show_all(by):
+        for rd in by["final"]["readings"]:
+            rd["always_shown"] = True
+            ids.append(rd["id"])
+    out = rescore.rescore(tmp_path, _edited(tmp_path, show_all))
+    cell = out["cells"].set_index("claim").loc["final"]
+    assert len(ids) > 2
+    assert all(f"{i}: " in cell["others"] for i in ids[1:]), cell["others"]
