@@ -119,6 +119,9 @@ def check_registers(name, report, expected):
         assert report["ymm"] > 0 and report["zmm"] == 0, f"{name}: not 256-bit code"
 
 
+# slow (102 s of make test's CPU: two children that compile every kernel): the haswell and host
+# targets, with the same six cases, are two of test_same_bits_on_every_target's (slow) targets.
+@pytest.mark.slow
 def test_arm5_same_bits_on_haswell_and_host(tmp_path):
     """AVX2 + FMA without AVX-512 (haswell) against whatever this CPU is: a DH and a URDF
     chain."""
