@@ -11,6 +11,7 @@ import subprocess
 import sys
 
 import pytest
+from conftest import tiny_overrides
 
 from pipeline.config import REPO_ROOT
 
@@ -107,3 +108,32 @@ def test_a_changed_gbmodel_file_makes_a_new_learner_record(tmp_path):
     assert "    spread: float = 0.4\n" in text
     learner.write_text(text.replace("    spread: float = 0.4\n", "    spread: float = 0.25\n"))
     assert spread() == "0.25"
+
+
+COMPOSES = """
+import atexit, sys
+from hydra._internal.config_loader_impl import ConfigLoaderImpl
+calls = []
+real = ConfigLoaderImpl.load_configuration
+def counted(self, *args, **kwargs):
+    calls.append(kwargs.get("run_mode"))
+    return real(self, *args, **kwargs)
+ConfigLoaderImpl.load_configuration = counted
+atexit.register(lambda: print("COMPOSES", len(calls), file=sys.stderr))
+from pipeline import cli, simulate
+sys.argv = ["pipeline.simulate", *sys.argv[1:]]
+cli.main(simulate.main)
+"""
+
+
+def test_a_stage_composes_its_config_three_times_not_five(tmp_path):
+    """A one-job stage composes the command line three times: the check (config and Hydra's
+    section at once), the project's own Hydra section it is checked against, and Hydra's run.
+    Before: five (the check's config and its Hydra section apart, and Hydra's start once more
+    only to read hydra.mode). The run is the same: the trial is computed and cached."""
+    env = dict(os.environ, PYTHONPATH=str(REPO_ROOT))
+    out = subprocess.run([sys.executable, "-c", COMPOSES, *tiny_overrides(tmp_path)],
+                         capture_output=True, text=True, cwd="/", env=env, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert "1 trials: 0 cached, 1 run, 0 failed" in out.stderr, out.stderr
+    assert out.stderr.strip().splitlines()[-1] == "COMPOSES 3", out.stderr
