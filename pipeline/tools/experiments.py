@@ -9,9 +9,18 @@ The Makefile reads its lists (PAPER, CHOICES, EXPLAIN, STUDIES) from `--make`, o
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
-from ..config import config_folders
 from ..experiments import GROUPS, declared, listed
+
+
+def config_folders() -> tuple[Path, ...]:
+    """pipeline.config.config_folders outside a stage: conf/ alone (the checkout's, or the
+    installed package's). Read from gbmodel, not the config module: every make runs this tool,
+    and the config (Hydra, the schemas) would cost it twice the CPU."""
+    from gbmodel.bodies import CONF_DIR
+
+    return (Path(CONF_DIR).resolve(),)
 
 
 def main(argv=None) -> int:
