@@ -34,6 +34,8 @@ import typing
 from dataclasses import dataclass
 from typing import Callable
 
+from ..plugins import import_plugins
+
 PLUGIN_PREFIX = "gbgrowth_engine_"  # a module of this name on the Python path is an engine too
 
 
@@ -82,14 +84,7 @@ def discover() -> tuple[str, ...]:
     submitit) inside its run function: naming the engines costs no such import."""
     for m in pkgutil.iter_modules(__path__):
         importlib.import_module(f"{__name__}.{m.name}")
-    for m in pkgutil.iter_modules():
-        if m.name.startswith(PLUGIN_PREFIX):
-            try:  # someone else's module: a failure is named when its engine is chosen, and
-                # costs no other command (every command imports this registry)
-                importlib.import_module(m.name)
-            except Exception as err:
-                why = str(err).splitlines()[0] if str(err) else ""
-                _BROKEN[m.name[len(PLUGIN_PREFIX):]] = f"{m.name}: {type(err).__name__}: {why}"
+    import_plugins(PLUGIN_PREFIX, _BROKEN)  # a failure is named when its engine is chosen
     _DISCOVERED[:] = [True]
     return tuple(sorted(_ENGINES))
 

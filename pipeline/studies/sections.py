@@ -52,16 +52,12 @@ def _load() -> None:
     import importlib
     import pkgutil
 
+    from ..plugins import import_plugins
+
     for m in pkgutil.iter_modules([str(Path(__file__).parent)]):
         if m.name != "__main__":
             importlib.import_module(f"{__package__}.{m.name}")
-    for m in pkgutil.iter_modules():
-        if m.name.startswith(PLUGIN_PREFIX):
-            try:  # someone else's module: its failure is named where its study is asked for
-                importlib.import_module(m.name)
-            except Exception as err:
-                why = str(err).splitlines()[0] if str(err) else ""
-                _BROKEN[m.name[len(PLUGIN_PREFIX):]] = f"{m.name}: {type(err).__name__}: {why}"
+    import_plugins(PLUGIN_PREFIX, _BROKEN)  # a failure is named where its study is asked for
 
 
 _BROKEN: dict[str, str] = {}  # study -> why its gbgrowth_study_<name> module did not import
