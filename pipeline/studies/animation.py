@@ -125,7 +125,7 @@ def animate(spec: dict, stored: list[tuple[int, np.ndarray]], title: str, path: 
     ax = fig.add_subplot(projection="3d" if three_d else None)
     fig.suptitle(title, fontsize=8)
     _draw(ax, frames[-1], lims, three_d, plane)
-    fig.tight_layout()  # fixed on the last (largest) frame, the same for every frame
+    figures.tight_layout(fig)  # fixed on the last (largest) frame, the same for every frame
     images = []
     for f in frames:  # what matplotlib's PillowWriter does, with the format named, not guessed
         _draw(ax, f, lims, three_d, plane)

@@ -7,12 +7,14 @@ from __future__ import annotations
 
 import re
 import textwrap
-
+from contextlib import contextmanager
 from pathlib import Path
 
 import matplotlib
 
 matplotlib.use("Agg")
+import matplotlib.artist as martist  # noqa: E402
+import matplotlib.axis as maxis  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
@@ -49,6 +51,39 @@ def save(fig, stem: Path, dpi: int) -> list[Path]:
         paths.append(path)
     plt.close(fig)
     return paths
+
+
+@contextmanager
+def measured_once():
+    """While a layout is computed nothing it measures moves, yet matplotlib measures the same
+    things again and again: an axis lays out its ticks (locator, formatter, every tick's text)
+    for its own box, for each of its two spines and for its label's place, and
+    tight_layout(rect=...) measures every Axes twice (once for the margins, once inside the
+    rect) on the same positions. Within this context each axis lays out its ticks once and each
+    Axes' layout box is measured once: the same numbers, so the same layout and the same bytes
+    (tests/studies/test_figures_layout.py compares them); a third of a cold report's CPU was
+    these repeats."""
+    ticks, boxes, seen = maxis.Axis._update_ticks, martist._get_tightbbox_for_layout_only, {}
+
+    def once(fn):
+        def remembered(obj, *args, **kwargs):
+            key = (fn, id(obj), *map(id, args), *kwargs.items())
+            if key not in seen:  # the object is kept with its result: its id stays its own
+                seen[key] = (obj, fn(obj, *args, **kwargs))
+            return seen[key][1]
+        return remembered
+    maxis.Axis._update_ticks = once(ticks)
+    martist._get_tightbbox_for_layout_only = once(boxes)
+    try:
+        yield
+    finally:
+        maxis.Axis._update_ticks, martist._get_tightbbox_for_layout_only = ticks, boxes
+
+
+def tight_layout(fig, **kwargs) -> None:
+    """fig.tight_layout(**kwargs), each measurement made once (measured_once)."""
+    with measured_once():
+        fig.tight_layout(**kwargs)
 
 
 TITLE_CHARS = 36  # a posture panel's title is wrapped at this width (fontsize 8, 3.6 in)
@@ -209,7 +244,7 @@ def legend_below(fig, handles, height: float, max_cols: int = 4) -> None:
         legend.remove()
     below = legend.get_window_extent(r).height / fig.dpi + 0.1  # [in]
     fig.set_size_inches(fig.get_size_inches()[0], height + below)
-    fig.tight_layout(rect=(0, below / (height + below), 1, 1))
+    tight_layout(fig, rect=(0, below / (height + below), 1, 1))
 
 
 def mark_growth_end(ax, summary, styles) -> None:
@@ -281,7 +316,7 @@ def joint_space_stages(spec: dict, stages: list[tuple[str, list]], title: str):
         ax.grid(False)
     axes[0, 0].set_ylabel("q2 [rad]")
     fig.suptitle(title)
-    fig.tight_layout()
+    tight_layout(fig)
     return fig
 
 
@@ -348,7 +383,7 @@ def postures(panels: list[tuple[str, dict, list]], title: str, n_postures: int =
                                    label=f"{n_postures} postures (links, base to hand)")],
                loc="lower center", ncol=3, frameon=False)
     fig.suptitle(title)
-    fig.tight_layout(rect=(0, 0.07, 1, 0.93))  # room for the legend below, the title above
+    tight_layout(fig, rect=(0, 0.07, 1, 0.93))  # room for the legend below, the title above
     return fig
 
 

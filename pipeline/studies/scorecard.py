@@ -472,7 +472,7 @@ def _trials_strip(ax, x0: float, y: float, c: dict) -> None:
 
 def figure(cards: pd.DataFrame, title: str):
     """scorecard.png: claims (rows) x figures (columns), cells coloured by verdict."""
-    from .figures import plt
+    from .figures import plt, tight_layout
 
     claims, figs = _order(cards)
     fig, ax = plt.subplots(figsize=(2.9 * len(figs) + 2.6, 0.7 * len(claims) + 1.2))
@@ -507,7 +507,7 @@ def figure(cards: pd.DataFrame, title: str):
     ax.legend(handles, list(COLOURS), loc="upper center", bbox_to_anchor=(0.5, -0.02), ncol=len(COLOURS),
               frameon=False, fontsize=8)
     fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
+    tight_layout(fig)
     return fig
 
 

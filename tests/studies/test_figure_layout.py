@@ -1,11 +1,15 @@
 """Figures for a paper (pipeline/studies/figures.py): a 2 x 2 sweep gives each factor its own
 channel, the legend covers no data, and no title or tick label is cut or overlaps another
-(checked on the rendered extents)."""
+(checked on the rendered extents); the layout measured once per object is matplotlib's own."""
+import contextlib
+import io
 import itertools
 
 import numpy as np
 import pandas as pd
 import pytest
+
+import matplotlib.axis as maxis
 
 import gbmodel
 from pipeline.studies import figures
@@ -166,3 +170,46 @@ def test_baselines_figure_legend_lies_below_the_panels():
         assert not _overlap(legend, ax.get_window_extent(r)), "the legend lies over a panel"
     assert len(fig.legends[0].get_texts()) == len(baselines.LEARNERS)
     figures.plt.close(fig)
+
+
+def _grid():
+    """Shared log axes in rows, an equal-aspect panel, a title over all, the legend below."""
+    fig, axes = figures.plt.subplots(2, 3, figsize=(7.5, 4.6), sharex=True, sharey="row")
+    x = np.geomspace(1, 1e4, 40)
+    for k, ax in enumerate(axes.flat[:-1]):
+        ax.plot(x, 0.2 * x ** (-0.1 * (k + 1)), label=f"line {k}")
+        ax.set(xscale="log", yscale="log", title=f"panel {k}")
+    axes[1, 2].remove()
+    square = fig.add_subplot(2, 3, 6)
+    square.plot([0, 1], [0, 2])
+    square.set(aspect="equal", title="equal aspect")
+    fig.suptitle("a grid")
+    figures.legend_below(fig, axes[0, 0].get_lines() + axes[0, 1].get_lines(), 4.6)
+    return fig
+
+
+@pytest.mark.parametrize("draw", [lambda: figures.learning_curves(*_sweep(LABELS), "sweep"),
+                                  _grid], ids=["curves", "grid"])
+def test_the_layout_measured_once_is_matplotlibs(draw, monkeypatch):
+    """figures.tight_layout (measured_once) places every panel where fig.tight_layout does, to
+    the last bit (the same PNG bytes), with under half the tick layouts."""
+    real, calls = maxis.Axis._update_ticks, []
+    monkeypatch.setattr(maxis.Axis, "_update_ticks",
+                        lambda self: calls.append(1) or real(self))
+
+    def laid_out():
+        calls.clear()
+        with figures.plt.rc_context(figures.RC):
+            fig = draw()
+            n, png = len(calls), io.BytesIO()
+            fig.savefig(png, format="png", dpi=40, metadata=figures.METADATA["png"])
+        pars = fig.subplotpars
+        figures.plt.close(fig)
+        return n, (pars.left, pars.right, pars.bottom, pars.top, pars.wspace, pars.hspace,
+                   tuple(fig.get_size_inches()), png.getvalue())
+
+    once, layout = laid_out()
+    monkeypatch.setattr(figures, "measured_once", contextlib.nullcontext)
+    plain, plain_layout = laid_out()
+    assert layout == plain_layout
+    assert once < 0.5 * plain, (once, plain)
