@@ -1,0 +1,30 @@
+"""The cold report benchmark (pipeline/tools/bench_report.py): its input checks, the command it
+times, and the files it says differ."""
+import pytest
+
+from pipeline.tools import bench_report
+from pipeline.tools.scale import REPO
+
+
+@pytest.mark.parametrize("args", [["--baseline", "/nonexistent"],
+                                  ["--baseline", str(REPO), "--rounds", "0"]])
+def test_bad_input_is_exit_2(args, capsys):
+    assert bench_report.main(args) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ")
+
+
+def test_both_checkouts_report_this_ones_aggregates_into_a_new_folder(tmp_path):
+    args = bench_report.report_args(["fig2", "fig4"], "smoke", tmp_path / "r")
+    assert args == ["experiments=[fig2,fig4]", "profile=smoke", f"paths.root={REPO}",
+                    f"paths.report={tmp_path / 'r'}"]
+
+
+def test_the_files_that_differ_are_named(tmp_path):
+    a, b = tmp_path / "a", tmp_path / "b"
+    for d, files in ((a, {"same.csv": "1", "moved.csv": "1.0", "only_a.png": "x"}),
+                     (b, {"same.csv": "1", "moved.csv": "1.1", "sub/only_b.csv": "y"})):
+        for name, text in files.items():
+            (d / name).parent.mkdir(parents=True, exist_ok=True)
+            (d / name).write_text(text)
+    assert bench_report.differing(a, b) == ["moved.csv", "only_a.png", "sub/only_b.csv"]
