@@ -23,7 +23,7 @@ ARGS    ?=
 TESTJOBS ?= 2
 
 .DEFAULT_GOAL := help
-.PHONY: help experiments setup reproduce studies stamp smoke simulate aggregate choices report pipeline bench scale test test-slow test-cluster clean
+.PHONY: help experiments setup reproduce studies stamp docs smoke simulate aggregate choices report pipeline bench scale test test-slow test-cluster clean
 
 help: ## list the targets
 	@awk 'BEGIN {FS = ":.*## "} /^[a-z-]+:.*## / {printf "  make %-10s %s\n", $$1, $$2}' $(MAKEFILE_LIST)
@@ -60,6 +60,9 @@ studies: ## the studies beyond the paper (readings x figures, baselines), then t
 
 stamp: ## after make studies and a rewrite of findings.md: record the numbers it discusses
 	@$(MAKE) --no-print-directory report PROFILE=full PUBLISH="report.publish=true report.stamp_findings=true"
+
+docs: $(STAMP) ## render README.md and docs/ from templates/ and the committed report's values.csv (CHECK=1: only compare)
+	$(PY) -m pipeline.tools.render $(if $(CHECK),--check)
 
 smoke: ## the same at smoke scale (1000 epochs, 2 trials) into outputs/smoke/latest/
 	@$(MAKE) --no-print-directory pipeline PROFILE=smoke

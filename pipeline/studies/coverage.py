@@ -131,11 +131,9 @@ def to_csv(t: pd.DataFrame) -> str:
     return t.to_csv(index=False, float_format="%.4f")
 
 
-BEGIN, END = "<!-- coverage table: pipeline.studies.coverage -->", "<!-- end of coverage table -->"
-
-
 def markdown(t: pd.DataFrame) -> str:
-    """The per-measure table as docs/scorecard.md shows it (between BEGIN and END): per measure,
+    """The per-measure table as docs/scorecard.md shows it (the named value coverage.table,
+    pipeline/studies/values.py): per measure,
     the 95 % t interval's coverage at each n, and the level used where it is below
     MIN_COVERAGE ("not calibrated" where no level reaches it)."""
     counts = sorted(int(n) for n in t["trials"].unique())
@@ -155,12 +153,4 @@ def markdown(t: pd.DataFrame) -> str:
                 text += f" (t at {100 * r['level']:g} %: {100 * r['coverage']:.1f} %)"
             return text
         lines.append(f"| {f} | {c} | {w} | " + " | ".join(cell(n) for n in counts) + " |")
-    return "\n".join([BEGIN, *lines, END])
-
-
-def docs_updated(text: str, t: pd.DataFrame) -> str:
-    """`text` (docs/scorecard.md) with its coverage table regenerated from `t`."""
-    if BEGIN not in text or END not in text:
-        raise ValueError(f"no {BEGIN} ... {END} block")
-    head, rest = text.split(BEGIN, 1)
-    return head + markdown(t) + rest.split(END, 1)[1]
+    return "\n".join(lines)

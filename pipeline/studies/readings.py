@@ -5,7 +5,7 @@ conditions under every reading that can change a verdict, as variants with commo
 numbers. This module checks the paper's claims (pipeline.studies.claims) on each reading
 separately and lays them out as one table (rows: readings, columns: claims) and one figure. It
 also holds the compact readings x figures matrix (`matrix`, readings_matrix.csv, also shown in
-README.md: `python -m pipeline.tools.readings` regenerates it there) and the reading the project
+README.md as the named value readings.table, pipeline/studies/values.py) and the reading the project
 recommends per figure (RECOMMENDED, written by hand from the findings, checked against the
 verdicts by `contradictions`).
 """
@@ -24,7 +24,6 @@ SYMBOLS = {scorecard.REPRODUCED: "✓", scorecard.NOT: "✗", scorecard.INCONCLU
            claims.DIVERGED: "÷"}
 SHORT = {"final": "final", "rise": "rise", "blend": "blend", "after": "after",
          "bootstrap": "boot"}  # column heads of the matrix (claims.CLAIMS' words in its legend)
-BEGIN, END = "<!-- readings-table:begin -->", "<!-- readings-table:end -->"
 FIGURE_CHOICES = ("default", "learning rate", "solver")  # the readings readings_curves shows
 
 
@@ -174,11 +173,6 @@ def matrix_markdown(m: pd.DataFrame) -> str:
     return "\n".join(lines) + "\n"
 
 
-def readme_block(path) -> str:
-    """README.md's readings table (between BEGIN and END), generated from readings_matrix.csv."""
-    return "\n".join([BEGIN, "", matrix_markdown(read_matrix(path)), END])
-
-
 def recommended(path=RECOMMENDED) -> pd.DataFrame:
     """The reading the project recommends per figure (recommended_readings.csv, written by hand
     from the findings): figure, reading, the claims its reason names as reproduced
@@ -315,10 +309,3 @@ def section(ctx: Context) -> list[str]:
             matrix_markdown(read_matrix(m)), recommendations_markdown(cards, recommended()),
             f"![readings]({png})", "", intervals_markdown(cards)]
 
-
-def readme_updated(text: str, csv) -> str:
-    """`text` (README.md) with its readings table regenerated from `csv` (readings_matrix.csv)."""
-    if BEGIN not in text or END not in text:
-        raise ValueError(f"no {BEGIN} ... {END} block")
-    head, rest = text.split(BEGIN, 1)
-    return head + readme_block(csv) + rest.split(END, 1)[1]

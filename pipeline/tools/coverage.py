@@ -1,8 +1,12 @@
 """The coverage of the scorecard's intervals on fresh samples (pipeline.studies.coverage), written
-to pipeline/studies/coverage.csv, which the scorecard reads, and into docs/scorecard.md's table.
+to pipeline/studies/coverage.csv, which the scorecard reads; its per-measure table is printed.
 
     python -m pipeline.tools.coverage REPORT_DIR [--trials 3 5 10 20] [--draws 4000]
-        [--out pipeline/studies/coverage.csv] [--docs docs/scorecard.md]
+        [--out pipeline/studies/coverage.csv]
+
+docs/scorecard.md shows the table as the named value coverage.table (pipeline/studies/values.py):
+the report's next run writes it into values.csv, and `python -m pipeline.tools.render` (make
+docs) renders the page.
 """
 from __future__ import annotations
 
@@ -11,7 +15,7 @@ import sys
 from pathlib import Path
 
 from .. import io
-from ..studies.coverage import (COUNTS, DRAWS, FIT, TABLE, docs_updated, markdown,
+from ..studies.coverage import (COUNTS, DRAWS, FIT, TABLE, markdown,
                                 per_trial_values, table, to_csv)
 
 
@@ -22,8 +26,6 @@ def main(argv=None) -> int:
     p.add_argument("--trials", type=int, nargs="+", default=list(COUNTS))
     p.add_argument("--draws", type=int, default=DRAWS)
     p.add_argument("--out", type=Path, default=TABLE)
-    p.add_argument("--docs", type=Path, default=None,
-                   help="a Markdown file whose coverage table to regenerate (docs/scorecard.md)")
     a = p.parse_args(argv)
     if not ((a.report / "scorecard.csv").exists() or (a.report / "measures.parquet").exists()):
         print(f"error: {a.report}: no measures.parquet or scorecard.csv", file=sys.stderr)
@@ -33,8 +35,6 @@ def main(argv=None) -> int:
         print(f"error: {a.report}: no measure has {FIT} trials", file=sys.stderr)
         return 2
     io.write_text(a.out, to_csv(t))
-    if a.docs is not None:
-        io.write_text(a.docs, docs_updated(a.docs.read_text(), t))
     print(markdown(t))
     return 0
 

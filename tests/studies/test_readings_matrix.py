@@ -7,7 +7,6 @@ import pytest
 from pipeline.config import REPO_ROOT
 from pipeline.studies import readings
 from pipeline.studies import scorecard as sc
-from pipeline.tools import readings as readings_tool
 from test_claims import EPOCHS, RISING, _figure
 
 FLAT = list(np.linspace(0.5, 0.02, len(EPOCHS)))  # no rise during growth
@@ -55,34 +54,24 @@ def test_the_matrix_holds_the_scorecards_verdicts_for_the_papers_claims_only(car
     assert m.set_index("reading").loc["eta = 0.1 / W", "fig4 rise"] != sc.REPRODUCED
 
 
-def test_the_markdown_is_the_csvs_and_readme_block_round_trips(cards, tmp_path):
+def test_the_markdown_is_the_csvs(cards, tmp_path):
     path = tmp_path / "readings_matrix.csv"
     path.write_text(readings.matrix(cards).to_csv(index=False))
     md = readings.matrix_markdown(readings.read_matrix(path))
     assert md == readings.matrix_markdown(readings.matrix(cards))
     assert "| eta = 0.1 / W | 4 |" in md and "✓ reproduced" in md
-    readme = "intro\n" + readings.BEGIN + "\nold\n" + readings.END + "\nrest\n"
-    new = readings.readme_updated(readme, path)
-    assert new.startswith("intro\n" + readings.readme_block(path)) and new.endswith("\nrest\n")
-    with pytest.raises(ValueError, match="readings-table"):
-        readings.readme_updated("no block", path)
 
 
-def test_the_readme_block_is_what_the_committed_matrix_gives():
+def test_the_readme_shows_the_committed_matrix_as_its_named_value():
+    """README.md's readings table is the named value readings.table (tests/studies/test_values.py
+    renders every page from values.csv): here, that value is what the committed matrix gives."""
+    from pipeline.studies import values
+
     csv = REPO_ROOT / "outputs" / "report" / "readings_matrix.csv"
-    if not csv.exists():
-        pytest.skip("outputs/report/readings_matrix.csv is not committed yet (the next full "
-                    "report writes it; then run python -m pipeline.tools.readings)")
-    text = (REPO_ROOT / "README.md").read_text()
-    shown = text[text.index(readings.BEGIN):text.index(readings.END) + len(readings.END)]
-    assert shown == readings.readme_block(csv)
-
-
-def test_the_readme_command_refuses_a_missing_matrix(tmp_path, capsys):
-    readme = tmp_path / "README.md"
-    readme.write_text(readings.BEGIN + "\n" + readings.END + "\n")
-    assert readings_tool.main([str(readme), str(tmp_path / "none.csv")]) == 2
-    assert capsys.readouterr().err.startswith("error: ")
+    table = values.read(REPO_ROOT / "outputs" / "report" / values.FILE)["readings.table"]
+    assert table == readings.matrix_markdown(readings.read_matrix(csv)).rstrip("\n")
+    assert table in (REPO_ROOT / "README.md").read_text()
+    assert "{{ readings.table }}" in (REPO_ROOT / "templates" / "README.md").read_text()
 
 
 def test_a_recommendation_the_verdicts_contradict_is_said_loudly(cards):
