@@ -1,5 +1,6 @@
 """The numbers findings.md reads from the committed report's mean curves (curves.parquet, which
-the quote checker does not read): the T_G = 10,000 paragraph, each checked here."""
+no named value reads yet: values.yaml names cells of CSV tables): the T_G = 10,000 paragraph, each
+checked here."""
 import pandas as pd
 import pytest
 

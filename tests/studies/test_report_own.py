@@ -48,6 +48,13 @@ def test_a_toy_study_joins_the_report_through_the_registry(tmp_path, compose_tin
     text = (out / "report.md").read_text()
     assert "## A toy study" in text and "1 figure(s): toyfig" in text
     assert "toy.csv" in report.listed_files(out / "report.md")
+    # the named values of the tables it holds (pipeline/studies/values.py): no paper figure, no
+    # readings study here, so none of their names; the coverage table it reads
+    from pipeline.studies import values
+    assert values.FILE in report.listed_files(out / "report.md")
+    held = values.read(out / values.FILE)
+    assert "coverage.table" in held and "readings.table" not in held
+    assert not set(held) & set(values.registry())
     assert "toyfig_curves.png" not in report.listed_files(out / "report.md")  # not a figure
     del sections.SECTIONS["toy"]
     with pytest.raises(ValueError, match="paper.study='toy' names no report section"):
