@@ -61,7 +61,7 @@ studies: ## the studies beyond the paper (readings x figures, baselines), then t
 stamp: ## after make studies and a rewrite of findings.md: record the numbers it discusses
 	@$(MAKE) --no-print-directory report PROFILE=full PUBLISH="report.publish=true report.stamp_findings=true"
 
-docs: $(STAMP) ## render README.md and docs/ from templates/ and the committed report's values.csv (CHECK=1: only compare)
+docs: $(STAMP) ## render README.md and docs/ from docs/templates/ and the committed report's values.csv (CHECK=1: only compare)
 	$(PY) -m pipeline.tools.render $(if $(CHECK),--check)
 
 smoke: ## the same at smoke scale (1000 epochs, 2 trials) into outputs/smoke/latest/

@@ -3,7 +3,7 @@
 The registry (values.yaml beside this module) maps a name to the cell of a report table it is
 read from; the report stage evaluates it over the tables it has just written and writes
 values.csv (name, value) with them. The pages (README.md, docs/*.md: their templates under
-templates/, rendered by `python -m pipeline.tools.render`) and the report's discussion
+docs/templates/, rendered by `python -m pipeline.tools.render`) and the report's discussion
 (findings.md) reference a value by its name, `{{ fig4.const0.5.final_mm:.1f }}`, and never
 write it by hand. Numbers that are not the report's (the paper's text, a setting, a timing) are
 plain text.

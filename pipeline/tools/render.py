@@ -5,8 +5,8 @@
     python -m pipeline.tools.render --values-from-tables   # values.csv from the report's tables
                                                # first (a name added since the report ran)
 
-A page with numbers of the report (README.md, docs/*.md) has its template under templates/ at
-the same path (templates/docs/results.md -> docs/results.md): its text with a reference
+A page with numbers of the report (README.md, docs/*.md) has its template under docs/templates/ at
+the same path (docs/templates/docs/results.md -> docs/results.md): its text with a reference
 `{{ name:.1f }}` where each number of the report stands, `{{ name }}` where a generated table
 does (pipeline/studies/values.py: the names, the formats). The values are the committed report's,
 outputs/report/values.csv (written by the report stage from pipeline/studies/values.yaml). Edit
@@ -26,12 +26,12 @@ from ..studies import values as named
 
 REPO_ROOT = Path(__file__).resolve().parents[2]  # the checkout (pipeline.config's, without Hydra)
 
-TEMPLATES = "templates"
+TEMPLATES = "docs/templates"
 VALUES = Path("outputs") / "report" / named.FILE
 
 
 def templates(root: Path) -> list[Path]:
-    """Every template, as its path under templates/ (the page's path from the root)."""
+    """Every template, as its path under docs/templates/ (the page's path from the root)."""
     base = root / TEMPLATES
     return sorted(p.relative_to(base) for p in base.rglob("*.md")) if base.is_dir() else []
 

@@ -21,12 +21,12 @@ def qroot(tmp_path):
     report.mkdir(parents=True)
     (report / "summary.csv").write_text(SUMMARY)
     (report / values.FILE).write_text(values.to_csv({"a.mm": 12.3951}))
-    (tmp_path / "templates").mkdir()
+    (tmp_path / "docs" / "templates").mkdir(parents=True)
     return tmp_path
 
 
 def _render_main(root, template: bytes | str, capsys, *flags):
-    (root / "templates" / "page.md").write_bytes(
+    (root / "docs" / "templates" / "page.md").write_bytes(
         template if isinstance(template, bytes) else template.encode())
     rc = render.main([*flags], root=root)
     return rc, capsys.readouterr().err.strip()
@@ -59,7 +59,7 @@ def test_r7_a_bad_cell_is_one_line_and_no_value(qroot, cell, says):
 
 @pytest.mark.parametrize("template, says", [
     ("a {{ a.mm:.30f }} m\n", "at most 15 decimals"),
-    ("a {{ a.mm:.1f }} m\n{{ nosuch:.1f }}\n", "templates/page.md:2: no value named"),
+    ("a {{ a.mm:.1f }} m\n{{ nosuch:.1f }}\n", "docs/templates/page.md:2: no value named"),
     ("a {{ a.mm:1f }} m\n", "format '1f'"),
     (b"caf\xe9 {{ a.mm:.1f }} mm\n", "not UTF-8"),
 ])
@@ -101,7 +101,7 @@ def test_r8_render_killed_while_writing_leaves_the_page_whole(qroot):
     page = qroot / "page.md"
     text = "about 10.0 mm\n"
     page.write_text(text)
-    (qroot / "templates" / "page.md").write_text("about {{ a.mm:.1f }} mm\n")
+    (qroot / "docs" / "templates" / "page.md").write_text("about {{ a.mm:.1f }} mm\n")
     r = subprocess.run([sys.executable, "-c", KILLED_WHILE_WRITING, str(qroot)],
                        env=dict(os.environ, PYTHONPATH=str(REPO_ROOT)), capture_output=True,
                        text=True, timeout=300)

@@ -29,7 +29,7 @@ def test_every_committed_page_equals_its_rendering():
     pages = render.rendered(REPO_ROOT)
     assert {str(p) for p in pages} >= {"README.md", "docs/choices.md", "docs/scorecard.md"}
     assert render.differing(REPO_ROOT, pages) == [], \
-        "edit templates/, then run python -m pipeline.tools.render (make docs)"
+        "edit docs/templates/, then run python -m pipeline.tools.render (make docs)"
 
 
 def test_the_committed_values_are_the_registry_evaluated_over_the_committed_report():
@@ -144,9 +144,8 @@ def _written(folder, vals):
 def _repo(tmp_path, template: str, page: str | None = None):
     (tmp_path / "outputs" / "report").mkdir(parents=True)
     _written(tmp_path / "outputs" / "report", {"a.mm": 12.3951, "t": "| x |"})
-    (tmp_path / "templates" / "docs").mkdir(parents=True)
-    (tmp_path / "templates" / "docs" / "p.md").write_text(template)
-    (tmp_path / "docs").mkdir()
+    (tmp_path / "docs" / "templates" / "docs").mkdir(parents=True)
+    (tmp_path / "docs" / "templates" / "docs" / "p.md").write_text(template)
     if page is not None:
         (tmp_path / "docs" / "p.md").write_text(page)
     return tmp_path
@@ -155,7 +154,7 @@ def _repo(tmp_path, template: str, page: str | None = None):
 def test_the_command_checks_then_writes_every_page(tmp_path, capsys):
     root = _repo(tmp_path, "ends at {{ a.mm:.1f }} mm\n\n{{ t }}\n", "ends at 10.0 mm\n")
     assert render.main(["--check"], root=root) == 1
-    assert capsys.readouterr().out == ("docs/p.md: differs from its rendering of templates/"
+    assert capsys.readouterr().out == ("docs/p.md: differs from its rendering of docs/templates/"
                                        "docs/p.md (python -m pipeline.tools.render)\n")
     assert render.main([], root=root) == 0
     assert (root / "docs" / "p.md").read_text() == "ends at 12.4 mm\n\n| x |\n"
@@ -164,10 +163,10 @@ def test_the_command_checks_then_writes_every_page(tmp_path, capsys):
 
 def test_the_command_writes_nothing_on_a_bad_reference(tmp_path, capsys):
     root = _repo(tmp_path, "ends at {{ a.mm:.1f }} mm\n")
-    (root / "templates" / "docs" / "q.md").write_text("x\n{{ nosuch:.1f }}\n")
+    (root / "docs" / "templates" / "docs" / "q.md").write_text("x\n{{ nosuch:.1f }}\n")
     assert render.main([], root=root) == 2
     err = capsys.readouterr().err
-    assert err == "error: templates/docs/q.md:2: no value named 'nosuch'\n"
+    assert err == "error: docs/templates/docs/q.md:2: no value named 'nosuch'\n"
     assert not (root / "docs" / "p.md").exists()
 
 
