@@ -61,7 +61,7 @@ def measured_once():
     tight_layout(rect=...) measures every Axes twice (once for the margins, once inside the
     rect) on the same positions. Within this context each axis lays out its ticks once and each
     Axes' layout box is measured once: the same numbers, so the same layout and the same bytes
-    (tests/studies/test_figures_layout.py compares them); a third of a cold report's CPU was
+    (tests/studies/test_figure_layout.py compares them); a third of a cold report's CPU was
     these repeats."""
     ticks, boxes, seen = maxis.Axis._update_ticks, martist._get_tightbbox_for_layout_only, {}
 
