@@ -53,6 +53,6 @@ def test_docs_show_the_committed_table():
     table = coverage.markdown(coverage.read_table())
     assert values.read(REPO_ROOT / "outputs" / "report" / values.FILE)["coverage.table"] == table
     assert table in (REPO_ROOT / "docs" / "scorecard.md").read_text()
-    assert "{{ coverage.table }}" in (REPO_ROOT / "templates" / "docs" / "scorecard.md").read_text()
+    assert "{{ coverage.table }}" in (REPO_ROOT / "docs" / "templates" / "docs" / "scorecard.md").read_text()
     assert coverage.markdown(coverage.read_table().assign(t95=0.5)) != table
 

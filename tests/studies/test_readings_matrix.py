@@ -71,7 +71,7 @@ def test_the_readme_shows_the_committed_matrix_as_its_named_value():
     table = values.read(REPO_ROOT / "outputs" / "report" / values.FILE)["readings.table"]
     assert table == readings.matrix_markdown(readings.read_matrix(csv)).rstrip("\n")
     assert table in (REPO_ROOT / "README.md").read_text()
-    assert "{{ readings.table }}" in (REPO_ROOT / "templates" / "README.md").read_text()
+    assert "{{ readings.table }}" in (REPO_ROOT / "docs" / "templates" / "README.md").read_text()
 
 
 def test_a_recommendation_the_verdicts_contradict_is_said_loudly(cards):
