@@ -237,10 +237,14 @@ class Description:
     home: list[float]  # the home posture, command units
     grid: Grid  # the target grid at full size
     grows: Optional[list[bool]] = None  # per segment: grows under non-proportional growth
+    # a third-party model's credit, {model, source, licence}: listed in every report whose trials
+    # use the body (pipeline/studies/provenance.py); what the trial computes does not depend on it
+    credits: Optional[dict[str, str]] = None
 
 
 FIELDS = tuple(f.name for f in fields(Description))
 CHAINS = ("dh", "urdf", "mjcf", "callable")  # the fields of which a body gives exactly one
+CREDITS = ("model", "source", "licence")  # the fields of a body's credits
 UNITS = {"rad": 1.0, "deg": None}  # deg: np.deg2rad (the same bits as the tables' conversion)
 CONF_PACKAGE = "gbgrowth_conf"  # conf/ installed from a wheel (pyproject.toml: package-dir)
 
@@ -392,6 +396,10 @@ def body_from(desc: dict) -> Body:
         raise _bad("grid", grid, str(err)) from None
     if targets.shape[1] != len(outputs):
         raise _bad("grid", grid, f"{name} controls {len(outputs)} coordinate(s)")
+    credits = desc.get("credits")
+    if credits is not None and (not isinstance(credits, dict) or set(credits) != set(CREDITS)
+                                or not all(isinstance(v, str) and v for v in credits.values())):
+        raise _bad("credits", credits, f"needs {list(CREDITS)}, each a non-empty string")
     grows = desc.get("grows")
     grows = [True] * m if grows is None else grows  # default: every segment grows
     if (not isinstance(grows, (list, tuple)) or len(grows) != m

@@ -177,7 +177,9 @@ def body_content(body: dict) -> dict:
     """The body's description with the SHA-256 of every file it reads (a URDF's bytes, as
     `urdf.sha256`; an MJCF model's and its includes'; a body in the loop's function source and
     files, gbmodel.bodies.source_digest): an edited file is another body, so its trials get
-    other keys."""
+    other keys. `credits` is left out where the body has none."""
+    if body.get("credits") is None:  # a body without credits: its key as before the field
+        body = {k: v for k, v in body.items() if k != "credits"}
     for section in gbmodel.bodies.READS:
         try:
             sha = gbmodel.bodies.source_digest(section, body.get(section))

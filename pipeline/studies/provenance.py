@@ -35,20 +35,6 @@ from .sections import Context, register
 PACKAGES = ("numpy", "numba", "scipy", "pandas", "pyarrow", "matplotlib", "hydra-core",
             "omegaconf")
 LOCK = REPO_ROOT / "requirements.lock"
-# Third-party robot models a report may use: body name -> (what, source, licence)
-CREDITS = {
-    "icub_urdf": ("the iCub's URDF (model iCubLisboa01)", "robotology/icub-models, PyPI "
-                  "package icub-models", "CC-BY-SA-4.0"),
-    "ergo_jr": ("the Poppy Ergo Jr's URDF", "poppy-project/poppy-ergo-jr, PyPI package "
-                "poppy-ergo-jr", "GPL-3.0"),
-    **{body: (f"the MJCF model {file} of Gymnasium's {env} (from OpenAI Gym)",
-              "Farama-Foundation/Gymnasium, PyPI package gymnasium", "MIT")
-       for body, file, env in (("pusher", "pusher.xml", "Pusher"),
-                               ("reacher", "reacher.xml", "Reacher"),
-                               ("humanoid_arm", "humanoid.xml", "Humanoid"))},
-}
-
-
 def write_models(aggs: dict, out: Path) -> list[Path]:
     """models/<figure>.json per figure with a model: each condition's spec and every trial's
     final M (rounded to float32's precision, 9 significant digits: the posture it gives
@@ -172,12 +158,16 @@ def figure_costs(aggs: dict) -> dict[str, tuple[int, float]]:
 
 
 def credits(aggs: dict) -> list[str]:
-    """Markdown lines crediting the third-party robot models the report's trials used."""
-    used = {c["spec"]["body"].get("name") for a in aggs.values()
-            for c in a["models"]["conditions"].values()}
-    lines = [f"- {what}: {src}; licence {lic}" for body, (what, src, lic) in CREDITS.items()
-             if body in used]
-    return lines
+    """Markdown lines crediting the third-party robot models the report's trials used: each
+    body's `credits` (its conf/body/<name>.yaml), once per model."""
+    used = {}
+    for a in aggs.values():
+        for c in a["models"]["conditions"].values():
+            given = c["spec"]["body"].get("credits")
+            if given:
+                used[given["model"]] = given
+    return [f"- {c['model']}: {c['source']}; licence {c['licence']}"
+            for _, c in sorted(used.items())]
 
 
 def markdown(aggs: dict, out_dir=None) -> list[str]:

@@ -149,6 +149,14 @@ def test_editing_one_body_changes_only_its_trial_keys():
     assert set(keys("arm2")).isdisjoint(keys("arm5"))
 
 
+def test_credits_enter_only_the_keys_of_a_body_that_has_them():
+    """credits: None is left out of a trial's spec (the paper's bodies keep their keys)."""
+    spec = plan(compose(["body=arm5", "profile=smoke"]))[0]["spec"]
+    assert "credits" not in spec["body"]
+    spec = plan(compose(["body=reacher", "profile=smoke"]))[0]["spec"]
+    assert spec["body"]["credits"]["licence"] == "MIT"
+
+
 def _arm(**changes) -> dict:
     return {**read_description("arm5"), **changes}
 
@@ -169,6 +177,9 @@ def _arm(**changes) -> dict:
     (dict(units="grad"), "body.units"),
     (dict(hand=[0.0, 0.1, 0.0]), "body.hand"),
     (dict(colour="red"), "body.colour"),
+    (dict(credits="MIT"), "body.credits"),
+    (dict(credits=dict(model="m", source="s")), "body.credits"),
+    (dict(credits=dict(model="m", source="s", licence="")), "body.credits"),
 ])
 def test_bad_descriptions_name_the_key(changes, key):
     with pytest.raises(ValueError) as err:

@@ -86,12 +86,23 @@ def test_measured_cpu_time_sums_each_trials_own_record(tmp_path):
 
 
 def test_credits_name_the_third_party_robots_used():
-    aggs = {f: dict(models=dict(conditions={"c": dict(spec=dict(body=dict(name=b)))}))
-            for f, b in (("a", "icub_urdf"), ("b", "ergo_jr"), ("c", "arm5"))}
+    # the credits come from each body's own file (conf/body/<name>.yaml), carried in its spec
+    from gbmodel.bodies import read_description
+    aggs = {f: dict(models=dict(conditions={"c": dict(spec=dict(body=read_description(b)))}))
+            for f, b in (("a", "icub_urdf"), ("b", "ergo_jr"), ("c", "arm5"), ("d", "ergo_jr"))}
     lines = provenance.credits(aggs)
     assert any("iCub" in ln and "CC-BY-SA-4.0" in ln for ln in lines)
     assert any("Ergo Jr" in ln and "GPL-3.0" in ln for ln in lines) and len(lines) == 2
     assert provenance.credits({"c": aggs["c"]}) == []
+
+
+def test_every_shipped_third_party_body_carries_its_credits():
+    # a body read from a URDF or MJCF file of another project names its model, source, licence
+    from gbmodel.bodies import read_description, shipped
+    for name in shipped():
+        desc = read_description(name)
+        if desc.get("urdf") or desc.get("mjcf"):
+            assert set(desc.get("credits") or {}) == {"model", "source", "licence"}, name
 
 
 def test_estimated_cpu_time_follows_the_cost_model():
