@@ -37,7 +37,7 @@ arm grows twice as fast as the forearm" over the whole growth (rate_factors).
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
-from typing import Optional
+from typing import Any, Callable, Optional
 
 import numpy as np
 
@@ -236,33 +236,19 @@ class Growth:
     def validate(self, body) -> "Growth":
         check_fields(self, "growth", LIMITS)
         self._validate_table(body)  # before the sizes are mapped through the table
-        for name in ("start_size", "end_size"):
-            if self.pattern in ("proportional", "nonproportional"):
+        pattern = PATTERN_TABLE[self.pattern]
+        for name in ("rates", "leads"):
+            if getattr(self, name) is not None and name not in pattern.uses:
+                raise SpecError(f"growth.{name}", getattr(self, name),
+                                f"only growth=per_segment uses {name}")
+        if pattern.holds:  # segments may be held: each end size must be reachable
+            for name in ("start_size", "end_size"):
                 try:
                     self.scales(body, getattr(self, name))
                 except ValueError as err:
                     raise SpecError(f"growth.{name}", getattr(self, name),
                                     f"body {body.name!r}: {err}") from None
-        if self.pattern == "nonproportional" and body.growing.all():
-            raise SpecError("growth.pattern", self.pattern,
-                            f"every segment of {body.name} grows, so non-proportional growth "
-                            "would equal proportional growth; use growth=proportional")
-        if self.pattern == "per_segment" and self.rates is not None:
-            self._validate_rates(body)
-        elif self.rates is not None:
-            raise SpecError("growth.rates", self.rates, "only growth=per_segment uses rates")
-        if self.pattern == "per_segment" and self.rates is None:
-            c = self.leads
-            if (not isinstance(c, (list, tuple)) or len(c) != body.m
-                    or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
-                               and np.isfinite(x) and abs(x) <= 1 for x in c)):
-                raise SpecError("growth.leads", c, f"per_segment growth needs {body.m} leads "
-                                "in -1 ... 1, one per segment of " + body.name)
-        elif self.leads is not None:
-            raise SpecError("growth.leads", self.leads, "only growth=per_segment uses leads")
-        if self.pattern == "proximal_first" and np.count_nonzero(body.segment_lengths) < 2:
-            raise SpecError("growth.pattern", self.pattern,
-                            f"{body.name} has fewer than two segments of non-zero length")
+        pattern.check(self, body)
         return self
 
     def _validate_rates(self, body: "Body") -> None:
@@ -331,14 +317,7 @@ class Growth:
 
     def segments(self, body) -> tuple[np.ndarray, np.ndarray]:
         """(grows, leads) per segment of `body`: the pattern as data for segment_factors."""
-        seg, every = body.segment_lengths, np.ones(body.m, bool)
-        if self.pattern == "nonproportional":
-            return body.growing, np.zeros(body.m)
-        if self.pattern == "proximal_first":
-            return every, proximal_leads(seg, self.proximal_lead)
-        if self.pattern == "per_segment":
-            return every, np.asarray(self.leads, np.float64)
-        return every, np.zeros(body.m)
+        return PATTERN_TABLE[self.pattern].segments(self, body)
 
     def scales(self, body, sizes) -> np.ndarray:
         """Per-joint length factors (..., m) of the body at `sizes` (any slice of epochs)."""
@@ -353,6 +332,62 @@ class Growth:
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+
+def _every_segment_grows(body) -> np.ndarray:
+    return np.ones(body.m, bool)
+
+
+def _needs_held_segments(growth: Growth, body) -> None:
+    if body.growing.all():
+        raise SpecError("growth.pattern", growth.pattern,
+                        f"every segment of {body.name} grows, so non-proportional growth "
+                        "would equal proportional growth; use growth=proportional")
+
+
+def _needs_two_segments(growth: Growth, body) -> None:
+    if np.count_nonzero(body.segment_lengths) < 2:
+        raise SpecError("growth.pattern", growth.pattern,
+                        f"{body.name} has fewer than two segments of non-zero length")
+
+
+def _needs_leads_or_rates(growth: Growth, body) -> None:
+    if growth.rates is not None:
+        growth._validate_rates(body)
+        return
+    c = growth.leads
+    if (not isinstance(c, (list, tuple)) or len(c) != body.m
+            or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                       and np.isfinite(x) and abs(x) <= 1 for x in c)):
+        raise SpecError("growth.leads", c, f"per_segment growth needs {body.m} leads "
+                        "in -1 ... 1, one per segment of " + body.name)
+
+
+@dataclass(frozen=True)
+class Pattern:
+    """A growth pattern as data: which segments grow and their leads (for segment_factors), what
+    it needs of a body and of the config (check: raises SpecError), the fields only it uses, and
+    whether it holds segments (its start and end sizes are then checked reachable)."""
+    segments: Callable[[Growth, Any], tuple[np.ndarray, np.ndarray]]
+    check: Callable[[Growth, Any], None] = lambda growth, body: None
+    uses: tuple = ()
+    holds: bool = False
+
+
+# The growth patterns (conf/growth/<name>.yaml picks one; docs/bodies.md, "Growth of a body"):
+# a new pattern is a row here and a config file
+PATTERN_TABLE = {
+    "proportional": Pattern(lambda g, b: (_every_segment_grows(b), np.zeros(b.m)), holds=True),
+    "nonproportional": Pattern(lambda g, b: (b.growing, np.zeros(b.m)),
+                               check=_needs_held_segments, holds=True),
+    "proximal_first": Pattern(lambda g, b: (_every_segment_grows(b),
+                                            proximal_leads(b.segment_lengths, g.proximal_lead)),
+                              check=_needs_two_segments),
+    "per_segment": Pattern(lambda g, b: (_every_segment_grows(b),
+                                         np.asarray(g.leads, np.float64)),
+                           check=_needs_leads_or_rates, uses=("leads", "rates")),
+}
+assert tuple(PATTERN_TABLE) == PATTERNS
 
 
 # Growth's fields and their ranges (gbmodel.spec.check_fields); validate() checks the rest
