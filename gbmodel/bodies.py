@@ -19,12 +19,14 @@ import math
 import re
 from dataclasses import MISSING, dataclass, field, fields
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any, Optional
 
 import numpy as np
 import yaml
 
 from .kinematics import chain_position, hand_position
+from .spec import Choice, Flag, Free, Maybe, Members, Record, Text, check_fields
 from .urdf import MAX_MAGNITUDE
 
 
@@ -246,6 +248,18 @@ FIELDS = tuple(f.name for f in fields(Description))
 CHAINS = ("dh", "urdf", "mjcf", "callable")  # the fields of which a body gives exactly one
 CREDITS = ("model", "source", "licence")  # the fields of a body's credits
 UNITS = {"rad": 1.0, "deg": None}  # deg: np.deg2rad (the same bits as the tables' conversion)
+# The description's fields and what each may hold (gbmodel.spec.check_fields, in this order);
+# body_from checks the rest against the chain: the joints' count m (dh, limits, home, grows), the
+# grid's coordinates against outputs, the one chain of CHAINS
+LIMITS = dict(
+    name=Text(), units=Choice(*UNITS), description=Free("any text"),
+    base=Free("3 x 4 numbers"), hand=Free("3 numbers"),
+    dh=Free("m rows of 4"), urdf=Free("{file, root, tip, ...}"),
+    mjcf=Free("{file, root, tip, ...}"), callable=Free("{factory, ...}"),
+    outputs=Members(0, 1, 2, what="hand coordinates"), normalise=Flag(),
+    limits=Free("m rows [min, max]"), saturate=Flag(), home=Free("m numbers"),
+    grid=Free("{lo, hi, num}"), grows=Free("m values true/false"),
+    credits=Maybe(Record(*CREDITS)))
 CONF_PACKAGE = "gbgrowth_conf"  # conf/ installed from a wheel (pyproject.toml: package-dir)
 
 
@@ -324,15 +338,13 @@ def body_from(desc: dict) -> Body:
     unknown = sorted(set(desc) - set(FIELDS))
     if unknown:
         raise _bad(unknown[0], desc[unknown[0]], f"unknown key; a body has {list(FIELDS)}")
-    desc = {**{f.name: f.default if f.default_factory is MISSING else f.default_factory()
-                for f in fields(Description) if (f.default, f.default_factory) != (MISSING, MISSING)},
-            **desc}  # the defaults of the fields not given
-    name = desc.get("name")
-    if not isinstance(name, str) or not name:
-        raise _bad("name", name, "must be a non-empty string")
-    units = desc.get("units", "rad")
-    if units not in UNITS:
-        raise _bad("units", units, f"choose one of {list(UNITS)}")
+    desc = {**{f.name: None if f.default is MISSING and f.default_factory is MISSING
+                else f.default if f.default_factory is MISSING else f.default_factory()
+                for f in fields(Description)},
+            **desc}  # the defaults of the fields not given (None: a field that must be given)
+    check_fields(SimpleNamespace(**desc), "body", LIMITS)
+    name, units, outputs = desc["name"], desc["units"], desc["outputs"]
+    normalise, saturate = desc["normalise"], desc["saturate"]
     angle = np.deg2rad if units == "deg" else (lambda x: x)
     base = _matrix(desc, "base", 3, 4, np.hstack([np.eye(3), np.zeros((3, 1))]).tolist())
     hand = _matrix(desc, "hand", 3, None, [0.0, 0.0, 0.0])
@@ -360,13 +372,6 @@ def body_from(desc: dict) -> Body:
         if np.any(hand != 0):
             raise _bad("hand", desc["hand"], "a DH body's hand is the last frame's origin: fold "
                        "the offset into the last row's a (along x) and d (along z)")
-    outputs = desc.get("outputs")
-    if (not isinstance(outputs, (list, tuple)) or not outputs or len(set(outputs)) != len(outputs)
-            or any(isinstance(k, bool) or k not in (0, 1, 2) for k in outputs)):
-        raise _bad("outputs", outputs, "a list of distinct hand coordinates out of 0, 1, 2")
-    normalise = desc.get("normalise", False)
-    if not isinstance(normalise, bool):
-        raise _bad("normalise", normalise, "must be true or false")
     q_min = q_max = None
     if normalise:
         if desc.get("limits") is None and general and np.all(np.isfinite(urdf_limits)):
@@ -383,9 +388,6 @@ def body_from(desc: dict) -> Body:
     elif desc.get("limits") is not None:
         raise _bad("limits", desc["limits"], "only normalise: true uses joint limits; set it, or "
                    "limits: null")
-    saturate = desc.get("saturate", True)
-    if not isinstance(saturate, bool):
-        raise _bad("saturate", saturate, "must be true or false")
     home = _matrix(desc, "home", m, None)
     grid = desc.get("grid")
     if not isinstance(grid, dict) or set(grid) != {"lo", "hi", "num"}:
@@ -396,10 +398,6 @@ def body_from(desc: dict) -> Body:
         raise _bad("grid", grid, str(err)) from None
     if targets.shape[1] != len(outputs):
         raise _bad("grid", grid, f"{name} controls {len(outputs)} coordinate(s)")
-    credits = desc.get("credits")
-    if credits is not None and (not isinstance(credits, dict) or set(credits) != set(CREDITS)
-                                or not all(isinstance(v, str) and v for v in credits.values())):
-        raise _bad("credits", credits, f"needs {list(CREDITS)}, each a non-empty string")
     grows = desc.get("grows")
     grows = [True] * m if grows is None else grows  # default: every segment grows
     if (not isinstance(grows, (list, tuple)) or len(grows) != m

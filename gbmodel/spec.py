@@ -125,6 +125,39 @@ class Maybe(Constraint):
             self.inner.check(key, value)
 
 
+class Text(Constraint):
+    """A non-empty string."""
+
+    def check(self, key, value):
+        if not isinstance(value, str) or not value:
+            raise SpecError(key, value, "must be a non-empty string")
+
+
+class Record(Constraint):
+    """A mapping of exactly these fields, each a non-empty string (a body's credits)."""
+
+    def __init__(self, *names):
+        self.names = names
+
+    def check(self, key, value):
+        if (not isinstance(value, dict) or set(value) != set(self.names)
+                or not all(isinstance(v, str) and v for v in value.values())):
+            raise SpecError(key, value, f"needs {list(self.names)}, each a non-empty string")
+
+
+class Members(Constraint):
+    """A non-empty list of distinct values out of `options` (a body's controlled coordinates)."""
+
+    def __init__(self, *options, what: str):
+        self.options, self.what = options, what
+
+    def check(self, key, value):
+        if (not isinstance(value, (list, tuple)) or not value or len(set(value)) != len(value)
+                or any(isinstance(k, bool) or k not in self.options for k in value)):
+            raise SpecError(key, value, f"a list of distinct {self.what} out of "
+                            + ", ".join(map(str, self.options)))
+
+
 class Free(Constraint):
     """A field whose value the class's validate() checks against other fields (a list whose
     length is the body's segments, a table): named here so that every field is in the table."""

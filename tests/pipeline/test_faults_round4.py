@@ -168,14 +168,15 @@ def test_r1_to_r5_values_the_compiled_path_cannot_compute_are_refused(tmp_path, 
     assert not any(tmp_path.iterdir())  # refused before planning: nothing written
 
 
-def test_r1_every_key_of_a_learner_and_of_growth_has_a_range():
+def test_r1_every_key_of_a_learner_of_growth_and_of_a_body_has_a_range():
     import dataclasses
 
     import gbmodel
-    from gbmodel import growth, spec
+    from gbmodel import bodies, growth, spec
     tables = {name: (gbmodel.learners.get(name).Params, gbmodel.learners.get(name).LIMITS)
               for name in gbmodel.learners.available()}
     tables["growth"] = (growth.Growth, growth.LIMITS)
+    tables["body"] = (bodies.Description, bodies.LIMITS)
     for name, (cls, limits) in tables.items():
         fields = [f.name for f in dataclasses.fields(cls)]
         assert sorted(limits) == sorted(fields), name
@@ -184,7 +185,7 @@ def test_r1_every_key_of_a_learner_and_of_growth_has_a_range():
             inner = c.inner if isinstance(c, spec.Maybe) else c
             if isinstance(inner, (spec.Int, spec.Number)):
                 assert inner.hi is not None, (name, key)  # bounded above, not only below
-        cls_default = cls() if name != "growth" else None
+        cls_default = cls() if name not in ("growth", "body") else None
         if cls_default is not None:
             cls_default.validate()  # the defaults are inside their ranges
 
