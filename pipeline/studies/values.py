@@ -70,9 +70,37 @@ def _coverage_table(report: Path) -> str:
     return coverage.markdown(coverage.read_table())
 
 
-# name -> the Markdown table it is (of the report folder); pipeline/studies/coverage.csv, which
-# the scorecard reads, is the report's input, so its table is the report's value too
-TABLES = {"readings.table": _readings_table, "coverage.table": _coverage_table}
+def _headline(report: Path, recommended: bool) -> str:
+    """The headline of the default reading (the paper's claims on the counted figures, from
+    claims.csv) or of the recommended one (its readings' cells, from readings.csv), as the
+    report's scorecard words it: "10 reproduced, 4 not reproduced, 5 inconclusive"."""
+    import pandas as pd
+
+    from . import measures_table, scorecard
+
+    t = pd.read_parquet(report / measures_table.NAME,
+                        columns=["study", "figure", "reading", "counted", "recommended"])
+    if recommended:
+        pairs = set(zip(*t.loc[(t["study"] == "readings") & t["recommended"],
+                               ["figure", "reading"]].to_numpy().T))
+        cells = pd.read_csv(report / "readings.csv", keep_default_na=False)
+        cells = cells[[(f, r) in pairs for f, r in zip(cells["figure"], cells["reading"])]]
+        counted = None
+    else:
+        cells = pd.read_csv(report / "claims.csv", keep_default_na=False)
+        counted = set(t.loc[(t["study"] == "figures") & t["counted"], "figure"])
+    if not len(cells):
+        raise BadValue(f"{report}: no cells for the {'recommended' if recommended else 'default'}"
+                       " headline")
+    cells = cells.assign(diagnostic=cells["diagnostic"].astype(str) == "True")
+    return scorecard.headline_text(scorecard.headline(cells, counted))
+
+
+# name -> the Markdown table or text it is (of the report folder); pipeline/studies/coverage.csv,
+# which the scorecard reads, is the report's input, so its table is the report's value too
+TABLES = {"readings.table": _readings_table, "coverage.table": _coverage_table,
+          "headline.default": lambda report: _headline(report, False),
+          "headline.recommended": lambda report: _headline(report, True)}
 
 
 def registry(path: Path = REGISTRY) -> dict[str, str]:

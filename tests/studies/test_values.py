@@ -178,3 +178,16 @@ def test_values_from_tables_refuses_a_report_that_lacks_a_name(tmp_path, capsys)
     assert err.startswith("error: ") and "no value for " in err and err.count("\n") == 1
     assert (root / "outputs" / "report" / values.FILE).read_text() == before
     assert (root / "docs" / "p.md").read_text() == "ends at 10.0 mm\n"
+
+
+def test_the_headlines_are_the_reports_own():
+    """headline.default and headline.recommended (README's two headlines) are the words of the
+    committed report's scorecard, computed again from its claims.csv, readings.csv and
+    measures.parquet."""
+    report = REPO_ROOT / "outputs" / "report"
+    text = (report / "report.md").read_text()
+    vals = values.read(report / values.FILE)
+    assert f"this project's default reading: **{vals['headline.default']}**" in text
+    assert f": **{vals['headline.recommended']}**." in text
+    for name in ("headline.default", "headline.recommended"):
+        assert values.TABLES[name](report) == vals[name]
