@@ -173,7 +173,8 @@ def scorecard_part(ctx: Context, p: Paper) -> list[str]:
     if not p.claim_rows:
         return []
     counted = counted_figures(p.declared)
-    readings_cards, recommended = _recommended(ctx)
+    # the readings' headline: at the paper's scale only (a reduced scale decides nothing)
+    readings_cards, recommended = _recommended(ctx) if not ctx.cfg.report.scale else (None, None)
     ctx.text("claims.csv", pd.DataFrame(p.claim_rows).to_csv(index=False))
     every = pd.DataFrame(p.measures)  # the primary reading's; the others' beside
     ctx.text("scorecard.csv", every[every["primary"]].to_csv(index=False, float_format="%.6g"))
@@ -309,7 +310,7 @@ def _recommended(ctx: Context) -> tuple[pd.DataFrame, pd.DataFrame]:
     from . import readings
 
     read = {k: a for k, a in ctx.of("readings").items() if declares_claims(a)}
-    cards = readings.intervals(read) if read else pd.DataFrame()
+    cards = readings.shared_cards(ctx, read) if read else pd.DataFrame()
     return cards, readings.recommended()
 
 
@@ -325,7 +326,7 @@ def _write_measures(ctx: Context, measured: list, counted: list) -> None:
     recs = set(zip(*readings.recommended()[["figure", "reading"]].to_numpy().T))
     frames += [measures_table.frame(ms, "readings", reading=label,
                                     recommended=(fig, label) in recs)
-               for (fig, label), ms in readings.readings_measures(read).items()]
+               for (fig, label), ms in readings.shared_measures(ctx, read).items()]
     frames += measures_table.study_frames(ctx.of("baselines"), ctx.of("choices"))
     ctx.written.append(measures_table.write(ctx.out / measures_table.NAME, frames,
                                             ctx.cfg.report.scale))

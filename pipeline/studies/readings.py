@@ -70,12 +70,13 @@ def readings_measures(read: dict) -> dict:
     return out
 
 
-def intervals(aggs: dict, scale: str = "") -> pd.DataFrame:
+def intervals(aggs: dict, scale: str = "", measured: dict | None = None) -> pd.DataFrame:
     """One row per (figure, reading, claim): the scorecard's verdict with its 95 % interval over
     the reading's trials (pipeline/studies/scorecard.py), the measure that decides it. scale: the
-    run's reduced scale (report.scale): every verdict "not a verdict", as on the figures."""
+    run's reduced scale (report.scale): every verdict "not a verdict", as on the figures.
+    measured: readings_measures(aggs), where the caller has it already."""
     rows = []
-    for (_, label), ms in readings_measures(aggs).items():
+    for (_, label), ms in (readings_measures(aggs) if measured is None else measured).items():
         results = scorecard.judged(ms)
         if scale:
             results = scorecard.no_verdicts(results, scorecard.reduced_scale(scale))
@@ -286,11 +287,24 @@ def figure(aggs: dict, title: str):
     return fig
 
 
+def shared_measures(ctx: Context, read: dict) -> dict:
+    """readings_measures(read) of the report `ctx`, computed once for all its sections (`read`:
+    the readings study's aggregates that declare the paper's claims)."""
+    return ctx.once("readings measures", lambda: readings_measures(read))
+
+
+def shared_cards(ctx: Context, read: dict, scale: str = "") -> pd.DataFrame:
+    """intervals(read, scale) of the report `ctx`, computed once per scale for all its
+    sections."""
+    return ctx.once(("readings cards", scale),
+                    lambda: intervals(read, scale, shared_measures(ctx, read)))
+
+
 @register("readings", 30)
 def section(ctx: Context) -> list[str]:
     studies = ctx.of("readings")
     read = {k: a for k, a in studies.items() if declares_claims(a)}
-    cards = intervals(read, ctx.cfg.report.scale)  # once, at the run's scale, for every file
+    cards = shared_cards(ctx, read, ctx.cfg.report.scale)  # at the run's scale, for every file
     reading_table = table(cards)
     if not len(reading_table):
         return []

@@ -278,11 +278,12 @@ def _margin(g: pd.DataFrame) -> pd.Series:
 ORDER = (DIVERGED, NOT_A_VERDICT, NOT, INCONCLUSIVE, REPRODUCED)  # a cell's: the first present
 
 
-def _cell(claim: str, figure: str, reading: str, g: pd.DataFrame) -> dict:
+def _cell(claim: str, figure: str, reading: str, g: pd.DataFrame, margin: pd.Series) -> dict:
+    """The cell of the measures `g` (margin: _margin of every row of their table, NaN as -inf)."""
     vs = g["verdict"].tolist()
     v = next(x for x in ORDER if x in vs)
     deciding = g[g["verdict"] == v]  # the measures that give the cell its verdict
-    pick = deciding.loc[_margin(deciding).fillna(-np.inf).idxmin()]
+    pick = deciding.loc[margin.loc[deciding.index].idxmin()]
     need = pick["trials_to_decide"]
     return dict(claim=claim, figure=figure, reading=reading,
                 diagnostic=bool(pick["diagnostic"]) if "diagnostic" in pick else
@@ -303,7 +304,8 @@ def all_cells(results: list[dict]) -> pd.DataFrame:
     if "reading" not in df:
         df["reading"] = ""
     df["reading"] = df["reading"].fillna("")
-    return pd.DataFrame([_cell(c, f, rd, g) for (c, f, rd), g
+    margin = _margin(df).fillna(-np.inf)  # per row: once for the table, not per cell
+    return pd.DataFrame([_cell(c, f, rd, g, margin) for (c, f, rd), g
                          in df.groupby(["claim", "figure", "reading"], sort=False)])
 
 
@@ -320,12 +322,13 @@ def cells(results: list[dict], register=None) -> pd.DataFrame:
         return every
     primary = every[every["reading"] == ""].copy()
     other = every[every["reading"] != ""]
+    others = {k: g.to_dict("records")  # each (claim, figure)'s, grouped once, in table order
+              for k, g in other.groupby(["claim", "figure"], sort=False)}
     notes = []
     for r in primary.to_dict("records"):
-        o = other[(other["claim"] == r["claim"]) & (other["figure"] == r["figure"])]
         shown = {rd.id for rd in by_id[r["claim"]].readings if rd.always_shown}
         notes.append("; ".join(f"{x['reading']}: {x['verdict']} (worst: {x['where']}: "
-                               f"{fmt_measure(x)})" for x in o.to_dict("records")
+                               f"{fmt_measure(x)})" for x in others.get((r["claim"], r["figure"]), [])
                                if x["verdict"] != r["verdict"] or x["reading"] in shown))
     primary["others"] = notes
     return primary.drop(columns="reading").reset_index(drop=True)

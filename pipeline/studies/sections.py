@@ -89,9 +89,19 @@ class Context:
     title: str
     groups: dict  # study -> {figure: aggregate}
     written: list = field(default_factory=list)
+    shared: dict = field(default_factory=dict)  # what several sections read, made once (once)
 
     def of(self, study: str) -> dict:
         return self.groups.get(study, {})
+
+    def once(self, key, make):
+        """make(), computed at the first call with `key` in this report and the same object
+        after: what two sections read (the readings study's measures and cells, read by the
+        scorecard and by the readings section) is not computed twice. Its readers must not
+        change it."""
+        if key not in self.shared:
+            self.shared[key] = make()
+        return self.shared[key]
 
     def text(self, name: str, text: str) -> Path:
         from .. import io
