@@ -161,8 +161,9 @@ def trial_spec(cfg: DictConfig, growth: dict) -> gbmodel.TrialSpec:
     frames = frame_epochs(epochs, cfg.conditions.frames) if isinstance(epochs, int) else []
     snaps = tuple(sorted({e for e in [*cfg.conditions.snapshots, *frames]
                           if isinstance(e, int) and e <= epochs}))
+    body = body_content(OmegaConf.to_container(cfg.body))
     spec = gbmodel.TrialSpec(
-        body=body_content(OmegaConf.to_container(cfg.body)), growth=growth, learner=learner,
+        body=body, growth=constant_growth(canonical(body), canonical(growth)), learner=learner,
         evaluation=OmegaConf.to_container(cfg.evaluation), epochs=epochs,
         evals_per_decade=per_decade, snapshots=snaps)
     try:
@@ -171,6 +172,47 @@ def trial_spec(cfg: DictConfig, growth: dict) -> gbmodel.TrialSpec:
         raise ConfigError(str(err)) from None
     check_reach(canonical(spec.body))
     return spec
+
+
+SAME_SIZE = 8 * np.finfo(np.float64).eps  # relative: factors this close to S are S (rounding)
+
+
+@lru_cache(maxsize=256)
+def constant_growth(body_json: str, growth_json: str) -> dict:
+    """The growth as its factors act: a body that never grows, every segment at the one size S
+    in every epoch, is the one constant growth (proportional at S, period 0, every other field at
+    its default), whatever pattern, schedule or table named it: Fig. 5's full-size reference is
+    Fig. 4's (the same trials, computed once). Any other growth is returned as it is: a
+    non-proportional body at half size, whose held segments stay at full length, is another body.
+    "Every segment at S" allows the rounding of the factors' formulas (SAME_SIZE): the
+    non-proportional factor at S = fixed_scale, (S L - held) / L_grow, lands 2e-16 off S on arm5
+    (the canonical body is then the exact one, on both paths)."""
+    growth = json.loads(growth_json)
+    try:
+        g = gbmodel.Growth(**growth)
+        if not (g.period == 0 or (g.start_size == g.end_size and g.schedule != "table")):
+            return growth
+        body = gbmodel.make_body(json.loads(body_json))
+        size = float(g.sizes(np.array([1]), body)[0])
+        if not np.all(np.abs(g.scales(body, np.array([size])) - size) <= SAME_SIZE * size):
+            return growth
+    except (TypeError, ValueError, KeyError, OSError):  # invalid: TrialSpec.validate says why
+        return growth
+    return gbmodel.Growth(start_size=size, end_size=size, period=0).to_dict()
+
+
+def stream(spec: dict) -> int:
+    """The random stream of a condition: a 32-bit hash of its body (by name) and its growth's
+    pattern, start and end size and period after constant_growth, so that the same condition
+    draws the same numbers in every experiment (never by the figure's name). Not the learner,
+    the evaluation, the epochs, the schedule, the segment settings (fixed_scale, leads, rates, a
+    table) or a body's variant fields (home, grid, saturate): the variants of an experiment that
+    change those share their draws (common random numbers), and a shorter run draws the first
+    blocks of a longer one (the first epochs of it at a multiple of gbmodel.trial.DRAW_BLOCK)."""
+    g = spec["growth"]
+    return stable_hash32(dict(body=spec["body"]["name"], pattern=g["pattern"],
+                              start_size=g["start_size"], end_size=g["end_size"],
+                              period=g["period"]))
 
 
 def body_content(body: dict) -> dict:
@@ -273,16 +315,11 @@ def _plan(cfg: DictConfig) -> list[dict]:
             check_limits(vcfg)  # a variant's `set` may change what the command line did not
             for cond in conditions(vcfg):
                 spec = trial_spec(vcfg, cond["spec"]).to_dict()
-                # The random stream depends on the condition's body and growth only, so that the
-                # variants of an experiment differ by their choice, not by their draws.
-                g = spec["growth"]
-                stream = stable_hash32(dict(body=spec["body"]["name"], pattern=g["pattern"],
-                                            start_size=g["start_size"],
-                                            end_size=g["end_size"], period=g["period"]))
+                c = stream(spec)
                 cid = condition_id(spec, vcfg.trials.root_seed)
                 code = code_fingerprint(spec["learner"]["name"])
                 for i in range(vcfg.trials.count):
-                    seed = dict(entropy=vcfg.trials.root_seed, spawn_key=[stream, i])
+                    seed = dict(entropy=vcfg.trials.root_seed, spawn_key=[c, i])
                     trials.append(dict(
                         key=trial_key(spec, seed, code), spec=spec, seed=seed, code=code,
                         labels=dict(body=spec["body"]["name"], learner=spec["learner"]["name"],
