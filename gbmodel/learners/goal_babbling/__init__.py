@@ -80,6 +80,10 @@ class Params:
     # tau = anchor_epochs (solve.anchor_at). Measured: docs/bodies.md, "The exact solver"
     anchor: float = 0.01
     anchor_epochs: float = 100.0
+    # the lstsq solve's pull of the commands at the targets towards those the body executes
+    # (clipped at its joint limits), times the window's sum of weights, on a body with joint
+    # limits (solve.py): frees a run whose first solves command joints past their limits
+    limit_pull: float = 0.1
 
     def validate(self) -> "Params":
         check_fields(self, "learner", LIMITS)
@@ -138,9 +142,10 @@ LIMITS = dict(
     window=Int(1, MAX_WINDOW, " epochs (a window of Gram sums is held in memory)"),
     ridge=Number(MIN_RIDGE, MAX_RIDGE, why=" (beyond it nothing is learned)"),
     anchor=Number(0.0, MAX_RIDGE, why=" (beyond it nothing is learned)"),
-    anchor_epochs=Number(0.0, 1e12, lo_open=True))
+    anchor_epochs=Number(0.0, 1e12, lo_open=True),
+    limit_pull=Number(0.0, MAX_RIDGE, why=" (beyond it nothing is learned)"))
 KEYED_DEFAULTS = dict(solver="gradient", window=10, ridge=1e-3, anchor=0.01,
-                      anchor_epochs=100.0)
+                      anchor_epochs=100.0, limit_pull=0.1)
 
 
 def keyed(learner: dict) -> dict:
@@ -236,9 +241,13 @@ def _train(M, params: Params, body, sizes, scales, draws, epochs) -> np.ndarray:
         for e in range(len(sizes)):
             _, x, q, w = reference.samples(M.M, body, sizes[e], scales[e], exps, idx[e], raw[e],
                                            params.radius, params.steps, amp[0][e] if amp else None)
-            P = solve.target_gram(body.target_set(sizes[e]), exps)
+            targets = body.target_set(sizes[e])
+            P = solve.target_gram(targets, exps)
             anchor = solve.anchor_at(params.anchor, params.anchor_epochs, M.epochs + 1, body)
-            M = solve.solve(M, solve.grams(x, q, w, exps), params.ridge, P, anchor)
+            limits = body.normalized and body.saturates
+            PC = solve.limit_gram(targets, exps, M.M, limits) if limits else None
+            M = solve.solve(M, solve.grams(x, q, w, exps), params.ridge, P, anchor, PC,
+                            params.limit_pull)
         return M
     for e in range(len(sizes)):
         M, _ = reference.epoch(M, body, sizes[e], scales[e], exps, idx[e], raw[e], params.radius,

@@ -72,7 +72,7 @@ def rule(params) -> int:
 
 @njit(cache=True)
 def _epoch(M, idx, raw, amp, s, body, targets, home, parent, var, joints, radius, steps,
-           rate, plain, rule, update_steps, box, work, ring, slot, ridge, anchor, M0,
+           rate, plain, rule, update_steps, box, work, ring, slot, ridge, anchor, limit, M0,
            solver_work):
     """One epoch (see reference.epoch): rolls out and weights (rollout.rollout), then updates M
     in place by the rule `rule`: GRADIENT or STEPS, 1 or update_steps gradient steps at rate
@@ -88,8 +88,8 @@ def _epoch(M, idx, raw, amp, s, body, targets, home, parent, var, joints, radius
     Q, X, w, Phi, Rw, M32, GL = work[0], work[1], work[2], work[3], work[4], work[12], work[13]
     Npad = len(w) - LANES
     if rule == LSTSQ:
-        solve(M, M0, ring, slot, ridge, anchor, X, Q, w, Npad, parent, var, Phi, targets, s,
-              solver_work)
+        solve(M, M0, ring, slot, ridge, anchor, limit, joints[0] and joints[1], X, Q, w, Npad,
+              parent, var, Phi, targets, s, solver_work)
         return
     # gradient descent on the weighted command error (eq. 6), plain or normalised by sum w
     eta = rate if plain else rate / _lane_sum(w, Npad)
@@ -103,7 +103,7 @@ def _epoch(M, idx, raw, amp, s, body, targets, home, parent, var, joints, radius
 @njit(cache=True)
 def _block(M, idx, raw, amp, sizes, scales, rates, chain, targets, home, parent, var, joints,
            radius, steps, plain, rule, update_steps, ring, done, ridge, anchor, anchor_epochs,
-           M0):
+           limit, M0):
     """Epochs e = 0 ... B-1 with sizes[e], per-joint length factors scales[e] and rates[e]
     (rule LSTSQ: ring, the Gram sums of the window, after `done` epochs learned)."""
     a, d, ca, sa, base, outputs, ty, R, general = chain
@@ -126,8 +126,8 @@ def _block(M, idx, raw, amp, sizes, scales, rates, chain, targets, home, parent,
         _epoch(M, idx[e], raw[e], amp[e], sizes[e], body, targets, home, parent, var, joints,
                radius, steps, rates[e], plain, rule, update_steps, box, work, ring,
                (done + e) % max(len(ring), 1), ridge,
-               anchor if free else anchor * anchor_epochs / (anchor_epochs + done + e), M0,
-               solving)
+               anchor if free else anchor * anchor_epochs / (anchor_epochs + done + e),
+               0.0 if free else limit, M0, solving)
 
 
 _ARRAYS: dict = {}  # (id(body), exps) -> (body, arrays); the body is kept so its id stays its own
@@ -197,7 +197,7 @@ def run_block(M, body, params, exps, sizes, scales, rates, idx, raw, amp=None):
            np.ascontiguousarray(scales, np.float32).reshape(len(sizes), body.m),
            np.ascontiguousarray(rates, np.float64), **options, **_arrays(body, exps),
            ring=ring, done=done, ridge=float(params.ridge), anchor=float(params.anchor),
-           anchor_epochs=float(params.anchor_epochs), M0=M0)
+           anchor_epochs=float(params.anchor_epochs), limit=float(params.limit_pull), M0=M0)
     return Solved(out, ring, done + len(sizes), M.M0) if solving else out
 
 
@@ -229,7 +229,7 @@ def epoch_samples(M, body, params, exps, size, scale, idx, raw, amp=None, rate=N
            _amplitudes(raw, amp), float(size), chain, arr["targets"], arr["home"], arr["parent"],
            arr["var"], arr["joints"], rate=float(params.learning_rate if rate is None else rate),
            box=_box(arr["targets"]), work=work, ring=_NO_RING, slot=0, ridge=0.0, anchor=0.0,
-           M0=_NO_M0,
+           limit=0.0, M0=_NO_M0,
            solver_work=solver_work(body.m, body.n, len(exps), V, T, False), **_options(params))
     Q, X, w = work[0], work[1], work[2]
     N = V * (T + 1)

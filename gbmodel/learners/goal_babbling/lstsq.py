@@ -43,12 +43,15 @@ _cholesky_solve = njit(cache=True)(cholesky_solve)
 
 
 @njit(cache=True)
-def _target_gram(targets, s, parent, var, phi, P):
+def _target_gram(targets, s, parent, var, phi, P, M, clip, PC):
     """P = mean over the targets at size s of Phi(x*) Phi(x*)^T (solve.target_gram), float64
-    in a fixed order."""
+    in a fixed order; PC = mean Phi(x*) c(x*)^T, c = M Phi(x*) clipped to [-1, 1] where `clip`
+    (the commands the body executes; solve.limit_gram)."""
     NT, n = targets.shape
     p = P.shape[0]
+    m = M.shape[0]
     P[:] = 0
+    PC[:] = 0
     for t in range(NT):
         phi[0] = 1.0
         for k in range(1, p):
@@ -56,19 +59,29 @@ def _target_gram(targets, s, parent, var, phi, P):
         for i in range(p):
             for j in range(i + 1):
                 P[i, j] += phi[i] * phi[j]
+        for r in range(m):
+            c = 0.0
+            for k in range(p):
+                c += M[r, k] * phi[k]
+            if clip:
+                c = min(1.0, max(-1.0, c))
+            for i in range(p):
+                PC[i, r] += phi[i] * c
     for i in range(p):
         for j in range(i + 1):
             P[i, j] /= NT
             P[j, i] = P[i, j]
+        for r in range(m):
+            PC[i, r] /= NT
 
 
 @njit(cache=True)
-def solve(M, M0, ring, slot, ridge, anchor, X, Q, w, Npad, parent, var, Phi, targets, s,
-          solver_work):
+def solve(M, M0, ring, slot, ridge, anchor, limit, clip, X, Q, w, Npad, parent, var, Phi,
+          targets, s, solver_work):
     """solver=lstsq (solve.solve): this epoch's Gram sums into ring[slot], then M from the sum
     of the slots (in slot order) by solve.system (the ridge towards M, the anchor towards M0
     over the targets at size s), in place."""
-    Z, GG, total, A, B, L, out, P, phi = solver_work
+    Z, GG, total, A, B, L, out, P, phi, PC = solver_work
     m, p = M.shape
     _gram_sums(X, Q, w, Npad, parent, var, Phi, Z, GG, ring[slot])
     total[:] = ring[0]
@@ -76,19 +89,20 @@ def solve(M, M0, ring, slot, ridge, anchor, X, Q, w, Npad, parent, var, Phi, tar
         for i in range(p + m):
             for j in range(p):
                 total[i, j] += ring[k, i, j]
-    _target_gram(targets, s, parent, var, phi, P)
+    _target_gram(targets, s, parent, var, phi, P, M, clip, PC)
     la = anchor * total[0, 0]  # the anchor's weight: anchor (solve.anchor_at) times the
     # window's sum of weights
+    lc = limit * total[0, 0]
     for i in range(p):
         for j in range(p):
-            A[i, j] = total[i, j] + la * P[i, j]
+            A[i, j] = total[i, j] + (la + lc) * P[i, j]
         d = ridge * total[i, i] if total[i, i] > 0 else 1.0
         A[i, i] += d
         for r in range(m):
             pm = 0.0
             for k in range(p):
                 pm += P[i, k] * M0[r, k]
-            B[i, r] = total[p + r, i] + d * M[r, i] + la * pm
+            B[i, r] = total[p + r, i] + d * M[r, i] + la * pm + lc * PC[i, r]
     _cholesky_solve(A, B, L, out)
     for r in range(m):
         for i in range(p):
@@ -103,4 +117,4 @@ def solver_work(m, n, p, V, T, solving):
     f4 = np.float32
     return (np.empty((p + m, cols), f4), np.empty((p + m, p * LANES), f4), np.empty((p + m, p)),
             np.empty((p, p)), np.empty((p, m)), np.zeros((p, p)), np.empty((p, m)),
-            np.empty((p, p)), np.empty(p))
+            np.empty((p, p)), np.empty(p), np.empty((p, m)))

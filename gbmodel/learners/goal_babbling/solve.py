@@ -6,16 +6,19 @@ minimises that error exactly over the samples of the last `window` epochs:
 
     min_M  sum_{e in window} sum_t w_t |M Phi(x_t) - q_t|^2  +  ridge sum_k G_kk |M_:k - Mc_:k|^2
            +  a W mean_{x* in targets} |(M - M0) Phi(x*)|^2
+           +  l W mean_{x* in targets} |M Phi(x*) - clip(Mc Phi(x*))|^2
 
-with Mc the M before the solve, M0 the initial M, W the window's sum of weights and a the
-anchor (anchor_at). Each epoch contributes its Gram sums G_e = sum_t w Phi Phi^T (p x p) and
-H_e = sum_t w q Phi^T (m x p), the home example (weight 1, eq. 5) included, as a slot of a ring
-of `window` slots (the oldest is overwritten); the solve sums the slots in slot order and solves
-(G + D + a W P) M^T = H^T + D Mc^T + a W P M0^T, D = ridge diag(G) (1 where a feature never
-varies, G_kk = 0: its column keeps Mc's), P = mean Phi(x*) Phi(x*)^T over the targets at the
-current size (target_gram). The ridge is relative to each feature's own scale and keeps the
-system well conditioned; the anchor is relative to the data's weight and measured where the
-inverse is used, so neither depends on the body's units, its outputs or its sample count.
+with Mc the M before the solve, M0 the initial M, W the window's sum of weights, a the anchor
+(anchor_at) and l the limit pull (on a body with joint limits; 0 without). Each epoch
+contributes its Gram sums G_e = sum_t w Phi Phi^T (p x p) and H_e = sum_t w q Phi^T (m x p),
+the home example (weight 1, eq. 5) included, as a slot of a ring of `window` slots (the oldest
+is overwritten); the solve sums the slots in slot order and solves (G + D + (a + l) W P) M^T =
+H^T + D Mc^T + a W P M0^T + l W PC, D = ridge diag(G) (1 where a feature never varies, G_kk =
+0: its column keeps Mc's), P = mean Phi(x*) Phi(x*)^T over the targets at the current size
+(target_gram), PC = mean Phi(x*) clip(Mc Phi(x*))^T (limit_gram). The ridge is relative to each
+feature's own scale and keeps the system well conditioned; the anchor is relative to the data's
+weight and measured where the inverse is used, so neither depends on the body's units, its
+outputs or its sample count.
 
 Why the anchor (docs/bodies.md, "The exact solver"): the exact solve gives every direction of M
 the data of 10 epochs, also those the data barely determine: the first solves, from samples
@@ -25,6 +28,15 @@ and joints that barely move the hand and have no limits wander without end (Fig.
 arm winds them up to 3-20 rad). The anchor holds what the data do not determine at the initial
 inverse: on a body without joint limits for good, on one with limits only while its first
 solves need it (a tau / (tau + e - 1), tau = anchor_epochs), so that it costs no accuracy later.
+
+Why the limit pull: a run whose solves command joints past their limits over part of the
+targets gets no weight there (every variation saturates the same joint, the hand does not
+move), so no sample ever brings those commands back, and once the anchor has decayed nothing
+else does: Fig. 7's half-size starts stayed stuck at 27 mm in 1 of 120 trials. The limit pull
+draws the commands at the targets towards those the body executes, clipped at its limits. At
+a target whose commands are within the limits it pulls towards the current commands (a
+damping that leaves the solution of a converged run where it is); where they are past a
+limit, back to it, where the variations move the hand again.
 
 The fast path (lstsq.py) accumulates G_e and H_e in the kernel and solves the same p x p system
 by `cholesky_solve` below, compiled; this module states it with numpy's solver.
@@ -72,11 +84,24 @@ def target_gram(targets, exps) -> np.ndarray:
     return phi.T @ phi / len(phi)
 
 
-def system(M, total, ridge, P=None, M0=None, anchor=0.0):
+def limit_gram(targets, exps, M, clip: bool) -> np.ndarray:
+    """PC = mean over the targets of Phi(x*) c(x*)^T (p x m), c = M Phi(x*) clipped to [-1, 1]
+    where `clip` (a body whose joints saturate): the commands the body executes at the targets
+    under the current M."""
+    phi = features(targets, exps)
+    c = phi @ M.T
+    if clip:
+        c = np.clip(c, -1.0, 1.0)
+    return phi.T @ c / len(phi)
+
+
+def system(M, total, ridge, P=None, M0=None, anchor=0.0, PC=None, limit=0.0):
     """The p x p system (A, B) of A M^T = B for the summed Gram sums `total` (p + m, p): the
     ridge on each coefficient, relative to its feature's G_kk, towards M, and (with P, the
     targets' target_gram) the anchor anchor |(M' - M0) Phi|^2 averaged over the targets, times
-    the window's sum of weights (G_00, the constant feature's), towards M0."""
+    the window's sum of weights (G_00, the constant feature's), towards M0, and (with PC, the
+    targets' limit_gram) the limit term limit |M' Phi - c|^2 averaged over the targets, times
+    the same sum, towards the executed commands c."""
     p = total.shape[1]
     G, H = total[:p], total[p:]
     diag = np.diag(G)
@@ -84,8 +109,11 @@ def system(M, total, ridge, P=None, M0=None, anchor=0.0):
     A, B = G + np.diag(D), H.T + D[:, None] * M.T
     if P is None:
         return A, B
-    la = anchor * G[0, 0]
-    return A + la * P, B + la * (P @ M0.T)
+    la, lc = anchor * G[0, 0], limit * G[0, 0]
+    A, B = A + la * P, B + la * (P @ M0.T)
+    if PC is None:
+        return A, B
+    return A + lc * P, B + lc * PC
 
 
 def anchor_at(anchor, anchor_epochs, epoch, body) -> float:
@@ -98,15 +126,17 @@ def anchor_at(anchor, anchor_epochs, epoch, body) -> float:
     return anchor * anchor_epochs / (anchor_epochs + epoch - 1)
 
 
-def solve(state: Solved, slot_grams: np.ndarray, ridge: float, P=None, anchor=0.0) -> Solved:
-    """The state after one epoch whose Gram sums are slot_grams: the slot stored, M solved."""
+def solve(state: Solved, slot_grams: np.ndarray, ridge: float, P=None, anchor=0.0, PC=None,
+          limit=0.0) -> Solved:
+    """The state after one epoch whose Gram sums are slot_grams: the slot stored, M solved
+    (PC: limit_gram of the targets under state.M)."""
     window = len(state.ring)
     ring = state.ring.copy()
     ring[state.epochs % window] = slot_grams
     total = ring[0].copy()
     for k in range(1, window):
         total += ring[k]
-    A, B = system(state.M, total, ridge, P, state.M0, anchor)
+    A, B = system(state.M, total, ridge, P, state.M0, anchor, PC, limit)
     return Solved(np.linalg.solve(A, B).T, ring, state.epochs + 1, state.M0)
 
 
