@@ -8,7 +8,9 @@ stuck far above their condition's median, and where the inverse commands a joint
     python -m pipeline.tools.lstsq_study fig7 --epochs 2000 -- learner.ridge=0.1   # any override
 
 The seeds are the committed report's (the plan's streams depend on the body and the growth, not
-on the epochs, so a shorter run is the first epochs of the committed trials). One process, trials
+on the epochs, and the draws come in blocks of gbmodel.trial.DRAW_BLOCK = 1,000 epochs, so a run
+of a multiple of 1,000 epochs is the first epochs of the committed trials; a shorter run draws
+its one block at its own length, and differs). One process, trials
 in turn; prints one line per condition and, with --curve, the condition's median curve.
 """
 from __future__ import annotations
