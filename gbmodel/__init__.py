@@ -18,10 +18,10 @@ from .features import exponents, feature_bounds, features
 from .growth import PATTERNS as GROWTH_PATTERNS, Growth
 from .spec import SpecError
 from .inverse import predict
-from .trial import Diverged, TrialResult, TrialSpec, run_trial
+from .trial import Checkpoint, Diverged, TrialResult, TrialSpec, run_trial
 
 __all__ = [
-    "BODIES", "GROWTH_PATTERNS", "Body", "Diverged", "Growth", "SpecError", "TrialResult",
-    "TrialSpec", "eval_epochs", "exponents", "feature_bounds", "features", "learners",
+    "BODIES", "GROWTH_PATTERNS", "Body", "Checkpoint", "Diverged", "Growth", "SpecError",
+    "TrialResult", "TrialSpec", "eval_epochs", "exponents", "feature_bounds", "features", "learners",
     "make_body", "predict", "run_trial",
 ]

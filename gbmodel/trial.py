@@ -10,6 +10,7 @@ numbers.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -105,26 +106,69 @@ class TrialResult:
     samples_per_epoch: int = 0  # forward-kinematics evaluations per epoch
     largest_jump: float = float("nan")  # the final inverse's redundancy measure (evaluation)
     heldout_abs_error: np.ndarray | None = None  # (E,) abs_error on the held-out set (evaluation)
+    state: Any = None  # the learner's final state and the generator's (bit_generator.state),
+    rng: dict | None = None  # what a Checkpoint of this trial holds
 
 
-def run_trial(spec: TrialSpec, rng: np.random.Generator) -> TrialResult:
-    """Run one trial and return its learning curve; raises Diverged on a non-finite error."""
+@dataclass
+class Checkpoint:
+    """A trial after `epoch` epochs, as a continuation starts from it: the learner's state, the
+    generator's state after that trial's draws (bit_generator.state) and its result (the curve
+    up to `epoch`, its snapshots). `epoch` is a multiple of DRAW_BLOCK: the draws come in blocks
+    shaped by their length, so only there is the rest of a longer run's draws what follows. The
+    pipeline keeps a checkpoint with the trial that ended there (gbmodel reads no file)."""
+    epoch: int
+    state: Any
+    rng: dict
+    result: TrialResult
+
+
+def _resume(spec: TrialSpec, at: Checkpoint, evals: np.ndarray, rng: np.random.Generator):
+    """The part of the curve (k evaluations) and the snapshots a continuation takes from its
+    checkpoint, with the generator set to the checkpoint's state; SpecError if it cannot."""
+    if not (0 < at.epoch < spec.epochs and at.epoch % DRAW_BLOCK == 0):
+        raise SpecError("resume.epoch", at.epoch, f"a continuation starts after a multiple of "
+                        f"{DRAW_BLOCK} epochs (the draw block) before the end ({spec.epochs})")
+    k = int(np.searchsorted(evals, at.epoch, side="right"))
+    have = np.asarray(at.result.epoch)
+    rows = np.minimum(np.searchsorted(have, evals[:k]), len(have) - 1)
+    if k and (not len(have) or np.any(have[rows] != evals[:k])):
+        raise SpecError("resume.result", at.epoch, "the checkpoint's curve lacks an evaluation "
+                        "of this trial's (evals_per_decade must agree)")
+    snaps = [e for e in spec.snapshots if e <= at.epoch]
+    if any(e not in at.result.snapshots for e in snaps):
+        raise SpecError("resume.result", at.epoch, "the checkpoint lacks a snapshot of this trial")
+    rng.bit_generator.state = at.rng
+    return k, rows, {e: at.result.snapshots[e] for e in snaps}
+
+
+def run_trial(spec: TrialSpec, rng: np.random.Generator,
+              resume: Checkpoint | None = None) -> TrialResult:
+    """Run one trial and return its learning curve; raises Diverged on a non-finite error.
+    resume: continue the trial of that checkpoint (its first epochs and draws are this
+    trial's), rather than start one: the result is an uninterrupted run's, to the bit."""
     body = spec.make_body()
     spec.validate(body)
     growth = spec.make_growth()
     learner, params = spec.make_learner()
     ev = {**evaluation.DEFAULTS, **spec.evaluation}
     unit_heldout = evaluation.heldout_points(body)  # at each evaluation: scaled, not rebuilt
-    # Sizes and scales are built per block of DRAW_BLOCK epochs, never for every epoch at once,
-    # so a trial's memory does not grow with its epochs (each value is computed elementwise:
-    # the same bytes as from the whole array).
-    state = learner.init(params, body, growth.sizes(np.array([1]), body)[0], rng)
-
     evals = evaluation.eval_epochs(spec.epochs, spec.evals_per_decade)
     cuts = set(evals.tolist()) | set(spec.snapshots)
     abs_error, heldout, size = (np.empty(len(evals)) for _ in range(3))
-    k, snapshots = 0, {}
-    for start in range(0, spec.epochs, DRAW_BLOCK):  # epochs start+1 ... stop
+    k, snapshots, first = 0, {}, 0
+    if resume is None:
+        state = learner.init(params, body, growth.sizes(np.array([1]), body)[0], rng)
+    else:
+        k, rows, snapshots = _resume(spec, resume, evals, rng)
+        state, first, done = resume.state, resume.epoch, resume.result
+        for to, part in ((abs_error, done.abs_error), (heldout, done.heldout_abs_error),
+                         (size, done.size)):
+            to[:k] = np.asarray(part)[rows]
+    # Sizes and scales are built per block of DRAW_BLOCK epochs, never for every epoch at once,
+    # so a trial's memory does not grow with its epochs (each value is computed elementwise:
+    # the same bytes as from the whole array).
+    for start in range(first, spec.epochs, DRAW_BLOCK):  # epochs start+1 ... stop
         stop = min(start + DRAW_BLOCK, spec.epochs)
         sizes = growth.sizes(np.arange(start + 1, stop + 1), body)  # of epochs start+1 ... stop
         scales = growth.scales(body, sizes)
@@ -151,4 +195,5 @@ def run_trial(spec: TrialSpec, rng: np.random.Generator) -> TrialResult:
     return TrialResult(epoch=evals, size=size, abs_error=abs_error, rel_error=abs_error / size,
                        M=learner.model(state), snapshots=snapshots,
                        samples_per_epoch=learner.samples_per_epoch(params, body),
-                       largest_jump=jump, heldout_abs_error=heldout)
+                       largest_jump=jump, heldout_abs_error=heldout, state=state,
+                       rng=rng.bit_generator.state)

@@ -6,6 +6,7 @@ Layout under paths.cache:
     trials/<kk>/<key>.json        the trial's spec, seed, code fingerprint, status, final model,
                                   snapshots, the SHA-256 of the Parquet file, and a seal (the
                                   SHA-256 of everything else in the sidecar)
+    trials/<kk>/<key>.state.json  a base's final state, for its continuations (pipeline.checkpoint)
     claims                        a one-byte lock per trial being computed (Claim)
     failed/<key>.json             the error of a trial that failed (not cached: it runs again)
     plans/<figure>/<group>/<hash>.json   the conditions one simulate run planned for a figure
@@ -140,7 +141,7 @@ def _keyed(s: dict) -> bool:
     """Whether a sidecar's own spec, seed and code hash to its key (a sidecar copied or edited
     under another trial's name is not that trial)."""
     try:
-        return trial_key(s["spec"], s["seed"], s["code"]) == s["key"]
+        return trial_key(s["spec"], s["seed"], s["code"], s.get("start")) == s["key"]
     except (KeyError, TypeError, ValueError):
         return False
 
@@ -152,6 +153,8 @@ def write_trial(cache_dir, trial: dict, result: dict) -> None:
     """Store a finished trial: the curve first, then the sealed sidecar with its checksum."""
     curve, side = trial_paths(cache_dir, trial)
     record = {k: trial[k] for k in CONTENT} | dict(status=result["status"])
+    if trial.get("start") is not None:  # a continuation: its base is part of its key
+        record["start"] = trial["start"]
     if result["status"] == "diverged":
         record.update(error=result["error"], epoch=result["epoch"])
         curve.unlink(missing_ok=True)

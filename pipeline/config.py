@@ -138,6 +138,11 @@ class ConditionsConf:
     budget: Optional[int] = None
     growth_share: float = 0.5
     budget_scale: float = 1.0  # profiles shrink the budget (smoke)
+    # a continuation: each trial starts from the saved state after this many epochs of the trial
+    # of its condition and index under the experiment's settings without its variants
+    # (pipeline.checkpoint); a multiple of 1000 (the draw block), ignored where the run has no
+    # more epochs (the smoke profile); null: every trial starts at epoch 1
+    continues: Optional[int] = None
 
 
 @dataclass

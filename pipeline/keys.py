@@ -21,8 +21,12 @@ def condition_id(spec: dict, root_seed: int) -> str:
     return hashlib.sha256(canonical(dict(spec=spec, root_seed=root_seed)).encode()).hexdigest()[:16]
 
 
-def trial_key(spec: dict, seed: dict, code: str) -> str:
+def trial_key(spec: dict, seed: dict, code: str, start: dict | None = None) -> str:
     """A trial is its content: spec, seed and code fingerprint. The figure, the condition's
     label or the variant that asked for it are not part of it, so the same trial under two
-    figures or two sweeps is computed once."""
-    return hashlib.sha256(canonical(dict(spec=spec, seed=seed, code=code)).encode()).hexdigest()[:20]
+    figures or two sweeps is computed once. start: a continuation's base, dict(epoch, key) (the
+    trial whose saved state it continues: pipeline.checkpoint)."""
+    content = dict(spec=spec, seed=seed, code=code)
+    if start is not None:
+        content["start"] = start
+    return hashlib.sha256(canonical(content).encode()).hexdigest()[:20]

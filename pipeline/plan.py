@@ -318,18 +318,75 @@ def _plan(cfg: DictConfig) -> list[dict]:
                 c = stream(spec)
                 cid = condition_id(spec, vcfg.trials.root_seed)
                 code = code_fingerprint(spec["learner"]["name"])
+                base = base_spec(cfg, vcfg, variant, cond, spec)
                 for i in range(vcfg.trials.count):
                     seed = dict(entropy=vcfg.trials.root_seed, spawn_key=[c, i])
-                    trials.append(dict(
-                        key=trial_key(spec, seed, code), spec=spec, seed=seed, code=code,
-                        labels=dict(body=spec["body"]["name"], learner=spec["learner"]["name"],
-                                    growth=cond["growth"], growth_period=cond["growth_period"],
-                                    trial=i),
-                        figure=cfg.figure, condition=cid, growth_label=cond["condition"],
-                        variant=variant))
+                    labels = dict(body=spec["body"]["name"], learner=spec["learner"]["name"],
+                                  growth=cond["growth"], growth_period=cond["growth_period"],
+                                  trial=i)
+                    t = dict(spec=spec, seed=seed, code=code, labels=labels,
+                             figure=cfg.figure, condition=cid, growth_label=cond["condition"],
+                             variant=variant)
+                    if base is not None:  # a continuation: of its base's saved state
+                        b = dict(t, key=trial_key(base, seed, code), spec=base, variant=None,
+                                 condition=condition_id(base, vcfg.trials.root_seed),
+                                 growth_label=f"{cond['condition']} (its first "
+                                              f"{base['epochs']} epochs)", keep_state=True)
+                        t.update(start=dict(epoch=base["epochs"], key=b["key"]), base=b)
+                    trials.append(dict(key=trial_key(spec, seed, code, t.get("start")), **t))
     except gbmodel.SpecError as err:
         raise ConfigError(str(err)) from None
     return trials
+
+
+# learner fields that act only through the rate of each epoch (Goal Babbling's Params.rates): a
+# continuation's variant may change them where the rates of its base's epochs stay the same
+RATE_FIELDS = ("learning_rate", "rate_samples", "rate_schedule", "anneal_epochs",
+               "rate_step_epoch", "rate_step_factor")
+
+
+def base_spec(cfg: DictConfig, vcfg: DictConfig, variant, cond: dict, spec: dict) -> dict | None:
+    """The spec of the trials a continuation's trials continue (conditions.continues): its
+    condition under the experiment's settings without the variants, for `continues` epochs, the
+    same trial as any other experiment's at those settings (Fig. 7's const1.0 for
+    explain_fig7_continuation). None where there is nothing to continue: no conditions.continues,
+    or not fewer epochs than the run's (the smoke profile). ConfigError for a variant that changes
+    the trial before those epochs (anything but the rate after them)."""
+    n = cfg.conditions.continues
+    if n is None:
+        return None
+    from gbmodel.trial import DRAW_BLOCK
+
+    check_int("conditions.continues", n, 1)
+    if n % DRAW_BLOCK:
+        _bad("conditions.continues", n, f"a continuation starts after a multiple of {DRAW_BLOCK} "
+             "epochs (the draws come in blocks of that many)")
+    if cfg.conditions.budget is not None:
+        _bad("conditions.continues", n, "a continuation counts epochs, not a sample budget")
+    if not isinstance(spec["epochs"], int) or n >= spec["epochs"]:
+        return None
+    bcfg = OmegaConf.masked_copy(cfg, list(TRIAL_SECTIONS))
+    bcfg.conditions.variants = []
+    bcfg.learner.epochs = n
+    base = trial_spec(bcfg, cond["spec"]).to_dict()
+    where = f"variant {variant['label']!r}" if variant else "the experiment"
+    for k in ("body", "growth", "evaluation", "evals_per_decade"):
+        if base[k] != spec[k]:
+            _bad("conditions.continues", n, f"{where} changes {k}: a continuation may change the "
+                 "rate after its base's epochs, nothing else")
+    if not set(e for e in spec["snapshots"] if e <= n) <= set(base["snapshots"]):
+        _bad("conditions.continues", n, f"{where} stores a snapshot its base does not")
+    a, b = base["learner"], spec["learner"]
+    changed = {k for k in set(a) | set(b) if a.get(k) != b.get(k)}
+    if changed:
+        module = gbmodel.learners.get(b["name"])
+        epochs = np.arange(1, n + 1)
+        rates = [module.Params(**{k: v for k, v in x.items() if k != "name"}).rates(epochs)
+                 if hasattr(module.Params, "rates") else None for x in (a, b)]
+        if not changed <= set(RATE_FIELDS) or not np.array_equal(*rates):
+            _bad("conditions.continues", n, f"{where} changes learner.{sorted(changed)[0]} before "
+                 f"epoch {n}: a continuation may change the rate after its base's epochs only")
+    return base
 
 
 def plan_conditions(trials: list[dict]) -> list[dict]:
@@ -353,8 +410,11 @@ SECONDS_PER_COST = 1.9e-9
 
 def cost(trial: dict) -> float:
     """Rough relative run time of a trial: samples per epoch x joints x epochs x the learner's
-    cost per sample and joint (its sample_cost; 1 for a learner without one)."""
-    return _cost(canonical(trial["spec"]))
+    cost per sample and joint (its sample_cost; 1 for a learner without one). A continuation
+    costs its own epochs (after its base's)."""
+    start = trial.get("start")
+    done = start["epoch"] / trial["spec"]["epochs"] if start else 0.0
+    return _cost(canonical(trial["spec"])) * (1.0 - done)
 
 
 @lru_cache(maxsize=1024)

@@ -16,7 +16,7 @@ from pathlib import Path
 import gbmodel.bodies
 from omegaconf import DictConfig, OmegaConf
 
-from .keys import canonical
+from .keys import canonical, trial_key
 
 PLANNED = "planned"  # paths.out/planned/<digest>.json: a command's jobs (the cache holds trials)
 _PLAN_SOURCES = (("conf", ("*.yaml",)), ("pipeline", ("*.py",)),
@@ -151,6 +151,12 @@ def misplanned(specs: list[dict], jobs: list[dict]) -> str | None:
         for t in job["trials"]:
             ix, seed, code = t["spec"], t["seed"], t["code"]
             body = f'{{"code":{canonical(code)},"seed":{canonical(seed)},"spec":{canon[ix]}}}'
+            if "start" in t:  # a continuation: its base and its base's key are its content
+                b = t["base"]
+                body = canonical(dict(spec=specs[ix], seed=seed, code=code, start=t["start"]))
+                if b["key"] != t["start"]["key"] or trial_key(
+                        b["spec"], b["seed"], b["code"]) != b["key"]:
+                    return f"trial {t['key']}: its base does not hash to the key it names"
             if hashlib.sha256(body.encode()).hexdigest()[:20] != t["key"]:
                 return f"trial {t['key']}: its spec, seed and code do not hash to its key"
             root = seed["entropy"]

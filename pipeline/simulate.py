@@ -23,7 +23,7 @@ import gbmodel.bodies
 import hydra
 from omegaconf import DictConfig, OmegaConf
 
-from . import cache, cli, engines, execute, io
+from . import cache, checkpoint, cli, engines, execute, io
 from .config import CONFIG_PATH
 from .fingerprint import code_fingerprint
 from .plan import check_run, cost, plan, plan_conditions
@@ -54,6 +54,8 @@ def record(cache_dir, trial: dict, result: dict, summary: Summary) -> None:
     """Write a finished trial (ok or diverged) to the cache, or its failure beside it."""
     key, failure = trial["key"], cache.failure_path(cache_dir, trial)
     if result["status"] in ("ok", "diverged"):
+        if result.get("final") is not None:  # a continuation's base: its state, then the trial
+            checkpoint.write(cache_dir, trial, result["final"])
         cache.write_trial(cache_dir, trial, result)
         failure.unlink(missing_ok=True)
         if isinstance(result.get("cpu"), (int, float)):
@@ -194,13 +196,17 @@ def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = Non
     for j in jobs:
         for t in j.trials:
             unique.setdefault(t["key"], t)  # the same trial under two figures: computed once
+    for t in list(unique.values()):  # a continuation's base: run (or cached) with its state
+        b = t.get("base")
+        if b is not None:
+            unique[b["key"]] = {**unique.get(b["key"], b), "keep_state": True}
     trials = list(unique.values())
     (cache_dir / cache.TRIALS).mkdir(parents=True, exist_ok=True)
     for folder in (cache_dir / cache.TRIALS).glob("*"):
         io.remove_stale_tmp(folder)
     todo, diverged = [], {}
     for t in trials:
-        done, damaged = cache.check(cache_dir, t)
+        done, damaged = finished(cache_dir, t)
         if damaged:
             print(f"[{t['figure']}] recomputing {t['growth_label']} trial "
                   f"{t['labels']['trial']}: {damaged}", file=sys.stderr)
@@ -215,8 +221,8 @@ def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = Non
     claims = {t["key"]: cache.Claim(cache_dir, t) for t in todo}
     mine = [t for t in todo if claims[t["key"]].acquire()]
     elsewhere = [t for t in todo if claims[t["key"]].fh is None]
-    finished = [t for t in mine if cache.check(cache_dir, t)[0] is not None]  # by another run
-    for t in finished:  # between our look at the cache and our claim
+    done_now = [t for t in mine if finished(cache_dir, t)[0] is not None]  # by another run
+    for t in done_now:  # between our look at the cache and our claim
         claims[t["key"]].release()
         mine.remove(t)
         summary.cached += 1
@@ -231,22 +237,34 @@ def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = Non
     try:
         if mine:
             execute.warm_up(mine)
-        for trial, result in engines.run(  # the chosen engine, with its own settings only
-                OmegaConf.to_container(cfg.engine), mine, cfg.workers,
-                logs=Path(cfg.paths.out) / "logs" / "submitit"):
-            record(cache_dir, trial, result, summary)
-            claims[trial["key"]].release()
-            progress.update(trial, result)
+        # continuations after every other trial: their bases are then in the cache
+        for wave in ([t for t in mine if "base" not in t], [t for t in mine if "base" in t]):
+            ready = []
+            for t in wave:
+                trial, failed = resumed(cache_dir, t)
+                if failed is None:
+                    ready.append(trial)
+                    continue
+                record(cache_dir, t, failed, summary)
+                claims[t["key"]].release()
+                progress.update(t, failed)
+            for trial, result in engines.run(  # the chosen engine, with its own settings only
+                    OmegaConf.to_container(cfg.engine), ready, cfg.workers,
+                    logs=Path(cfg.paths.out) / "logs" / "submitit"):
+                record(cache_dir, trial, result, summary)
+                claims[trial["key"]].release()
+                progress.update(trial, result)
         while elsewhere:  # trials another run claimed: wait for them, or take over if it died
             trial = elsewhere.pop(0)
             claim = claims[trial["key"]]
-            if cache.check(cache_dir, trial)[0] is not None:
+            if finished(cache_dir, trial)[0] is not None:
                 summary.cached += 1
-            elif claim.acquire() and cache.check(cache_dir, trial)[0] is not None:
+            elif claim.acquire() and finished(cache_dir, trial)[0] is not None:
                 claim.release()
                 summary.cached += 1
             elif claim.fh is not None:
-                result = execute.run_one(trial)
+                ready, result = resumed(cache_dir, trial)
+                result = result or execute.run_one(ready)
                 record(cache_dir, trial, result, summary)
                 claim.release()
                 progress.update(trial, result)
@@ -261,6 +279,29 @@ def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = Non
     for j in jobs:
         write_figure(cache_dir, j, group, job)
     return summary
+
+
+def finished(cache_dir, trial: dict) -> tuple[dict | None, str | None]:
+    """cache.check, where the base of a continuation is finished only with its saved state (one
+    cached without it runs again, before its continuations)."""
+    done, damaged = cache.check(cache_dir, trial)
+    if done is not None and trial.get("keep_state") and done["status"] == "ok" \
+            and not checkpoint.has(cache_dir, trial):
+        return None, None
+    return done, damaged
+
+
+def resumed(cache_dir, trial: dict) -> tuple[dict, dict | None]:
+    """(the trial as a worker runs it, None), or (trial, a failed result) for a continuation
+    whose base is not there to continue (not run, failed, diverged: it is tried again next
+    time). A continuation carries its base's checkpoint (pipeline.checkpoint) as plain data."""
+    if "base" not in trial:
+        return trial, None
+    data, why = checkpoint.load(cache_dir, trial["base"])
+    if data is None:
+        return trial, dict(status="failed", error=f"a continuation of epoch "
+                           f"{trial['start']['epoch']}: {why}", key=trial["key"], seconds=0.0)
+    return {**trial, "resume": data}, None
 
 
 def learner_notes(trials) -> list[str]:

@@ -38,11 +38,16 @@ def run_one(trial: dict) -> dict:
         # a damaged numba cache is removed and the trial run again, from the same seed
         from .warm import recovering  # here, not at the top: importing the package imports
         # this module (the engines), and `python -m pipeline.warm` warns when it finds itself imported
-        res = recovering(lambda: gbmodel.run_trial(spec, np.random.default_rng(seed)))
+        from . import checkpoint  # a continuation starts from its base's state (plain data)
+        resume = trial.get("resume")
+        res = recovering(lambda: gbmodel.run_trial(
+            spec, np.random.default_rng(seed),
+            resume=None if resume is None else checkpoint.checkpoint(resume)))
         out = dict(status="ok", epoch=res.epoch, samples=res.epoch * res.samples_per_epoch,
                    size=res.size, abs_error=res.abs_error, rel_error=res.rel_error, M=res.M,
                    heldout_abs_error=res.heldout_abs_error,
-                   snapshots=res.snapshots, largest_jump=res.largest_jump)
+                   snapshots=res.snapshots, largest_jump=res.largest_jump,
+                   final=checkpoint.final_state(res) if trial.get("keep_state") else None)
     except gbmodel.Diverged as err:
         out = dict(status="diverged", error=str(err), epoch=err.epoch)
     except Exception as err:  # recorded and reported; the other trials go on

@@ -1,0 +1,137 @@
+"""A trial's final state, kept for the trials that another continues (gbmodel.Checkpoint).
+
+A continuation (conditions.continues, pipeline.plan) starts from the saved state of its base
+trial, the trial of the same condition and index that ran its first epochs: the learner's state,
+the generator's state after the base's draws, and the base's curve and snapshots (the base's
+cached files). Its result is an uninterrupted run's, to the bit (tests/pipeline/
+test_continuation.py), so the epochs both share are computed once.
+
+Only a trial planned as a base keeps its state (`keep_state`), in one more file beside its curve
+and sidecar, trials/<kk>/<key>.state.json, sealed like the sidecar (pipeline.io.seal): the
+learner's state as plain data (arrays as base64 of their bytes, dataclasses of gbmodel by name),
+so that it crosses to a worker or a cluster node like any trial. A base found in the cache
+without it is run again (simulate), before its continuations.
+"""
+from __future__ import annotations
+
+import base64
+import dataclasses
+import importlib
+from pathlib import Path
+
+import numpy as np
+
+SUFFIX = ".state.json"
+
+
+def encode(x):
+    """A learner's state as plain JSON data (decode inverts it to the bit)."""
+    if isinstance(x, np.ndarray):
+        return {"array": x.dtype.str, "shape": list(x.shape),
+                "data": base64.b64encode(np.ascontiguousarray(x).tobytes()).decode()}
+    if isinstance(x, np.generic):
+        return {"scalar": encode(np.asarray(x))}
+    if dataclasses.is_dataclass(x) and not isinstance(x, type):
+        kind = type(x)
+        return {"dataclass": f"{kind.__module__}:{kind.__qualname__}",
+                "fields": {f.name: encode(getattr(x, f.name)) for f in dataclasses.fields(x)}}
+    if isinstance(x, (tuple, list)):
+        return {type(x).__name__: [encode(v) for v in x]}
+    if isinstance(x, dict):
+        return {"dict": [[encode(k), encode(v)] for k, v in x.items()]}
+    if isinstance(x, float):
+        return {"float": x.hex()}
+    if x is None or isinstance(x, (bool, int, str)):
+        return x
+    raise TypeError(f"a learner's state holds a {type(x).__name__}, which a checkpoint cannot "
+                    "keep (arrays, numbers, strings, tuples, lists, dicts and dataclasses)")
+
+
+def decode(d):
+    if not isinstance(d, dict):
+        return d
+    if "array" in d:
+        a = np.frombuffer(base64.b64decode(d["data"]), dtype=np.dtype(d["array"]))
+        return a.reshape(d["shape"]).copy()
+    if "scalar" in d:
+        return decode(d["scalar"])[()]
+    if "dataclass" in d:
+        module, _, name = d["dataclass"].partition(":")
+        if module.split(".")[0] != "gbmodel":  # a state is gbmodel's: nothing else is imported
+            raise ValueError(f"a checkpoint names {d['dataclass']!r}, not a class of gbmodel")
+        kind = importlib.import_module(module)
+        for part in name.split("."):
+            kind = getattr(kind, part)
+        if not dataclasses.is_dataclass(kind):
+            raise ValueError(f"a checkpoint names {d['dataclass']!r}, not a dataclass")
+        return kind(**{k: decode(v) for k, v in d["fields"].items()})
+    if "tuple" in d:
+        return tuple(decode(v) for v in d["tuple"])
+    if "list" in d:
+        return [decode(v) for v in d["list"]]
+    if "dict" in d:
+        return {decode(k): decode(v) for k, v in d["dict"]}
+    if "float" in d:
+        return float.fromhex(d["float"])
+    raise ValueError(f"not a checkpoint's data: keys {sorted(d)}")
+
+
+def final_state(res) -> dict:
+    """What a finished trial keeps for its continuations (a worker's result, plain data): its
+    last epoch, the generator's state and the learner's state."""
+    return dict(epoch=int(res.epoch[-1]), rng=encode(res.rng), state=encode(res.state))
+
+
+def path(cache_dir, trial: dict) -> Path:
+    from . import cache  # here: a worker encodes and decodes, the driver reads and writes
+
+    return cache.trial_paths(cache_dir, trial)[1].with_suffix(SUFFIX)
+
+
+def write(cache_dir, trial: dict, final: dict) -> None:
+    """Keep a trial's final state (before its sidecar: a finished trial has it)."""
+    from . import io
+
+    io.write_json(path(cache_dir, trial), io.seal(dict(key=trial["key"], **final)), compact=True)
+
+
+def has(cache_dir, trial: dict) -> bool:
+    return path(cache_dir, trial).is_file()
+
+
+def load(cache_dir, base: dict) -> tuple[dict | None, str | None]:
+    """(the checkpoint of a finished base trial as plain data for a worker, None), or (None,
+    why) when the base is not finished, diverged or its files are damaged."""
+    from . import cache, io
+
+    side, table, why = cache.read_trial(cache_dir, base)
+    if side is None:
+        return None, why or f"its base trial {base['key']} is not in the cache"
+    if side["status"] != "ok":
+        return None, f"its base trial {base['key']} {side['status']}: {side.get('error')}"
+    try:
+        raw = path(cache_dir, base).read_bytes()
+        saved = io.check_seal(io.parse_json(raw, path(cache_dir, base)), path(cache_dir, base))
+        if saved.get("key") != base["key"]:
+            return None, f"{path(cache_dir, base).name} belongs to another trial"
+    except FileNotFoundError:
+        return None, f"its base trial {base['key']} kept no state"
+    except (OSError, ValueError) as err:
+        return None, str(err)
+    curve = {c: table.column(c).to_pylist() for c in
+             ("epoch", "size", "abs_error", "rel_error", "heldout_abs_error")}
+    return dict(epoch=saved["epoch"], rng=saved["rng"], state=saved["state"], curve=curve,
+                snapshots=side["snapshots"]), None
+
+
+def checkpoint(data: dict):
+    """The gbmodel.Checkpoint of load()'s plain data (in the worker)."""
+    import gbmodel
+
+    c = data["curve"]
+    result = gbmodel.TrialResult(
+        epoch=np.asarray(c["epoch"], np.int64), size=np.asarray(c["size"]),
+        abs_error=np.asarray(c["abs_error"]), rel_error=np.asarray(c["rel_error"]), M=None,
+        heldout_abs_error=np.asarray(c["heldout_abs_error"]),
+        snapshots={int(e): np.asarray(m) for e, m in data["snapshots"].items()})
+    return gbmodel.Checkpoint(data["epoch"], decode(data["state"]), decode(data["rng"]), result)
