@@ -18,6 +18,12 @@ of the same ratio in CPU time, pair by pair (`*_cpu`, paired_ratio): on a loaded
 wall clock also counts the time it waited for a core, which hides a regression that CPU time shows.
 With bench.parallel, it also times the same batch of arm5 trials on one and on two worker
 processes of the pipeline's local engine. Writes paths.bench/bench.json.
+
+The floor: per body, the flops of one sample counted from the kernel's code (`sample_flops`, stage
+by stage, from m, n, p and the chain) over the peak of one core measured on this machine in the
+same run (`peak_gflops`: independent fused multiply-add chains on the kernel's vector type, before
+every repeat); `floor_ratio` is the fast path's CPU time per sample over flops / peak, the median
+of the repeats' ratios (a loaded machine slows the peak and the trial alike).
 """
 from __future__ import annotations
 
@@ -28,9 +34,13 @@ from pathlib import Path
 
 import hydra
 import numpy as np
+from numba import njit
 from omegaconf import DictConfig
 
 import gbmodel
+from gbmodel.features import exponents
+from gbmodel.kinematics import chain_layout
+from gbmodel.simd import LANES, F4, vadd, vfma, vsplat, vsum
 
 from .. import cli, execute, io
 from ..config import CONFIG_PATH, compose
@@ -67,13 +77,15 @@ def time_trial_both(spec: dict, seed: int = 0) -> tuple[float, float]:
             (time.process_time() - c0) / spec["epochs"])
 
 
-def paired(specs: dict, repeats: int) -> dict:
+def paired(specs: dict, repeats: int, before=None) -> dict:
     """Whole trials of every spec in `specs` (name -> spec), interleaved: repeat r runs them in
     turn, in reversed order every other repeat, all with seed r, so that a machine that speeds up
     or slows down during the run shifts them alike. name -> (wall, cpu) seconds per epoch, one
-    per repeat."""
+    per repeat. `before()`, if given, runs at the start of every repeat."""
     out = {name: [] for name in specs}
     for r in range(repeats):
+        if before is not None:
+            before()
         for name in (list(specs) if r % 2 == 0 else list(reversed(specs))):
             out[name].append(time_trial_both(specs[name], r))
     return out
@@ -88,6 +100,106 @@ def paired_ratio(times: dict, a: str, b: str, clock: int = 1) -> float:
 RATIOS = {"speedup": ("reference", "fast"), "online_over_batch": ("online", "fast"),
           "lstsq_over_gradient": ("lstsq", "fast"),
           "updates_online_over_batch": ("updates_online", "fast")}  # speedup: fast is b's
+
+
+# ---- the floor: flops of a sample over the peak of one core -------------------------------------
+# Counted from the kernel's code (gbmodel/learners/goal_babbling: rollout.py, core.py, gradient.py;
+# gbmodel/simd.py): a fused multiply-add is 2 flops; an add, subtract, multiply, divide or square
+# root 1; a sign flip, compare, select (the clips, the guards of eq. 1-3) or a store 0.
+SINCOS_FLOPS = 23  # simd.sincos: 4 fma + 1 sub + 1 mul (reduction), 3 fma + 1 mul (sin), 4 fma (cos)
+
+
+def sample_flops(body, p: int, V: int, T: int) -> dict:
+    """Flops of one sample of an epoch of the batch kernel (solver=gradient), stage by stage, for
+    a body's chain (m joints, n outputs), p features, V variations of T + 1 samples: what the
+    kernel computes per sample column (simd.chain_kinematics, rollout._commands and _weights,
+    core._features, _predict and _accumulate); g along the path (once per path column, shared by
+    the V variations) is counted per sample."""
+    chain, m, n = chain_layout(body), body.m, body.n
+    kinematics = 0
+    for i in range(m):
+        theta = 2 if body.normalized else 1  # q (span / 2) + ... : an fma; q + offset: an add
+        if chain["general"]:
+            step = 3 * 6 + 6  # R_i p + t_i (9 fma), then Rz: 2 fma + 2 mul
+        else:
+            ca, sa = chain["cos_alpha"][i], chain["sin_alpha"][i]
+            twist = 1 if (ca, sa) in ((1, 0), (0, 1), (0, -1)) else 7  # pz +- d; or Rx(alpha)
+            step = 1 + twist + 6  # u = p_x + a; Rz: 2 fma + 2 mul
+        kinematics += theta + SINCOS_FLOPS + step
+    kinematics += 6 * n  # the base: 3 fma per output
+    path_columns = -(-(T + 1) // LANES) * LANES
+    flops = {
+        # g + A x* + b: an add and n fma per joint; g along the path (features, M Phi) per sample
+        "commands": m * (1 + 2 * n) + (p - 1 + m * (2 * p - 1)) * path_columns / (V * (T + 1)),
+        "kinematics": kinematics,  # theta, sin and cos, the chain step per joint, the base
+        # eq. 1-3: dx, dot, |dx|^2 per output; dq, |dq|^2 per joint; 2 sqrt, 2 div, 2 mul, 1 add
+        "weights": 5 * n + 3 * m + 8,
+        "features": p - 1,  # one product per monomial
+        "M_phi": m * (2 * p - 1),  # a product and p - 1 fma per row
+        "error": 2 * m,  # w (M phi - q): a subtract and a multiply per row
+        "gradient": 2 * m * p,  # one fma per entry of R Phi^T
+    }
+    flops["total"] = sum(flops.values())
+    return flops
+
+
+@njit(cache=True)
+def _fma_chains(iters):
+    """6 independent chains of vfma on the kernel's vector type (F32x16: 12 ymm or 6 zmm
+    registers), iters steps each: 6 * LANES * 2 flops per step."""
+    m, c = vsplat(F4(0.999)), vsplat(F4(0.001))
+    a0, a1, a2, a3 = vsplat(1.0), vsplat(1.1), vsplat(1.2), vsplat(1.3)
+    a4, a5 = vsplat(1.4), vsplat(1.5)
+    for _ in range(iters):
+        a0, a1, a2 = vfma(a0, m, c), vfma(a1, m, c), vfma(a2, m, c)
+        a3, a4, a5 = vfma(a3, m, c), vfma(a4, m, c), vfma(a5, m, c)
+    return vsum(vadd(vadd(vadd(a0, a1), vadd(a2, a3)), vadd(a4, a5)))
+
+
+@njit(cache=True)
+def _fma_chains8(iters):
+    """8 chains (for a CPU whose fma latency times its fma units exceeds 6 vectors)."""
+    m, c = vsplat(F4(0.999)), vsplat(F4(0.001))
+    a0, a1, a2, a3 = vsplat(1.0), vsplat(1.1), vsplat(1.2), vsplat(1.3)
+    a4, a5, a6, a7 = vsplat(1.4), vsplat(1.5), vsplat(1.6), vsplat(1.7)
+    for _ in range(iters):
+        a0, a1, a2, a3 = vfma(a0, m, c), vfma(a1, m, c), vfma(a2, m, c), vfma(a3, m, c)
+        a4, a5, a6, a7 = vfma(a4, m, c), vfma(a5, m, c), vfma(a6, m, c), vfma(a7, m, c)
+    return vsum(vadd(vadd(vadd(a0, a1), vadd(a2, a3)), vadd(vadd(a4, a5), vadd(a6, a7))))
+
+
+def peak_gflops(iters: int = 2_000_000, tries: int = 3) -> float:
+    """The peak of one core in float32 GFLOP/s, measured: the best CPU-time rate of `tries` runs
+    of 6 and of 8 independent fma chains on F32x16 (about 10 ms each at 100 GFLOP/s)."""
+    best = 0.0
+    for fn, chains in ((_fma_chains, 6), (_fma_chains8, 8)):
+        fn(10)  # compiled or loaded outside the timing
+        for _ in range(tries):
+            c0 = time.process_time()
+            fn(iters)
+            dt = time.process_time() - c0
+            if dt > 0:
+                best = max(best, iters * chains * LANES * 2 / dt / 1e9)
+    return best
+
+
+def floor_row(body_name: str, cpu_s: list, peaks: list) -> dict:
+    """The fast path against the floor: ns per sample (median CPU time), flops per sample (total
+    and per stage), the peak (median of the repeats) and floor_ratio, the median over repeats of
+    the time per sample over flops / that repeat's peak."""
+    spec = gbmodel.TrialSpec.from_dict(paper_spec(body_name, 10, True))
+    body, (learner, params) = spec.make_body(), spec.make_learner()
+    N = learner.samples_per_epoch(params, body)
+    p = len(exponents(body.n, params.degree))
+    flops = sample_flops(body, p, params.variations, params.targets_per_epoch * params.steps)
+    ns = [1e9 * t / N for t in cpu_s]
+    return {"samples_per_epoch": N, "ns_per_sample": float(np.median(ns)),
+            "flops_per_sample": flops["total"],
+            "flops_per_stage": {k: v for k, v in flops.items() if k != "total"},
+            "peak_gflops": float(np.median(peaks)),
+            "floor_ns_per_sample": flops["total"] / float(np.median(peaks)),
+            "floor_ratio": float(np.median([t / (flops["total"] / g)
+                                            for t, g in zip(ns, peaks)]))}
 
 
 def draw_time(spec: dict, epochs: int = 200) -> float:
@@ -138,7 +250,8 @@ def bench(cfg: DictConfig) -> dict:
                  "updates_online": paper_spec(body, EPOCHS["updates_online"][body], True,
                                               extra=("learner.updates=online",)),
                  "reference": paper_spec(body, EPOCHS["reference"][body], False)}
-        times, row = paired(specs, repeats), {}
+        peaks = []
+        times, row = paired(specs, repeats, before=lambda: peaks.append(peak_gflops())), {}
         for path in specs:
             wall, cpu = (np.array(t) for t in zip(*times[path]))
             row[f"{path}_us_per_trial_epoch"] = 1e6 * float(np.median(wall))
@@ -153,6 +266,7 @@ def bench(cfg: DictConfig) -> dict:
                                       / row["fast_us_per_trial_epoch"])
         row["updates_online_over_batch"] = (row["updates_online_us_per_trial_epoch"]
                                             / row["fast_us_per_trial_epoch"])
+        row["floor"] = floor = floor_row(body, [t[1] for t in times["fast"]], peaks)
         result[body] = row
         print(f"{body}: fast {row['fast_us_per_trial_epoch']:8.1f} us/trial-epoch   "
               f"reference {row['reference_us_per_trial_epoch']:9.1f} us/trial-epoch   "
@@ -168,6 +282,12 @@ def bench(cfg: DictConfig) -> dict:
         print(f"{body}: CPU time, paired: " + "   ".join(
             f"{name} {row[name]:.2f} wall, {row[name + '_cpu']:.2f} CPU" for name in RATIOS),
             flush=True)
+        print(f"{body}: floor: {floor['ns_per_sample']:.2f} ns per sample (CPU), "
+              f"{floor['flops_per_sample']:.0f} flops per sample ("
+              + ", ".join(f"{k} {v:.0f}" for k, v in floor["flops_per_stage"].items())
+              + f"), peak {floor['peak_gflops']:.1f} GFLOP/s measured: floor "
+              f"{floor['floor_ns_per_sample']:.2f} ns, ratio to the floor "
+              f"{floor['floor_ratio']:.2f}", flush=True)
     if cfg.bench.parallel:
         result["parallel"] = p = parallel_speedup()
         print(f"parallel: {p['trials']} arm5 trials, 1 worker {p['wall_s_1_worker']:.1f} s, "

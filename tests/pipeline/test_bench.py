@@ -27,6 +27,13 @@ def test_bench_writes_medians_and_the_fast_path_wins(tmp_path):
         # Goal Babbling with updates=online against the batch epoch
         assert row["updates_online_over_batch"] == (row["updates_online_us_per_trial_epoch"]
                                                     / row["fast_us_per_trial_epoch"])
+        # the floor: flops per sample counted from the code over the peak measured in the run
+        floor = row["floor"]
+        assert floor["flops_per_sample"] == pytest.approx(sum(floor["flops_per_stage"].values()))
+        assert floor["peak_gflops"] > 1 and floor["ns_per_sample"] > 0
+        assert floor["floor_ratio"] == pytest.approx(
+            floor["ns_per_sample"] / floor["floor_ns_per_sample"])
+        assert floor["floor_ratio"] > 1  # no kernel beats the peak
         # beside each: the CPU-time ratio of the interleaved pairs (one repeat: its one pair)
         for name, (a, b) in bench.RATIOS.items():
             assert row[f"{name}_cpu"] == pytest.approx(row[f"{a}_cpu_us_per_trial_epoch"]
@@ -43,3 +50,30 @@ def test_cpu_ratios_are_the_median_of_the_pairs():
     assert bench.paired_ratio(times, "lstsq", "fast", clock=0) == 1.1
     assert set(bench.RATIOS) == {"speedup", "online_over_batch", "lstsq_over_gradient",
                                  "updates_online_over_batch"}
+
+
+def test_sample_flops_follow_the_body():
+    """The flops of a sample, stage by stage, from m, n, p and the chain: arm5 (5 planar DH
+    joints, 2 outputs, 10 features) and the iCub (10 normalised joints, twists of 0 and +-90
+    degrees, 3 outputs, 20 features), counted by hand from the kernel's code."""
+    import gbmodel
+
+    arm5 = bench.sample_flops(gbmodel.make_body("arm5"), 10, 20, 105)
+    assert {k: arm5[k] for k in ("kinematics", "weights", "features", "M_phi", "error",
+                                 "gradient")} == dict(
+        kinematics=5 * (1 + 23 + 1 + 1 + 6) + 2 * 6, weights=10 + 15 + 8, features=9,
+        M_phi=5 * 19, error=10, gradient=100)
+    # commands: an add and 2 fma per joint, g along the path (112 columns) shared by 20 x 106
+    assert arm5["commands"] == pytest.approx(25 + (9 + 95) * 112 / 2120)
+    assert arm5["total"] == pytest.approx(sum(v for k, v in arm5.items() if k != "total"))
+    icub = bench.sample_flops(gbmodel.make_body("icub"), 20, 20, 300)
+    assert icub["kinematics"] == 10 * (2 + 23 + 1 + 1 + 6) + 3 * 6
+    assert icub["gradient"] == 2 * 10 * 20 and icub["M_phi"] == 10 * 39
+    assert 1300 < icub["total"] < 1340  # issue 43: about 1,330 (arm5: about 444)
+    assert 440 < arm5["total"] < 455
+
+
+def test_peak_is_measured():
+    """The peak of one core: a few GFLOP/s at least on any CPU the kernel runs on, and at most
+    what 2 fma units of 16 float32 lanes at 6 GHz could do."""
+    assert 1 < bench.peak_gflops(iters=200_000, tries=1) < 2 * 16 * 2 * 6
