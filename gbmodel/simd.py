@@ -196,6 +196,43 @@ def vwhere(typingctx, a, b, x, y):
     return F32x16(a, b, x, y), codegen
 
 
+_ONE_REGISTER: dict = {}  # codegen.magic_tuple() -> whether an F32x16 lives in one register
+
+_PROBE = """
+define void @probe(<16 x float>* %p) {
+  %v = load <16 x float>, <16 x float>* %p
+  %w = fadd <16 x float> %v, %v
+  store <16 x float> %w, <16 x float>* %p
+  ret void
+}
+"""
+
+
+def _one_register(codegen) -> bool:
+    """Whether the target LLVM compiles for (the host, or NUMBA_CPU_NAME / NUMBA_CPU_FEATURES)
+    holds an F32x16 in one zmm register: asks LLVM, by compiling an add of two of them. False
+    where it cannot tell (numba's codegen without a target machine)."""
+    key = codegen.magic_tuple()
+    if key not in _ONE_REGISTER:
+        try:
+            import llvmlite.binding as ll
+            asm = codegen._tm.emit_assembly(ll.parse_assembly(_PROBE))
+            _ONE_REGISTER[key] = "zmm" in asm
+        except Exception:  # noqa: BLE001 (a numba without _tm: the narrow choice, same bits)
+            _ONE_REGISTER[key] = False
+    return _ONE_REGISTER[key]
+
+
+@intrinsic
+def wide_vectors(typingctx):
+    """A compile-time constant: True where the target holds an F32x16 in one of 32 registers
+    (AVX-512), False where it takes two of 16 (AVX2) or more. For choices that move no bit (the
+    shape of a register tile), never for what a lane computes."""
+    def codegen(context, builder, sig, args):
+        return context.get_constant(types.boolean, _one_register(context.codegen()))
+    return types.boolean(), codegen
+
+
 @intrinsic
 def vsum(typingctx, v):
     """The lanes' sum in float64, in a fixed tree: lanes l and l + 8 first, then l and l + 4,

@@ -106,7 +106,8 @@ RATIOS = {"speedup": ("reference", "fast"), "online_over_batch": ("online", "fas
 # Counted from the kernel's code (gbmodel/learners/goal_babbling: rollout.py, core.py, gradient.py;
 # gbmodel/simd.py): a fused multiply-add is 2 flops; an add, subtract, multiply, divide or square
 # root 1; a sign flip, compare, select (the clips, the guards of eq. 1-3) or a store 0.
-SINCOS_FLOPS = 23  # simd.sincos: 4 fma + 1 sub + 1 mul (reduction), 3 fma + 1 mul (sin), 4 fma (cos)
+SINCOS_FLOPS = 23  # simd.sincos: 4 fma + 1 sub + 1 mul (reduction, r^2), 3 fma + 1 mul (sin),
+#                   4 fma (cos)
 
 
 def sample_flops(body, p: int, V: int, T: int) -> dict:

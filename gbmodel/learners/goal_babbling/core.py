@@ -6,9 +6,10 @@ they give the same bits on every x86-64 CPU):
   one coordinate;
 - `_predict`: M Phi of a block of columns (or the weighted residuals w (M Phi - q)), rows of M
   in register tiles of _TILE;
-- `_accumulate`: lanes of R Phi^T over a block of columns in 5 x 5 register tiles of vector
-  accumulators (10 loads per 25 fused multiply-adds): the gradient, and the Gram sums of
-  solver=lstsq; float32 lanes whose sum is float64;
+- `_accumulate`: lanes of R Phi^T over a block of columns in register tiles of vector
+  accumulators, 5 x 5 (10 loads per 25 fused multiply-adds) where the target has 32 vector
+  registers of 16 lanes (AVX-512), 2 x 2 where it has 16 of 8 (AVX2): the gradient, and the
+  Gram sums of solver=lstsq; float32 lanes whose sum is float64;
 - `_lane_sum`, `_zeros64`: a sum over columns in lanes; float64 rows aligned to cache lines.
 
 Each is a function of arrays (the samples, M, its work arrays) and nothing else, so that a kernel
@@ -23,6 +24,7 @@ from numba import njit
 
 from ...simd import (
     LANES, W8, _1, fresh_cache, vadd, vfma, vload, vload1, vmul, vsplat, vstore, vsub, vsum,
+    wide_vectors,
 )
 
 # every kernel file imports this one first: numba's caches of this folder are removed when any
@@ -90,15 +92,27 @@ def _predict(M32, Phi, C, out, Q, w, c0):
 
 
 # ---- R Phi^T: register tiles of vector accumulators --------------------------------------------
+# A tile's accumulators start at 0, add the block's columns in order, then are added to GL: lane
+# l of G[i, k] adds the columns c = l (mod LANES) one by one in order whatever the tile's shape,
+# so the shape follows the target's registers without moving a bit: 5 x 5 tiles (25
+# accumulators, 10 loads per 25 fused multiply-adds) where an F32x16 is one register of 32
+# (AVX-512), 2 x 2 tiles where it is two of 16 (AVX2: 4 accumulators in 8 registers, 4 loads per
+# 4; a 5 x 5 tile would spill its accumulators to the stack at every step, twice as slow).
+@njit(inline="always")
+def _put(GL, i, o, a):
+    """GL[i, lanes o ... o + LANES - 1] += a."""
+    vstore(GL, i, o, vadd(vload(GL, i, o), a))
+
+
 @njit(inline="always")
 def _flush(GL, i, k, b0, b1, b2, b3, b4):
     """GL[i, lanes of k ... k + 4] += b0 ... b4."""
     o = k * LANES
-    vstore(GL, i, o, vadd(vload(GL, i, o), b0))
-    vstore(GL, i, o + LANES, vadd(vload(GL, i, o + LANES), b1))
-    vstore(GL, i, o + 2 * LANES, vadd(vload(GL, i, o + 2 * LANES), b2))
-    vstore(GL, i, o + 3 * LANES, vadd(vload(GL, i, o + 3 * LANES), b3))
-    vstore(GL, i, o + 4 * LANES, vadd(vload(GL, i, o + 4 * LANES), b4))
+    _put(GL, i, o, b0)
+    _put(GL, i, o + LANES, b1)
+    _put(GL, i, o + 2 * LANES, b2)
+    _put(GL, i, o + 3 * LANES, b3)
+    _put(GL, i, o + 4 * LANES, b4)
 
 
 @njit(cache=True)
@@ -148,12 +162,42 @@ def _tile1x5(Rw, Phi, C, i, k, GL):
 
 
 @njit(cache=True)
+def _tile2x2(Rw, Phi, C, i, k, GL):
+    """Lanes of G[i:i+2, k:k+2] += Rw[i:i+2, :C] Phi[k:k+2, :C]^T: 4 vector accumulators, 4
+    loads per 4 fused multiply-adds."""
+    a00 = a01 = a10 = a11 = vsplat(0)
+    for c in range(0, C, LANES):
+        x0, x1 = vload(Rw, i, c), vload(Rw, i + 1, c)
+        y = vload(Phi, k, c)
+        a00, a10 = vfma(x0, y, a00), vfma(x1, y, a10)
+        y = vload(Phi, k + 1, c)
+        a01, a11 = vfma(x0, y, a01), vfma(x1, y, a11)
+    o = k * LANES
+    _put(GL, i, o, a00)
+    _put(GL, i, o + LANES, a01)
+    _put(GL, i + 1, o, a10)
+    _put(GL, i + 1, o + LANES, a11)
+
+
+@njit(cache=True)
+def _tile1x2(Rw, Phi, C, i, k, GL):
+    """Lanes of G[i, k:k+2] += Rw[i, :C] Phi[k:k+2, :C]^T."""
+    a0 = a1 = vsplat(0)
+    for c in range(0, C, LANES):
+        x = vload(Rw, i, c)
+        a0, a1 = vfma(x, vload(Phi, k, c), a0), vfma(x, vload(Phi, k + 1, c), a1)
+    o = k * LANES
+    _put(GL, i, o, a0)
+    _put(GL, i, o + LANES, a1)
+
+
+@njit(cache=True)
 def _tile1x1(Rw, Phi, C, i, k, GL):
     """Lanes of G[i, k] += Rw[i, :C] . Phi[k, :C]."""
     a = vsplat(0)
     for c in range(0, C, LANES):
         a = vfma(vload(Rw, i, c), vload(Phi, k, c), a)
-    vstore(GL, i, k * LANES, vadd(vload(GL, i, k * LANES), a))
+    _put(GL, i, k * LANES, a)
 
 
 @njit(cache=True)
@@ -161,17 +205,25 @@ def _accumulate(Rw, Phi, C, GL, symmetric=0):
     """Lanes of the gradient, GL (m, p * LANES) += Rw[:, :C] Phi[:, :C]^T: lane l of G[i, k]
     sums the columns c = l (mod LANES) in order, whatever the CPU. With `symmetric` rows (the
     first rows of Rw are Phi's, weighted: a Gram matrix), the tiles of those rows wholly above
-    the diagonal are left out (the caller mirrors them)."""
+    the diagonal are left out (the caller mirrors them). Tiles of 5 x 5 or 2 x 2 by the
+    target's registers (simd.wide_vectors: a compile-time constant)."""
     m, p = Rw.shape[0], Phi.shape[0]
-    mt, pt = m - m % _TILE, p - p % _TILE
-    for i in range(0, mt, _TILE):
-        for k in range(0, pt, _TILE):
-            if i + _TILE <= symmetric and k >= i + _TILE:
+    t = _TILE if wide_vectors() else 2
+    mt, pt = m - m % t, p - p % t
+    for i in range(0, mt, t):
+        for k in range(0, pt, t):
+            if i + t <= symmetric and k >= i + t:
                 continue
-            _tile5x5(Rw, Phi, C, i, k, GL)
+            if t == _TILE:
+                _tile5x5(Rw, Phi, C, i, k, GL)
+            else:
+                _tile2x2(Rw, Phi, C, i, k, GL)
     for i in range(mt, m):
-        for k in range(0, pt, _TILE):
-            _tile1x5(Rw, Phi, C, i, k, GL)
+        for k in range(0, pt, t):
+            if t == _TILE:
+                _tile1x5(Rw, Phi, C, i, k, GL)
+            else:
+                _tile1x2(Rw, Phi, C, i, k, GL)
     for i in range(m):
         for k in range(pt, p):
             _tile1x1(Rw, Phi, C, i, k, GL)
