@@ -8,7 +8,8 @@ computes lane by lane what it writes, on every x86-64 CPU:
 - `F64x8` (vload8 ... vmul8, W8 = 8), whose lanes round as the scalar loop does (separate * and
   +; vfma8, the fused multiply-add, where a kernel asks for it), and `sincos64`, a scalar float64 sin/cos, for the float64 kernel;
 - `chain_kinematics` (F32x16) and `chain_forward64` (scalar float64): the hand point carried
-  backwards through the chain laid out by gbmodel.kinematics.chain_layout, joint by joint.
+  backwards through the chain laid out by gbmodel.kinematics.chain_layout, joint by joint
+  (F32x16: joint by joint over a block of columns).
 
 `F32x16` is LLVM
 <16 x float> (one zmm register, or two ymm halves without AVX-512, with the same result lane by
@@ -318,6 +319,9 @@ def vclip(q):
     return vwhere(minus_one, q, minus_one, vwhere(q, one, one, q))
 
 
+_KB = 256  # columns per block of chain_kinematics: the block's hand points stay in L1
+
+
 @njit(cache=True)
 def chain_kinematics(Q, X, C, joints, body):
     """Hand positions X[:, :C] of the commands Q[:, :C] (float32, C a multiple of LANES), through
@@ -325,57 +329,69 @@ def chain_kinematics(Q, X, C, joints, body):
     alpha, base, outputs, ty, R, general; joints: normalized, saturates, q_lo, q_span, offset),
     saturating Q in place where the body does. Joint angles theta = q (span / 2) + offset + lo +
     span / 2 for normalised commands, else offset + q. The hand point is carried from the last
-    joint to the base, LANES samples at a time in registers: p <- Rz(theta) (p_x + a,
-    cos(alpha) p_y - sin(alpha) p_z, sin(alpha) p_y + cos(alpha) p_z + d); for the twists 0 and
-    +-90 degrees (every joint of our bodies) without the products by 0 and +-1 (the same
-    values, up to the sign of a zero)."""
+    joint to the base: p <- Rz(theta) (p_x + a, cos(alpha) p_y - sin(alpha) p_z, sin(alpha) p_y
+    + cos(alpha) p_z + d) (for the twists 0 and +-90 degrees, every joint of our bodies,
+    without the products by 0 and +-1: the same values, up to the sign of a zero). Joint by
+    joint over a block of _KB columns, LANES at a time, the block's points in L1 (P): a joint's
+    constants and its kind of step stay out of the loop over columns; each lane computes what
+    it would sample by sample."""
     normalized, saturates, q_lo, q_span, offset = joints
     a, d, ca, sa, base, outputs, ty, R, general = body
     m = Q.shape[0]
-    for c in range(0, C, LANES):
-        px = py = pz = vsplat(0)
+    P = np.empty((3, min(C, _KB)), np.float32)
+    for c0 in range(0, C, _KB):
+        cb = min(_KB, C - c0)
+        P[:, :cb] = 0
         for ii in range(m):
             i = m - 1 - ii
-            q = vload(Q, i, c)
-            if normalized:
-                if saturates:
-                    q = vclip(q)
-                    vstore(Q, i, c, q)
-                half_span = _HALF * q_span[i]
-                theta = vfma(q, vsplat(half_span), vsplat(offset[i] + q_lo[i] + half_span))
-            else:
-                theta = vadd(q, vsplat(offset[i]))
-            s, co = sincos(theta)  # the chain step: DH rows, or
-            if general:  # a URDF's chain: p <- Rz(theta) (R_i p + (a, ty, d)_i)
-                u = vfma(vsplat(R[i, 0, 0]), px, vfma(vsplat(R[i, 0, 1]), py, vfma(
-                    vsplat(R[i, 0, 2]), pz, vsplat(a[i]))))
-                v = vfma(vsplat(R[i, 1, 0]), px, vfma(vsplat(R[i, 1, 1]), py, vfma(
-                    vsplat(R[i, 1, 2]), pz, vsplat(ty[i]))))
-                pz = vfma(vsplat(R[i, 2, 0]), px, vfma(vsplat(R[i, 2, 1]), py, vfma(
-                    vsplat(R[i, 2, 2]), pz, vsplat(d[i]))))
-                px = vfma(co, u, vmul(vneg(s), v))
-                py = vfma(s, u, vmul(co, v))
-                continue
-            u = vadd(px, vsplat(a[i]))
-            if sa[i] == 0 and ca[i] == 1:
-                v = py
-                pz = vadd(pz, vsplat(d[i]))
-            elif ca[i] == 0 and sa[i] == 1:
-                v = vneg(pz)
-                pz = vadd(py, vsplat(d[i]))
-            elif ca[i] == 0 and sa[i] == -1:
-                v = pz
-                pz = vsub(vsplat(d[i]), py)
-            else:
-                v = vfma(vsplat(ca[i]), py, vmul(vsplat(-sa[i]), pz))
-                pz = vadd(vfma(vsplat(sa[i]), py, vmul(vsplat(ca[i]), pz)), vsplat(d[i]))
-            px = vfma(co, u, vmul(vneg(s), v))
-            py = vfma(s, u, vmul(co, v))
+            half_span = _HALF * q_span[i]
+            start = offset[i] + q_lo[i] + half_span
+            ai, di, tyi, oi, cai, sai = a[i], d[i], ty[i], offset[i], ca[i], sa[i]
+            # the kind of step: a general chain's (4), a DH row's twist of 0 (0), +90 (1), -90
+            # degrees (2) or any (3)
+            kind = 4 if general else (0 if sai == 0 and cai == 1 else (
+                1 if cai == 0 and sai == 1 else (2 if cai == 0 and sai == -1 else 3)))
+            for c in range(0, cb, LANES):
+                q = vload(Q, i, c0 + c)
+                if normalized:
+                    if saturates:
+                        q = vclip(q)
+                        vstore(Q, i, c0 + c, q)
+                    theta = vfma(q, vsplat(half_span), vsplat(start))
+                else:
+                    theta = vadd(q, vsplat(oi))
+                s, co = sincos(theta)
+                px, py, pz = vload(P, 0, c), vload(P, 1, c), vload(P, 2, c)
+                if kind == 4:  # a URDF's chain: p <- Rz(theta) (R_i p + (a, ty, d)_i)
+                    u = vfma(vsplat(R[i, 0, 0]), px, vfma(vsplat(R[i, 0, 1]), py, vfma(
+                        vsplat(R[i, 0, 2]), pz, vsplat(ai))))
+                    v = vfma(vsplat(R[i, 1, 0]), px, vfma(vsplat(R[i, 1, 1]), py, vfma(
+                        vsplat(R[i, 1, 2]), pz, vsplat(tyi))))
+                    pz = vfma(vsplat(R[i, 2, 0]), px, vfma(vsplat(R[i, 2, 1]), py, vfma(
+                        vsplat(R[i, 2, 2]), pz, vsplat(di))))
+                else:
+                    u = vadd(px, vsplat(ai))
+                    if kind == 0:
+                        v = py
+                        pz = vadd(pz, vsplat(di))
+                    elif kind == 1:
+                        v = vneg(pz)
+                        pz = vadd(py, vsplat(di))
+                    elif kind == 2:
+                        v = pz
+                        pz = vsub(vsplat(di), py)
+                    else:
+                        v = vfma(vsplat(cai), py, vmul(vsplat(-sai), pz))
+                        pz = vadd(vfma(vsplat(sai), py, vmul(vsplat(cai), pz)), vsplat(di))
+                vstore(P, 0, c, vfma(co, u, vmul(vneg(s), v)))
+                vstore(P, 1, c, vfma(s, u, vmul(co, v)))
+                vstore(P, 2, c, pz)
         for j in range(len(outputs)):
             o = outputs[j]
-            x = vfma(vsplat(base[o, 0]), px, vsplat(base[o, 3]))
-            x = vfma(vsplat(base[o, 1]), py, x)
-            vstore(X, j, c, vfma(vsplat(base[o, 2]), pz, x))
+            for c in range(0, cb, LANES):
+                x = vfma(vsplat(base[o, 0]), vload(P, 0, c), vsplat(base[o, 3]))
+                x = vfma(vsplat(base[o, 1]), vload(P, 1, c), x)
+                vstore(X, j, c0 + c, vfma(vsplat(base[o, 2]), vload(P, 2, c), x))
 
 
 # ---- explicit float64 vectors of W8 lanes ------------------------------------------------------
