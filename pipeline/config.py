@@ -33,7 +33,7 @@ from gbmodel.spec import MAX_EPOCHS, MAX_INT64, MAX_SIZE, Int, Number
 
 from . import engines, searchpath
 from .errors import ConfigError
-from .experiments import Declares, listed
+from .experiments import Declares, config_folders, listed  # noqa: F401 (config_folders: its home was here)
 
 REPO_ROOT = Path(__file__).resolve().parents[1]  # the checkout (installed: site-packages)
 CONF_DIR = gbmodel.bodies.CONF_DIR  # conf/ of the checkout, else the installed gbgrowth_conf
@@ -286,19 +286,6 @@ def sweep_tag() -> str:
     cache to every job's config, in any launcher."""
     who = f"{socket.gethostname()}/{os.getpid()}/{time.time_ns()}"
     return hashlib.sha256(who.encode()).hexdigest()[:8]
-
-
-def config_folders() -> tuple[Path, ...]:
-    """The config folders whose experiment files the project's lists are read from: conf/ (the
-    checkout's, or the installed package's) and, in a running stage, every folder of Hydra's
-    search path (an experiment of one's own)."""
-    folders = [Path(CONF_DIR)]
-    from hydra.core.hydra_config import HydraConfig
-
-    if HydraConfig.initialized():
-        folders += [Path(s.path) for s in HydraConfig.get().runtime.config_sources
-                    if s.schema == "file"]
-    return tuple(dict.fromkeys(f.resolve() for f in folders))
 
 
 if not OmegaConf.has_resolver("experiments"):  # report.paper_experiments: ${experiments:}
@@ -603,11 +590,37 @@ def _under(key: str, prefixes) -> str | None:
     return next((p for p in prefixes if key == p or key.startswith(p + ".")), None)
 
 
+HYDRA_DEFAULTS_FORMAT = 1  # the layout of _hydra_defaults' record: a new one is a new name
+
+
 @lru_cache(maxsize=1)
 def _hydra_defaults() -> dict:
-    """The project's own `hydra` section, flat (conf/config.yaml over Hydra's defaults)."""
+    """The project's own `hydra` section, flat (conf/config.yaml over Hydra's defaults). A
+    compose of its own (about 0.3 s CPU in every stage), so it is kept in pipeline/__pycache__/
+    (beside the code, not in a folder of the run's) under the hash of everything it is composed
+    from: the config files, pipeline's and gbmodel's code, Hydra's and OmegaConf's versions
+    (planned.planning_sources), the config folders outside the checkout (config_sources) and
+    where the config is read from; a changed byte is a new record, and a record whose checksum
+    fails is composed again (fingerprint.kept)."""
+    from .fingerprint import keep, kept
+    from .planned import config_sources, planning_sources
+
+    key = hashlib.sha256(f"{planning_sources()}\0{config_sources()}\0{CONFIG_PATH}"
+                         .encode()).hexdigest()
+    path = (Path(__file__).resolve().parent / "__pycache__"
+            / f"hydra_defaults.{HYDRA_DEFAULTS_FORMAT}" / f"{key}.json")
+    try:
+        found = json.loads(kept(path) or b"null")
+    except ValueError:
+        found = None
+    if isinstance(found, dict):
+        return found
     cfg = compose(["paths.root=/"], hydra=True)
-    return _flat(OmegaConf.to_container(cfg.hydra, resolve=False))
+    flat = _flat(OmegaConf.to_container(cfg.hydra, resolve=False))
+    text = json.dumps(flat, sort_keys=True)
+    if json.loads(text) == flat:  # kept only where JSON gives the same values back
+        keep(path, text.encode())
+    return flat
 
 
 def check_hydra(cfg) -> None:

@@ -359,35 +359,92 @@ def imported_learners(sources, name: str) -> set[str]:
     return found
 
 
+def _files_of(name: str) -> list[tuple[str, str]] | None:
+    """gbmodel.learners.sources(name) of a learner of gbmodel/learners/ (its package's files, or
+    its module's), read without importing it (sources imports the module to find its file: a
+    cached simulate then loaded numba and scipy for nothing); None for any other learner (one
+    registered at run time), which sources describes."""
+    root = Path(gbmodel.__file__).resolve().parent
+    if name in gbmodel.learners._REGISTERED or name not in gbmodel.learners.available():
+        return None
+    package, single = root / "learners" / name / "__init__.py", root / "learners" / f"{name}.py"
+    files = (sorted(package.parent.rglob("*.py")) if package.is_file()
+             else [single] if single.is_file() else None)
+    if files is None:
+        return None
+    return [(f.resolve().relative_to(root.parent).as_posix(), f.read_text()) for f in files]
+
+
 def learner_sources(learner: str) -> list[tuple[str, str]]:
     """(label, text) of the learner's own files and of every learner's whose code it imports,
-    transitively (gbmodel.learners.sources of each)."""
+    transitively (gbmodel.learners.sources of each, read from the files where it can: _files_of)."""
     done, todo, out = set(), [learner], {}
     while todo:
         name = todo.pop()
         if name in done:
             continue
         done.add(name)
-        theirs = gbmodel.learners.sources(name)
+        theirs = _files_of(name)
+        theirs = gbmodel.learners.sources(name) if theirs is None else theirs
         out.update(theirs)
         todo += sorted(imported_learners(theirs, name) - done)
     return sorted(out.items())
 
 
 @lru_cache(maxsize=None)
-def code_fingerprint(learner: str) -> str:
-    """The fingerprint of the code a trial of `learner` runs: gbmodel's shared core (every file
-    outside gbmodel/learners/, and the registry) plus that learner's own files and those of the
-    learners it imports code from (learner_sources), each checked against the code imported
-    from it. Changing one learner recomputes its trials and those of the learners using its
-    code only; an edited comment recomputes none."""
+def _fingerprint(learner: str) -> tuple[str, dict, set]:
+    """(fingerprint, resolved path -> the text hashed, the paths checked against their module)
+    of `learner` (code_fingerprint), computed once per process."""
     root = Path(gbmodel.__file__).resolve().parent
     shared = [p for p in root.rglob("*.py")
               if "learners" not in p.relative_to(root).parts[:-1]]
     shared.append(root / "learners" / "__init__.py")
-    theirs = learner_sources(learner)  # imports the learners: their modules are checked
+    theirs = learner_sources(learner)  # from the files: a learner not imported stays so
+    texts = {p.resolve(): p.read_text() for p in shared}
+    own = [(p.relative_to(root.parent).as_posix(), texts[p.resolve()]) for p in shared]
+    for label, text in theirs:
+        texts[(root.parent / label).resolve()] = text
+    checked = set()
+    _check_imported(texts, checked)
+    return source_fingerprint(own + theirs), texts, checked
+
+
+def _check_imported(texts: dict, checked: set) -> None:
+    """as_imported for each file of `texts` whose module is imported now and was not checked
+    yet: the text hashed must be the code the process imported (CodeChanged otherwise)."""
     modules = _gbmodel_modules()
-    own = [(p.relative_to(root.parent).as_posix(), as_imported(p, p.read_text(), modules))
-           for p in shared]
-    theirs = [(label, as_imported(root.parent / label, text, modules)) for label, text in theirs]
-    return source_fingerprint(own + theirs)
+    for path in texts.keys() & modules.keys() - checked:
+        as_imported(path, texts[path], modules)
+        checked.add(path)
+
+
+_SEEN_MODULES: dict = {}  # learner -> len(sys.modules) when its imported files were last checked
+
+
+def code_fingerprint(learner: str) -> str:
+    """The fingerprint of the code a trial of `learner` runs: gbmodel's shared core (every file
+    outside gbmodel/learners/, and the registry) plus that learner's own files and those of the
+    learners it imports code from (learner_sources). Changing one learner recomputes its trials
+    and those of the learners using its code only; an edited comment recomputes none.
+
+    The files are read and hashed once per process (no module is imported for it: a cached
+    simulate never loads a learner's kernels). Every file whose module the process has imported
+    is checked against the text that was hashed (as_imported): on the first call, and again on
+    any later call after the process imported more modules (a learner's, when its first trial
+    runs; pipeline.worker.run_one asks again after each trial). A file edited between the read
+    and the import therefore raises CodeChanged instead of keying new code's results with the
+    old code's fingerprint."""
+    fp, texts, checked = _fingerprint(learner)
+    n = len(sys.modules)
+    if _SEEN_MODULES.get(learner) != n:
+        _check_imported(texts, checked)
+        _SEEN_MODULES[learner] = n
+    return fp
+
+
+def _clear() -> None:
+    _fingerprint.cache_clear()
+    _SEEN_MODULES.clear()
+
+
+code_fingerprint.cache_clear = _clear  # the tests' way to read the files again

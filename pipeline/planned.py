@@ -47,7 +47,7 @@ def config_sources() -> str | None:
     `experiments=[mine]` and a variant's `learner=...` compose files that the run's resolved
     config does not hold: an edit there must plan again. None when there is no such folder.
     Read on every call (the files are few and small; they may change within a process)."""
-    from .config import config_folders
+    from .experiments import config_folders
 
     checkout = (Path(__file__).resolve().parents[1] / "conf").resolve()
     here = Path.cwd() / "conf"

@@ -80,12 +80,15 @@ class Job:
     experiment: str | None = None
 
 
-def jobs_of(cfg: DictConfig, overrides: list[str] = ()) -> list[Job]:
+def jobs_of(cfg: DictConfig, overrides: list[str] = (), notes: list | None = None) -> list[Job]:
     """The figures this run plans: the config's own, or with `experiments=[a, b]` each of those
     experiments composed with the same other overrides (make smoke / make reproduce plan every
     experiment in one process). A command planned before (the same plan_digest: config,
     overrides, config files and code) takes its jobs from paths.out/planned/ instead of
-    composing and planning again; the run's own settings are checked either way."""
+    composing and planning again; the run's own settings are checked either way. notes: a list
+    given is filled with the trials' learner_notes, kept in the saved plan beside its jobs (they
+    follow from the specs and the code, which its digest holds): a planned run imports no
+    learner to print them."""
     engines.check(cfg.engine.name)  # this stage submits: the engine's package is needed
     experiment = None if cfg.get("experiments") else _experiment_of(cfg)
     saved = Path(cfg.paths.out) / PLANNED / f"{plan_digest(cfg, [overrides, experiment])}.json"
@@ -104,9 +107,17 @@ def jobs_of(cfg: DictConfig, overrides: list[str] = ()) -> list[Job]:
                     str(err).splitlines()[0] if str(err) else type(err).__name__)
     if jobs is not None:
         check_run(cfg)
+        kept = packed.get("notes")
+        if notes is not None:
+            notes[:] = (kept if isinstance(kept, list) and all(isinstance(n, str) for n in kept)
+                        else learner_notes(t for j in jobs for t in j.trials))
         return jobs
     jobs = plan_jobs(cfg, overrides, experiment)
-    io.write_json(saved, pack_jobs(jobs), compact=True)
+    packed = pack_jobs(jobs)
+    packed["notes"] = learner_notes(t for j in jobs for t in j.trials)
+    io.write_json(saved, packed, compact=True)
+    if notes is not None:
+        notes[:] = packed["notes"]
     return jobs
 
 
@@ -186,8 +197,9 @@ def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = Non
 
     group: the Hydra multirun this run is a job of (job: its number), whose records make one
     figure together; None: this run's records make the figure alone."""
-    jobs = jobs_of(cfg, overrides)  # raises ConfigError before anything is written
-    for note in learner_notes(t for j in jobs for t in j.trials):
+    notes = []
+    jobs = jobs_of(cfg, overrides, notes)  # raises ConfigError before anything is written
+    for note in notes:
         print(f"note: {note}", file=sys.stderr)
     cache_dir = Path(cfg.paths.cache)
     names = list(dict.fromkeys(j.figure for j in jobs))
@@ -307,8 +319,11 @@ def resumed(cache_dir, trial: dict) -> tuple[dict, dict | None]:
 def learner_notes(trials) -> list[str]:
     """What the trials' learners say about their settings on their bodies (the learner's
     optional `notes`), each note once, in the order of the trials."""
-    out, seen = {}, set()
+    out, seen, specs = {}, set(), {}
     for t in trials:
+        if id(t["spec"]) in specs:  # a condition's trials share their spec (plan, unpack_jobs)
+            continue
+        specs[id(t["spec"])] = t["spec"]  # held: its id is not reused
         key = json.dumps([t["spec"]["learner"], t["spec"]["body"]], sort_keys=True)
         if key in seen:
             continue

@@ -43,6 +43,9 @@ def run_one(trial: dict) -> dict:
         res = recovering(lambda: gbmodel.run_trial(
             spec, np.random.default_rng(seed),
             resume=None if resume is None else checkpoint.checkpoint(resume)))
+        code_fingerprint(trial["spec"]["learner"]["name"])  # the modules the trial imported
+        # (its learner's, on a process's first trial) are the code that was hashed: else
+        # CodeChanged, and the trial fails rather than be cached under the other code's key
         out = dict(status="ok", epoch=res.epoch, samples=res.epoch * res.samples_per_epoch,
                    size=res.size, abs_error=res.abs_error, rel_error=res.rel_error, M=res.M,
                    heldout_abs_error=res.heldout_abs_error,

@@ -98,3 +98,84 @@ def test_files_are_parsed_once_per_content_and_again_when_their_bytes_change(tmp
         data[-1] ^= 1  # a damaged record is not believed
         record.write_bytes(bytes(data))
     assert run() == (usual, learnt, 1)
+
+
+SHOW = """
+import sys
+from pathlib import Path
+import gbmodel
+from pipeline import fingerprint
+assert str(Path(gbmodel.__file__)).startswith(sys.argv[1]), gbmodel.__file__
+print(fingerprint.code_fingerprint("motor_babbling"))
+"""
+
+
+def test_a_changed_byte_changes_the_fingerprint_under_the_same_size_and_time(tmp_path):
+    """The records are found by the SHA-256 of a file's text, never by its modification time or
+    size: one digit of a learner's default changed in place (same length, its modification time
+    put back) is a new fingerprint; put back, the old one (read from its record)."""
+    copy = tmp_path / "code"
+    shutil.copytree(REPO_ROOT / "gbmodel", copy / "gbmodel",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    env = dict(os.environ, PYTHONPATH=f"{copy}{os.pathsep}{REPO_ROOT}", NUMBA_DISABLE_JIT="1")
+
+    def run() -> str:
+        r = subprocess.run([sys.executable, "-c", SHOW, str(copy)], capture_output=True,
+                           text=True, env=env, cwd=copy, timeout=120)
+        assert r.returncode == 0, r.stderr
+        return r.stdout.strip()
+
+    learner = copy / "gbmodel" / "learners" / "motor_babbling.py"
+    text, before = learner.read_text(), learner.stat()
+    usual = run()
+    assert "    spread: float = 0.4\n" in text
+    learner.write_text(text.replace("    spread: float = 0.4\n", "    spread: float = 0.5\n"))
+    os.utime(learner, ns=(before.st_atime_ns, before.st_mtime_ns))
+    after = learner.stat()
+    assert (after.st_size, after.st_mtime_ns) == (before.st_size, before.st_mtime_ns)
+    edited = run()
+    assert len(edited) == len(usual) == 16 and edited != usual
+    learner.write_text(text)
+    os.utime(learner, ns=(before.st_atime_ns, before.st_mtime_ns))
+    assert run() == usual
+
+
+LATE_IMPORT = """
+import importlib, sys
+from pathlib import Path
+import gbmodel
+from pipeline import fingerprint
+assert str(Path(gbmodel.__file__)).startswith(sys.argv[1]), gbmodel.__file__
+fp = fingerprint.code_fingerprint("motor_babbling")
+name = "gbmodel.learners.motor_babbling"
+assert name not in sys.modules and "numba" not in sys.modules  # read, not imported
+learner = Path(gbmodel.__file__).parent / "learners" / "motor_babbling.py"
+if sys.argv[2] == "edit":  # saved after the read, before the import: other code than hashed
+    learner.write_text(learner.read_text().replace("spread: float = 0.4", "spread: float = 0.25"))
+importlib.import_module(name)
+try:
+    print(fingerprint.code_fingerprint("motor_babbling") == fp)
+except fingerprint.CodeChanged as err:
+    print("refused:", err)
+"""
+
+
+def test_a_learner_is_hashed_without_its_import_and_checked_when_it_is_imported(tmp_path):
+    """code_fingerprint reads a learner's files without importing it (a cached simulate loads
+    no kernel); a later call, after the process imported the learner, checks the module against
+    the text it hashed: a file saved in between is refused, one left alone passes."""
+    for edit in ("none", "edit"):
+        copy = tmp_path / edit
+        shutil.copytree(REPO_ROOT / "gbmodel", copy / "gbmodel",
+                        ignore=shutil.ignore_patterns("__pycache__"))
+        env = dict(os.environ, PYTHONPATH=f"{copy}{os.pathsep}{REPO_ROOT}",
+                   NUMBA_DISABLE_JIT="1")
+        r = subprocess.run([sys.executable, "-c", LATE_IMPORT, str(copy), edit],
+                           capture_output=True, text=True, env=env, cwd=copy, timeout=120)
+        assert r.returncode == 0, r.stderr
+        out = r.stdout.strip()
+        if edit == "none":
+            assert out == "True", out
+        else:
+            assert out.startswith("refused: ") and "motor_babbling.py: changed since this " \
+                "process imported it" in out and "spread" in out, out
