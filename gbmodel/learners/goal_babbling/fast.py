@@ -21,14 +21,15 @@ float32 vector loops over the samples of an epoch:
   updates=steps repeats the gradient pass, updates=online goes sample by sample in float64
   vectors over M's rows, _online). Positions agree with the float64 reference to ~2e-7 m
   (tests/core/test_fast.py states the tolerances);
-- the hand is carried backwards through the chain, one rotation about z per joint, in
-  registers, LANES samples at a time: DH rows, or a general (URDF) chain's fixed rotation and
-  translation per joint (gbmodel.kinematics.chain_layout, simd.chain_kinematics);
+- the hand is carried backwards through the chain, one rotation about z per joint, joint by
+  joint over blocks of columns whose points stay in L1, LANES samples at a time: DH rows, or a
+  general (URDF) chain's fixed rotation and translation per joint
+  (gbmodel.kinematics.chain_layout, simd.chain_kinematics);
 - sin and cos are a branch-free polynomial (Cephes' kernels after a Cody-Waite reduction);
 - features are built monomial by monomial, each a parent monomial times one coordinate;
 - the gradient sum_t w (M Phi - q) Phi^T: the weighted residuals (rows in register tiles of 5),
-  then 5 x 5 tiles of vector accumulators (10 loads per 25 fused multiply-adds), float32 lanes
-  over the epoch whose sum is float64.
+  then tiles of vector accumulators shaped to the target's registers (core._accumulate: 5 x 5
+  with AVX-512, 2 x 2 with AVX2), float32 lanes over the epoch whose sum is float64.
 
 Bit-identical results on every x86-64 CPU, with or without AVX-512, whatever vector width LLVM
 prefers (tests/core/test_kernel_targets.py: AVX2 + FMA, AVX-512, and the SSE2 baseline without FMA):
