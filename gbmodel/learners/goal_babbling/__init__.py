@@ -156,8 +156,18 @@ def keyed(learner: dict) -> dict:
             if k not in KEYED_DEFAULTS or v != KEYED_DEFAULTS[k]}
 
 
+_EXPS: dict = {}  # (n, degree) -> the exponent table, read-only
+
+
 def _exps(params, body):
-    return exponents(body.n, params.degree)
+    """The monomials' exponent table (features.exponents), built once per (n, degree): a trial
+    asks for it at every block and evaluation (about 200 times in 5,000 epochs of arm5)."""
+    key = (body.n, params.degree)
+    exps = _EXPS.get(key)
+    if exps is None:
+        exps = _EXPS[key] = exponents(*key)
+        exps.setflags(write=False)
+    return exps
 
 
 @dataclass(frozen=True)
@@ -200,17 +210,27 @@ def draw(params: Params, body, B: int, rng: np.random.Generator) -> tuple:
     n_targets, K = len(body.targets), params.targets_per_epoch
     if params.goal_selection == "progress":
         u = rng.uniform(0.0, 1.0, size=(B, K + 1))
-        raw = rng.uniform(-1.0, 1.0, size=(B, params.variations, body.m, body.n + 1))
+        raw = _uniform(rng, (B, params.variations, body.m, body.n + 1))
         if params.amplitude == "uniform":
             return u, raw, rng.uniform(0.0, 1.0, size=(B, params.variations, body.m))
         return u, raw
     first = rng.integers(0, n_targets, size=(B, 1))
     hops = rng.integers(1 if params.targets == "distinct" else 0, n_targets, size=(B, K))
     idx = np.cumsum(np.concatenate([first, hops], axis=1), axis=1) % n_targets
-    raw = rng.uniform(-1.0, 1.0, size=(B, params.variations, body.m, body.n + 1))
+    raw = _uniform(rng, (B, params.variations, body.m, body.n + 1))
     if params.amplitude == "uniform":
         return idx, raw, rng.uniform(0.0, 1.0, size=(B, params.variations, body.m))
     return idx, raw
+
+
+def _uniform(rng: np.random.Generator, shape) -> np.ndarray:
+    """rng.uniform(-1.0, 1.0, shape) to the bit, about a quarter faster: numpy computes
+    -1 + 2 u from the same doubles u in [0, 1), and 2 u - 1 is that sum (2 u is exact, the one
+    rounding is the addition's)."""
+    raw = rng.random(shape)
+    raw *= 2.0
+    raw -= 1.0
+    return raw
 
 
 def train(state, params: Params, body, sizes, scales, draws, epochs):
