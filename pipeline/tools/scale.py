@@ -64,19 +64,24 @@ def overrides(root: Path, size: int, epochs: int, workers: int) -> list[str]:
 def run_stage(code: Path, stage: str, args: list[str]) -> dict:
     """Run `python -m pipeline.<stage> args` in checkout `code`: wall, CPU (the process and the
     children it waited for) and peak resident memory of its largest process."""
+    out, rc, err = run_command(code, stage, args)
+    if rc not in (0, 1):
+        raise RuntimeError(f"{stage} in {code} exited {rc}: {err.decode(errors='replace')[-2000:]}")
+    return out
+
+
+def run_command(code: Path, stage: str, args: list[str]) -> tuple[dict, int, bytes]:
+    """run_stage's measures, the exit status and what the stage wrote to stderr."""
     env = dict(os.environ, PYTHONPATH=str(code))
     start = time.perf_counter()
     proc = subprocess.Popen([sys.executable, "-m", f"pipeline.{stage}", *args], cwd=code,
                             env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     err = proc.stderr.read()
     _, status, usage = os.wait4(proc.pid, 0)
-    proc.returncode = os.waitstatus_to_exitcode(status)
     wall = time.perf_counter() - start
-    if proc.returncode not in (0, 1):
-        raise RuntimeError(f"{stage} in {code} exited {proc.returncode}: "
-                           f"{err.decode(errors='replace')[-2000:]}")
-    return dict(wall_s=round(wall, 3), cpu_s=round(usage.ru_utime + usage.ru_stime, 3),
-                peak_mb=round(usage.ru_maxrss / 1024, 1))
+    return (dict(wall_s=round(wall, 3), cpu_s=round(usage.ru_utime + usage.ru_stime, 3),
+                 peak_mb=round(usage.ru_maxrss / 1024, 1)),
+            os.waitstatus_to_exitcode(status), err)
 
 
 def cached_smoke(code: Path, experiments: str) -> dict:
