@@ -72,12 +72,15 @@ def distances(predict, body: Body, scale, xs: np.ndarray) -> np.ndarray:
 
 
 def error(d: np.ndarray, formula: str = "mean") -> float:
+    # math.fsum of a list of floats: the same correctly rounded sum, about twice as fast as over
+    # the array's numpy scalars (an evaluation per curve point of every trial)
+    d = np.asarray(d, dtype=np.float64)
     if formula == "mean":
-        return math.fsum(d) / len(d)
+        return math.fsum(d.tolist()) / len(d)
     if formula == "mean_squared":
-        return math.fsum(d * d) / len(d)
+        return math.fsum((d * d).tolist()) / len(d)
     if formula == "rms":
-        return math.sqrt(math.fsum(d * d) / len(d))
+        return math.sqrt(math.fsum((d * d).tolist()) / len(d))
     raise ValueError(f"evaluation.formula={formula!r}: choose one of {list(FORMULAS)}")
 
 
@@ -92,7 +95,7 @@ def evaluate(learner, state, params, body: Body, size: float, scale, points: str
         d = learner.distances(state, params, body, scale, xs)
     else:
         d = distances(lambda x: learner.predict(state, params, body, x), body, scale, xs)
-    return error(np.asarray(d, dtype=np.float64), formula)
+    return error(d, formula)
 
 
 def lines(body: Body, size: float, points: int = 201) -> np.ndarray:
