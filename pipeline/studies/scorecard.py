@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 import textwrap
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -139,18 +140,62 @@ def calibration(t: Test, n: int, table: pd.DataFrame | None = None) -> tuple[flo
         r = _FRESH[key]
         level = r["level"] if np.isfinite(r["level"]) else None
         return level, f"fresh samples of its {n} trials"
-    tab = coverage_table() if table is None else table
+    tab = _coverage_now() if table is None else table
     if not len(tab):
         return None, "no coverage measured"
-    tab = tab[tab["trials"] <= n]
+    return _from_table(tab, n, measure, t.where, str(t.figure))
+
+
+_COVERAGE_READ: list = []  # [(the bytes of coverage.csv, the table parsed from them)]
+
+
+def _coverage_now() -> pd.DataFrame:
+    """coverage_table() for calibration's lookups (which only read it): parsed again only when
+    the file's bytes change (read_csv took milliseconds, thousands of times per report)."""
+    try:
+        data = (str(COVERAGE), Path(COVERAGE).read_bytes())
+    except FileNotFoundError:
+        data = (str(COVERAGE), None)
+    if not _COVERAGE_READ or _COVERAGE_READ[0][0] != data:
+        _COVERAGE_READ[:] = [(data, coverage_table())]
+    return _COVERAGE_READ[0][1]
+
+
+_LOOKUPS: dict = {}  # id(table) -> (table, {(n, measure, where, figure): calibration})
+
+
+def _from_table(tab: pd.DataFrame, n: int, measure: str, where, figure: str):
+    """calibration's answer from the coverage table `tab`, looked up once per table and
+    (n, measure, where, figure): a report asks for the same few thousands of times (3,566 in a
+    smoke report, each masking the table four times: a tenth of its CPU)."""
+    memo = _LOOKUPS.get(id(tab))
+    if memo is None or memo[0] is not tab:  # a new table (an id is reused only once freed)
+        if len(_LOOKUPS) >= 8:
+            _LOOKUPS.clear()
+        claims = ({c: rows for c, rows in tab.groupby("claim", sort=False)}
+                  if "claim" in tab else None)  # each claim's rows, in the table's order
+        memo = _LOOKUPS[id(tab)] = (tab, {}, claims)
+    key = (n, measure, where, figure)
+    try:
+        hash(key)
+    except TypeError:  # a `where` that is not a plain value: looked up each time
+        return _lookup(tab, n, measure, where, figure)
+    if key not in memo[1]:
+        memo[1][key] = _lookup(tab, n, measure, where, figure, memo[2])
+    return memo[1][key]
+
+
+def _lookup(tab: pd.DataFrame, n: int, measure: str, where, figure: str, claims=None):
+    """claims: the rows of each claim of `tab` (groupby), else found here by masking."""
     if "claim" not in tab:  # a table per measure type only
         return None, "no coverage per measure"
-    for rows in (tab[(tab["claim"] == measure) & (tab["where"] == t.where)],
-                 tab[tab["claim"] == measure]):
+    tab = tab[tab["claim"] == measure] if claims is None else claims.get(measure, tab.iloc[:0])
+    tab = tab[tab["trials"] <= n]
+    for rows in (tab[tab["where"] == where], tab):
         if not len(rows):
             continue
         rows = rows[rows["trials"] == rows["trials"].max()]
-        own = rows[rows["figure"].astype(str).str.startswith(str(t.figure))]
+        own = rows[rows["figure"].astype(str).str.startswith(figure)]
         rows = own if len(own) else rows
         if rows["level"].isna().any():
             return None, f"not calibrated at {int(rows['trials'].iloc[0])} trials"
