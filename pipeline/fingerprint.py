@@ -2,10 +2,12 @@
 code this process runs.
 
 The cache key holds it, so a trial is recomputed when its code changes and only then. The files
-are read once per learner and process (code_fingerprint is cached), and each file of a module
-this process has imported is checked against that module's code: a file edited between the
-import and the read (the driver imports gbmodel, someone saves a file, the fingerprint reads it)
-would otherwise key old-code results with the new code's fingerprint. Both the compiled
+are read once per learner and process (code_fingerprint is cached; a learner is read from its
+files, not imported), and each file of a module this process has imported is checked against
+that module's code, when the fingerprint is taken and again once the process has imported more:
+a file edited between the import and the read (the driver imports gbmodel, someone saves a
+file, the fingerprint reads it), or between the read and a later import, would otherwise key
+one code's results with the other code's fingerprint. Both the compiled
 functions and the values the module holds (its constants, function defaults, class attributes
 such as a dataclass's defaults: evaluated from the file as read now and compared with what the
 import made) are checked. Such a file raises CodeChanged, a one-line error: run the command again.
