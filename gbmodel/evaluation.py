@@ -35,11 +35,25 @@ HELDOUT_UNIFORM = 200
 
 
 def heldout_points(body: Body, size: float = 1.0) -> np.ndarray:
-    """The held-out set (N, n) of the body at `size`: cell centres, then the uniform points."""
-    lo, hi = body.target_box(1.0)
-    uniform = np.random.default_rng(HELDOUT_SEED).uniform(lo, hi, size=(HELDOUT_UNIFORM,
-                                                                       len(lo)))
-    return np.concatenate([cell_centres(body.targets), uniform]) * size
+    """The held-out set (N, n) of the body at `size`: cell centres, then the uniform points.
+    The set at size 1 depends on the body's targets alone: built once per process and targets
+    (by their bytes), then scaled (the same values as built anew)."""
+    t = np.ascontiguousarray(body.targets)
+    key = (t.shape, t.dtype.str, t.tobytes())
+    unit = _HELDOUT.get(key)
+    if unit is None:
+        lo, hi = body.target_box(1.0)
+        uniform = np.random.default_rng(HELDOUT_SEED).uniform(lo, hi, size=(HELDOUT_UNIFORM,
+                                                                           len(lo)))
+        unit = np.concatenate([cell_centres(body.targets), uniform])
+        unit.flags.writeable = False
+        if len(_HELDOUT) >= 64:
+            _HELDOUT.clear()
+        _HELDOUT[key] = unit
+    return unit * size
+
+
+_HELDOUT: dict = {}  # the held-out set at size 1 by the targets' bytes (heldout_points)
 
 
 def eval_epochs(epochs: int, per_decade: int = 20) -> np.ndarray:

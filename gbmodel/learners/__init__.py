@@ -44,6 +44,7 @@ from __future__ import annotations
 import importlib
 import inspect
 import pkgutil
+import sys
 from pathlib import Path
 from types import ModuleType
 
@@ -70,6 +71,9 @@ def get(name: str) -> ModuleType:
     """The learner module `name`; ValueError naming `learner.name` if there is none."""
     if name in _REGISTERED:
         return _REGISTERED[name]
+    loaded = sys.modules.get(f"{__name__}.{name}")
+    if loaded is not None:  # imported before: no listing of the folder (twice per trial)
+        return loaded
     if name not in available():
         raise ValueError(f"learner.name={name!r}: unknown learner; choose one of {available()}")
     return importlib.import_module(f"{__name__}.{name}")
