@@ -9,7 +9,7 @@ import numpy as np
 from numba import njit
 
 from ...simd import (
-    W8, vadd8, vfma8, vload8, vload8f, vload18, vmul8, vsplat8, vstore8, vstore18, vsub8,
+    W8, wide_vectors, vadd8, vfma8, vload8, vload8f, vload18, vmul8, vsplat8, vstore8, vstore18, vsub8,
     transpose8,
 )
 from .core import _zeros64
@@ -206,10 +206,15 @@ def online(M, X, Q, w, N, parent, var, eta):
                     a1 = vfma8(mk, vsplat8(Ph[k, 1]), a1)
                 vstore18(g, b, a0)
                 vstore18(P, b, a1)
-        for b in range(0, W - W8, 2 * W8):  # two vectors of rows: the features loaded once
-            _online_rows2(MT, Ph, D, QT, w, c0, C, eta, g, P, b)
-        if W % (2 * W8):
-            _online_rows(MT, Ph, D, QT, w, c0, C, eta, g, P, W - W8)
+        if wide_vectors():  # two vectors of rows: the features loaded once
+            for b in range(0, W - W8, 2 * W8):
+                _online_rows2(MT, Ph, D, QT, w, c0, C, eta, g, P, b)
+            if W % (2 * W8):
+                _online_rows(MT, Ph, D, QT, w, c0, C, eta, g, P, W - W8)
+        else:  # AVX2: _online_rows2's 16 vectors of sums would spill; a vector of rows at a
+            # time (the rows are independent: the same bits)
+            for b in range(0, W, W8):
+                _online_rows(MT, Ph, D, QT, w, c0, C, eta, g, P, b)
     for i in range(m):
         for k in range(p):
             M[i, k] = MT[k, i]
