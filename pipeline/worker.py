@@ -39,10 +39,10 @@ def run_one(trial: dict) -> dict:
         from .warm import recovering  # here, not at the top: importing the package imports
         # this module (the engines), and `python -m pipeline.warm` warns when it finds itself imported
         from . import checkpoint  # a continuation starts from its base's state (plain data)
-        resume = trial.get("resume")
-        res = recovering(lambda: gbmodel.run_trial(
-            spec, np.random.default_rng(seed),
-            resume=None if resume is None else checkpoint.checkpoint(resume)))
+        resume = trial.get("resume")  # passed only to a continuation: a plain trial calls
+        # run_trial(spec, rng) as any caller does (a stand-in for it needs no resume argument)
+        extra = {} if resume is None else {"resume": checkpoint.checkpoint(resume)}
+        res = recovering(lambda: gbmodel.run_trial(spec, np.random.default_rng(seed), **extra))
         code_fingerprint(trial["spec"]["learner"]["name"])  # the modules the trial imported
         # (its learner's, on a process's first trial) are the code that was hashed: else
         # CodeChanged, and the trial fails rather than be cached under the other code's key
