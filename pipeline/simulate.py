@@ -32,6 +32,7 @@ from .progress import Progress, estimate
 
 log = logging.getLogger("pipeline.simulate")
 WAIT_POLL_S = 2.0
+TIMES_EVERY_S = 60.0  # a long run writes its trials' measured CPU times this often
 
 
 @dataclass
@@ -43,6 +44,19 @@ class Summary:
     failed: dict = field(default_factory=dict)  # key -> error (failed or diverged)
     labels: dict = field(default_factory=dict)  # key -> "condition trial i", for messages
     cpu: dict = field(default_factory=dict)  # key -> measured CPU seconds of the trials run
+    times_dir: object = None  # paths.out: where keep_times writes them (None: nowhere)
+    unkept: dict = field(default_factory=dict)  # cpu's entries not yet written
+    kept_at: float = field(default_factory=time.monotonic)
+
+    def keep_times(self, now: bool = False) -> None:
+        """Write the measured times not yet written (pipeline.cache.write_times: a file per
+        call), at most every TIMES_EVERY_S unless now: a run killed without a chance to clean
+        up (SIGKILL, a lost node) loses at most that much of its provenance."""
+        if self.times_dir is None or not self.unkept:
+            return
+        if now or time.monotonic() - self.kept_at >= TIMES_EVERY_S:
+            cache.write_times(self.times_dir, self.unkept)
+            self.unkept, self.kept_at = {}, time.monotonic()
 
     def lines(self) -> list[str]:
         head = (f"[{self.figure}] {self.total} trials: {self.cached} cached, {self.ran} run, "
@@ -59,7 +73,8 @@ def record(cache_dir, trial: dict, result: dict, summary: Summary) -> None:
         cache.write_trial(cache_dir, trial, result)
         failure.unlink(missing_ok=True)
         if isinstance(result.get("cpu"), (int, float)):
-            summary.cpu[key] = result["cpu"]
+            summary.cpu[key] = summary.unkept[key] = result["cpu"]
+            summary.keep_times()
     if result["status"] != "ok":
         summary.failed[key] = result["error"]
         where = summary.labels[key]
@@ -228,7 +243,7 @@ def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = Non
             diverged[t["key"]] = f"{done['error']} (cached)"
     todo.sort(key=cost, reverse=True)
     summary = Summary(figure=figure, total=len(trials), cached=len(trials) - len(todo),
-                      failed=diverged)
+                      failed=diverged, times_dir=cfg.paths.out)
     summary.labels = {t["key"]: _where(t) for t in trials}
     claims = {t["key"]: cache.Claim(cache_dir, t) for t in todo}
     mine = [t for t in todo if claims[t["key"]].acquire()]
@@ -287,7 +302,7 @@ def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = Non
         progress.close()
         for c in claims.values():
             c.release()
-        cache.write_times(cfg.paths.out, summary.cpu)  # the report's provenance sums them
+        summary.keep_times(now=True)  # the report's provenance sums them
     for j in jobs:
         write_figure(cache_dir, j, group, job)
     return summary

@@ -138,6 +138,29 @@ def measured_costs(aggs: dict, out_dir) -> dict[str, tuple[int, float]]:
     return out
 
 
+def distinct_costs(aggs: dict, out_dir) -> tuple[int, int, float, float]:
+    """Over the trials of every figure, each counted once however many figures share it
+    (pipeline.plan.stream: the same condition's trials are one set of files): (trials,
+    trials measured, their measured CPU seconds, the estimated CPU seconds of all)."""
+    from ..cache import read_times
+    from ..plan import cost
+
+    times = read_times(out_dir) if out_dir is not None else {}
+    est, seen = {}, {}
+    for agg in aggs.values():
+        for c in agg["models"]["conditions"].values():
+            units = None
+            for i, t in {**c["trials"], **c.get("diverged", {})}.items():
+                key = t.get("key") if isinstance(t, dict) else None
+                key = key or (id(c), i)  # no key recorded: this condition's own trial
+                if key not in est:
+                    units = cost(dict(spec=c["spec"])) if units is None else units
+                    est[key] = units * SECONDS_PER_COST
+                    if key in times:
+                        seen[key] = times[key]
+    return len(est), len(seen), sum(seen.values()), sum(est.values())
+
+
 def _duration(seconds: float) -> str:
     return f"{seconds:.1f} s" if seconds < 60 else f"{seconds / 60:.1f} min"
 
@@ -192,11 +215,16 @@ def markdown(aggs: dict, out_dir=None) -> list[str]:
         mine = ("not measured" if k == 0 else _duration(spent)
                 + (f" ({k} of {n} trials)" if k < n else ""))
         md.append(f"| {name} | {n} | {mine} | {_duration(seconds)} |")
+    n, k, spent, seconds = distinct_costs(aggs, out_dir)
+    mine = ("not measured" if k == 0 else _duration(spent)
+            + (f" ({k} of {n} trials)" if k < n else ""))
+    md.append(f"| all, each shared trial once | {n} | {mine} | {_duration(seconds)} |")
     md += ["", "CPU time: measured, the CPU seconds each trial took when it was computed (any "
            "run; a trial cached before times were kept is not measured); estimated, the plan's "
            "cost model (pipeline.plan.cost) on Goal Babbling's calibration "
-           "(pipeline.tools.bench_costs). The final models of every condition: "
-           "`models/<figure>.json` (`pipeline.models.load(path)`).", ""]
+           "(pipeline.tools.bench_costs); the last row counts a trial that several figures "
+           "share (the same condition, pipeline.plan.stream) once. The final models of every "
+           "condition: `models/<figure>.json` (`pipeline.models.load(path)`).", ""]
     lines = credits(aggs)
     md += ["## Credits", "",
            "The Goal Babbling model and the paper's bodies: Rolf, Steil and Gienger (2010), "

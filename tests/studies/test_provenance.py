@@ -85,6 +85,23 @@ def test_measured_cpu_time_sums_each_trials_own_record(tmp_path):
     assert provenance.measured_costs(aggs, tmp_path) == {"f": (2, 4.5)}
 
 
+def test_the_total_counts_a_trial_shared_by_two_figures_once(tmp_path):
+    from pipeline import cache
+    from pipeline.plan import cost
+    cache.write_times(tmp_path, {"a": 1.5, "b": 2.0, "c": 4.0})
+    spec = dict(body={"name": "arm5"}, growth={}, learner={"name": "goal_babbling"},
+                evaluation={}, epochs=1000, evals_per_decade=20, snapshots=[])
+    one = lambda *keys: dict(spec=spec, trials={str(i): {"key": k} for i, k in enumerate(keys)})
+    aggs = {"f": dict(models=dict(conditions={"c": one("a", "b")})),
+            "g": dict(models=dict(conditions={"c": one("b", "c", "d")}))}  # b: f's trial too
+    n, k, spent, seconds = provenance.distinct_costs(aggs, tmp_path)
+    assert (n, k, spent) == (4, 3, 7.5)  # d not measured
+    assert seconds == pytest.approx(4 * cost(dict(spec=spec)) * provenance.SECONDS_PER_COST)
+    assert provenance.distinct_costs(aggs, None)[:3] == (4, 0, 0)
+    block = "\n".join(provenance.markdown(aggs, tmp_path))
+    assert "| all, each shared trial once | 4 | 7.5 s (3 of 4 trials) |" in block
+
+
 def test_credits_name_the_third_party_robots_used():
     # the credits come from each body's own file (conf/body/<name>.yaml), carried in its spec
     from gbmodel.bodies import read_description
