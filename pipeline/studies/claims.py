@@ -180,10 +180,33 @@ class Test:
 # --- the per-trial measures ------------------------------------------------------------------
 
 def per_trial(trials: pd.DataFrame, condition: str, column: str) -> tuple[np.ndarray, np.ndarray]:
-    """(epochs, values[trial, epoch]) of one condition's trial curves."""
-    c = trials[trials["condition"] == condition]
-    p = c.pivot(index="trial", columns="epoch", values=column).sort_index(axis=1).dropna(axis=1)
-    return p.columns.to_numpy(), p.to_numpy()
+    """(epochs, values[trial, epoch]) of one condition's trial curves: trials in ascending
+    order, the epochs every trial has (ascending), as DataFrame.pivot and dropna give them."""
+    c = trials.iloc[_rows_of(trials, condition)]
+    t, e, v = c["trial"].to_numpy(), c["epoch"].to_numpy(), c[column].to_numpy()
+    if not len(c) or v.dtype != np.float64 or t.dtype.kind not in "iu" or e.dtype.kind not in "iu":
+        p = c.pivot(index="trial", columns="epoch", values=column).sort_index(axis=1).dropna(axis=1)
+        return p.columns.to_numpy(), p.to_numpy()
+    ts, ti = np.unique(t, return_inverse=True)
+    es, ei = np.unique(e, return_inverse=True)
+    if np.unique(ti * len(es) + ei).size < len(c):
+        raise ValueError(f"{condition}: a trial has an epoch twice: no curve per trial")
+    values = np.full((len(ts), len(es)), np.nan)
+    values[ti, ei] = v
+    keep = ~np.isnan(values).any(axis=0)
+    return es[keep], values[:, keep]
+
+
+_SPLIT: list = []  # [(the trials table, {condition: its row positions})], the last one split
+
+
+def _rows_of(trials: pd.DataFrame, condition: str) -> np.ndarray:
+    """The positions of `condition`'s rows in `trials`, in order: the table is grouped once
+    (kept with it, so its id is its own) for all its conditions, instead of masking every row
+    per condition and curve (a report asks for each figure's conditions dozens of times)."""
+    if not _SPLIT or _SPLIT[0][0] is not trials:
+        _SPLIT[:] = [(trials, trials.groupby("condition", sort=False).indices)]
+    return _SPLIT[0][1].get(condition, np.array([], dtype=np.intp))
 
 
 def at(epochs: np.ndarray, ref: tuple) -> np.ndarray:

@@ -5,6 +5,7 @@ no timestamps or software versions in the metadata, a fixed SVG hash salt.
 """
 from __future__ import annotations
 
+import functools
 import re
 import textwrap
 from contextlib import contextmanager
@@ -15,7 +16,10 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.artist as martist  # noqa: E402
 import matplotlib.axis as maxis  # noqa: E402
+import matplotlib.mathtext as mathtext  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.layout_engine import PlaceHolderLayoutEngine  # noqa: E402
+from mpl_toolkits.mplot3d.axis3d import Axis as Axis3D  # noqa: E402
 import numpy as np  # noqa: E402
 
 import gbmodel  # noqa: E402
@@ -44,13 +48,51 @@ def save(fig, stem: Path, dpi: int) -> list[Path]:
     from ..io import atomic_path
 
     paths = []
+    if isinstance(fig.get_layout_engine(), PlaceHolderLayoutEngine):
+        fig.set_layout_engine(None)  # tight_layout's leftover: savefig would draw once more first
     for ext in ("png", "pdf"):
         path = stem.with_suffix(f".{ext}")
-        with atomic_path(path) as tmp:
+        with atomic_path(path) as tmp, drawn_once():
             fig.savefig(tmp, format=ext, dpi=dpi, metadata=METADATA[ext])
         paths.append(path)
     plt.close(fig)
     return paths
+
+
+# A mathtext string (a log axis's tick label) is parsed once per font, dpi and output: matplotlib
+# keeps the last 50 parses, fewer than a report's labels at its three dpis (layout, PNG, PDF),
+# so a quarter of them were parsed again (272 parses in a cold smoke report, 204 kept longer).
+mathtext.MathTextParser._parse_cached = functools.lru_cache(4096)(
+    getattr(mathtext.MathTextParser._parse_cached, "__wrapped__",
+            mathtext.MathTextParser._parse_cached))
+
+
+@contextmanager
+def drawn_once():
+    """While one figure is drawn (a save), each 2-D axis lays out its ticks and measures their
+    labels once: matplotlib does it for the axis, for each of its two spines, for its label's
+    place (and that of every axis it shares) and for the title's, four to ten times per draw.
+    Each result is kept under what it depends on (the axis's view interval, the Axes' box in
+    pixels, the renderer), so a change within the draw (an aspect applied) computes it anew;
+    3-D axes, which move their labels while drawing, are left alone. The same ticks, the same
+    bytes (tests/studies/test_figure_layout.py)."""
+    update, measure, seen = maxis.Axis._update_ticks, maxis.Axis._get_ticklabel_bboxes, {}
+
+    def kept(fn, axis, *args):
+        if isinstance(axis, Axis3D):
+            return fn(axis, *args)
+        key = (fn, id(axis), *map(id, args), tuple(axis.get_view_interval()),
+               axis.axes.bbox.bounds)
+        if key not in seen:  # what the key names by id is kept with the result
+            seen[key] = (axis, args, fn(axis, *args))
+        return seen[key][2]
+    maxis.Axis._update_ticks = lambda axis: kept(update, axis)
+    maxis.Axis._get_ticklabel_bboxes = (
+        lambda axis, ticks, renderer: kept(measure, axis, ticks, renderer))
+    try:
+        yield
+    finally:
+        maxis.Axis._update_ticks, maxis.Axis._get_ticklabel_bboxes = update, measure
 
 
 @contextmanager

@@ -323,12 +323,14 @@ def _margin(g: pd.DataFrame) -> pd.Series:
 ORDER = (DIVERGED, NOT_A_VERDICT, NOT, INCONCLUSIVE, REPRODUCED)  # a cell's: the first present
 
 
-def _cell(claim: str, figure: str, reading: str, g: pd.DataFrame, margin: pd.Series) -> dict:
-    """The cell of the measures `g` (margin: _margin of every row of their table, NaN as -inf)."""
-    vs = g["verdict"].tolist()
+def _cell(claim: str, figure: str, reading: str, df: pd.DataFrame, rows: list,
+          verdicts: np.ndarray, margin: np.ndarray) -> dict:
+    """The cell of the measures at positions `rows` of `df` (verdicts: its verdict column;
+    margin: _margin of every row, NaN as -inf)."""
+    vs = [verdicts[i] for i in rows]
     v = next(x for x in ORDER if x in vs)
-    deciding = g[g["verdict"] == v]  # the measures that give the cell its verdict
-    pick = deciding.loc[margin.loc[deciding.index].idxmin()]
+    deciding = [i for i in rows if verdicts[i] == v]  # the measures that give the cell its verdict
+    pick = df.iloc[min(deciding, key=lambda i: margin[i])]  # the first of the smallest margin
     need = pick["trials_to_decide"]
     return dict(claim=claim, figure=figure, reading=reading,
                 diagnostic=bool(pick["diagnostic"]) if "diagnostic" in pick else
@@ -336,7 +338,7 @@ def _cell(claim: str, figure: str, reading: str, g: pd.DataFrame, margin: pd.Ser
                 verdict=v, where=pick["where"], value=pick["value"], low=pick["low"],
                 high=pick["high"], unit=pick["unit"], trials=int(pick["trials"]),
                 trials_to_decide=None if need is None or pd.isna(need) else int(need),
-                reproduced=vs.count(REPRODUCED), measures=len(g),
+                reproduced=vs.count(REPRODUCED), measures=len(rows),
                 per_trial=pick.get("per_trial", ""), lo=pick["lo"], hi=pick["hi"],
                 level=pick.get("level", LEVEL), note=pick.get("note", "") or "",
                 control_value=pick.get("control_value", np.nan))
@@ -349,9 +351,13 @@ def all_cells(results: list[dict]) -> pd.DataFrame:
     if "reading" not in df:
         df["reading"] = ""
     df["reading"] = df["reading"].fillna("")
-    margin = _margin(df).fillna(-np.inf)  # per row: once for the table, not per cell
-    return pd.DataFrame([_cell(c, f, rd, g, margin) for (c, f, rd), g
-                         in df.groupby(["claim", "figure", "reading"], sort=False)])
+    margin = _margin(df).fillna(-np.inf).to_numpy()  # per row: once for the table, not per cell
+    verdicts = df["verdict"].to_numpy()
+    groups: dict = {}  # (claim, figure, reading) -> row positions, as groupby(sort=False) has them
+    for i, key in enumerate(zip(df["claim"], df["figure"], df["reading"])):
+        if not any(pd.isna(k) for k in key):
+            groups.setdefault(key, []).append(i)
+    return pd.DataFrame([_cell(*key, df, rows, verdicts, margin) for key, rows in groups.items()])
 
 
 def cells(results: list[dict], register=None) -> pd.DataFrame:
@@ -575,7 +581,7 @@ def figure_measures(aggs: dict, stages: dict | None = None) -> list:
 def calibrate(ms: list, table: pd.DataFrame | None = None) -> list:
     """Each measure's t level (m.calibrated), found once for all its readings (the coverage of a
     t interval is the same for a measure and its multiples, as a reading per unit size is)."""
-    table = coverage_table() if table is None else table
+    table = _coverage_now() if table is None else table
     for m in ms:
         if m.calibrated is None and not (m.exact or m.diverged):
             m.calibrated = calibration(Test(m.figure, m.claim, m.where, m.values, kind=m.kind,
@@ -585,7 +591,7 @@ def calibrate(ms: list, table: pd.DataFrame | None = None) -> list:
 
 def judged(ms: list, table: pd.DataFrame | None = None, register=None) -> list[dict]:
     """Every measure judged under every reading of `register` (default: this one's)."""
-    table = coverage_table() if table is None else table
+    table = _coverage_now() if table is None else table  # one table: its look-ups are kept
     return [run_test(t, table) for t in judge(calibrate(ms, table), register)]
 
 

@@ -256,3 +256,26 @@ def test_a_trials_jitter_is_no_rebound_but_a_lasting_one_is():
     lasting[20:] *= 1.5  # a step up that stays
     assert claims.rebound(claims.smooth(lasting)) > 0.3
     assert claims.smooth(x[:9]).shape == (9,)  # too short to smooth
+
+
+def test_per_trial_is_the_pivot_of_a_conditions_rows():
+    """claims.per_trial (each table grouped once, the curves placed by numpy) gives what the
+    pivot of the condition's rows gives: trials and epochs ascending, an epoch some trial lacks
+    (or holds as NaN) dropped, the same values to the bit; an epoch twice is an error."""
+    rng = np.random.default_rng(5)
+    rows = [dict(condition=c, trial=t, epoch=e, abs_error=rng.random())
+            for c in ("TG10", "const1.0") for t in (2, 0, 1) for e in (50, 1, 10, 5, 100)
+            if not (c == "TG10" and t == 1 and e == 5)]
+    rows[0]["abs_error"] = np.nan  # TG10, trial 2, epoch 50
+    trials = pd.DataFrame(rows).sample(frac=1.0, random_state=1).reset_index(drop=True)
+    for c in ("TG10", "const1.0", "absent"):
+        want = trials[trials["condition"] == c].pivot(
+            index="trial", columns="epoch", values="abs_error").sort_index(axis=1).dropna(axis=1)
+        epochs, values = claims.per_trial(trials, c, "abs_error")
+        assert epochs.dtype == want.columns.dtype and values.dtype == want.to_numpy().dtype
+        assert epochs.tolist() == want.columns.tolist()
+        assert values.tobytes() == want.to_numpy().tobytes() and values.shape == want.shape
+    assert claims.per_trial(trials, "TG10", "abs_error")[0].tolist() == [1, 10, 100]
+    twice = pd.concat([trials, trials.iloc[:1]], ignore_index=True)
+    with pytest.raises(ValueError, match="twice"):
+        claims.per_trial(twice, trials["condition"].iloc[0], "abs_error")

@@ -10,6 +10,7 @@ import pandas as pd
 import pytest
 
 import matplotlib.axis as maxis
+from matplotlib.figure import Figure
 
 import gbmodel
 from pipeline.studies import figures
@@ -213,3 +214,38 @@ def test_the_layout_measured_once_is_matplotlibs(draw, monkeypatch):
     plain, plain_layout = laid_out()
     assert layout == plain_layout
     assert once < 0.5 * plain, (once, plain)
+
+
+@pytest.mark.parametrize("draw", [lambda: figures.learning_curves(*_sweep(LABELS), "sweep"),
+                                  _grid], ids=["curves", "grid"])
+def test_a_save_draws_once_per_format_with_matplotlibs_bytes(draw, tmp_path, monkeypatch):
+    """figures.save draws a figure once per format (tight_layout leaves a placeholder layout
+    engine, for which savefig drew the whole figure once more first) and lays out each axis's
+    ticks once per draw (drawn_once; the grid shares its axes and has an equal-aspect panel):
+    the PNG and PDF bytes of a plain savefig, in half the draws."""
+    real_draw, draws = Figure.draw, []
+    monkeypatch.setattr(Figure, "draw", lambda self, r: draws.append(1) or real_draw(self, r))
+    real_ticks, ticks = maxis.Axis._update_ticks, []
+    monkeypatch.setattr(maxis.Axis, "_update_ticks",
+                        lambda self: ticks.append(1) or real_ticks(self))
+
+    def saved(plain):
+        with figures.plt.rc_context(figures.RC):
+            fig = draw()
+            draws.clear(), ticks.clear()
+            if not plain:
+                out = [p.read_bytes() for p in figures.save(fig, tmp_path / "f", 40)]
+                return len(draws), len(ticks), out
+            out = []
+            for ext in ("png", "pdf"):
+                buf = io.BytesIO()
+                fig.savefig(buf, format=ext, dpi=40, metadata=figures.METADATA[ext])
+                out.append(buf.getvalue())
+            figures.plt.close(fig)
+            return len(draws), len(ticks), out
+
+    n, n_ticks, files = saved(plain=False)
+    n_plain, n_ticks_plain, files_plain = saved(plain=True)
+    assert files == files_plain
+    assert (n, n_plain) == (2, 4)
+    assert n_ticks < 0.5 * n_ticks_plain, (n_ticks, n_ticks_plain)
