@@ -90,10 +90,16 @@ class Body:
     def normalized(self) -> bool:
         return self.q_min is not None
 
+    @property
+    def limited(self) -> bool:
+        """Whether a command stops at the joint limits: normalised to [-1, 1] and saturating
+        (the clip of `saturate`; the solver's limit pull and decaying anchor need it too)."""
+        return self.normalized and self.saturates
+
     # ---- commands -> joint angles ------------------------------------------------------------
     def saturate(self, q: np.ndarray) -> np.ndarray:
         """The posture actually taken for command q (clipped to [-1, 1] when normalised)."""
-        if self.normalized and self.saturates:
+        if self.limited:
             return np.clip(q, -1.0, 1.0)
         return np.asarray(q, dtype=np.float64)
 
@@ -502,6 +508,6 @@ def unreachable(body: Body, rng: np.random.Generator, size: float = 1.0, samples
         J = np.stack([(body.forward(q + h * e, k) - x) / h for e in np.eye(body.m)], axis=-1)
         JT = J.transpose(0, 2, 1)
         dq = np.linalg.solve(JT @ J + eye, JT @ (goal - x)[..., None])[..., 0]
-        q = np.clip(q + dq, -box, box) if body.normalized and body.saturates else q + dq
+        q = np.clip(q + dq, -box, box) if body.limited else q + dq
     miss = np.linalg.norm(body.forward(q, k) - goal, axis=-1).reshape(len(targets), -1).min(1)
     return np.flatnonzero(miss > tol)

@@ -109,6 +109,19 @@ def test_the_config_and_the_file_build_the_same_body(name):
     assert spec["body"]["dh"] == read_description(name)["dh"]
 
 
+def test_limited_is_normalised_and_saturating():
+    """Body.limited, the one test of "commands stop at the joint limits" (saturate's clip, the
+    solver's limit pull and decaying anchor): the iCub's joints are limited; the same body with
+    saturate off, or the planar arms (angles, no limits), are not."""
+    from dataclasses import replace
+    icub, arm5 = gbmodel.make_body("icub"), gbmodel.make_body("arm5")
+    assert icub.limited and not replace(icub, saturates=False).limited
+    assert arm5.saturates and not arm5.normalized and not arm5.limited
+    np.testing.assert_array_equal(replace(icub, saturates=False).saturate(np.full(icub.m, 2.0)),
+                                  np.full(icub.m, 2.0))
+    np.testing.assert_array_equal(icub.saturate(np.full(icub.m, 2.0)), np.ones(icub.m))
+
+
 def test_the_icub_file_holds_the_reference_table():
     """Spot checks against ../shared/reference/icub-right-arm.md (DH right arm v1)."""
     icub = gbmodel.make_body("icub")

@@ -264,8 +264,7 @@ def _train(M, params: Params, body, sizes, scales, draws, epochs) -> np.ndarray:
             targets = body.target_set(sizes[e])
             P = solve.target_gram(targets, exps)
             anchor = solve.anchor_at(params.anchor, params.anchor_epochs, M.epochs + 1, body)
-            limits = body.normalized and body.saturates
-            PC = solve.limit_gram(targets, exps, M.M, limits) if limits else None
+            PC = solve.limit_gram(targets, exps, M.M, True) if body.limited else None
             M = solve.solve(M, solve.grams(x, q, w, exps), params.ridge, P, anchor, PC,
                             params.limit_pull)
         return M

@@ -121,7 +121,7 @@ def anchor_at(anchor, anchor_epochs, epoch, body) -> float:
     (nothing else holds a joint that barely moves the hand), anchor tau / (tau + epoch - 1),
     tau = anchor_epochs, on a body with limits (they hold the joints; the anchor only keeps
     the first solves' commands within them)."""
-    if not (body.normalized and body.saturates):
+    if not body.limited:
         return anchor
     return anchor * anchor_epochs / (anchor_epochs + epoch - 1)
 
