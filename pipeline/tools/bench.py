@@ -40,7 +40,7 @@ from omegaconf import DictConfig
 import gbmodel
 from gbmodel.features import exponents
 from gbmodel.kinematics import chain_layout
-from gbmodel.simd import LANES, F4, vadd, vfma, vsplat, vsum
+from gbmodel.simd import LANES, W8, F4, vadd, vfma, vsplat, vsum
 
 from .. import cli, execute, io
 from ..config import CONFIG_PATH, compose
@@ -144,6 +144,23 @@ def sample_flops(body, p: int, V: int, T: int) -> dict:
     return flops
 
 
+def online_sample_flops(body, p: int, V: int, T: int) -> dict:
+    """Flops of one sample of an epoch with learner.updates=online: the rollout's stages of
+    sample_flops (the same float32 kernel), then the online step in float64
+    (goal_babbling/online.py), counted from its code on the W = m rounded up to W8 lanes it
+    computes: per pair of samples s_t, g_t+1, s_t+1 (6 W), per feature the two steps and the two
+    predictions (4 fma: 8 W p), then g and P (4 W); per sample eta w (1), the features (p - 1)
+    and d = phi_t . phi_t+1 (2 p - 1). A float64 flop counts as two float32 ones: a vector holds
+    half as many lanes, and the peak is measured in float32."""
+    batch = sample_flops(body, p, V, T)
+    W = -(-body.m // W8) * W8
+    step = 4 * W * p + 5 * W + 1 + (p - 1) + (2 * p - 1)
+    flops = {k: batch[k] for k in ("commands", "kinematics", "weights")}
+    flops["online_step_float64_x2"] = 2 * step
+    flops["total"] = sum(flops.values())
+    return flops
+
+
 @njit(cache=True)
 def _fma_chains(iters):
     """6 independent chains of vfma on the kernel's vector type (F32x16: 12 ymm or 6 zmm
@@ -184,15 +201,16 @@ def peak_gflops(iters: int = 2_000_000, tries: int = 3) -> float:
     return best
 
 
-def floor_row(body_name: str, cpu_s: list, peaks: list) -> dict:
+def floor_row(body_name: str, cpu_s: list, peaks: list, count=sample_flops) -> dict:
     """The fast path against the floor: ns per sample (median CPU time), flops per sample (total
-    and per stage), the peak (median of the repeats) and floor_ratio, the median over repeats of
-    the time per sample over flops / that repeat's peak."""
+    and per stage, by `count`: sample_flops, or online_sample_flops for updates=online), the peak
+    (median of the repeats) and floor_ratio, the median over repeats of the time per sample over
+    flops / that repeat's peak."""
     spec = gbmodel.TrialSpec.from_dict(paper_spec(body_name, 10, True))
     body, (learner, params) = spec.make_body(), spec.make_learner()
     N = learner.samples_per_epoch(params, body)
     p = len(exponents(body.n, params.degree))
-    flops = sample_flops(body, p, params.variations, params.targets_per_epoch * params.steps)
+    flops = count(body, p, params.variations, params.targets_per_epoch * params.steps)
     ns = [1e9 * t / N for t in cpu_s]
     return {"samples_per_epoch": N, "ns_per_sample": float(np.median(ns)),
             "flops_per_sample": flops["total"],
@@ -201,6 +219,15 @@ def floor_row(body_name: str, cpu_s: list, peaks: list) -> dict:
             "floor_ns_per_sample": flops["total"] / float(np.median(peaks)),
             "floor_ratio": float(np.median([t / (flops["total"] / g)
                                             for t, g in zip(ns, peaks)]))}
+
+
+def floor_line(floor: dict) -> str:
+    """A floor_row as one line: time and flops per sample, its floor and the ratio."""
+    return (f"{floor['ns_per_sample']:.2f} ns per sample (CPU), {floor['flops_per_sample']:.0f} "
+            "flops per sample (" + ", ".join(f"{k} {v:.0f}" for k, v in
+                                             floor["flops_per_stage"].items())
+            + f"): floor {floor['floor_ns_per_sample']:.2f} ns, ratio to the floor "
+            f"{floor['floor_ratio']:.2f}")
 
 
 def draw_time(spec: dict, epochs: int = 200) -> float:
@@ -268,6 +295,11 @@ def bench(cfg: DictConfig) -> dict:
         row["updates_online_over_batch"] = (row["updates_online_us_per_trial_epoch"]
                                             / row["fast_us_per_trial_epoch"])
         row["floor"] = floor = floor_row(body, [t[1] for t in times["fast"]], peaks)
+        row["updates_online_floor"] = online = floor_row(
+            body, [t[1] for t in times["updates_online"]], peaks, online_sample_flops)
+        # the online/batch ratio that both at their floors would give
+        row["updates_online_over_batch_at_floor"] = (online["floor_ns_per_sample"]
+                                                     / floor["floor_ns_per_sample"])
         result[body] = row
         print(f"{body}: fast {row['fast_us_per_trial_epoch']:8.1f} us/trial-epoch   "
               f"reference {row['reference_us_per_trial_epoch']:9.1f} us/trial-epoch   "
@@ -283,12 +315,10 @@ def bench(cfg: DictConfig) -> dict:
         print(f"{body}: CPU time, paired: " + "   ".join(
             f"{name} {row[name]:.2f} wall, {row[name + '_cpu']:.2f} CPU" for name in RATIOS),
             flush=True)
-        print(f"{body}: floor: {floor['ns_per_sample']:.2f} ns per sample (CPU), "
-              f"{floor['flops_per_sample']:.0f} flops per sample ("
-              + ", ".join(f"{k} {v:.0f}" for k, v in floor["flops_per_stage"].items())
-              + f"), peak {floor['peak_gflops']:.1f} GFLOP/s measured: floor "
-              f"{floor['floor_ns_per_sample']:.2f} ns, ratio to the floor "
-              f"{floor['floor_ratio']:.2f}", flush=True)
+        print(f"{body}: floor: " + floor_line(floor)
+              + f", peak {floor['peak_gflops']:.1f} GFLOP/s measured", flush=True)
+        print(f"{body}: updates=online floor: " + floor_line(online) + "; online/batch at both "
+              f"floors {row['updates_online_over_batch_at_floor']:.2f}", flush=True)
     if cfg.bench.parallel:
         result["parallel"] = p = parallel_speedup()
         print(f"parallel: {p['trials']} arm5 trials, 1 worker {p['wall_s_1_worker']:.1f} s, "

@@ -34,6 +34,14 @@ def test_bench_writes_medians_and_the_fast_path_wins(tmp_path):
         assert floor["floor_ratio"] == pytest.approx(
             floor["ns_per_sample"] / floor["floor_ns_per_sample"])
         assert floor["floor_ratio"] > 1  # no kernel beats the peak
+        # updates=online's floor: the rollout's stages, then the float64 step (counted twice)
+        online = row["updates_online_floor"]
+        assert online["samples_per_epoch"] == floor["samples_per_epoch"]
+        for stage in ("commands", "kinematics", "weights"):
+            assert online["flops_per_stage"][stage] == floor["flops_per_stage"][stage]
+        assert online["floor_ratio"] > 1
+        assert row["updates_online_over_batch_at_floor"] == pytest.approx(
+            online["floor_ns_per_sample"] / floor["floor_ns_per_sample"])
         # beside each: the CPU-time ratio of the interleaved pairs (one repeat: its one pair)
         for name, (a, b) in bench.RATIOS.items():
             assert row[f"{name}_cpu"] == pytest.approx(row[f"{a}_cpu_us_per_trial_epoch"]
