@@ -9,13 +9,14 @@ numbers.
 """
 from __future__ import annotations
 
+import pickle
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
 
 from . import evaluation, learners
-from .bodies import Body, make_body
+from .bodies import READS, Body, make_body
 from .growth import Growth
 from .spec import SpecError, check_choice, check_epochs, check_int
 
@@ -142,23 +143,76 @@ def _resume(spec: TrialSpec, at: Checkpoint, evals: np.ndarray, rng: np.random.G
     return k, rows, {e: at.result.snapshots[e] for e in snaps}
 
 
+@dataclass(frozen=True)
+class _Setup:
+    """What a trial's loop needs before its first draw, all of it given by its spec (none by
+    its seed): the body, validated spec, growth, learner and its Params, the evaluation's
+    settings, points and epochs, and the sizes and scales of the first block of epochs."""
+    body: Body
+    growth: Any
+    learner: Any
+    params: Any
+    ev: dict
+    unit_heldout: np.ndarray  # the held-out set at size 1 (scaled at each evaluation)
+    evals: np.ndarray
+    cuts: frozenset
+    size_one: Any  # the size of epoch 1 (the learner's init)
+    sizes: np.ndarray  # of epochs 1 ... min(DRAW_BLOCK, epochs)
+    scales: np.ndarray
+
+
+_SETUPS: dict = {}  # a spec's content (pickled) -> its _Setup (_setup_of)
+MAX_SETUPS = 64
+
+
+def _setup_of(spec: TrialSpec) -> _Setup:
+    """The spec's _Setup: built and validated (SpecError), or, for a body given by its DH
+    table (no file read, no function in the loop), the one built for the same spec content
+    before in this process: a sweep's trials of one condition differ by their seed only, and
+    the set-up was most of a short trial's cost. The same values either way (each is built by
+    the same code from the same content; the arrays a trial could write are its own copies)."""
+    key = None
+    if spec.body.get("dh") is not None and all(spec.body.get(k) is None for k in READS):
+        try:  # pickle tells 1 from 1.0 and "1", a tuple from a list: no two contents share one
+            key = pickle.dumps((spec.body, spec.growth, spec.learner, spec.evaluation,
+                                spec.epochs, spec.evals_per_decade, spec.snapshots), protocol=5)
+        except Exception:  # something that does not pickle: built every time
+            key = None
+    hit = _SETUPS.get(key) if key is not None else None
+    if hit is not None and hit.learner is learners.get(spec.learner.get("name", "goal_babbling")):
+        return hit  # (a learner registered again under the name is not the one it was built with)
+    body = spec.make_body()
+    spec.validate(body)
+    growth = spec.make_growth()
+    learner, params = spec.make_learner()
+    evals = evaluation.eval_epochs(spec.epochs, spec.evals_per_decade)
+    sizes = growth.sizes(np.arange(1, min(DRAW_BLOCK, spec.epochs) + 1), body)
+    setup = _Setup(body=body, growth=growth, learner=learner, params=params,
+                   ev={**evaluation.DEFAULTS, **spec.evaluation},
+                   unit_heldout=evaluation.heldout_points(body), evals=evals,
+                   cuts=frozenset(evals.tolist()) | frozenset(spec.snapshots),
+                   size_one=growth.sizes(np.array([1]), body)[0], sizes=sizes,
+                   scales=growth.scales(body, sizes))
+    if key is not None:
+        if len(_SETUPS) >= MAX_SETUPS:
+            _SETUPS.clear()
+        _SETUPS[key] = setup
+    return setup
+
+
 def run_trial(spec: TrialSpec, rng: np.random.Generator,
               resume: Checkpoint | None = None) -> TrialResult:
     """Run one trial and return its learning curve; raises Diverged on a non-finite error.
     resume: continue the trial of that checkpoint (its first epochs and draws are this
     trial's), rather than start one: the result is an uninterrupted run's, to the bit."""
-    body = spec.make_body()
-    spec.validate(body)
-    growth = spec.make_growth()
-    learner, params = spec.make_learner()
-    ev = {**evaluation.DEFAULTS, **spec.evaluation}
-    unit_heldout = evaluation.heldout_points(body)  # at each evaluation: scaled, not rebuilt
-    evals = evaluation.eval_epochs(spec.epochs, spec.evals_per_decade)
-    cuts = set(evals.tolist()) | set(spec.snapshots)
+    setup = _setup_of(spec)
+    body, growth, learner, params = setup.body, setup.growth, setup.learner, setup.params
+    ev, unit_heldout, cuts = setup.ev, setup.unit_heldout, setup.cuts
+    evals = setup.evals.copy()  # the result's own
     abs_error, heldout, size = (np.empty(len(evals)) for _ in range(3))
     k, snapshots, first = 0, {}, 0
     if resume is None:
-        state = learner.init(params, body, growth.sizes(np.array([1]), body)[0], rng)
+        state = learner.init(params, body, setup.size_one, rng)
     else:
         k, rows, snapshots = _resume(spec, resume, evals, rng)
         state, first, done = resume.state, resume.epoch, resume.result
@@ -170,8 +224,11 @@ def run_trial(spec: TrialSpec, rng: np.random.Generator,
     # the same bytes as from the whole array).
     for start in range(first, spec.epochs, DRAW_BLOCK):  # epochs start+1 ... stop
         stop = min(start + DRAW_BLOCK, spec.epochs)
-        sizes = growth.sizes(np.arange(start + 1, stop + 1), body)  # of epochs start+1 ... stop
-        scales = growth.scales(body, sizes)
+        if start == 0:  # the set-up's, copied: a learner may not share them with other trials
+            sizes, scales = setup.sizes.copy(), setup.scales.copy()
+        else:
+            sizes = growth.sizes(np.arange(start + 1, stop + 1), body)  # of epochs start+1 ... stop
+            scales = growth.scales(body, sizes)
         draws = learner.draw(params, body, stop - start, rng)
         bounds = sorted({start, stop} | {e for e in cuts if start < e < stop})
         for lo, hi in zip(bounds[:-1], bounds[1:]):

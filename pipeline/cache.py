@@ -150,23 +150,40 @@ CONTENT = ("key", "spec", "seed", "code", "labels")  # what a sidecar keeps of t
 
 
 def write_trial(cache_dir, trial: dict, result: dict) -> None:
-    """Store a finished trial: the curve first, then the sealed sidecar with its checksum."""
-    curve, side = trial_paths(cache_dir, trial)
+    """Store a finished trial: the curve first, then the sealed sidecar with its checksum.
+    Both go through io.write_in_checked (the trial's folder was checked once, by _stem), the
+    sidecar's JSON encoded once for its seal and its bytes (io.sealed_json): the files of
+    io.write_table and io.write_json(side, io.seal(record), compact=True), byte for byte."""
+    stem = _stem(cache_dir, trial)
+    curve, side = f"{stem}.parquet", f"{stem}.json"
     record = {k: trial[k] for k in CONTENT} | dict(status=result["status"])
     if trial.get("start") is not None:  # a continuation: its base is part of its key
         record["start"] = trial["start"]
     if result["status"] == "diverged":
         record.update(error=result["error"], epoch=result["epoch"])
-        curve.unlink(missing_ok=True)
+        Path(curve).unlink(missing_ok=True)
     else:
-        record["curve_sha256"] = io.write_table(curve, io.trial_curve_table(result))
+        data = io.table_bytes(io.trial_curve_table(result))
+        io.write_in_checked(curve, data)
+        record["curve_sha256"] = hashlib.sha256(data).hexdigest()
         record["largest_jump"] = float(result["largest_jump"])
         M = result["M"]
         record["M"] = None if M is None else np.asarray(M).tolist()
         record["snapshots"] = {str(e): np.asarray(m).tolist()
                                for e, m in sorted(result["snapshots"].items())}
     # compact: the sidecar is read by programs; timing is left out: its bytes must not vary
-    io.write_json(side, io.seal(record), compact=True)
+    io.write_in_checked(side, io.sealed_json(record))
+
+
+def forget_failure(cache_dir, trial: dict) -> None:
+    """Remove the failure record of a trial (failure_path), if there is one: its folder is
+    checked once per process (an unlink removes a link itself, never what it leads to)."""
+    trial_paths(cache_dir, trial)  # the key checked
+    folder = _inside(os.path.join(cache_dir, FAILED), io.confined_root())
+    try:
+        os.unlink(os.path.join(folder, f"{trial['key']}.json"))
+    except FileNotFoundError:
+        pass
 
 
 def read_curve(cache_dir, trial: dict):

@@ -65,9 +65,18 @@ def in_launcher_worker() -> bool:
         multiprocessing.get_start_method(allow_none=True) not in (None, "spawn", "fork", "forkserver")
 
 
+def pooled(trials: int, workers: int) -> bool:
+    """Whether local() runs `trials` trials on a pool of worker processes (else in this one)."""
+    return min(workers, trials, cpus()) > 1 and not in_launcher_worker()
+
+
 def local(todo: list[dict], workers: int, fn=run_one):
     """Yield (trial, fn(trial)) as trials finish, on `workers` spawned processes (at most one per
-    CPU; in this process when one worker suffices). `todo` is run in its order (longest first)."""
+    CPU; in this process when one worker suffices). `todo` is run in its order (longest first).
+    With fn=run_one, the pool's first worker loads (or compiles) every kernel the trials need
+    (warm_up's tiny trials) before the others start: they then load them from numba's cache, and
+    the driver, which only writes results, loads none (pipeline.simulate warms up only when
+    the trials run in this process)."""
     workers = capped(workers, len(todo))
     if workers == 1 or len(todo) <= 1 or in_launcher_worker():
         for t in todo:
@@ -79,6 +88,8 @@ def local(todo: list[dict], workers: int, fn=run_one):
                                    initializer=quiet_worker, initargs=(os.getpid(),))
     _POOLS.add(pool)
     try:
+        if fn is run_one:  # one worker is started for it; the others when the batches come
+            pool.submit(run_batch, fn, warm_trials(todo)).result()
         pending = {pool.submit(run_batch, fn, b): b for b in batches(todo, workers)}
         while pending:
             done, _ = wait(pending, return_when=FIRST_COMPLETED)
@@ -114,8 +125,15 @@ def batches(todo: list[dict], workers: int) -> list[list[dict]]:
 
 def warm_up(trials: list[dict]) -> None:
     """Compile (or load from numba's cache) each learner's kernels once, in this process, before
-    fanning out: a tiny trial per distinct body and learner."""
-    seen = set()
+    fanning out: a tiny trial per distinct body and learner (warm_trials)."""
+    for t in warm_trials(trials):
+        run_one(t)
+
+
+def warm_trials(trials: list[dict]) -> list[dict]:
+    """A tiny trial (two epochs, no growth, no snapshot) per distinct body and learner of
+    `trials`: running them loads every kernel the trials need. Their results are not kept."""
+    seen, out = set(), []
     for t in trials:
         spec = t["spec"]
         what = (spec["body"]["name"], spec["learner"]["name"], spec["learner"].get("fast"))
@@ -123,4 +141,5 @@ def warm_up(trials: list[dict]) -> None:
             continue
         seen.add(what)
         tiny = dict(spec, epochs=2, snapshots=[], growth=dict(spec["growth"], period=0))
-        run_one(dict(t, spec=tiny))
+        out.append({**{k: t[k] for k in ("key", "seed", "code") if k in t}, "spec": tiny})
+    return out

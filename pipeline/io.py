@@ -285,11 +285,55 @@ def write_table(path, table: pa.Table) -> str:
     """Parquet with fixed settings and no timestamps: the same table gives the same bytes.
     Returns the SHA-256 of the bytes written (no second read to checksum them)."""
     with atomic_file(path) as fh:  # an error (a full disk) names `path`
-        sink = pa.BufferOutputStream()
-        pq.write_table(table, sink, compression="zstd", compression_level=3)
-        data = sink.getvalue()
+        data = table_bytes(table)
         fh.write(data)
     return hashlib.sha256(data).hexdigest()
+
+
+def table_bytes(table: pa.Table) -> pa.Buffer:
+    """The bytes write_table writes for `table`."""
+    sink = pa.BufferOutputStream()
+    pq.write_table(table, sink, compression="zstd", compression_level=3)
+    return sink.getvalue()
+
+
+def write_in_checked(path: str, data) -> None:
+    """Write `data` (bytes or a buffer) to `path` as atomic_file does, where the caller has
+    checked path's folder with check_inside in this process (pipeline.cache: one check per
+    trial folder): only the name itself is looked at (a link there is checked as
+    check_inside checks it), and the folder is made only when it is not there. The writes of a
+    short trial's files with a few system calls and no path objects."""
+    if _ROOT and os.path.islink(path):
+        check_inside(path)  # UnsafeName when it leads outside
+    folder, name = os.path.split(path)
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW
+    tmp = None
+    try:
+        while True:
+            tmp = os.path.join(folder, f".{name}~{_HOST}~{os.getpid()}~{next(_serial)}.tmp")
+            try:
+                fd = os.open(tmp, flags, 0o644)
+                break
+            except FileExistsError:  # left by a dead process that had our pid: the next name
+                continue
+            except FileNotFoundError:  # no folder yet
+                os.makedirs(folder, exist_ok=True)
+        try:
+            view = memoryview(data)
+            while view:
+                view = view[os.write(fd, view):]
+        finally:
+            os.close(fd)
+        os.replace(tmp, path)
+        tmp = None
+    except OSError as err:
+        raise _named(err, Path(path)) from None
+    finally:
+        if tmp is not None:
+            try:
+                os.unlink(tmp)
+            except FileNotFoundError:
+                pass
 
 
 def read_table(path, columns=None, schema: pa.Schema | None = None) -> pa.Table:
@@ -454,6 +498,21 @@ def _digest(record: dict) -> str:
     body = {k: v for k, v in record.items() if k != SEAL}
     text = json.dumps(body, sort_keys=True, separators=(",", ":"), allow_nan=True)
     return hashlib.sha256(text.encode()).hexdigest()
+
+
+def sealed_json(record: dict) -> bytes:
+    """The file write_json(path, seal(record), compact=True) writes, with each value of
+    `record` encoded once (seal and write_json encode the whole record each): the seal is the
+    SHA-256 of the same text json.dumps gives, joined from the encoded values in key order."""
+    enc = _COMPACT.encode
+    items = {k: f"{enc(k)}:{enc(v)}" for k, v in record.items() if k != SEAL}
+    keys = sorted(items)
+    digest = hashlib.sha256(("{" + ",".join(items[k] for k in keys) + "}").encode()).hexdigest()
+    items[SEAL] = f"{enc(SEAL)}:{enc(digest)}"
+    return ("{" + ",".join(items[k] for k in sorted(items)) + "}\n").encode()
+
+
+_COMPACT = json.JSONEncoder(sort_keys=True, separators=(",", ":"), allow_nan=True)
 
 
 def seal(record: dict) -> dict:

@@ -66,12 +66,12 @@ class Summary:
 
 def record(cache_dir, trial: dict, result: dict, summary: Summary) -> None:
     """Write a finished trial (ok or diverged) to the cache, or its failure beside it."""
-    key, failure = trial["key"], cache.failure_path(cache_dir, trial)
+    key = trial["key"]
     if result["status"] in ("ok", "diverged"):
         if result.get("final") is not None:  # a continuation's base: its state, then the trial
             checkpoint.write(cache_dir, trial, result["final"])
         cache.write_trial(cache_dir, trial, result)
-        failure.unlink(missing_ok=True)
+        cache.forget_failure(cache_dir, trial)
         if isinstance(result.get("cpu"), (int, float)):
             summary.cpu[key] = summary.unkept[key] = result["cpu"]
             summary.keep_times()
@@ -81,7 +81,8 @@ def record(cache_dir, trial: dict, result: dict, summary: Summary) -> None:
         log.error("[%s] %s %s: %s", summary.figure, where, result["status"],
                   result.get("traceback", result["error"]))
     if result["status"] == "failed":
-        io.write_json(failure, dict(key=key, labels=trial["labels"], error=result["error"]))
+        io.write_json(cache.failure_path(cache_dir, trial),
+                      dict(key=key, labels=trial["labels"], error=result["error"]))
     summary.ran += 1
 
 
@@ -262,8 +263,8 @@ def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = Non
     if ahead:
         print(f"[{figure}] {ahead}", file=sys.stderr, flush=True)
     try:
-        if mine:
-            execute.warm_up(mine)
+        if mine and not (cfg.engine.name == "local" and execute.pooled(len(mine), cfg.workers)):
+            execute.warm_up(mine)  # a local pool warms up in its first worker (execute.local)
         # continuations after every other trial: their bases are then in the cache
         for wave in ([t for t in mine if "base" not in t], [t for t in mine if "base" in t]):
             ready = []

@@ -26,3 +26,27 @@ def test_batched_pool_gives_each_trial_its_own_result(tmp_path):
     got = list(execute.local(todo, 2))
     assert sorted(t["key"] for t, _ in got) == sorted(t["key"] for t in todo)
     assert all(r["key"] == t["key"] and r["status"] == "ok" for t, r in got)
+
+
+def test_a_pool_warms_up_in_its_first_worker_and_the_driver_loads_no_kernel(tmp_path,
+                                                                           monkeypatch):
+    from pipeline import simulate
+
+    calls = []
+    monkeypatch.setattr(execute, "warm_up", lambda t: calls.append(len(t)))
+    overrides = [f"paths.root={tmp_path}", "body=arm5", "learner.epochs=3",
+                 "conditions.periods=[2]"]
+    s = simulate.simulate(compose([*overrides, "trials.count=3", "workers=2"]))
+    assert s.ran == 3 and not s.failed
+    assert calls == ([] if execute.pooled(3, 2) else [3])  # the pool's first worker did it
+    s = simulate.simulate(compose([*overrides, "trials.count=5", "workers=1"]))
+    assert s.ran == 2 and not s.failed and calls[-1] == 2  # in this process: warmed up here
+
+
+def test_the_warm_up_runs_one_tiny_trial_per_body_and_learner(tmp_path):
+    todo = trials(tmp_path, "learner.epochs=30", "trials.count=3", "conditions.periods=[2,5]")
+    todo[0] = dict(todo[0], resume={"epoch": 1000}, keep_state=True)
+    warm = execute.warm_trials(todo)
+    assert len(warm) == 1 and set(warm[0]) == {"key", "seed", "code", "spec"}
+    assert warm[0]["spec"]["epochs"] == 2 and warm[0]["spec"]["growth"]["period"] == 0
+    assert execute.run_one(warm[0])["status"] == "ok"

@@ -2,6 +2,7 @@
 are checked before planning, and the building blocks of pipeline.io (output sets, seals, damaged
 files, a full or read-only disk) each do what they promise: one line, never a traceback."""
 import errno
+import itertools
 import json
 import os
 import subprocess
@@ -229,3 +230,68 @@ def test_a_full_disk_while_writing_names_the_file_and_leaves_no_temp(tmp_path, m
         io.write_table(tmp_path / "curves.parquet", pa.table({"a": [1]}))
     assert err.value.errno == errno.ENOSPC and err.value.filename == str(tmp_path / "curves.parquet")
     assert not list(tmp_path.iterdir())
+
+
+# ---- (d) a trial's files written with few system calls, the same bytes ------------------------
+def test_a_sealed_sidecar_is_the_bytes_of_seal_and_write_json(tmp_path):
+    records = [dict(status="ok", M=[[0.1, -2e-300, 1 / 3]], snapshots={"10": [[float("nan"), 1e300]]},
+                    key="ab", labels={"trial": 1, "é": "ü\n"}, largest_jump=float("inf"),
+                    error=None, curve_sha256="ff", seed={"spawn_key": [1, 2]}),
+               {}, dict(seal="an old one", a=True, b=[]), dict(z=1, A=2, _=3, a=-0.0)]
+    for r in records:
+        io.write_json(tmp_path / "a.json", io.seal(r), compact=True)
+        assert io.sealed_json(r) == (tmp_path / "a.json").read_bytes()
+        assert io.check_seal(json.loads(io.sealed_json(r)))
+
+
+def test_a_write_in_a_checked_folder_makes_it_and_never_follows_a_link(tmp_path, monkeypatch):
+    root = tmp_path / "root"
+    path = root / "trials" / "ab" / "x.json"
+    with io.confined(root):
+        io.write_in_checked(str(path), b"one")  # the folder is made
+        assert path.read_bytes() == b"one"
+        monkeypatch.setattr(io, "_serial", iter([0, 1]))
+        planted = io._tmp_name(path)
+        victim = tmp_path / "victim"
+        victim.write_text("keep")
+        planted.symlink_to(victim)  # the temporary name the next write would take
+        monkeypatch.setattr(io, "_serial", iter([0, 1]))
+        io.write_in_checked(str(path), memoryview(b"two"))
+        assert path.read_bytes() == b"two" and victim.read_text() == "keep"
+        planted.unlink()
+        monkeypatch.setattr(io, "_serial", itertools.count(2))
+        link = path.with_name("y.json")
+        link.symlink_to(victim)  # a link leading outside the root is refused, as check_inside does
+        with pytest.raises(io.UnsafeName, match="outside paths.root"):
+            io.write_in_checked(str(link), b"three")
+        assert victim.read_text() == "keep"
+
+    def no_space(*a, **k):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(os, "write", no_space)
+    with pytest.raises(OSError) as err:
+        io.write_in_checked(str(path), b"four")
+    assert err.value.errno == errno.ENOSPC and err.value.filename == str(path)
+    assert sorted(p.name for p in path.parent.iterdir()) == ["x.json", "y.json"]  # no temp left
+    assert path.read_bytes() == b"two"
+
+
+def test_a_trials_files_are_those_write_table_and_write_json_write(tmp_path):
+    from pipeline import cache
+    from pipeline.plan import plan
+
+    trials = plan(compose(tiny_overrides(tmp_path, "body=arm5", "learner.epochs=3",
+                                         "trials.count=2", "conditions.periods=[2]")))
+    for t in trials:
+        result = execute.run_one(t)
+        cache.write_trial(tmp_path / "new", t, result)
+        curve, side = cache.trial_paths(tmp_path / "old", t)
+        record = {k: t[k] for k in cache.CONTENT} | dict(status="ok")
+        record["curve_sha256"] = io.write_table(curve, io.trial_curve_table(result))
+        record.update(largest_jump=float(result["largest_jump"]), M=result["M"].tolist(),
+                      snapshots={})
+        io.write_json(side, io.seal(record), compact=True)
+        for old, new in zip((curve, side), cache.trial_paths(tmp_path / "new", t)):
+            assert new.read_bytes() == old.read_bytes()
+        assert cache.check(tmp_path / "new", t)[0]["status"] == "ok"
