@@ -93,7 +93,7 @@ class Previous:
     reused (every trial is read from the cache)."""
 
     def __init__(self, folder: Path | None = None):
-        self.index, self.where, self._table, self._texts, self._models = {}, None, None, None, {}
+        self.index, self.where, self._table, self._texts, self._pieces = {}, None, None, None, {}
         self.lines = {}  # condition -> (id, checksum of its models.json line)
         if folder is None or not folder.exists():
             return
@@ -137,11 +137,34 @@ class Previous:
             raise ValueError(f"models.json: the line of {condition!r} is damaged")
         return text
 
-    def model(self, entry: dict) -> dict:
-        name = entry["condition"]
-        if name not in self._models:
-            self._models[name] = json.loads(self.text(name))["trials"]
-        return self._models[name][str(entry["trial"])]
+    def pieces(self, condition: str) -> dict[str, str]:
+        """trial -> the JSON text of its model in the condition's previous line (text(), checked):
+        the line parsed key by key by json's decoder, each model cut where its value ends (not
+        encoded again; ValueError if the line is not what model_line writes)."""
+        if condition not in self._pieces:
+            text, out = self.text(condition), {}
+            decode, scan = _DECODER.raw_decode, json.decoder.scanstring
+            pos, key = 1, None
+            while text[pos - 1] in "{," and key != "trials":
+                key, pos = scan(text, pos + 1)  # past the opening quote
+                if text[pos] != ":":
+                    break
+                if key == "trials":
+                    pos += 2
+                    while text[pos - 1] in "{," and text[pos] == '"':
+                        trial, pos = scan(text, pos + 1)
+                        end = decode(text, pos + 1)[1]
+                        out[trial], pos = text[pos + 1:end], end + 1
+                    pos += text[pos - 1] == "{"  # no trial: past the closing brace
+                else:
+                    pos = decode(text, pos + 1)[1] + 1
+            if key != "trials" or text[pos - 1:] != "}}" or text[0] != "{":
+                raise ValueError(f"models.json: the line of {condition!r} is not a condition's")
+            self._pieces[condition] = out
+        return self._pieces[condition]
+
+
+_DECODER = json.JSONDecoder()
 
 
 def load_trials(cache_dir, figure: str, previous: Previous | None = None):
@@ -255,10 +278,12 @@ def _compact(obj) -> str:
 
 def models(conds: dict, previous: Previous) -> tuple[dict[str, str], dict[str, str]]:
     """Per condition, the JSON text of its spec, id and each finished trial's model (key, M,
-    snapshots, largest jump), from the trial's sidecar or the previous aggregate, and the
-    text's checksum (the manifest's). A condition whose id and finished trials are those of
-    the previous aggregate, none read again, keeps its text as it was, checked against its
-    checksum, which is then its checksum (not taken again: 10 MB of a 10,000-trial figure)."""
+    snapshots, largest jump; model_line), from the trial's sidecar or the previous aggregate,
+    and the text's checksum (the manifest's). A condition whose id and finished trials are
+    those of the previous aggregate, none read again, keeps its text as it was, checked against
+    its checksum, which is then its checksum (not taken again: 10 MB of a 10,000-trial figure).
+    In a condition that changed, a trial not read again keeps its model's text (Previous.pieces):
+    only the models read are encoded."""
     out, sums = {}, {}
     for k, c in conds.items():
         before = previous.lines.get(k)
@@ -268,11 +293,19 @@ def models(conds: dict, previous: Previous) -> tuple[dict[str, str], dict[str, s
         if same:
             out[k], sums[k] = previous.text(k), before[1]
             continue
-        out[k] = _compact({"spec": c["spec"], "id": c["id"],
-                           "trials": {i: e["model"] if "model" in e else previous.model(e)
-                                      for i, e in c["trials"].items()}})
+        kept = previous.pieces(k) if any("model" not in e for e in c["trials"].values()) else {}
+        out[k] = model_line(c["spec"], c["id"], {
+            i: _compact(e["model"]) if "model" in e else kept[i] for i, e in c["trials"].items()})
         sums[k] = _checksum(out[k])
     return out, sums
+
+
+def model_line(spec: dict, cid: str, trials: dict[str, str]) -> str:
+    """_compact({"spec": spec, "id": cid, "trials": {trial: model}}) from each trial's model
+    already encoded (`trials`: trial -> its compact JSON): the same text, keys in the same
+    (sorted) order."""
+    models = ",".join(f"{json.dumps(i)}:{trials[i]}" for i in sorted(trials))
+    return f'{{"id":{_compact(cid)},"spec":{_compact(spec)},"trials":{{{models}}}}}'
 
 
 def models_text(fig: str, paper, texts: dict[str, str]) -> str:

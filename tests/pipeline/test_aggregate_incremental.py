@@ -149,7 +149,12 @@ def test_one_changed_trial_rewrites_the_model_line_of_its_condition_only(
     assert aggregate.aggregate(sweep) == []
     after = model_lines(sweep)
     assert len([k for k in after if after[k] != before[k]]) == 1
-    assert len([o for o in encoded if "trials" in o]) == 1  # the other condition's line copied
+    # the other condition's line copied, and in the changed one only the changed trial's model
+    # encoded (its two other trials' texts kept from the previous line, not parsed and encoded)
+    models = [o for o in encoded if isinstance(o, dict) and "M" in o]
+    assert not [o for o in encoded if isinstance(o, dict) and "trials" in o]
+    assert len(models) == 1 and models[0]["key"] in after[next(k for k in after
+                                                                if after[k] != before[k])]
     monkeypatch.undo()
     assert files_of(Path(sweep.paths.aggregate) / "custom") == built_from_nothing(sweep, tmp_path)
 
