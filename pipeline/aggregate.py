@@ -95,6 +95,8 @@ class Previous:
     def __init__(self, folder: Path | None = None):
         self.index, self.where, self._table, self._texts, self._pieces = {}, None, None, None, {}
         self.lines = {}  # condition -> (id, checksum of its models.json line)
+        self.stats = {}  # condition -> (stats_digest, first row in curves.parquet, rows, row in
+        self._sums = {}  # summary.parquet); file -> its SHA-256 (the manifest's)
         if folder is None or not folder.exists():
             return
         try:
@@ -104,6 +106,8 @@ class Previous:
                 return
             rows = io.read_table(where / INDEX, schema=INDEX_SCHEMA).to_pylist()
             self.lines = {k: tuple(v) for k, v in manifest.get("models", {}).items()}
+            self.stats = {k: tuple(v) for k, v in manifest.get("stats", {}).items()}
+            self._sums = dict(manifest.get("sha256", {}))
         except (OSError, ValueError, TypeError):
             return
         self.index, self.where = {r["key"]: r for r in rows}, where
@@ -120,6 +124,14 @@ class Previous:
             self._table = io.read_table(self.where / "trials.parquet",
                                         columns=io.TRIAL_CURVE.names, schema=io.TRIAL_CURVE)
         return self._table
+
+    def checked_table(self, name: str) -> pa.Table:
+        """A small file of the set (curves.parquet, summary.parquet) whose bytes are those the
+        manifest recorded (ValueError if not: an edited file is never copied from)."""
+        data = (self.where / name).read_bytes()
+        if hashlib.sha256(data).hexdigest() != self._sums.get(name):
+            raise ValueError(f"{name}: not the file the manifest recorded")
+        return io.parse_table(data, self.where / name)
 
     def text(self, condition: str) -> str:
         """The condition's line of the previous models.json (models_text), checked against the
@@ -401,6 +413,86 @@ def summarize(trials: pd.DataFrame, curves: pd.DataFrame, conds: dict, paper: di
     return pd.DataFrame(rows)
 
 
+def stats_digest(name: str, c: dict, paper, fail_factor: float) -> str:
+    """What a condition's rows of curves.parquet and summary.parquet are made of: its name,
+    labels, id (spec and seed), variant, trials and their seals, the diverged and missing ones,
+    the paper block, the failure factor, and the versions of the libraries that compute them
+    (the code is the manifest's). The same digest, the same rows."""
+    import pandas as pd
+
+    body = [name, c["labels"], c["id"], c["variant"], sorted(c["trials"]), c["seals"],
+            c["diverged"], c["missing"], paper, fail_factor, pd.__version__, np.__version__,
+            pa.__version__]
+    return hashlib.sha256(_compact(body).encode()).hexdigest()[:20]
+
+
+def statistics(trials: pd.DataFrame, conds: dict, paper: dict, fail_factor: float,
+               previous: Previous) -> tuple[pa.Table, pa.Table, dict]:
+    """(curves, summary, stats) of the figure: curve_stats and summarize as tables, and per
+    condition [stats_digest, first row in curves, rows, row in summary] for the manifest. A
+    condition whose digest is that of the previous set keeps its rows from there (checked
+    files); only the others are computed (one changed trial of 10,000: one condition of ten).
+    The tables are those of computing every condition: where the computed rows' schema is not
+    the previous files' (another pandas), or the previous set is unreadable, all are computed."""
+    digests = {k: stats_digest(k, c, paper, fail_factor) for k, c in conds.items()}
+    kept = {k for k, d in digests.items() if previous.stats.get(k, (None,))[0] == d}
+    if kept and len(kept) < len(conds):
+        try:
+            return _statistics_of(trials, conds, paper, fail_factor, previous, digests, kept)
+        except (OSError, ValueError, KeyError, IndexError, TypeError, pa.ArrowException):
+            pass
+    curves = curve_stats(trials)
+    curves_t = io.frame_to_table(curves)
+    summary_t = io.frame_to_table(summarize(trials, curves, conds, paper, fail_factor))
+    return curves_t, summary_t, _stats_record(curves_t, conds, digests)
+
+
+def _statistics_of(trials, conds, paper, fail_factor, previous, digests, kept):
+    """statistics() with the conditions `kept` taken from the previous set."""
+    computed = {k: c for k, c in conds.items() if k not in kept}
+    rows = trials[trials["condition"].isin(list(computed))]
+    curves = curve_stats(rows)
+    new_curves = io.frame_to_table(curves)
+    new_summary = io.frame_to_table(summarize(rows, curves, computed, paper, fail_factor))
+    old_curves, old_summary = (previous.checked_table("curves.parquet"),
+                               previous.checked_table("summary.parquet"))
+    if not (new_curves.schema.equals(old_curves.schema, check_metadata=True)
+            and new_summary.schema.equals(old_summary.schema, check_metadata=True)):
+        raise ValueError("the computed rows' schema is not the previous files'")
+    at = _stats_record(new_curves, computed, digests)
+    c_parts, s_parts = [], []
+    for k in conds:
+        if k in kept:
+            _, first, n, i = previous.stats[k]
+            c_parts.append(old_curves.slice(first, n))
+            s_parts.append(old_summary.slice(i, 1))
+        else:
+            _, first, n, i = at[k]
+            c_parts.append(new_curves.slice(first, n))
+            s_parts.append(new_summary.slice(i, 1))
+    curves_t = pa.concat_tables(c_parts).combine_chunks()
+    summary_t = pa.concat_tables(s_parts).combine_chunks()
+    if summary_t.column("condition").to_pylist() != list(conds):
+        raise ValueError("summary.parquet: the conditions are not the figure's")
+    return curves_t, summary_t, _stats_record(curves_t, conds, digests)
+
+
+def _stats_record(curves: pa.Table, conds: dict, digests: dict) -> dict:
+    """condition -> [its stats digest, first row in `curves`, rows, row in the summary] (the
+    rows of a condition are consecutive, in the order of `conds`, one summary row each)."""
+    names = curves.column("condition").to_pylist()
+    first, out = 0, {}
+    for i, k in enumerate(conds):
+        n = 0
+        while first + n < len(names) and names[first + n] == k:
+            n += 1
+        out[k] = [digests[k], first, n, i]
+        first += n
+    if first != len(names):
+        raise ValueError("curves: rows of no condition of the figure")
+    return out
+
+
 def reach_of(spec: dict) -> float:
     """The reach [m] of a condition's body at its final size (gbmodel.workspace.reach: half the
     largest distance between two hand positions within the limits)."""
@@ -504,22 +596,25 @@ def aggregate_figure(cfg: DictConfig, fig: str) -> tuple[list[str], bool]:
             _fill(cfg.paths.cache, c["entries"])
         table, (model_of, sums) = curves_table(conds, previous), models(conds, previous)
     trials = table.to_pandas()
-    curves = curve_stats(trials)
-    summary = summarize(trials, curves, conds, paper, cfg.aggregate.fail_factor)
-    for c in summary.loc[summary["n_trials"] == 0, "condition"]:
-        print(f"note: [{fig}] {c}: every trial diverged or failed; the report marks it "
-              "diverged", file=sys.stderr)
+    curves, summary, stats = statistics(trials, conds, paper, cfg.aggregate.fail_factor,
+                                        previous)
+    for c, n in zip(summary.column("condition").to_pylist(),
+                    summary.column("n_trials").to_pylist()):
+        if n == 0:
+            print(f"note: [{fig}] {c}: every trial diverged or failed; the report marks it "
+                  "diverged", file=sys.stderr)
     with io.new_set(folder) as tmp:
         io.write_table(tmp / "trials.parquet",
                        pa.Table.from_pandas(trials, schema=io.CURVE, preserve_index=False))
-        io.write_table(tmp / "curves.parquet", io.frame_to_table(curves))
-        io.write_table(tmp / "summary.parquet", io.frame_to_table(summary))
+        sha256 = {name: io.write_table(tmp / name, t)
+                  for name, t in (("curves.parquet", curves), ("summary.parquet", summary))}
         io.write_text(tmp / "models.json", models_text(fig, paper, model_of))
         io.write_table(tmp / INDEX, index_table(conds))
         io.write_json(tmp / "manifest.json", dict(
             figure=fig, inputs=digest, code=code_of_stage(), trials=int(len(trials)),
-            models={k: [conds[k]["id"], sums[k]] for k in model_of}))
-    log.info("[%s] %d conditions, %d trial curves -> %s", fig, len(summary),
+            models={k: [conds[k]["id"], sums[k]] for k in model_of}, stats=stats,
+            sha256=sha256))
+    log.info("[%s] %d conditions, %d trial curves -> %s", fig, summary.num_rows,
              sum(len(c["trials"]) for c in conds.values()), folder)
     return problems, True
 

@@ -248,3 +248,42 @@ def test_the_command_runs_without_cyclic_collection_on_the_system_allocator(swee
     assert "STATE False system True" in out.stderr, out.stderr
     assert "1 of 1 figure(s) rebuilt" in out.stdout + out.stderr
     assert files_of(Path(sweep.paths.aggregate) / "custom") == built_from_nothing(sweep, tmp_path)
+
+
+def test_one_changed_trial_computes_the_statistics_of_its_condition_only(
+        sweep, tmp_path, monkeypatch):
+    """curves.parquet and summary.parquet: a condition none of whose inputs changed (its stats
+    digest) keeps its rows from the previous set; the statistics are computed over the changed
+    condition's rows only, and the files are those of computing every condition."""
+    from pipeline.tools import scale
+
+    assert aggregate.aggregate(sweep) == []
+    seen, real = [], aggregate.curve_stats
+    monkeypatch.setattr(aggregate, "curve_stats",
+                        lambda t: seen.append(sorted(set(t["condition"]))) or real(t))
+    scale.change_one_trial(Path(sweep.paths.cache))
+    assert aggregate.aggregate(sweep) == []
+    assert len(seen) == 1 and len(seen[0]) == 1  # one condition of two
+    monkeypatch.undo()
+    assert files_of(Path(sweep.paths.aggregate) / "custom") == built_from_nothing(sweep, tmp_path)
+
+
+@pytest.mark.parametrize("name", ["curves.parquet", "summary.parquet"])
+def test_an_edited_statistics_file_is_not_copied_from(sweep, tmp_path, name):
+    """A previous curves.parquet or summary.parquet that is a readable table but not the one
+    written (a value edited) is not the source of any row: the statistics are computed."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    from pipeline.tools import scale
+
+    assert aggregate.aggregate(sweep) == []
+    path = io.set_of(Path(sweep.paths.aggregate) / "custom") / name
+    table = io.read_table(path)
+    column = table.schema.get_field_index("n_trials")
+    table = table.set_column(column, table.field(column),
+                             pc.add(table.column(column), pa.scalar(1, pa.int64())))
+    io.write_table(path, table)  # a valid Parquet file, other numbers
+    scale.change_one_trial(Path(sweep.paths.cache))
+    assert aggregate.aggregate(sweep) == []
+    assert files_of(Path(sweep.paths.aggregate) / "custom") == built_from_nothing(sweep, tmp_path)
