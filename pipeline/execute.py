@@ -15,7 +15,9 @@ from __future__ import annotations
 import multiprocessing
 import os
 import sys
+import types
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from contextlib import contextmanager
 
 from .worker import (THREAD_VARS, quiet_worker, run_batch, run_one,  # noqa: F401
                      single_threaded_children)
@@ -88,9 +90,10 @@ def local(todo: list[dict], workers: int, fn=run_one):
                                    initializer=quiet_worker, initargs=(os.getpid(),))
     _POOLS.add(pool)
     try:
-        if fn is run_one:  # one worker is started for it; the others when the batches come
-            pool.submit(run_batch, fn, warm_trials(todo)).result()
-        pending = {pool.submit(run_batch, fn, b): b for b in batches(todo, workers)}
+        with _no_main_module(fn):  # the workers start in these submits
+            if fn is run_one:  # one worker is started for it; the others when the batches come
+                pool.submit(run_batch, fn, warm_trials(todo)).result()
+            pending = {pool.submit(run_batch, fn, b): b for b in batches(todo, workers)}
         while pending:
             done, _ = wait(pending, return_when=FIRST_COMPLETED)
             for fut in done:
@@ -98,6 +101,25 @@ def local(todo: list[dict], workers: int, fn=run_one):
     finally:
         # idle workers after the last result; on a signal, an error or a dropped generator: now
         _stop(pool)
+
+
+@contextmanager
+def _no_main_module(fn):
+    """A spawned worker imports the driver's __main__ module before it runs anything
+    (multiprocessing's preparation): for `python -m pipeline.simulate` the whole stage, Hydra,
+    OmegaConf and the config (about 0.3 s of CPU per worker more than what a trial imports),
+    none of which a worker uses. Within this block workers are started with a bare __main__
+    instead, unless `fn` itself lives in __main__ (a script's own function, which a worker
+    finds there)."""
+    main = sys.modules.get("__main__")
+    if main is None or getattr(fn, "__module__", None) == "__main__":
+        yield
+        return
+    sys.modules["__main__"] = types.ModuleType("__main__")
+    try:
+        yield
+    finally:
+        sys.modules["__main__"] = main
 
 
 BATCH_SHARE = 16  # a batch holds at most 1/BATCH_SHARE of one worker's share of the work
@@ -109,9 +131,7 @@ def batches(todo: list[dict], workers: int) -> list[list[dict]]:
     their estimated cost (pipeline.plan.cost) stays within 1/BATCH_SHARE of a worker's share,
     at most MAX_BATCH. Short trials then share one task's pickling and round trip; a long trial
     is a batch of its own, so the workers stay balanced and a stopped run loses little."""
-    from .plan import cost
-
-    costs = [cost(t) for t in todo]
+    costs = _costs(todo)
     limit = sum(costs) / (workers * BATCH_SHARE)
     out, batch, total = [], [], 0.0
     for t, c in zip(todo, costs):
@@ -121,6 +141,27 @@ def batches(todo: list[dict], workers: int) -> list[list[dict]]:
         batch.append(t)
         total += c
     return out + [batch] if batch else out
+
+
+def costs_of(trials: list[dict]) -> dict:
+    """Trial key -> pipeline.plan.cost of each trial (_costs)."""
+    return dict(zip((t["key"] for t in trials), _costs(trials)))
+
+
+def _costs(trials: list[dict]) -> list[float]:
+    """pipeline.plan.cost of each trial, computed once per spec object and start (cost hashes
+    the whole spec, about 60 us; the trials of a condition share their spec)."""
+    from .plan import cost
+
+    out, seen = [], {}
+    for t in trials:
+        start = t.get("start")
+        what = (id(t["spec"]), None if start is None else start.get("epoch"))
+        c = seen.get(what)
+        if c is None:
+            c = seen[what] = cost(t)
+        out.append(c)
+    return out
 
 
 def warm_up(trials: list[dict]) -> None:

@@ -381,9 +381,23 @@ def frame_to_table(df) -> pa.Table:
 
 def trial_curve_table(result: dict) -> pa.Table:
     """One trial's learning curve in the TRIAL_CURVE schema (a worker's result)."""
-    return pa.Table.from_arrays(
-        [pa.array(np.asarray(result[f.name]), type=f.type) for f in TRIAL_CURVE],
-        schema=TRIAL_CURVE)
+    return pa.Table.from_arrays([_column(result[f.name], f.type) for f in TRIAL_CURVE],
+                                schema=TRIAL_CURVE)
+
+
+_NUMPY_OF = {pa.int64(): np.dtype(np.int64), pa.float64(): np.dtype(np.float64)}
+
+
+def _column(values, type_: pa.DataType) -> pa.Array:
+    """pa.array(np.asarray(values), type=type_): a 1-D array of the column's own numpy type
+    is taken as its buffer (no nulls, the same values and bytes), which spares pyarrow's
+    import of pandas (pa.array asks pandas about every array: 0.6 s of CPU in the first call of
+    a process that needs no pandas, simulate's driver)."""
+    a = np.asarray(values)
+    if a.ndim == 1 and a.dtype == _NUMPY_OF.get(type_):
+        a = np.ascontiguousarray(a)
+        return pa.Array.from_buffers(type_, len(a), [None, pa.py_buffer(a)])
+    return pa.array(a, type=type_)
 
 
 def sha256_file(path) -> str:

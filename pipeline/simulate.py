@@ -26,7 +26,7 @@ from omegaconf import DictConfig, OmegaConf
 from . import cache, checkpoint, cli, engines, execute, io
 from .config import CONFIG_PATH
 from .fingerprint import code_fingerprint
-from .plan import check_run, cost, plan, plan_conditions
+from .plan import check_run, plan, plan_conditions
 from .planned import PLANNED, misplanned, plan_digest
 from .progress import Progress, estimate
 
@@ -242,7 +242,8 @@ def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = Non
             todo.append(t)
         elif done["status"] == "diverged":
             diverged[t["key"]] = f"{done['error']} (cached)"
-    todo.sort(key=cost, reverse=True)
+    costs = execute.costs_of(todo)  # each condition's once (sorting, progress, batches)
+    todo.sort(key=lambda t: costs[t["key"]], reverse=True)
     summary = Summary(figure=figure, total=len(trials), cached=len(trials) - len(todo),
                       failed=diverged, times_dir=cfg.paths.out)
     summary.labels = {t["key"]: _where(t) for t in trials}
@@ -258,7 +259,8 @@ def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = Non
     log.info("[%s] %d trials: %d cached, %d to run on %d worker(s)%s", figure, len(trials),
              summary.cached, len(mine), workers,
              f", {len(elsewhere)} being computed by another run" if elsewhere else "")
-    progress = Progress(summary, todo)  # a heartbeat line when nothing finishes for a while
+    # a heartbeat line when nothing finishes for a while
+    progress = Progress(summary, todo, cost=lambda t: costs[t["key"]])
     ahead = estimate(mine, workers, progress.costs)  # a long run says what it costs first
     if ahead:
         print(f"[{figure}] {ahead}", file=sys.stderr, flush=True)

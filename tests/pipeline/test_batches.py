@@ -1,4 +1,8 @@
 """Short trials travel to a worker in batches, long ones alone; the results are the same."""
+import importlib
+import os
+import sys
+
 from pipeline import execute
 from pipeline.config import compose
 from pipeline.plan import plan
@@ -50,3 +54,26 @@ def test_the_warm_up_runs_one_tiny_trial_per_body_and_learner(tmp_path):
     assert len(warm) == 1 and set(warm[0]) == {"key", "seed", "code", "spec"}
     assert warm[0]["spec"]["epochs"] == 2 and warm[0]["spec"]["growth"]["period"] == 0
     assert execute.run_one(warm[0])["status"] == "ok"
+
+
+def _imported_here(trial: dict) -> dict:
+    """A worker's answer: which process it is."""
+    return dict(key=trial["key"], pid=os.getpid())
+
+
+def test_a_worker_does_not_import_the_drivers_main_module(tmp_path, monkeypatch):
+    """`python -m pipeline.simulate` is the driver's __main__: a spawned worker imported it
+    (Hydra, OmegaConf, the config) before its first trial, and used none of it."""
+    (tmp_path / "heavy_main.py").write_text(
+        "import os, pathlib\n"
+        f"with open({str(tmp_path / 'imported')!r}, 'a') as f:\n"
+        "    f.write(f'{os.getpid()}\\n')\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setitem(sys.modules, "__main__", importlib.import_module("heavy_main"))
+    todo = [dict(key=f"{i:020x}", spec={}) for i in range(4)]
+    got = list(execute.local(todo, 2, fn=_imported_here))
+    assert sorted(t["key"] for t, _ in got) == [t["key"] for t in todo]
+    workers = {r["pid"] for _, r in got} - {os.getpid()}
+    assert workers or not execute.pooled(4, 2)
+    assert (tmp_path / "imported").read_text().split() == [str(os.getpid())]  # here only
+    assert sys.modules["__main__"].__name__ == "heavy_main"  # given back
