@@ -128,6 +128,24 @@ def largest_jump(predict, body: Body, size: float, points: int = 201) -> float:
     between neighbouring points on the lines through the target box (`lines`), in command units.
     A smooth inverse changes little between points 1/200 of the box apart; an inverse that
     switches between redundant solutions (branch switching) or is a lookup table jumps."""
-    steps = [np.linalg.norm(np.diff(predict(line), axis=0), axis=-1).max()
-             for line in lines(body, size, points)]
+    steps = [np.linalg.norm(np.diff(predict(line.copy()), axis=0), axis=-1).max()
+             for line in _lines(body, size, points)]
     return float(max(steps))
+
+
+def _lines(body: Body, size: float, points: int) -> np.ndarray:
+    """lines(body, size, points), built once per process and (targets, size, points): every
+    trial of a condition ends at the same size (read-only; largest_jump hands out copies)."""
+    t = np.ascontiguousarray(body.targets)
+    key = (t.shape, t.dtype.str, t.tobytes(), float(size), points)
+    out = _LINES.get(key)
+    if out is None:
+        out = lines(body, size, points)
+        out.flags.writeable = False
+        if len(_LINES) >= 64:
+            _LINES.clear()
+        _LINES[key] = out
+    return out
+
+
+_LINES: dict = {}  # _lines by the targets' bytes, the size and the points

@@ -90,15 +90,17 @@ def read_trial(cache_dir, trial: dict, curve: bool = True):
     """(sidecar, curve table or None, None) for a finished trial whose files are intact, each
     file read once: its checksum and its table come from the same bytes (curve=False: checked,
     not parsed); (None, None, None) for one not run yet; (None, None, why) for a damaged one."""
-    curve_path, side = trial_paths(cache_dir, trial)
-    try:
-        raw = side.read_bytes()
+    stem = _stem(cache_dir, trial)
+    try:  # a trial not run yet is the common answer: no path objects for it
+        with open(f"{stem}.json", "rb") as fh:
+            raw = fh.read()
     except FileNotFoundError:
         return None, None, None
     except IsADirectoryError:
-        return None, None, f"{side}: a folder, not a JSON file"
+        return None, None, f"{stem}.json: a folder, not a JSON file"
     except OSError as err:
         return None, None, str(err)
+    curve_path, side = Path(f"{stem}.parquet"), Path(f"{stem}.json")
     try:
         s = io.check_seal(io.parse_json(raw, side), side.name)  # model, snapshots, status too
         if s.get("key") != trial["key"]:
@@ -178,7 +180,7 @@ def write_trial(cache_dir, trial: dict, result: dict) -> None:
 def forget_failure(cache_dir, trial: dict) -> None:
     """Remove the failure record of a trial (failure_path), if there is one: its folder is
     checked once per process (an unlink removes a link itself, never what it leads to)."""
-    trial_paths(cache_dir, trial)  # the key checked
+    _stem(cache_dir, trial)  # the key checked
     folder = _inside(os.path.join(cache_dir, FAILED), io.confined_root())
     try:
         os.unlink(os.path.join(folder, f"{trial['key']}.json"))
@@ -224,7 +226,7 @@ class Claim:
     (NFS with lockd) share the claims too."""
 
     def __init__(self, cache_dir, trial: dict):
-        trial_paths(cache_dir, trial)  # the key checked
+        _stem(cache_dir, trial)  # the key checked
         self.cache_dir = cache_dir
         self.offset = int(trial["key"][:15], 16)  # 60 bits: distinct for distinct keys
         self.fh = None  # not None while held
