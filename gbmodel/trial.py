@@ -9,6 +9,7 @@ numbers.
 """
 from __future__ import annotations
 
+import math
 import pickle
 from dataclasses import asdict, dataclass, field
 from typing import Any
@@ -153,8 +154,10 @@ class _Setup:
     learner: Any
     params: Any
     ev: dict
+    ev_heldout: dict  # ev with points=heldout
     unit_heldout: np.ndarray  # the held-out set at size 1 (scaled at each evaluation)
     evals: np.ndarray
+    at: tuple  # evals as ints
     cuts: frozenset
     size_one: Any  # the size of epoch 1 (the learner's init)
     sizes: np.ndarray  # of epochs 1 ... min(DRAW_BLOCK, epochs)
@@ -187,9 +190,11 @@ def _setup_of(spec: TrialSpec) -> _Setup:
     learner, params = spec.make_learner()
     evals = evaluation.eval_epochs(spec.epochs, spec.evals_per_decade)
     sizes = growth.sizes(np.arange(1, min(DRAW_BLOCK, spec.epochs) + 1), body)
-    setup = _Setup(body=body, growth=growth, learner=learner, params=params,
-                   ev={**evaluation.DEFAULTS, **spec.evaluation},
+    ev = {**evaluation.DEFAULTS, **spec.evaluation}
+    setup = _Setup(body=body, growth=growth, learner=learner, params=params, ev=ev,
+                   ev_heldout={**ev, "points": "heldout"},
                    unit_heldout=evaluation.heldout_points(body), evals=evals,
+                   at=tuple(evals.tolist()),
                    cuts=frozenset(evals.tolist()) | frozenset(spec.snapshots),
                    size_one=growth.sizes(np.array([1]), body)[0], sizes=sizes,
                    scales=growth.scales(body, sizes))
@@ -208,7 +213,7 @@ def run_trial(spec: TrialSpec, rng: np.random.Generator,
     setup = _setup_of(spec)
     body, growth, learner, params = setup.body, setup.growth, setup.learner, setup.params
     ev, unit_heldout, cuts = setup.ev, setup.unit_heldout, setup.cuts
-    evals = setup.evals.copy()  # the result's own
+    evals, at = setup.evals.copy(), setup.at  # the result's own; the epochs as ints
     abs_error, heldout, size = (np.empty(len(evals)) for _ in range(3))
     k, snapshots, first = 0, {}, 0
     if resume is None:
@@ -237,15 +242,14 @@ def run_trial(spec: TrialSpec, rng: np.random.Generator,
                                   scales[lo - start:hi - start], part, np.arange(lo + 1, hi + 1))
             if hi in spec.snapshots:
                 snapshots[hi] = learner.model(state)
-            if k < len(evals) and hi == evals[k]:
-                err = evaluation.evaluate(learner, state, params, body, sizes[hi - 1 - start],
-                                          scales[hi - 1 - start], **ev)
-                if not np.isfinite(err):
+            if k < len(at) and hi == at[k]:
+                now, scale = sizes[hi - 1 - start], scales[hi - 1 - start]
+                err = evaluation.evaluate(learner, state, params, body, now, scale, **ev)
+                if not math.isfinite(err):
                     raise Diverged(hi, err)
-                abs_error[k], size[k] = err, sizes[hi - 1 - start]
-                heldout[k] = evaluation.evaluate(learner, state, params, body,
-                                                 sizes[hi - 1 - start], scales[hi - 1 - start],
-                                                 **{**ev, "points": "heldout"}, xs=unit_heldout)
+                abs_error[k], size[k] = err, now
+                heldout[k] = evaluation.evaluate(learner, state, params, body, now, scale,
+                                                 **setup.ev_heldout, xs=unit_heldout)
                 k += 1
     jump = evaluation.largest_jump(lambda x: learner.predict(state, params, body, x), body,
                                    sizes[-1])
