@@ -90,9 +90,11 @@ def local(todo: list[dict], workers: int, fn=run_one):
                                    initializer=quiet_worker, initargs=(os.getpid(),))
     _POOLS.add(pool)
     try:
-        with _no_main_module(fn):  # the workers start in these submits
-            if fn is run_one:  # one worker is started for it; the others when the batches come
-                pool.submit(run_batch, fn, warm_trials(todo)).result()
+        if fn is run_one:  # one worker is started for it; the others when the batches come
+            with _no_main_module(fn):  # the workers start in the submits
+                warm = pool.submit(run_batch, fn, warm_trials(todo))
+            warm.result()
+        with _no_main_module(fn):
             pending = {pool.submit(run_batch, fn, b): b for b in batches(todo, workers)}
         while pending:
             done, _ = wait(pending, return_when=FIRST_COMPLETED)
