@@ -21,7 +21,7 @@ from pathlib import Path
 
 from hydra.core.override_parser.overrides_parser import OverridesParser
 
-from . import execute, io, stop
+from . import io, stop
 from .fingerprint import CodeChanged
 from .io import BadInput
 from .config import (ConfigError, check_choices, check_experiments, check_hydra, check_keys,
@@ -477,6 +477,8 @@ def finish(run, cfg, record: bool = True) -> None:
             print("error: out of memory; run fewer workers or shorter trials", file=sys.stderr)
             rc = 2
         except KeyboardInterrupt as err:
+            from . import execute  # (its process pools: not imported by a stage that has none)
+
             execute.stop_pools()
             how = "interrupted" if not isinstance(err, stop.Stopped) else f"stopped by {err}"
             print(f"{how}: finished work is cached; run the same command again to resume",

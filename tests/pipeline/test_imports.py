@@ -149,3 +149,13 @@ def test_a_stage_composes_its_config_once_not_five_times(tmp_path):
 
     assert list((REPO_ROOT / "pipeline" / "__pycache__").glob(
         f"hydra_defaults.{config.HYDRA_DEFAULTS_FORMAT}/*.json"))
+
+
+def test_the_aggregate_stage_loads_no_statistics_pool_or_drawing_package():
+    """`python -m pipeline.aggregate` imports pandas only where it computes a figure's
+    statistics (a cached figure: none), and none of simulate's process pools (pipeline.execute:
+    multiprocessing, concurrent.futures' process pool; the command line's check imported it for
+    the one call that stops pools on Ctrl-C), nor gbmodel's learners or the drawing stack."""
+    heavy = loaded("import pipeline.aggregate") & {"pandas", "multiprocessing", "matplotlib",
+                                                     "numba", "scipy"}
+    assert not heavy, f"pipeline.aggregate imported {sorted(heavy)}"
