@@ -24,13 +24,15 @@ times N, estimate the stages at N (recorded as `estimated_cpu_s`, with `sampled`
 
 --smoke-experiments E1,E2,... (make scale passes make smoke's FIGURES) also times a fully
 cached `make smoke`: its three stage commands (simulate, aggregate, report at profile=smoke in the
-checkout's own outputs/smoke) once to bring the cache and the report up to date, then again,
-measured (`cached_smoke`). The last lines say the two start-up numbers the targets are set on:
+checkout's own outputs/smoke) once to bring the cache and the report up to date, then --repeat
+times, measured (`cached_smoke`). The last lines say the two start-up numbers the targets are set on:
 the cached smoke's CPU (target at most SMOKE_TARGET_S) and aggregate's after one changed trial of
 the 10,000-trial sweep (at most ONE_TRIAL_TARGET_S).
 
 With --baseline, every size runs on the baseline checkout right after this one (paired: the
-load of a shared machine falls on both alike). The results go to --out as JSON and are printed as
+load of a shared machine falls on both alike). The two start-up numbers are each the median of
+--repeat runs (3), the checkouts' runs alternating (a single run on a shared two-core machine
+varied by a third): aggregate_one changes one more trial before each run. The results go to --out as JSON and are printed as
 a table; per-trial figures (ms CPU per trial) make sizes comparable.
 """
 from __future__ import annotations
@@ -39,6 +41,7 @@ import argparse
 import json
 import os
 import shutil
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -84,14 +87,42 @@ def run_command(code: Path, stage: str, args: list[str]) -> tuple[dict, int, byt
             os.waitstatus_to_exitcode(status), err)
 
 
-def cached_smoke(code: Path, experiments: str) -> dict:
-    """make smoke's three commands in checkout `code` (its outputs/smoke), once to bring them up
-    to date (unmeasured), then again: each stage's wall, CPU and peak memory, and their CPU sum."""
-    args = [f"experiments=[{experiments}]", "profile=smoke"]
+def smoke_args(experiments: str) -> list[str]:
+    return [f"experiments=[{experiments}]", "profile=smoke"]
+
+
+def smoke_ready(code: Path, experiments: str) -> None:
+    """make smoke's three commands in checkout `code` (its outputs/smoke), unmeasured: the
+    cache, the aggregates and the report brought up to date."""
     for stage in SMOKE_STAGES:
-        run_stage(code, stage, args)
-    out = {stage: run_stage(code, stage, args) for stage in SMOKE_STAGES}
-    return dict(out, code=str(code), cpu_s=round(sum(out[s]["cpu_s"] for s in SMOKE_STAGES), 3))
+        run_stage(code, stage, smoke_args(experiments))
+
+
+def smoke_once(code: Path, experiments: str) -> dict:
+    """make smoke's three commands again, all cached: each stage's wall, CPU and peak memory."""
+    out = {stage: run_stage(code, stage, smoke_args(experiments)) for stage in SMOKE_STAGES}
+    return dict(out, cpu_s=round(sum(out[s]["cpu_s"] for s in SMOKE_STAGES), 3))
+
+
+def median_of(runs: list[dict]) -> dict:
+    """Each measure's median over `runs` (dicts of wall_s, cpu_s, peak_mb), and the runs' CPU."""
+    out = {k: round(statistics.median(r[k] for r in runs), 3) for k in runs[0]
+           if isinstance(runs[0][k], (int, float))}
+    return dict(out, runs_cpu_s=[r["cpu_s"] for r in runs])
+
+
+def cached_smoke(codes: list[Path], experiments: str, repeat: int) -> list[dict]:
+    """A fully cached make smoke in each checkout: brought up to date, then `repeat` measured
+    runs, the checkouts alternating; per checkout each stage's median and the median total."""
+    for code in codes:
+        smoke_ready(code, experiments)
+    runs = {code: [] for code in codes}
+    for _ in range(repeat):
+        for code in codes:
+            runs[code].append(smoke_once(code, experiments))
+    return [dict({s: median_of([r[s] for r in runs[code]]) for s in SMOKE_STAGES}, code=str(code),
+                 cpu_s=round(statistics.median(r["cpu_s"] for r in runs[code]), 3),
+                 runs_cpu_s=[r["cpu_s"] for r in runs[code]]) for code in codes]
 
 
 def headline(results: list[dict], smokes: list[dict]) -> list[str]:
@@ -99,11 +130,17 @@ def headline(results: list[dict], smokes: list[dict]) -> list[str]:
     after one changed trial of a 10,000-trial sweep, per checkout."""
     lines = [f"cached make smoke ({r['code'][-28:]}): {r['cpu_s']:.2f} s CPU ("
              + ", ".join(f"{s} {r[s]['cpu_s']:.2f}" for s in SMOKE_STAGES)
-             + f"); target at most {SMOKE_TARGET_S:g} s" for r in smokes]
+             + f"){_median(r)}; target at most {SMOKE_TARGET_S:g} s" for r in smokes]
     lines += [f"aggregate after one changed trial of {r['size']:,} ({r['code'][-28:]}): "
-              f"{r['aggregate_one']['cpu_s']:.2f} s CPU; target at most {ONE_TRIAL_TARGET_S:g} s"
+              f"{r['aggregate_one']['cpu_s']:.2f} s CPU{_median(r['aggregate_one'])}; "
+              f"target at most {ONE_TRIAL_TARGET_S:g} s"
               for r in results if r["size"] == 10_000 and "sampled" not in r]
     return lines
+
+
+def _median(r: dict) -> str:
+    runs = r.get("runs_cpu_s", [])
+    return f" (median of {len(runs)}: {', '.join(f'{c:.2f}' for c in runs)})" if len(runs) > 1 else ""
 
 
 def change_one_trial(cache: Path) -> str:
@@ -120,8 +157,9 @@ def files_under(folder: Path) -> int:
     return sum(len(files) for _, _, files in os.walk(folder))
 
 
-def sweep(code: Path, size: int, epochs: int, workers: int, keep: bool) -> dict:
-    """Every stage of one sweep of `size` trials on checkout `code`, in a new temporary root."""
+def prepare(code: Path, size: int, epochs: int, workers: int) -> tuple[dict, Path]:
+    """Every stage of a sweep of `size` trials on checkout `code` but the last (aggregate_one),
+    in a new temporary root: (the results, the root)."""
     root = Path(tempfile.mkdtemp(prefix=f"scale-{size}-"))
     try:
         args = overrides(root, size, epochs, workers)
@@ -132,16 +170,57 @@ def sweep(code: Path, size: int, epochs: int, workers: int, keep: bool) -> dict:
         out["cache_mb"] = round(sum(p.stat().st_size for p in (cache / "trials").rglob("*")
                                     if p.is_file()) / 2**20, 1)
         out["simulate_cached"] = run_stage(code, "simulate", args)
-        agg = [a for a in args if not a.startswith("workers=")]
+        agg = aggregate_args(root, size, epochs)
         out["aggregate"] = run_stage(code, "aggregate", agg)
         out["aggregate_cached"] = run_stage(code, "aggregate", agg)
-        change_one_trial(cache)
-        out["aggregate_one"] = run_stage(code, "aggregate", agg)
-        for stage in STAGES:
-            out[stage]["cpu_ms_per_trial"] = round(1000 * out[stage]["cpu_s"] / size, 3)
-        return out
+    except BaseException:
+        shutil.rmtree(root, ignore_errors=True)
+        raise
+    return out, root
+
+
+def aggregate_args(root: Path, size: int, epochs: int) -> list[str]:
+    return [a for a in overrides(root, size, epochs, 1) if not a.startswith("workers=")]
+
+
+def changed_once(code: Path, root: Path, size: int, epochs: int) -> dict:
+    """aggregate after one trial of the sweep in `root` changed (change_one_trial)."""
+    change_one_trial(root / "outputs" / "cache")
+    return run_stage(code, "aggregate", aggregate_args(root, size, epochs))
+
+
+def finish(out: dict, runs: list[dict]) -> dict:
+    """`out` with aggregate_one the median of `runs`, and each stage's CPU per trial."""
+    out["aggregate_one"] = median_of(runs)
+    for stage in STAGES:
+        out[stage]["cpu_ms_per_trial"] = round(1000 * out[stage]["cpu_s"] / out["size"], 3)
+    return out
+
+
+def sweep(code: Path, size: int, epochs: int, workers: int, keep: bool, repeat: int = 1) -> dict:
+    """Every stage of one sweep of `size` trials on checkout `code`, in a new temporary root."""
+    out, root = prepare(code, size, epochs, workers)
+    try:
+        return finish(out, [changed_once(code, root, size, epochs) for _ in range(repeat)])
     finally:
         if not keep:
+            shutil.rmtree(root, ignore_errors=True)
+
+
+def paired(codes: list[Path], size: int, epochs: int, workers: int, keep: bool,
+           repeat: int) -> list[dict]:
+    """sweep() of each checkout, the `repeat` runs of aggregate_one alternating between them."""
+    prepared = []
+    try:
+        for code in codes:
+            prepared.append((code, *prepare(code, size, epochs, workers)))
+        runs = {code: [] for code in codes}
+        for _ in range(repeat):
+            for code, _, root in prepared:
+                runs[code].append(changed_once(code, root, size, epochs))
+        return [finish(out, runs[code]) for code, out, _ in prepared]
+    finally:
+        for _, _, root in prepared if not keep else ():
             shutil.rmtree(root, ignore_errors=True)
 
 
@@ -280,6 +359,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sample", type=int, default=1000, help="trials run for --sampled (1000)")
     ap.add_argument("--smoke-experiments", metavar="E1,E2,...",
                     help="also time a fully cached make smoke of these experiments")
+    ap.add_argument("--repeat", type=int, default=3,
+                    help="runs of aggregate_one and of the cached smoke, medians (default 3)")
     ap.add_argument("--packing", type=int, metavar="N",
                     help="instead: the cache's files against one packed file, for N trials")
     a = ap.parse_args(argv)
@@ -299,8 +380,8 @@ def main(argv: list[str] | None = None) -> int:
     if a.baseline is not None and not (a.baseline / "pipeline" / "simulate.py").is_file():
         print(f"error: --baseline={a.baseline}: not a checkout of this project", file=sys.stderr)
         return 2
-    if a.epochs < 1 or a.workers < 1:
-        print("error: --epochs and --workers: at least 1", file=sys.stderr)
+    if a.epochs < 1 or a.workers < 1 or a.repeat < 1:
+        print("error: --epochs, --workers and --repeat: at least 1", file=sys.stderr)
         return 2
     if a.sampled is not None and not (CONDITIONS <= a.sample <= a.sampled and a.sample % CONDITIONS == 0
                                       and a.sampled % CONDITIONS == 0):
@@ -310,16 +391,17 @@ def main(argv: list[str] | None = None) -> int:
     codes = [REPO] + ([a.baseline.resolve()] if a.baseline else [])
     results, loads = [], [load()]
     for size in sizes if a.sampled is None else [a.sampled]:
-        for code in codes:
-            results.append(sweep(code, size, a.epochs, a.workers, a.keep) if a.sampled is None
-                           else sampled(code, size, a.sample, a.epochs, a.workers, a.keep))
-            loads.append(load())
-            print("\n".join(table(results[-1:]).splitlines()[2:]), file=sys.stderr)
-    smokes = []
-    for code in codes if a.smoke_experiments else ():
-        smokes.append(cached_smoke(code, a.smoke_experiments))
+        done = (paired(codes, size, a.epochs, a.workers, a.keep, a.repeat) if a.sampled is None
+                else [sampled(code, size, a.sample, a.epochs, a.workers, a.keep)
+                      for code in codes])
+        results += done
         loads.append(load())
-    record = dict(epochs=a.epochs, workers=a.workers, conditions=CONDITIONS, loads=loads,
+        print("\n".join(table(done).splitlines()[2:]), file=sys.stderr)
+    smokes = cached_smoke(codes, a.smoke_experiments, a.repeat) if a.smoke_experiments else []
+    if smokes:
+        loads.append(load())
+    record = dict(epochs=a.epochs, workers=a.workers, conditions=CONDITIONS, repeat=a.repeat,
+                  loads=loads,
                   results=results, cached_smoke=smokes)
     a.out.parent.mkdir(parents=True, exist_ok=True)
     a.out.write_text(json.dumps(record, indent=1) + "\n")

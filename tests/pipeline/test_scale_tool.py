@@ -65,3 +65,29 @@ def test_the_last_lines_give_the_start_up_numbers_against_their_targets():
         "3.25); target at most 8 s",
         "aggregate after one changed trial of 10,000 (/x/checkout): 1.75 s CPU; target at most 2 s"]
     assert scale.headline(sweeps[:1], []) == []
+
+
+def test_the_start_up_numbers_are_medians_of_alternating_runs(monkeypatch, tmp_path):
+    """aggregate_one: `repeat` runs per checkout, the checkouts alternating (a shared machine's
+    load falls on both alike), recorded as the median with every run's CPU; the headline says
+    so."""
+    calls, cpu = [], iter([3.0, 1.0, 1.0, 2.0, 2.0, 9.0])
+    stage = lambda c: dict(wall_s=c, cpu_s=c, peak_mb=1.0)  # noqa: E731
+
+    def prepare(code, size, epochs, workers):
+        return {"code": str(code), "size": size,
+                **{s: stage(1.0) for s in scale.STAGES[:-1]}}, tmp_path / str(code)[-1]
+
+    def changed_once(code, root, size, epochs):
+        calls.append(str(code))
+        return stage(next(cpu))
+
+    monkeypatch.setattr(scale, "prepare", prepare)
+    monkeypatch.setattr(scale, "changed_once", changed_once)
+    a, b = scale.paired([scale.Path("/x/a"), scale.Path("/x/b")], 10_000, 10, 1, True, 3)
+    assert calls == ["/x/a", "/x/b"] * 3
+    assert a["aggregate_one"]["cpu_s"] == 2.0 and a["aggregate_one"]["runs_cpu_s"] == [3, 1, 2]
+    assert b["aggregate_one"]["cpu_s"] == 2.0 and b["aggregate_one"]["runs_cpu_s"] == [1, 2, 9]
+    assert scale.headline([a], []) == [
+        "aggregate after one changed trial of 10,000 (/x/a): 2.00 s CPU (median of 3: 3.00, "
+        "1.00, 2.00); target at most 2 s"]
