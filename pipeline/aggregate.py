@@ -94,6 +94,7 @@ class Previous:
 
     def __init__(self, folder: Path | None = None):
         self.index, self.where, self._table, self._texts, self._pieces = {}, None, None, None, {}
+        self._finished = None
         self.lines = {}  # condition -> (id, checksum of its models.json line)
         self.stats = {}  # condition -> (stats_digest, first row in curves.parquet, rows, row in
         self._sums = {}  # summary.parquet); file -> its SHA-256 (the manifest's)
@@ -104,7 +105,9 @@ class Previous:
             manifest = io.read_json(where / "manifest.json")
             if manifest.get("code") != code_of_stage():
                 return
-            rows = io.read_table(where / INDEX, schema=INDEX_SCHEMA).to_pylist()
+            index = io.read_table(where / INDEX, schema=INDEX_SCHEMA)
+            names = index.column_names  # table.to_pylist()'s rows, built column by column
+            rows = [dict(zip(names, r)) for r in zip(*(index.column(n).to_pylist() for n in names))]
             self.lines = {k: tuple(v) for k, v in manifest.get("models", {}).items()}
             self.stats = {k: tuple(v) for k, v in manifest.get("stats", {}).items()}
             self._sums = dict(manifest.get("sha256", {}))
@@ -114,8 +117,12 @@ class Previous:
 
     def trials_of(self, condition: str) -> list[str]:
         """The finished trials (their indices) the previous aggregate holds for `condition`."""
-        return [str(r["trial"]) for r in self.index.values()
-                if r["condition"] == condition and r["status"] != "diverged"]
+        if self._finished is None:  # every condition's in one pass over the index
+            self._finished = {}
+            for r in self.index.values():
+                if r["status"] != "diverged":
+                    self._finished.setdefault(r["condition"], []).append(str(r["trial"]))
+        return self._finished.get(condition, [])
 
     def table(self) -> pa.Table:
         if self._table is None:
@@ -343,11 +350,14 @@ def refresh_index(conds: dict, previous: Previous) -> None:
 
 
 def index_table(conds: dict) -> pa.Table:
-    rows = [{"key": e["key"], "condition": name, "trial": e["trial"], "status": e["status"],
-             "epoch": e["epoch"], "seal": e["seal"], "signature": e["signature"],
-             "largest_jump": e.get("largest_jump"), "row": e.get("row", -1), "rows": e.get("rows", 0)}
-            for name, c in conds.items() for e in c["entries"]]
-    return pa.Table.from_pylist(rows, schema=INDEX_SCHEMA)
+    entries = [(name, e) for name, c in conds.items() for e in c["entries"]]
+    cols = {"condition": [name for name, _ in entries]}
+    for k in ("key", "trial", "status", "epoch", "seal", "signature"):
+        cols[k] = [e[k] for _, e in entries]
+    cols["largest_jump"] = [e.get("largest_jump") for _, e in entries]
+    cols["row"] = [e.get("row", -1) for _, e in entries]
+    cols["rows"] = [e.get("rows", 0) for _, e in entries]
+    return pa.Table.from_pydict({k: cols[k] for k in INDEX_SCHEMA.names}, schema=INDEX_SCHEMA)
 
 
 def curve_stats(trials: pd.DataFrame) -> pd.DataFrame:
@@ -426,31 +436,38 @@ def stats_digest(name: str, c: dict, paper, fail_factor: float) -> str:
     return hashlib.sha256(_compact(body).encode()).hexdigest()[:20]
 
 
-def statistics(trials: pd.DataFrame, conds: dict, paper: dict, fail_factor: float,
+def statistics(table: pa.Table, conds: dict, paper: dict, fail_factor: float,
                previous: Previous) -> tuple[pa.Table, pa.Table, dict]:
     """(curves, summary, stats) of the figure: curve_stats and summarize as tables, and per
     condition [stats_digest, first row in curves, rows, row in summary] for the manifest. A
     condition whose digest is that of the previous set keeps its rows from there (checked
     files); only the others are computed (one changed trial of 10,000: one condition of ten).
     The tables are those of computing every condition: where the computed rows' schema is not
-    the previous files' (another pandas), or the previous set is unreadable, all are computed."""
+    the previous files' (another pandas), or the previous set is unreadable, all are computed.
+    `table`: every condition's trial curves (curves_table), converted to pandas where used."""
     digests = {k: stats_digest(k, c, paper, fail_factor) for k, c in conds.items()}
     kept = {k for k, d in digests.items() if previous.stats.get(k, (None,))[0] == d}
     if kept and len(kept) < len(conds):
         try:
-            return _statistics_of(trials, conds, paper, fail_factor, previous, digests, kept)
+            return _statistics_of(table, conds, paper, fail_factor, previous, digests, kept)
         except (OSError, ValueError, KeyError, IndexError, TypeError, pa.ArrowException):
             pass
+    trials = table.to_pandas()
     curves = curve_stats(trials)
     curves_t = io.frame_to_table(curves)
     summary_t = io.frame_to_table(summarize(trials, curves, conds, paper, fail_factor))
     return curves_t, summary_t, _stats_record(curves_t, conds, digests)
 
 
-def _statistics_of(trials, conds, paper, fail_factor, previous, digests, kept):
+def _statistics_of(table, conds, paper, fail_factor, previous, digests, kept):
     """statistics() with the conditions `kept` taken from the previous set."""
     computed = {k: c for k, c in conds.items() if k not in kept}
-    rows = trials[trials["condition"].isin(list(computed))]
+    parts = [table.slice(min(e["row"] for e in c["trials"].values()),
+                         sum(e["rows"] for e in c["trials"].values()))
+             for c in computed.values() if c["trials"]]  # a condition's rows are consecutive
+    rows = pa.concat_tables(parts or [table.slice(0, 0)]).to_pandas()
+    if set(rows["condition"]) != {k for k, c in computed.items() if c["trials"]}:
+        raise ValueError("the computed conditions' rows are not theirs")
     curves = curve_stats(rows)
     new_curves = io.frame_to_table(curves)
     new_summary = io.frame_to_table(summarize(rows, curves, computed, paper, fail_factor))
@@ -475,6 +492,21 @@ def _statistics_of(trials, conds, paper, fail_factor, previous, digests, kept):
     if summary_t.column("condition").to_pylist() != list(conds):
         raise ValueError("summary.parquet: the conditions are not the figure's")
     return curves_t, summary_t, _stats_record(curves_t, conds, digests)
+
+
+def trials_file_table(table: pa.Table) -> pa.Table:
+    """trials.parquet's table: what pa.Table.from_pandas(table.to_pandas(), schema=io.CURVE,
+    preserve_index=False) makes of `table` (one chunk, pandas' metadata, a float NaN stored as
+    null), without converting 110,000 rows twice: a table with no null and no NaN is its own
+    values in one chunk, under the metadata of its first row's conversion (the metadata names
+    the columns and types, not the rows); any other table is converted."""
+    floats = [f.name for f in io.CURVE if pa.types.is_floating(f.type)]
+    if table.num_rows and not any(table.column(n).null_count for n in table.column_names) and \
+            not any(np.isnan(table.column(n).to_numpy()).any() for n in floats):
+        meta = pa.Table.from_pandas(table.slice(0, 1).to_pandas(), schema=io.CURVE,
+                                    preserve_index=False).schema.metadata
+        return table.combine_chunks().replace_schema_metadata(meta)
+    return pa.Table.from_pandas(table.to_pandas(), schema=io.CURVE, preserve_index=False)
 
 
 def _stats_record(curves: pa.Table, conds: dict, digests: dict) -> dict:
@@ -595,8 +627,7 @@ def aggregate_figure(cfg: DictConfig, fig: str) -> tuple[list[str], bool]:
         for c in conds.values():
             _fill(cfg.paths.cache, c["entries"])
         table, (model_of, sums) = curves_table(conds, previous), models(conds, previous)
-    trials = table.to_pandas()
-    curves, summary, stats = statistics(trials, conds, paper, cfg.aggregate.fail_factor,
+    curves, summary, stats = statistics(table, conds, paper, cfg.aggregate.fail_factor,
                                         previous)
     for c, n in zip(summary.column("condition").to_pylist(),
                     summary.column("n_trials").to_pylist()):
@@ -604,14 +635,13 @@ def aggregate_figure(cfg: DictConfig, fig: str) -> tuple[list[str], bool]:
             print(f"note: [{fig}] {c}: every trial diverged or failed; the report marks it "
                   "diverged", file=sys.stderr)
     with io.new_set(folder) as tmp:
-        io.write_table(tmp / "trials.parquet",
-                       pa.Table.from_pandas(trials, schema=io.CURVE, preserve_index=False))
+        io.write_table(tmp / "trials.parquet", trials_file_table(table))
         sha256 = {name: io.write_table(tmp / name, t)
                   for name, t in (("curves.parquet", curves), ("summary.parquet", summary))}
         io.write_text(tmp / "models.json", models_text(fig, paper, model_of))
         io.write_table(tmp / INDEX, index_table(conds))
         io.write_json(tmp / "manifest.json", dict(
-            figure=fig, inputs=digest, code=code_of_stage(), trials=int(len(trials)),
+            figure=fig, inputs=digest, code=code_of_stage(), trials=table.num_rows,
             models={k: [conds[k]["id"], sums[k]] for k in model_of}, stats=stats,
             sha256=sha256))
     log.info("[%s] %d conditions, %d trial curves -> %s", fig, summary.num_rows,
