@@ -84,17 +84,15 @@ def local(todo: list[dict], workers: int, fn=run_one):
         for t in todo:
             yield t, fn(t)
         return
-    with single_threaded_children():
-        pool = ProcessPoolExecutor(workers,
-                                   mp_context=multiprocessing.get_context("spawn"),
-                                   initializer=quiet_worker, initargs=(os.getpid(),))
+    pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
+                               initializer=quiet_worker, initargs=(os.getpid(),))
     _POOLS.add(pool)
     try:
         if fn is run_one:  # one worker is started for it; the others when the batches come
-            with _no_main_module(fn):  # the workers start in the submits
+            with _starting_workers(fn):
                 warm = pool.submit(run_batch, fn, warm_trials(todo))
             warm.result()
-        with _no_main_module(fn):
+        with _starting_workers(fn):
             pending = {pool.submit(run_batch, fn, b): b for b in batches(todo, workers)}
         while pending:
             done, _ = wait(pending, return_when=FIRST_COMPLETED)
@@ -103,6 +101,16 @@ def local(todo: list[dict], workers: int, fn=run_one):
     finally:
         # idle workers after the last result; on a signal, an error or a dropped generator: now
         _stop(pool)
+
+
+@contextmanager
+def _starting_workers(fn):
+    """Around the submits, where the pool starts its spawned workers (not where it is made):
+    each worker inherits one BLAS/OpenMP/numba thread (single_threaded_children; two workers
+    with a BLAS thread per CPU each would share two CPUs four ways) and a bare __main__
+    (_no_main_module)."""
+    with single_threaded_children(), _no_main_module(fn):
+        yield
 
 
 @contextmanager

@@ -41,6 +41,10 @@ def test_one_conditions_trials_share_one_setup():
     dict(epochs=trial.DRAW_BLOCK + 30, evals_per_decade=3, snapshots=(7, trial.DRAW_BLOCK + 1),
          growth=dict(pattern="proximal_first", period=trial.DRAW_BLOCK + 10)),
     dict(learner={"name": "goal_babbling", "fast": False}, epochs=6, snapshots=(2,)),
+    dict(learner={"name": "goal_babbling", "solver": "lstsq"}),
+    dict(learner={"name": "online_goal_babbling"}),
+    dict(learner={"name": "motor_babbling"}),
+    dict(learner={"name": "example_memory"}, snapshots=()),
 ])
 def test_a_shared_setup_gives_the_bytes_of_a_fresh_one(kw, monkeypatch):
     spec = _spec(**kw)

@@ -3,6 +3,8 @@ import importlib
 import os
 import sys
 
+import pytest
+
 from pipeline import execute
 from pipeline.config import compose
 from pipeline.plan import plan
@@ -77,3 +79,24 @@ def test_a_worker_does_not_import_the_drivers_main_module(tmp_path, monkeypatch)
     assert workers or not execute.pooled(4, 2)
     assert (tmp_path / "imported").read_text().split() == [str(os.getpid())]  # here only
     assert sys.modules["__main__"].__name__ == "heavy_main"  # given back
+
+
+def _threads_here(trial: dict) -> dict:
+    """A worker's answer: its thread settings as it inherited them."""
+    return dict(key=trial["key"], pid=os.getpid(),
+                env={k: os.environ.get(k) for k in execute.THREAD_VARS})
+
+
+def test_pool_workers_start_with_one_thread_each(monkeypatch):
+    """The pool starts its workers in the submits, after the pool is made: the thread
+    settings must be in the environment then (they were restored before: a worker ran with
+    OPENBLAS_NUM_THREADS unset, a BLAS thread per CPU in each of two workers)."""
+    for k in execute.THREAD_VARS:
+        monkeypatch.delenv(k, raising=False)
+    todo = [dict(key=f"{i:020x}", spec={}) for i in range(4)]
+    got = list(execute.local(todo, 2, fn=_threads_here))
+    if not execute.pooled(4, 2):
+        pytest.skip("one CPU: the trials run in this process")
+    workers = [r for _, r in got if r["pid"] != os.getpid()]
+    assert workers and all(r["env"] == {k: "1" for k in execute.THREAD_VARS} for r in workers)
+    assert all(k not in os.environ for k in execute.THREAD_VARS)  # the driver's as it was
