@@ -316,6 +316,13 @@ def _gbmodel_modules() -> dict:
             and getattr(m, "__file__", None)}
 
 
+def _compiled_from(code, compiled) -> bool:
+    """Whether live `code` is one of `compiled` (the file's as read now). Its flags are not
+    compared: under a profiler (`python -m cProfile`) numba's dispatcher gives its function a
+    copy of its code flagged CO_NEWLOCALS alone, the bytecode, constants and names the file's."""
+    return code in compiled or any(code.replace(co_flags=c.co_flags) == c for c in compiled)
+
+
 def as_imported(path: Path, text: str, modules: dict | None = None) -> str:
     """`text` (the file `path` as read now) if it is the code this process imported from it (or
     the file is not an imported module of gbmodel), else CodeChanged naming the file."""
@@ -325,7 +332,7 @@ def as_imported(path: Path, text: str, modules: dict | None = None) -> str:
         return text
     compiled = _codes(_facts(text)["code"])
     for code in _live_codes(module, path):
-        if code not in compiled.get(code.co_qualname, ()):
+        if not _compiled_from(code, compiled.get(code.co_qualname, ())):
             raise CodeChanged(f"{path}: changed since this process imported it ({code.co_qualname} "
                               "differs); run the command again")
     name = _changed_value(module, text)

@@ -179,3 +179,28 @@ def test_a_learner_is_hashed_without_its_import_and_checked_when_it_is_imported(
         else:
             assert out.startswith("refused: ") and "motor_babbling.py: changed since this " \
                 "process imported it" in out and "spread" in out, out
+
+
+def test_a_profiled_run_is_not_taken_for_changed_code():
+    """Under a profiler numba's dispatcher swaps its function's code for a copy with other
+    flags (the same bytecode): `python -m cProfile -m pipeline.simulate` failed every fast-path
+    trial with CodeChanged. The code is the file's; an edit still raises (test above)."""
+    import cProfile
+
+    import numpy as np
+
+    import gbmodel
+    from gbmodel.learners.goal_babbling import fast
+    from pipeline import fingerprint
+    from pipeline.tools.bench import paper_spec
+    from pathlib import Path
+
+    spec = gbmodel.TrialSpec.from_dict(paper_spec("arm5", 2, True))
+    profile = cProfile.Profile()
+    profile.enable()
+    try:
+        gbmodel.run_trial(spec, np.random.default_rng(0))  # the kernels called while profiled
+    finally:
+        profile.disable()
+    path = Path(fast.__file__)
+    assert fingerprint.as_imported(path, path.read_text()) == path.read_text()
