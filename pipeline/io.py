@@ -150,14 +150,20 @@ _serial = itertools.count()
 def _tmp_name(path: Path) -> Path:
     """`.<name>~<host>~<pid>~<n>.tmp` beside `path`: whose it is, so that a stale one can be told
     from another host's live one (remove_stale_tmp)."""
-    return path.with_name(f".{path.name}~{_HOST}~{os.getpid()}~{next(_serial)}.tmp")
+    return Path(_tmp_text(os.fspath(path)))
 
 
-def _exclusive(path: Path) -> tuple[Path, int]:
+def _tmp_text(path: str) -> str:
+    folder, name = os.path.split(path)
+    return os.path.join(folder, f".{name}~{_HOST}~{os.getpid()}~{next(_serial)}.tmp")
+
+
+def _exclusive(path: str) -> tuple[str, int]:
     """A new temporary file beside `path`, created by this call (O_EXCL: never an existing file,
-    O_NOFOLLOW: never through a symlink): (its path, an open descriptor)."""
+    O_NOFOLLOW: never through a symlink): (its path, an open descriptor). FileNotFoundError when
+    path's folder is not there."""
     while True:
-        tmp = _tmp_name(path)
+        tmp = _tmp_text(path)
         try:
             return tmp, os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o644)
         except FileExistsError:  # left by a dead process that had our pid: take the next name
@@ -171,24 +177,40 @@ def _named(err: OSError, path: Path) -> OSError:
 
 
 @contextmanager
-def _atomic(path):
+def _atomic(path, checked: bool = False):
     """Yield (temporary path, open descriptor) of a new file beside `path`; rename it onto
     `path` if the block succeeds, else delete it. OSError (a full disk, a read-only folder)
-    names `path`."""
-    path = Path(path)
+    names `path`. checked: the caller has checked path's folder with check_inside in this
+    process (pipeline.cache: once per trial folder), so only the name itself is looked at (a
+    link there is checked as check_inside checks it) and the folder is made only when it is not
+    there: a short trial's files written with a few system calls."""
+    path = os.fspath(path)
     tmp = None
-    check_inside(path)
+    if not checked:
+        check_inside(path)
+    elif _ROOT and os.path.islink(path):
+        check_inside(path)  # UnsafeName when it leads outside
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp, fd = _exclusive(path)
+        if not checked:
+            os.makedirs(os.path.dirname(path) or ".", exist_ok=True)
+        try:
+            tmp, fd = _exclusive(path)
+        except FileNotFoundError:
+            if not checked:
+                raise
+            os.makedirs(os.path.dirname(path), exist_ok=True)  # no folder yet
+            tmp, fd = _exclusive(path)
         yield tmp, fd
         os.replace(tmp, path)
         tmp = None  # renamed: nothing left to delete
     except OSError as err:
-        raise _named(err, path) from None
+        raise _named(err, Path(path)) from None
     finally:
         if tmp is not None:
-            tmp.unlink(missing_ok=True)
+            try:
+                os.unlink(tmp)
+            except FileNotFoundError:
+                pass
 
 
 @contextmanager
@@ -299,41 +321,14 @@ def table_bytes(table: pa.Table) -> pa.Buffer:
 
 def write_in_checked(path: str, data) -> None:
     """Write `data` (bytes or a buffer) to `path` as atomic_file does, where the caller has
-    checked path's folder with check_inside in this process (pipeline.cache: one check per
-    trial folder): only the name itself is looked at (a link there is checked as
-    check_inside checks it), and the folder is made only when it is not there. The writes of a
-    short trial's files with a few system calls and no path objects."""
-    if _ROOT and os.path.islink(path):
-        check_inside(path)  # UnsafeName when it leads outside
-    folder, name = os.path.split(path)
-    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW
-    tmp = None
-    try:
-        while True:
-            tmp = os.path.join(folder, f".{name}~{_HOST}~{os.getpid()}~{next(_serial)}.tmp")
-            try:
-                fd = os.open(tmp, flags, 0o644)
-                break
-            except FileExistsError:  # left by a dead process that had our pid: the next name
-                continue
-            except FileNotFoundError:  # no folder yet
-                os.makedirs(folder, exist_ok=True)
+    checked path's folder with check_inside in this process (_atomic's `checked`)."""
+    with _atomic(path, checked=True) as (_, fd):
         try:
             view = memoryview(data)
             while view:
                 view = view[os.write(fd, view):]
         finally:
             os.close(fd)
-        os.replace(tmp, path)
-        tmp = None
-    except OSError as err:
-        raise _named(err, Path(path)) from None
-    finally:
-        if tmp is not None:
-            try:
-                os.unlink(tmp)
-            except FileNotFoundError:
-                pass
 
 
 def read_table(path, columns=None, schema: pa.Schema | None = None) -> pa.Table:
@@ -509,21 +504,31 @@ SEAL = "seal"
 
 
 def _digest(record: dict) -> str:
-    body = {k: v for k, v in record.items() if k != SEAL}
-    text = json.dumps(body, sort_keys=True, separators=(",", ":"), allow_nan=True)
-    return hashlib.sha256(text.encode()).hexdigest()
+    """The seal of `record`: the SHA-256 of its canonical JSON without the seal (_encoded)."""
+    return _sha_of(_encoded(record))
+
+
+def _encoded(record: dict) -> dict[str, str]:
+    """Each member of `record` but the seal as canonical JSON text, `"key":value` (sorted keys
+    within, no spaces): joined in key order between braces, json.dumps's text of the record."""
+    enc = _COMPACT.encode
+    return {k: f"{enc(k)}:{enc(v)}" for k, v in record.items() if k != SEAL}
+
+
+def _joined(items: dict[str, str]) -> str:
+    return "{" + ",".join(items[k] for k in sorted(items)) + "}"
+
+
+def _sha_of(items: dict[str, str]) -> str:
+    return hashlib.sha256(_joined(items).encode()).hexdigest()
 
 
 def sealed_json(record: dict) -> bytes:
     """The file write_json(path, seal(record), compact=True) writes, with each value of
-    `record` encoded once (seal and write_json encode the whole record each): the seal is the
-    SHA-256 of the same text json.dumps gives, joined from the encoded values in key order."""
-    enc = _COMPACT.encode
-    items = {k: f"{enc(k)}:{enc(v)}" for k, v in record.items() if k != SEAL}
-    keys = sorted(items)
-    digest = hashlib.sha256(("{" + ",".join(items[k] for k in keys) + "}").encode()).hexdigest()
-    items[SEAL] = f"{enc(SEAL)}:{enc(digest)}"
-    return ("{" + ",".join(items[k] for k in sorted(items)) + "}\n").encode()
+    `record` encoded once (seal and write_json encode the whole record each)."""
+    items = _encoded(record)
+    items[SEAL] = f"{_COMPACT.encode(SEAL)}:{_COMPACT.encode(_sha_of(items))}"
+    return (_joined(items) + "\n").encode()
 
 
 _COMPACT = json.JSONEncoder(sort_keys=True, separators=(",", ":"), allow_nan=True)
