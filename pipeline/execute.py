@@ -75,12 +75,14 @@ def pooled(trials: int, workers: int) -> bool:
 def local(todo: list[dict], workers: int, fn=run_one):
     """Yield (trial, fn(trial)) as trials finish, on `workers` spawned processes (at most one per
     CPU; in this process when one worker suffices). `todo` is run in its order (longest first).
-    With fn=run_one, the pool's first worker loads (or compiles) every kernel the trials need
-    (warm_up's tiny trials) before the others start: they then load them from numba's cache, and
-    the driver, which only writes results, loads none (pipeline.simulate warms up only when
-    the trials run in this process)."""
+    With fn=run_one, every kernel the trials need is loaded (or compiled) first, by warm_up's
+    tiny trials: on a pool in its first worker, before the others start (they then load them
+    from numba's cache, and the driver, which only writes results, loads none); in this process
+    here (a trial's measured CPU time then holds no compile)."""
     workers = capped(workers, len(todo))
-    if workers == 1 or len(todo) <= 1 or in_launcher_worker():
+    if not pooled(len(todo), workers):
+        if fn is run_one:
+            warm_up(todo)
         for t in todo:
             yield t, fn(t)
         return

@@ -265,8 +265,6 @@ def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = Non
     if ahead:
         print(f"[{figure}] {ahead}", file=sys.stderr, flush=True)
     try:
-        if mine and not (cfg.engine.name == "local" and execute.pooled(len(mine), cfg.workers)):
-            execute.warm_up(mine)  # a local pool warms up in its first worker (execute.local)
         # continuations after every other trial: their bases are then in the cache
         for wave in ([t for t in mine if "base" not in t], [t for t in mine if "base" in t]):
             ready = []
@@ -280,7 +278,7 @@ def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = Non
                 progress.update(t, failed)
             for trial, result in engines.run(  # the chosen engine, with its own settings only
                     OmegaConf.to_container(cfg.engine), ready, cfg.workers,
-                    logs=Path(cfg.paths.out) / "logs" / "submitit"):
+                    logs=Path(cfg.paths.out) / "logs" / "submitit", warm_up=execute.warm_up):
                 record(cache_dir, trial, result, summary)
                 claims[trial["key"]].release()
                 progress.update(trial, result)

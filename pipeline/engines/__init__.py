@@ -51,6 +51,9 @@ class Engine:
     run: Callable  # run(todo, workers, fn, settings, logs) -> iterator of (trial, result)
     package: str | None = None  # the module it needs (imported only when it runs)
     extra: str | None = None  # the pyproject extra that installs that module
+    # it loads the kernels in its own workers (local: the pool's first worker, or this process);
+    # else run() has them loaded here first (its warm_up), into numba's cache its workers read
+    warms_up: bool = False
 
 
 _ENGINES: dict[str, Engine] = {}
@@ -58,9 +61,10 @@ _BROKEN: dict[str, str] = {}  # engine name -> why its gbgrowth_engine_<name> mo
 
 
 def engine(name: str, settings: type = NoSettings, package: str | None = None,
-           extra: str | None = None):
+           extra: str | None = None, warms_up: bool = False):
     """Register the decorated run function as engine `name`, with its settings dataclass and
-    the package it needs (checked by the stage that submits, before anything runs)."""
+    the package it needs (checked by the stage that submits, before anything runs); warms_up:
+    it loads the kernels itself (Engine.warms_up)."""
     if not dataclasses.is_dataclass(settings):
         raise TypeError(f"engine {name!r}: settings must be a dataclass, not {settings!r}")
 
@@ -69,7 +73,7 @@ def engine(name: str, settings: type = NoSettings, package: str | None = None,
         if other is not None and other.run.__module__ != run.__module__:
             raise ValueError(f"engine {name!r} is registered by {other.run.__module__} and "
                              f"{run.__module__}")
-        _ENGINES[name] = Engine(name, settings, run, package, extra)
+        _ENGINES[name] = Engine(name, settings, run, package, extra, warms_up)
         return run
 
     return register
@@ -156,14 +160,18 @@ def settings_of(conf: dict) -> tuple[Engine, object]:
         raise _error(f"engine={e.name}: {err}") from None
 
 
-def run(conf: dict, todo: list[dict], workers: int, fn=None, logs=None):
+def run(conf: dict, todo: list[dict], workers: int, fn=None, logs=None, warm_up=None):
     """Yield (trial, fn(trial)) for every trial of `todo` on the engine `conf` names, with its
-    settings (the `engine` config section as plain data); logs: a folder for its job files."""
+    settings (the `engine` config section as plain data); logs: a folder for its job files;
+    warm_up(todo): loads the trials' kernels in this process (execute.warm_up), first, unless
+    the engine does it in its own workers (Engine.warms_up)."""
     e, settings = settings_of(conf)
     if fn is None:
         from ..worker import run_one as fn
     if not todo:
         return
+    if warm_up is not None and not e.warms_up:  # the kernels loaded once here, not per worker
+        warm_up(todo)
     yield from e.run(todo, workers, fn, settings, logs)
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 from . import engine
 
 
-@engine("local")
+@engine("local", warms_up=True)  # execute.local: the pool's first worker, or this process
 def run(todo: list[dict], workers: int, fn, settings, logs):
     from ..execute import local  # here: naming the engine (the config group) imports no pool
 
