@@ -23,7 +23,9 @@ The floor: per body, the flops of one sample counted from the kernel's code (`sa
 by stage, from m, n, p and the chain) over the peak of one core measured on this machine in the
 same run (`peak_gflops`: independent fused multiply-add chains on the kernel's vector type, before
 every repeat); `floor_ratio` is the fast path's CPU time per sample over flops / peak, the median
-of the repeats' ratios (a loaded machine slows the peak and the trial alike).
+of the repeats' ratios (a loaded machine slows the peak and the trial alike). Beside it
+(`floor.stages`, pipeline.tools.kernel_stages) the compiled epoch stage by stage, each against
+its own flops over the peak.
 """
 from __future__ import annotations
 
@@ -264,6 +266,7 @@ def parallel_speedup(trials: int = 8) -> dict:
 
 
 def bench(cfg: DictConfig) -> dict:
+    from . import kernel_stages  # (it builds on this module's floor)
     repeats = cfg.bench.repeats
     result = {"machine": platform.processor() or platform.machine(), "cpus": os.cpu_count(),
               "repeats": repeats}
@@ -295,6 +298,8 @@ def bench(cfg: DictConfig) -> dict:
         row["updates_online_over_batch"] = (row["updates_online_us_per_trial_epoch"]
                                             / row["fast_us_per_trial_epoch"])
         row["floor"] = floor = floor_row(body, [t[1] for t in times["fast"]], peaks)
+        # where the compiled epoch's time goes, stage by stage against each stage's floor
+        floor["stages"] = kernel_stages.stage_row(body, repeats)
         row["updates_online_floor"] = online = floor_row(
             body, [t[1] for t in times["updates_online"]], peaks, online_sample_flops)
         # the online/batch ratio that both at their floors would give
@@ -317,6 +322,7 @@ def bench(cfg: DictConfig) -> dict:
             flush=True)
         print(f"{body}: floor: " + floor_line(floor)
               + f", peak {floor['peak_gflops']:.1f} GFLOP/s measured", flush=True)
+        print("\n".join(kernel_stages.lines(body, floor["stages"])), flush=True)
         print(f"{body}: updates=online floor: " + floor_line(online) + "; online/batch at both "
               f"floors {row['updates_online_over_batch_at_floor']:.2f}", flush=True)
     if cfg.bench.parallel:

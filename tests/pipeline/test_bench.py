@@ -34,6 +34,19 @@ def test_bench_writes_medians_and_the_fast_path_wins(tmp_path):
         assert floor["floor_ratio"] == pytest.approx(
             floor["ns_per_sample"] / floor["floor_ns_per_sample"])
         assert floor["floor_ratio"] > 1  # no kernel beats the peak
+        # the compiled epoch stage by stage: every flop of the sample in exactly one stage,
+        # each stage's floor its flops over the run's peak, the rest what the stages leave
+        stages = floor["stages"]["stages"]
+        assert sum(s["flops"] for s in stages.values()) == pytest.approx(
+            floor["flops_per_sample"])
+        for name, s in stages.items():
+            assert s["ns_per_sample"] > 0 or name == "rest"
+            if name != "rest":
+                assert s["floor_ns"] == pytest.approx(
+                    s["flops"] / floor["stages"]["peak_gflops"])
+                assert s["ratio"] == pytest.approx(s["ns_per_sample"] / s["floor_ns"])
+        assert sum(s["ns_per_sample"] for s in stages.values()) == pytest.approx(
+            floor["stages"]["epoch_ns_per_sample"])
         # updates=online's floor: the rollout's stages, then the float64 step (counted twice)
         online = row["updates_online_floor"]
         assert online["samples_per_epoch"] == floor["samples_per_epoch"]

@@ -1,0 +1,163 @@
+"""Benchmark: where a sample's time goes in the batch kernel, stage by stage, against each stage's
+floor.
+
+    python -m pipeline.tools.kernel_stages [--bodies arm5,icub] [--repeats 5]
+
+`make bench` states the whole trial's time per sample over the floor (the flops counted from the
+kernel's code over the peak of one core). This breaks the compiled epoch down: each stage of
+gbmodel/learners/goal_babbling (rollout.py: the commands with the disturbances and g along the
+path, the kinematics, the weights; gradient.py with core.py: the features, M Phi and the
+weighted residuals, the gradient's register tiles) runs alone, many times over one epoch's
+samples at the paper's settings, and its CPU time per sample is set beside its flops
+(bench.sample_flops) over the measured peak. What the stages leave of a whole epoch (the path,
+the home posture, the update of M, the calls) is the `rest`. The stages are timed in turn,
+in reversed order every other repeat; medians over repeats.
+
+A stage far above its floor is bound by something the flop count does not see: divisions and
+square roots (a vector division costs several fused multiply-adds' time), selects, sign flips
+and address arithmetic on the same vector ports, or stores to L2.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+import numpy as np
+from numba import njit
+
+import gbmodel
+from gbmodel.features import exponents
+from gbmodel.learners import goal_babbling as gb
+from gbmodel.learners.goal_babbling import fast
+from gbmodel.learners.goal_babbling.core import _BLOCK, _accumulate, _features, _predict
+from gbmodel.learners.goal_babbling.gradient import _gradient_step
+from gbmodel.learners.goal_babbling.rollout import (
+    _box, _commands, _disturbances, _weights, _work, rollout,
+)
+from gbmodel.simd import LANES, chain_kinematics
+
+from .bench import paper_spec, peak_gflops, sample_flops
+
+# stage -> the flop stages of bench.sample_flops it computes
+STAGES = {"commands": ("commands",), "kinematics": ("kinematics",), "weights": ("weights",),
+          "features": ("features",), "M_phi_error": ("M_phi", "error"),
+          "gradient": ("gradient",)}
+_PARTS = ("commands", "kinematics", "weights", "features", "features_predict",
+          "features_predict_gradient", "epoch")
+
+
+@njit(cache=True)
+def _part(what, reps, M, idx, raw, amp, chain, targets, home, parent, var, joints, radius,
+          steps, rate):
+    """`reps` times one part of the epoch (what: an index of _PARTS) on the samples of the
+    first epoch's rollout; 'epoch' runs whole epochs (rollout and gradient step) over the draws
+    in turn. Returns the epoch's padded sample count."""
+    m, p = M.shape
+    n = targets.shape[1]
+    V, T = raw.shape[1], (idx.shape[1] - 1) * steps
+    work = _work(m, n, p, V, T)
+    box = _box(targets)
+    rollout(M, idx[0], raw[0], amp[0], 1.0, chain, targets, home, parent, var, joints, radius,
+            steps, box, work)
+    Q, X, w, Phi, Rw, path, gpath, M32, GL = (work[0], work[1], work[2], work[3], work[4],
+                                              work[5], work[7], work[12], work[13])
+    Npad = len(w) - LANES
+    for e in range(reps):
+        if what == 0:  # the disturbances, g along the path, the commands
+            _disturbances(raw[0], amp[0], 1.0, box[0], box[1], radius, work[10], work[11])
+            _features(path, 0, gpath.shape[1], parent, var, work[6])
+            _predict(M32, work[6], gpath.shape[1], gpath, Q, w[:0], 0)
+            _commands(gpath, path, work[10], work[11], home, T, Npad, Q)
+        elif what == 1:
+            chain_kinematics(Q, X, Npad, joints, chain)
+        elif what == 2:
+            _weights(work[8], work[9], X, Q, V, T, Npad, w)
+        elif what == 6:
+            Mc = M.copy()
+            rollout(Mc, idx[e % len(idx)], raw[e % len(idx)], amp[e % len(idx)], 1.0, chain,
+                    targets, home, parent, var, joints, radius, steps, box, work)
+            _gradient_step(Mc, M32, X, Q, w, Npad, parent, var, Phi, Rw, GL, rate)
+        else:
+            for c0 in range(0, Npad, _BLOCK):
+                C = min(_BLOCK, Npad - c0)
+                _features(X, c0, C, parent, var, Phi)
+                if what >= 4:
+                    _predict(M32, Phi, C, Rw, Q, w, c0)
+                if what == 5:
+                    _accumulate(Rw, Phi, C, GL)
+    return Npad
+
+
+def _inputs(body_name: str, epochs: int = 64):
+    spec = gbmodel.TrialSpec.from_dict(paper_spec(body_name, 10, True))
+    body, (_, params) = spec.make_body(), spec.make_learner()
+    rng = np.random.default_rng(0)
+    M = gb.init(params, body, 1.0, rng)
+    idx, raw = gb.draw(params, body, epochs, rng)[:2]
+    exps = exponents(body.n, params.degree)
+    arr, opts = fast._arrays(body, exps), fast._options(params)
+    args = (M, idx, raw, fast._amplitudes(raw, None), arr["chain"], arr["targets"], arr["home"],
+            arr["parent"], arr["var"], arr["joints"], opts["radius"], opts["steps"],
+            float(params.learning_rate))
+    flops = sample_flops(body, len(exps), params.variations,
+                         params.targets_per_epoch * params.steps)
+    return args, flops
+
+
+def stage_row(body_name: str, repeats: int = 5, seconds: float = 0.1) -> dict:
+    """Per stage: ns per padded sample (median CPU time over repeats), flops per sample, the
+    floor (flops over the peak measured before every repeat) and their ratio; and the epoch."""
+    args, flops = _inputs(body_name)
+    Npad = _part(0, 1, *args)
+    reps = {}
+    for i in range(len(_PARTS)):  # compiled or loaded, and sized to about `seconds` each
+        t0 = time.process_time()
+        _part(i, 4, *args)
+        reps[i] = max(4, int(seconds / max(time.process_time() - t0, 1e-6) * 4))
+    ns, peaks = {name: [] for name in _PARTS}, []
+    for r in range(repeats):
+        peaks.append(peak_gflops(tries=1))
+        for i in (range(len(_PARTS)) if r % 2 == 0 else reversed(range(len(_PARTS)))):
+            t0 = time.process_time()
+            _part(i, reps[i], *args)
+            ns[_PARTS[i]].append(1e9 * (time.process_time() - t0) / reps[i] / Npad)
+    t = {k: float(np.median(v)) for k, v in ns.items()}
+    peak = float(np.median(peaks))
+    times = {"commands": t["commands"], "kinematics": t["kinematics"], "weights": t["weights"],
+             "features": t["features"],
+             "M_phi_error": t["features_predict"] - t["features"],
+             "gradient": t["features_predict_gradient"] - t["features_predict"]}
+    stages = {}
+    for name, parts in STAGES.items():
+        f = sum(flops[k] for k in parts)
+        stages[name] = {"ns_per_sample": times[name], "flops": f, "floor_ns": f / peak,
+                        "ratio": times[name] / (f / peak)}
+    stages["rest"] = {"ns_per_sample": t["epoch"] - sum(times.values()), "flops": 0,
+                      "floor_ns": 0.0, "ratio": None}
+    return {"samples_padded": Npad, "peak_gflops": peak, "epoch_ns_per_sample": t["epoch"],
+            "epoch_floor_ratio": t["epoch"] / (flops["total"] / peak), "stages": stages}
+
+
+def lines(body_name: str, row: dict) -> list[str]:
+    out = [f"{body_name}: the compiled epoch {row['epoch_ns_per_sample']:.2f} ns per sample, "
+           f"{row['epoch_floor_ratio']:.2f}x its floor (peak {row['peak_gflops']:.0f} GFLOP/s)"]
+    for name, s in row["stages"].items():
+        ratio = "" if s["ratio"] is None else (f"  floor {s['floor_ns']:5.2f} ns "
+                                               f"({s['flops']:4.0f} flops)  {s['ratio']:5.2f}x")
+        out.append(f"  {name:12s} {s['ns_per_sample']:6.2f} ns{ratio}")
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--bodies", default="arm5,icub")
+    ap.add_argument("--repeats", type=int, default=5)
+    args = ap.parse_args(argv)
+    for body in args.bodies.split(","):
+        print("\n".join(lines(body, stage_row(body, args.repeats))), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
