@@ -45,6 +45,7 @@ from gbmodel.kinematics import chain_layout
 from gbmodel.simd import LANES, W8, F4, vadd, vfma, vsplat, vsum
 
 from .. import cli, execute, io
+from . import kernel_stages
 from ..config import CONFIG_PATH, compose
 from ..plan import plan
 
@@ -266,7 +267,6 @@ def parallel_speedup(trials: int = 8) -> dict:
 
 
 def bench(cfg: DictConfig) -> dict:
-    from . import kernel_stages  # (it builds on this module's floor)
     repeats = cfg.bench.repeats
     result = {"machine": platform.processor() or platform.machine(), "cpus": os.cpu_count(),
               "repeats": repeats}
@@ -299,7 +299,8 @@ def bench(cfg: DictConfig) -> dict:
                                             / row["fast_us_per_trial_epoch"])
         row["floor"] = floor = floor_row(body, [t[1] for t in times["fast"]], peaks)
         # where the compiled epoch's time goes, stage by stage against each stage's floor
-        floor["stages"] = kernel_stages.stage_row(body, repeats)
+        floor["stages"] = kernel_stages.stage_row(paper_spec(body, 10, True), sample_flops,
+                                                  lambda: peak_gflops(tries=1), repeats)
         row["updates_online_floor"] = online = floor_row(
             body, [t[1] for t in times["updates_online"]], peaks, online_sample_flops)
         # the online/batch ratio that both at their floors would give

@@ -1,7 +1,5 @@
-"""Benchmark: where a sample's time goes in the batch kernel, stage by stage, against each stage's
-floor.
-
-    python -m pipeline.tools.kernel_stages [--bodies arm5,icub] [--repeats 5]
+"""Where a sample's time goes in the batch kernel, stage by stage, against each stage's floor
+(part of `make bench`: bench.json's `floor.stages`, printed under each body's floor line).
 
 `make bench` states the whole trial's time per sample over the floor (the flops counted from the
 kernel's code over the peak of one core). This breaks the compiled epoch down: each stage of
@@ -19,8 +17,6 @@ and address arithmetic on the same vector ports, or stores to L2.
 """
 from __future__ import annotations
 
-import argparse
-import sys
 import time
 
 import numpy as np
@@ -36,8 +32,6 @@ from gbmodel.learners.goal_babbling.rollout import (
     _box, _commands, _disturbances, _weights, _work, rollout,
 )
 from gbmodel.simd import LANES, chain_kinematics
-
-from .bench import paper_spec, peak_gflops, sample_flops
 
 # stage -> the flop stages of bench.sample_flops it computes
 STAGES = {"commands": ("commands",), "kinematics": ("kinematics",), "weights": ("weights",),
@@ -89,8 +83,8 @@ def _part(what, reps, M, idx, raw, amp, chain, targets, home, parent, var, joint
     return Npad
 
 
-def _inputs(body_name: str, epochs: int = 64):
-    spec = gbmodel.TrialSpec.from_dict(paper_spec(body_name, 10, True))
+def _inputs(spec: dict, count, epochs: int = 64):
+    spec = gbmodel.TrialSpec.from_dict(spec)
     body, (_, params) = spec.make_body(), spec.make_learner()
     rng = np.random.default_rng(0)
     M = gb.init(params, body, 1.0, rng)
@@ -100,15 +94,17 @@ def _inputs(body_name: str, epochs: int = 64):
     args = (M, idx, raw, fast._amplitudes(raw, None), arr["chain"], arr["targets"], arr["home"],
             arr["parent"], arr["var"], arr["joints"], opts["radius"], opts["steps"],
             float(params.learning_rate))
-    flops = sample_flops(body, len(exps), params.variations,
+    flops = count(body, len(exps), params.variations,
                          params.targets_per_epoch * params.steps)
     return args, flops
 
 
-def stage_row(body_name: str, repeats: int = 5, seconds: float = 0.1) -> dict:
-    """Per stage: ns per padded sample (median CPU time over repeats), flops per sample, the
-    floor (flops over the peak measured before every repeat) and their ratio; and the epoch."""
-    args, flops = _inputs(body_name)
+def stage_row(spec: dict, count, peak, repeats: int = 5, seconds: float = 0.1) -> dict:
+    """Per stage of the fast path of `spec` (a TrialSpec as data: bench.paper_spec): ns per
+    padded sample (median CPU time over repeats), flops per sample (`count`:
+    bench.sample_flops), the floor (flops over `peak()`, the peak measured before every repeat:
+    bench.peak_gflops) and their ratio; and the whole epoch."""
+    args, flops = _inputs(spec, count)
     Npad = _part(0, 1, *args)
     reps = {}
     for i in range(len(_PARTS)):  # compiled or loaded, and sized to about `seconds` each
@@ -117,7 +113,7 @@ def stage_row(body_name: str, repeats: int = 5, seconds: float = 0.1) -> dict:
         reps[i] = max(4, int(seconds / max(time.process_time() - t0, 1e-6) * 4))
     ns, peaks = {name: [] for name in _PARTS}, []
     for r in range(repeats):
-        peaks.append(peak_gflops(tries=1))
+        peaks.append(peak())
         for i in (range(len(_PARTS)) if r % 2 == 0 else reversed(range(len(_PARTS)))):
             t0 = time.process_time()
             _part(i, reps[i], *args)
@@ -147,17 +143,3 @@ def lines(body_name: str, row: dict) -> list[str]:
                                                f"({s['flops']:4.0f} flops)  {s['ratio']:5.2f}x")
         out.append(f"  {name:12s} {s['ns_per_sample']:6.2f} ns{ratio}")
     return out
-
-
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--bodies", default="arm5,icub")
-    ap.add_argument("--repeats", type=int, default=5)
-    args = ap.parse_args(argv)
-    for body in args.bodies.split(","):
-        print("\n".join(lines(body, stage_row(body, args.repeats))), flush=True)
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
