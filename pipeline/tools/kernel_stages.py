@@ -18,6 +18,7 @@ and address arithmetic on the same vector ports, or stores to L2.
 from __future__ import annotations
 
 import time
+from pathlib import Path
 
 import numpy as np
 from numba import njit
@@ -31,7 +32,11 @@ from gbmodel.learners.goal_babbling.gradient import _gradient_step
 from gbmodel.learners.goal_babbling.rollout import (
     _box, _commands, _disturbances, _weights, _work, rollout,
 )
-from gbmodel.simd import LANES, chain_kinematics
+from gbmodel.simd import LANES, chain_kinematics, fresh_cache
+
+# _part holds the kernels it calls, compiled in: its cache (with this folder's other kernels)
+# goes when their code changes, or the bench would time the kernels of before an edit
+fresh_cache(Path(__file__).parent, sorted(Path(fast.__file__).parent.glob("*.py")))
 
 # stage -> the flop stages of bench.sample_flops it computes
 STAGES = {"commands": ("commands",), "kinematics": ("kinematics",), "weights": ("weights",),
