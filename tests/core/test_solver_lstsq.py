@@ -199,6 +199,25 @@ def test_stale_kernel_caches_are_removed(tmp_path):
     assert fresh_cache(tmp_path) and not (cache / "a.f-1.py311.nbi").exists()
 
 
+def test_every_folder_of_cached_kernels_removes_its_stale_caches():
+    """A folder with cached kernels (njit cache=True) outside simd.py, whose kernels hold what
+    they call from simd.py or a sibling, calls fresh_cache on itself when imported: else an edit
+    of simd.py leaves its kernels running the code of before (numba checks the kernel's own file
+    only)."""
+    import re
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[2]
+    cached = re.compile(r"@njit\([^)]*\bcache=True")
+    folders = {f.parent for pkg in ("gbmodel", "pipeline") for f in (root / pkg).rglob("*.py")
+               if cached.search(f.read_text()) and f.name != "simd.py"}
+    assert {root / "gbmodel/learners/goal_babbling", root / "gbmodel/learners/online_goal_babbling",
+            root / "pipeline/tools"} <= folders
+    call = re.compile(r"^fresh_cache\(Path\(__file__\)\.parent", re.M)
+    missing = [str(d.relative_to(root)) for d in sorted(folders)
+               if not any(call.search(f.read_text()) for f in d.glob("*.py"))]
+    assert missing == []
+
+
 def test_cholesky_solve_matches_numpy():
     rng = np.random.default_rng(2)
     X = rng.normal(size=(20, 20))

@@ -12,6 +12,7 @@ simd.chain_forward64 on kinematics.chain_layout.
 from __future__ import annotations
 
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 from numba import njit
@@ -20,8 +21,13 @@ from ...features import exponents, monomial_tree
 from ...inverse import NO_MOVEMENT
 from ...kinematics import chain_layout
 from ...simd import (
-    W8, chain_forward64, vadd8, vload8, vload18, vmul8, vsplat8, vstore8, vstore18, vsub8,
+    W8, chain_forward64, fresh_cache, vadd8, vload8, vload18, vmul8, vsplat8, vstore8, vstore18,
+    vsub8,
 )
+
+# the kernels below hold simd.py's chain_forward64 and sincos64, compiled in: their caches go
+# when simd.py (or a file of this folder) changes, as goal_babbling's do
+fresh_cache(Path(__file__).parent)
 
 
 @njit(cache=True)
