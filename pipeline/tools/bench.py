@@ -299,7 +299,8 @@ def bench(cfg: DictConfig) -> dict:
                                             / row["fast_us_per_trial_epoch"])
         row["floor"] = floor = floor_row(body, [t[1] for t in times["fast"]], peaks)
         # where the compiled epoch's time goes, stage by stage against each stage's floor
-        floor["stages"] = kernel_stages.stage_row(paper_spec(body, 10, True), sample_flops,
+        floor["stages"] = kernel_stages.stage_row(paper_spec(body, 10, True),
+                                                  floor["flops_per_stage"],
                                                   lambda: peak_gflops(tries=1), repeats)
         row["updates_online_floor"] = online = floor_row(
             body, [t[1] for t in times["updates_online"]], peaks, online_sample_flops)

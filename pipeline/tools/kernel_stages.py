@@ -27,8 +27,9 @@ import gbmodel
 from gbmodel.features import exponents
 from gbmodel.learners import goal_babbling as gb
 from gbmodel.learners.goal_babbling import fast
+from gbmodel.learners.goal_babbling.fast import _epoch
 from gbmodel.learners.goal_babbling.core import _BLOCK, _accumulate, _features, _predict
-from gbmodel.learners.goal_babbling.gradient import _gradient_step
+from gbmodel.learners.goal_babbling.lstsq import solver_work
 from gbmodel.learners.goal_babbling.rollout import (
     _box, _commands, _disturbances, _weights, _work, rollout,
 )
@@ -46,17 +47,21 @@ _PARTS = ("commands", "kinematics", "weights", "features", "features_predict",
           "features_predict_gradient", "epoch")
 
 
+_NO_RING, _NO_M0 = np.zeros((0, 1, 1)), np.zeros((1, 1))
+
+
 @njit(cache=True)
 def _part(what, reps, M, idx, raw, amp, chain, targets, home, parent, var, joints, radius,
-          steps, rate):
+          steps, rate, plain, rule, ring, M0):
     """`reps` times one part of the epoch (what: an index of _PARTS) on the samples of the
-    first epoch's rollout; 'epoch' runs whole epochs (rollout and gradient step) over the draws
-    in turn. Returns the epoch's padded sample count."""
+    first epoch's rollout; 'epoch' runs the kernel's own epoch (fast._epoch: rollout and update)
+    over the draws in turn, on a copy of M. Returns the epoch's padded sample count."""
     m, p = M.shape
     n = targets.shape[1]
     V, T = raw.shape[1], (idx.shape[1] - 1) * steps
     work = _work(m, n, p, V, T)
     box = _box(targets)
+    solving = solver_work(m, n, p, V, T, False)
     rollout(M, idx[0], raw[0], amp[0], 1.0, chain, targets, home, parent, var, joints, radius,
             steps, box, work)
     Q, X, w, Phi, Rw, path, gpath, M32, GL = (work[0], work[1], work[2], work[3], work[4],
@@ -73,10 +78,10 @@ def _part(what, reps, M, idx, raw, amp, chain, targets, home, parent, var, joint
         elif what == 2:
             _weights(work[8], work[9], X, Q, V, T, Npad, w)
         elif what == 6:
-            Mc = M.copy()
-            rollout(Mc, idx[e % len(idx)], raw[e % len(idx)], amp[e % len(idx)], 1.0, chain,
-                    targets, home, parent, var, joints, radius, steps, box, work)
-            _gradient_step(Mc, M32, X, Q, w, Npad, parent, var, Phi, Rw, GL, rate)
+            k = e % len(idx)
+            _epoch(M.copy(), idx[k], raw[k], amp[k], 1.0, chain, targets, home, parent,
+                   var, joints, radius, steps, rate, plain, rule, 1, box, work, ring, 0,
+                   0.0, 0.0, 0.0, M0, solving)
         else:
             for c0 in range(0, Npad, _BLOCK):
                 C = min(_BLOCK, Npad - c0)
@@ -88,7 +93,7 @@ def _part(what, reps, M, idx, raw, amp, chain, targets, home, parent, var, joint
     return Npad
 
 
-def _inputs(spec: dict, count, epochs: int = 64):
+def _inputs(spec: dict, epochs: int = 64):
     spec = gbmodel.TrialSpec.from_dict(spec)
     body, (_, params) = spec.make_body(), spec.make_learner()
     rng = np.random.default_rng(0)
@@ -98,18 +103,19 @@ def _inputs(spec: dict, count, epochs: int = 64):
     arr, opts = fast._arrays(body, exps), fast._options(params)
     args = (M, idx, raw, fast._amplitudes(raw, None), arr["chain"], arr["targets"], arr["home"],
             arr["parent"], arr["var"], arr["joints"], opts["radius"], opts["steps"],
-            float(params.learning_rate))
-    flops = count(body, len(exps), params.variations,
-                         params.targets_per_epoch * params.steps)
-    return args, flops
+            float(params.learning_rate), opts["plain"], opts["rule"], _NO_RING, _NO_M0)
+    if opts["rule"] != fast.GRADIENT:
+        raise ValueError("kernel_stages times the batch gradient rule (solver=gradient, "
+                         "updates=batch)")
+    return args
 
 
-def stage_row(spec: dict, count, peak, repeats: int = 5, seconds: float = 0.1) -> dict:
+def stage_row(spec: dict, flops: dict, peak, repeats: int = 5, seconds: float = 0.1) -> dict:
     """Per stage of the fast path of `spec` (a TrialSpec as data: bench.paper_spec): ns per
-    padded sample (median CPU time over repeats), flops per sample (`count`:
-    bench.sample_flops), the floor (flops over `peak()`, the peak measured before every repeat:
-    bench.peak_gflops) and their ratio; and the whole epoch."""
-    args, flops = _inputs(spec, count)
+    padded sample (median CPU time over repeats), its flops per sample (`flops`, by flop stage:
+    the floor row's flops_per_stage, bench.sample_flops), the floor (flops over `peak()`, the
+    peak measured before every repeat: bench.peak_gflops) and their ratio; and the whole epoch."""
+    args = _inputs(spec)
     Npad = _part(0, 1, *args)
     reps = {}
     for i in range(len(_PARTS)):  # compiled or loaded, and sized to about `seconds` each
@@ -137,7 +143,7 @@ def stage_row(spec: dict, count, peak, repeats: int = 5, seconds: float = 0.1) -
     stages["rest"] = {"ns_per_sample": t["epoch"] - sum(times.values()), "flops": 0,
                       "floor_ns": 0.0, "ratio": None}
     return {"samples_padded": Npad, "peak_gflops": peak, "epoch_ns_per_sample": t["epoch"],
-            "epoch_floor_ratio": t["epoch"] / (flops["total"] / peak), "stages": stages}
+            "epoch_floor_ratio": t["epoch"] / (sum(flops.values()) / peak), "stages": stages}
 
 
 def lines(body_name: str, row: dict) -> list[str]:
