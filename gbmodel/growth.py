@@ -51,7 +51,24 @@ MAX_TABLE_TIME = 1e12  # |t| of a growth table's rows: their differences stay ex
 # WHO Child Growth Standards (2006), length-for-age, boys, median [cm]: birth, 12 and 24 months
 WHO_LENGTH_CM = (49.9, 75.7, 87.1)
 _HALF = (WHO_LENGTH_CM[1] - WHO_LENGTH_CM[0]) / (WHO_LENGTH_CM[2] - WHO_LENGTH_CM[0])
-INFANT_RATE = 2.0 * np.log(_HALF / (1.0 - _HALF))  # k = 1.6336...
+# k = 2 ln(f / (1 - f)), written out: numpy's log may round a last bit differently on another CPU
+INFANT_RATE = 1.6335222730542454  # tests/core/test_growth.py checks it against the formula
+
+
+def _expm1(x):
+    """exp(x) - 1 for |x| <= 2 (float64), from + - * / alone, which IEEE rounds the same on every
+    CPU: numpy's expm1 does not (its AVX-512 loop and its AVX2 one differ in a last bit, and
+    a size drawn from it moved least squares' results between CPUs). The Taylor series of
+    exp(x / 16) - 1 to the 14th power (a remainder below 1e-22), then 4 doublings,
+    e(2y) = e(y) (e(y) + 2): within a few ulp of the true value."""
+    y = np.asarray(x, dtype=np.float64) / 16.0
+    p = np.ones_like(y)
+    for k in range(14, 1, -1):
+        p = 1.0 + y * p / k
+    e = y * p
+    for _ in range(4):
+        e = e * (e + 2.0)
+    return e
 
 
 def progress(u, schedule: str = "linear"):
@@ -60,7 +77,7 @@ def progress(u, schedule: str = "linear"):
     if schedule == "linear":
         return u
     if schedule == "infant":
-        return np.expm1(-INFANT_RATE * u) / np.expm1(-INFANT_RATE)
+        return _expm1(-INFANT_RATE * u) / _expm1(-INFANT_RATE)
     if schedule == "table":
         raise ValueError("growth.schedule='table': the sizes come from growth.table "
                          "(Growth.sizes), not from a progress curve")

@@ -1,10 +1,17 @@
 """Growth schedules and patterns (gbmodel.growth): linear, infant, proximal-first."""
+import hashlib
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 import gbmodel
 from gbmodel import Growth, SpecError
-from gbmodel.growth import INFANT_RATE, WHO_LENGTH_CM, progress
+from gbmodel.growth import INFANT_RATE, WHO_LENGTH_CM, _expm1, progress
 
 EPOCHS = np.arange(1, 302)
 
@@ -22,6 +29,43 @@ def test_infant_rate_fits_the_who_curve():
     half = (year - birth) / (two_years - birth)  # 0.694 of 0-24 months' growth in the first 12
     assert progress(0.5, "infant") == pytest.approx(half, abs=1e-12)
     assert INFANT_RATE == pytest.approx(1.6335, abs=1e-4)
+
+
+def test_infant_rate_is_the_formula_written_out():
+    birth, year, two_years = WHO_LENGTH_CM
+    f = (year - birth) / (two_years - birth)
+    assert abs(INFANT_RATE - 2.0 * math.log(f / (1.0 - f))) <= math.ulp(INFANT_RATE)
+
+
+def test_expm1_from_plain_arithmetic_is_within_a_few_ulp():
+    x = np.linspace(-2.0, 2.0, 40001)
+    exact = np.array([math.expm1(v) for v in x])
+    ulps = np.abs(_expm1(x) - exact) / np.array([math.ulp(v) for v in exact])
+    assert ulps.max() <= 8
+    assert _expm1(np.zeros(1))[0] == 0.0
+
+
+# sha256 of progress(linspace(0, 1, 10001), "infant"): recorded on an Intel Xeon with AVX-512; the
+# same bytes on any CPU, as only + - * / make them (numpy's expm1 gave other bytes without
+# AVX-512, which moved least squares under the infant schedule between CPUs)
+INFANT_BYTES = "01af9acccba7a4e407a984b39130e1f146a2e35ad39bb35f22dcf89ea1f9cbc0"
+CHILD = ("import hashlib, numpy as np; from gbmodel.growth import progress; "
+         "print(hashlib.sha256(progress(np.linspace(0, 1, 10001), 'infant').tobytes())"
+         ".hexdigest())")
+
+
+@pytest.mark.parametrize("disabled", ["", "AVX512_SPR AVX512_ICL X86_V4",
+                                      "AVX512_SPR AVX512_ICL X86_V4 X86_V3"])
+def test_infant_schedule_same_bytes_on_every_numpy_target(disabled):
+    """numpy picks its loops by CPU (AVX-512, AVX2, the baseline); the schedule's bytes are the
+    recorded ones under each (NPY_DISABLE_CPU_FEATURES; a target the CPU lacks is ignored)."""
+    env = {**os.environ, "NPY_DISABLE_CPU_FEATURES": disabled,
+           "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
+    out = subprocess.run([sys.executable, "-c", CHILD], capture_output=True, text=True,
+                         env=env, timeout=120, check=True).stdout.strip()
+    assert out == INFANT_BYTES
+    here = hashlib.sha256(progress(np.linspace(0, 1, 10001), "infant").tobytes()).hexdigest()
+    assert here == INFANT_BYTES
 
 
 @pytest.mark.parametrize("start, end", [(0.5, 1.0), (1.0, 0.6)])
