@@ -15,7 +15,8 @@ paths.aggregate/<figure>/:
                       JSON, one line per condition: a rebuild copies the line of a condition
                       whose trials did not change; manifest.json holds each line's checksum)
     manifest.json     the digest of the inputs (conditions, trials' seals, code): unchanged
-                      inputs leave the figure as it is
+                      inputs leave the figure as it is; the SHA-256 of the Parquet files: a
+                      file of the set that is not the one written is never copied from
     index.parquet     per trial: its files' signature (pipeline.cache.signature), seal, status
                       and rows in trials.parquet; the next run reads only the trials whose
                       files changed and takes the others from this set
@@ -128,17 +129,17 @@ class Previous:
         if self._table is None:
             # the curves' own columns only: the labels are set again per condition, and their
             # strings cost nine tenths of reading the file (0.08 of 0.09 s, 10,000 trials)
-            self._table = io.read_table(self.where / "trials.parquet",
-                                        columns=io.TRIAL_CURVE.names, schema=io.TRIAL_CURVE)
+            self._table = self.checked_table("trials.parquet", io.TRIAL_CURVE)
         return self._table
 
-    def checked_table(self, name: str) -> pa.Table:
-        """A small file of the set (curves.parquet, summary.parquet) whose bytes are those the
-        manifest recorded (ValueError if not: an edited file is never copied from)."""
+    def checked_table(self, name: str, schema: pa.Schema | None = None) -> pa.Table:
+        """A file of the set whose bytes are those the manifest recorded (ValueError if not: an
+        edited file is never copied from); with `schema`, its columns only."""
         data = (self.where / name).read_bytes()
         if hashlib.sha256(data).hexdigest() != self._sums.get(name):
             raise ValueError(f"{name}: not the file the manifest recorded")
-        return io.parse_table(data, self.where / name)
+        return io.parse_table(data, self.where / name, schema,
+                              None if schema is None else schema.names)
 
     def text(self, condition: str) -> str:
         """The condition's line of the previous models.json (models_text), checked against the
@@ -635,9 +636,9 @@ def aggregate_figure(cfg: DictConfig, fig: str) -> tuple[list[str], bool]:
             print(f"note: [{fig}] {c}: every trial diverged or failed; the report marks it "
                   "diverged", file=sys.stderr)
     with io.new_set(folder) as tmp:
-        io.write_table(tmp / "trials.parquet", trials_file_table(table))
         sha256 = {name: io.write_table(tmp / name, t)
-                  for name, t in (("curves.parquet", curves), ("summary.parquet", summary))}
+                  for name, t in (("trials.parquet", trials_file_table(table)),
+                                  ("curves.parquet", curves), ("summary.parquet", summary))}
         io.write_text(tmp / "models.json", models_text(fig, paper, model_of))
         io.write_table(tmp / INDEX, index_table(conds))
         io.write_json(tmp / "manifest.json", dict(

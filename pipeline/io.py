@@ -352,11 +352,11 @@ def read_table(path, columns=None, schema: pa.Schema | None = None) -> pa.Table:
     return _has_columns(table, path, schema)
 
 
-def parse_table(data: bytes, path, schema: pa.Schema | None = None) -> pa.Table:
+def parse_table(data: bytes, path, schema: pa.Schema | None = None, columns=None) -> pa.Table:
     """read_table on the bytes `data` of the file `path` (named in the error); in this thread
     (a small file costs a third of the CPU that way)."""
     try:
-        table = pq.ParquetFile(pa.BufferReader(data)).read(use_threads=False)
+        table = pq.ParquetFile(pa.BufferReader(data)).read(columns=columns, use_threads=False)
     except pa.ArrowException as err:
         raise DamagedFile(f"{path}: damaged, not a readable Parquet file "
                           f"({str(err).splitlines()[0][:80]})") from None

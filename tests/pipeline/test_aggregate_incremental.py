@@ -289,6 +289,25 @@ def test_an_edited_statistics_file_is_not_copied_from(sweep, tmp_path, name):
     assert files_of(Path(sweep.paths.aggregate) / "custom") == built_from_nothing(sweep, tmp_path)
 
 
+def test_an_edited_trials_file_is_not_copied_from(sweep, tmp_path):
+    """A previous trials.parquet that is a readable table but not the one written (an error
+    edited) is not the source of any trial's rows: every trial is read from the cache."""
+    import pyarrow.compute as pc
+
+    from pipeline.tools import scale
+
+    assert aggregate.aggregate(sweep) == []
+    path = io.set_of(Path(sweep.paths.aggregate) / "custom") / "trials.parquet"
+    table = io.read_table(path)
+    column = table.schema.get_field_index("abs_error")
+    table = table.set_column(column, table.field(column),
+                             pc.multiply(table.column(column), 2.0))
+    io.write_table(path, table)  # a valid Parquet file, other numbers
+    scale.change_one_trial(Path(sweep.paths.cache))
+    assert aggregate.aggregate(sweep) == []
+    assert files_of(Path(sweep.paths.aggregate) / "custom") == built_from_nothing(sweep, tmp_path)
+
+
 @pytest.mark.parametrize("hole", [None, "nan", "null"])
 def test_trials_file_is_the_tables_pandas_round_trip(tmp_path, hole):
     """trials.parquet, written without converting the whole table to pandas and back, has the
