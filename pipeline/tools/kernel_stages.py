@@ -47,9 +47,6 @@ _PARTS = ("commands", "kinematics", "weights", "features", "features_predict",
           "features_predict_gradient", "epoch")
 
 
-_NO_RING, _NO_M0 = np.zeros((0, 1, 1)), np.zeros((1, 1))
-
-
 @njit(cache=True)
 def _part(what, reps, M, idx, raw, amp, chain, targets, home, parent, var, joints, radius,
           steps, rate, plain, rule, ring, M0):
@@ -101,13 +98,13 @@ def _inputs(spec: dict, epochs: int = 64):
     idx, raw = gb.draw(params, body, epochs, rng)[:2]
     exps = exponents(body.n, params.degree)
     arr, opts = fast._arrays(body, exps), fast._options(params)
-    args = (M, idx, raw, fast._amplitudes(raw, None), arr["chain"], arr["targets"], arr["home"],
-            arr["parent"], arr["var"], arr["joints"], opts["radius"], opts["steps"],
-            float(params.learning_rate), opts["plain"], opts["rule"], _NO_RING, _NO_M0)
     if opts["rule"] != fast.GRADIENT:
         raise ValueError("kernel_stages times the batch gradient rule (solver=gradient, "
                          "updates=batch)")
-    return args
+    return (M, idx, raw, fast._amplitudes(raw, None), arr["chain"], arr["targets"], arr["home"],
+            arr["parent"], arr["var"], arr["joints"], opts["radius"], opts["steps"],
+            float(params.learning_rate), opts["plain"], opts["rule"], fast._NO_RING,
+            fast._NO_M0)
 
 
 def stage_row(spec: dict, flops: dict, peak, repeats: int = 5, seconds: float = 0.1) -> dict:
