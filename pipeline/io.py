@@ -275,6 +275,10 @@ def new_dir(final):
                     raise
                 shutil.rmtree(old, ignore_errors=True)
         shutil.rmtree(old, ignore_errors=True)
+    except OSError as err:  # a full disk: named as the file will be called, not its temporary
+        if isinstance(err.filename, str) and err.filename.startswith(f"{tmp}{os.sep}"):
+            err.filename = str(final) + err.filename[len(str(tmp)):]
+        raise
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 

@@ -51,8 +51,9 @@ def read_text(path) -> str:
         raise ValueError(f"{path}: cannot read the register: {err.strerror}") from None
     with os.fdopen(fd, "rb") as fh:
         info = os.fstat(fh.fileno())
-        raw = fh.read(MAX_BYTES + 1) if stat.S_ISREG(info.st_mode) else b""
-    if not stat.S_ISREG(info.st_mode) or len(raw) > MAX_BYTES:
+        ok = stat.S_ISREG(info.st_mode) and info.st_size <= MAX_BYTES
+        raw = fh.read(MAX_BYTES + 1) if ok else b""
+    if not ok or len(raw) > MAX_BYTES:
         raise ValueError(f"{path}: not a regular file of at most {MAX_BYTES:,} bytes "
                          f"({info.st_size:,} bytes)")
     try:
