@@ -18,7 +18,10 @@ MuJoCo's compiler reads it:
   `zaxis`; a site's `fromto`), a joint's `type`, `pos`, `axis`, `ref`, `range`, `limited`;
 - `<include file=...>`, relative to the model's folder and confined to it (a subfolder is
   fine; `..`, an absolute path elsewhere or a link out of it is refused), replaced by the
-  children of the file it names, as MuJoCo does.
+  children of the file it names, as MuJoCo does; a model and its includes hold at most
+  urdf.MAX_BYTES in all, nested at most MAX_DEPTH elements deep;
+- numbers as C's strtod reads them (`1_0` is no number); a limited joint's range ascending;
+  a default class's name given once.
 
 The chain runs from body `root` (`world` included; its own joints move the frame the positions
 are given in, so they are not part of the chain) down to `tip`, a body (its frame, after its
@@ -39,7 +42,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .urdf import MAX_BYTES, _floats, _rot_axis, _z_onto, chosen, read_bytes, resolve
+from . import urdf
+from .urdf import _floats, _rot_axis, _z_onto, chosen, read_bytes, resolve
 
 MAX_FILES = 64  # the model and its includes
 MAX_DEPTH = 200  # elements nested in one another (the deepest shipped model nests a dozen)
@@ -70,7 +74,7 @@ def read_model(file) -> tuple[ET.Element, str]:
     folder = path.resolve().parent
     h = hashlib.sha256(data)
     tree = _parse(data, file, path.name)
-    count, total = [1], [len(data)]  # files read, their bytes: at most MAX_BYTES in all
+    count, total = [1], [len(data)]  # files read, their bytes: at most urdf.MAX_BYTES in all
 
     def expand(elem: ET.Element, active: tuple, depth: int = 0) -> None:
         if depth > MAX_DEPTH:
@@ -95,7 +99,7 @@ def read_model(file) -> tuple[ET.Element, str]:
             if count[0] > MAX_FILES:
                 raise _bad("file", str(file), f"more than {MAX_FILES} files included")
             try:
-                included = read_bytes(str(target), "mjcf", limit=MAX_BYTES - total[0])
+                included = read_bytes(str(target), "mjcf", limit=urdf.MAX_BYTES - total[0])
             except ValueError as err:
                 raise _bad("file", str(file), f"<include file={name!r}>: "
                            + str(err).split(": ", 1)[-1]) from None

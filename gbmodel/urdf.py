@@ -63,10 +63,11 @@ def resolve(file, kind="urdf") -> Path:
     return Path(file).expanduser()
 
 
-def read_bytes(file, kind="urdf", limit: int = MAX_BYTES) -> bytes:
+def read_bytes(file, kind="urdf", limit: int | None = None) -> bytes:
     """The bytes of the URDF `file` (a path or {package, path}): a regular file of at most
-    `limit` bytes (MAX_BYTES; what an MJCF model has left of it), else ValueError naming
-    body.urdf.file (body.<kind>.file)."""
+    `limit` bytes (None: MAX_BYTES; an MJCF include: what its model has left of it), else
+    ValueError naming body.urdf.file (body.<kind>.file)."""
+    limit = MAX_BYTES if limit is None else limit
     path = resolve(file, kind)
     what = kind.upper()
     try:

@@ -205,7 +205,7 @@ def test_r24_planning_a_module_that_exits_0_is_exit_2_not_success(mods, tmp_path
         r.stderr
 
 
-# ---- row 26: positions held to +-1000 m -----------------------------------------------------------
+# ---- row 26: positions held to +-1000 m ----------------------------------------------------------
 @pytest.mark.parametrize("value", ["1e300", "-1e4", "float('nan')", "1000.5"])
 def test_r26_positions_beyond_1000_m_are_one_line(mods, value):
     name = mods("huge", f"""
@@ -220,7 +220,7 @@ def test_r26_positions_beyond_1000_m_are_one_line(mods, value):
     assert "within +-1000" in _one_line(err)
 
 
-# ---- row 31: a models file is the figure it is named for ------------------------------------------
+# ---- row 31: a models file is the figure it is named for -----------------------------------------
 def test_r31_swapped_models_files_are_refused(tmp_path):
     report = tmp_path / "report"
     (report / "models").mkdir(parents=True)
@@ -243,7 +243,7 @@ def test_r31_an_aggregate_set_read_through_its_resolved_folder_is_its_figure(tmp
     assert models._named_for(tmp_path / "agg" / "f3" / "models.json") == "f3"
 
 
-# ---- rows 33-36, 46: registers ---------------------------------------------------------------------
+# ---- rows 33-36, 46: registers -------------------------------------------------------------------
 def _register(tmp_path, edit=None, text=None):
     path = tmp_path / "register.yaml"
     if text is not None:
@@ -337,7 +337,7 @@ def test_r33_the_committed_register_passes_its_schema():
     assert register_schema.load(claims.REGISTER)["claims"]
 
 
-# ---- row 37: links refused by the renderer --------------------------------------------------------
+# ---- row 37: links refused by the renderer -------------------------------------------------------
 @pytest.fixture
 def page_root(tmp_path):
     from pipeline.studies import values
@@ -478,7 +478,7 @@ def test_r39_report_on_a_full_disk_then_a_rerun(made, tmp_path):
     assert _report(made, full / "report").returncode == 0
 
 
-# ---- rows 7, 10, 12, 14, 16: MJCF read as MuJoCo reads it ------------------------------------------
+# ---- rows 7, 10, 12, 14, 16: MJCF read as MuJoCo reads it ----------------------------------------
 CHAIN = ("<worldbody><body name='b'><joint name='j' {joint}/>"
          "<body name='c' pos='{pos}'><site name='t'/></body></body></worldbody>")
 
