@@ -11,6 +11,7 @@ printing. Every random draw comes from a numpy.random.Generator passed in.
 """
 from . import learners
 from .bodies import Body, make_body, shipped
+from .body_loop import body_factory
 
 BODIES = shipped()  # the names of the shipped bodies (conf/body/*.yaml)
 from .evaluation import eval_epochs
@@ -22,6 +23,6 @@ from .trial import Checkpoint, Diverged, TrialResult, TrialSpec, run_trial
 
 __all__ = [
     "BODIES", "GROWTH_PATTERNS", "Body", "Checkpoint", "Diverged", "Growth", "SpecError",
-    "TrialResult", "TrialSpec", "eval_epochs", "exponents", "feature_bounds", "features", "learners",
-    "make_body", "predict", "run_trial",
+    "TrialResult", "TrialSpec", "body_factory", "eval_epochs", "exponents", "feature_bounds",
+    "features", "learners", "make_body", "predict", "run_trial",
 ]

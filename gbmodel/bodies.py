@@ -449,7 +449,7 @@ def _loop(section, m, base, hand) -> dict:
             or not lengths.sum() > 0):
         raise _bad("callable.lengths", given, f"needs {m} lengths [m] (one per joint of home) "
                    f"within [0, {MAX_MAGNITUDE:g}], not all 0")
-    return dict(loop=body_loop.load(section), lengths=lengths)
+    return dict(loop=body_loop.Deferred(section), lengths=lengths)  # built at its first call
 
 
 READS = ("urdf", "mjcf", "callable")  # the sections whose source_digest joins the cache key

@@ -11,6 +11,15 @@ The body's description names a factory and its arguments instead of a chain
       lengths: [0.3, 0.25, 0.1]              # per segment [m], what growth patterns weigh
       version: "1"                           # what else it depends on: change it to recompute
 
+The factory must be marked by its author with the decorator `gbmodel.body_factory` (a data file
+naming a function never makes the pipeline call it): anything else, the standard library
+included, is refused in one line before it is called (the standard library before it is even
+imported). Describing or validating a body imports nothing and calls nothing; the forward
+function is built at its first use. Its module's import and the factory's first call are first
+tried in a child process bounded by TIME_LIMIT seconds (a module that hangs, exits, calls
+os._exit or raises KeyboardInterrupt is one line naming the factory), then made in this process.
+Every position it returns must be finite and within +-MAX_MAGNITUDE m, as a URDF's numbers.
+
 `factory(**args)` is called once per process and description and returns a Forward:
 
     forward(angles, factors) -> positions
@@ -34,12 +43,16 @@ import hashlib
 import importlib
 import inspect
 import json
+import os
+import signal
+import subprocess
+import sys
 from functools import lru_cache
 from typing import Protocol
 
 import numpy as np
 
-from .urdf import read_bytes
+from .urdf import MAX_MAGNITUDE, read_bytes
 
 KEYS = ("factory", "args", "files", "lengths", "version", "sha256")
 
@@ -62,6 +75,7 @@ def check(section) -> dict:
     factory = section["factory"]
     if not isinstance(factory, str) or factory.count(":") != 1 or not all(factory.split(":")):
         raise _bad("factory", factory, "give module:attribute, e.g. my_robot.sim:make_forward")
+    _parts(factory)
     if not isinstance(section.get("args", {}) or {}, dict):
         raise _bad("args", section["args"], "a mapping of keyword arguments")
     files = section.get("files", []) or []
@@ -75,43 +89,155 @@ def check(section) -> dict:
     return section
 
 
-def _object(factory: str):
+MARK = "__gbmodel_body_factory__"  # set by body_factory on the function its author marks
+TIME_LIMIT = 60.0  # seconds: a factory's import and first call, in a child process
+_VERDICT = "\0gbmodel-body-factory:"  # the child's answer, its last line
+
+
+def body_factory(func):
+    """Declare `func` a body factory: the one kind of function a body description's
+    `callable.factory` may name (module docstring). Use it as a decorator."""
+    if not callable(func):
+        raise TypeError(f"body_factory marks a function, not {type(func).__name__}")
+    setattr(func, MARK, True)
+    return func
+
+
+def _parts(factory: str) -> tuple[str, str]:
+    """(module, attribute path) of a checked factory name; the standard library refused."""
     module, attr = factory.split(":")
-    try:
-        mod = importlib.import_module(module)
-    except Exception as err:  # the user's module: any error importing it is one line
-        raise _bad("factory", factory, f"cannot import {module}: {type(err).__name__}: "
-                   f"{err}".splitlines()[0]) from None
+    if not all(p.isidentifier() for p in module.split(".") + attr.split(".")):
+        raise _bad("factory", factory, "give module:attribute, e.g. my_robot.sim:make_forward")
+    top = module.split(".")[0]
+    if top in sys.stdlib_module_names or top in sys.builtin_module_names:
+        raise _bad("factory", factory, f"{top} is the standard library; only a function marked "
+                   "@gbmodel.body_factory by its author is called")
+    return module, attr
+
+
+def _marked(mod, attr: str, factory: str):
+    """The attribute `attr` of `mod`, looked up without running code (no property, no module
+    __getattr__), if its author marked it as a body factory."""
     obj = mod
     for part in attr.split("."):
-        obj = getattr(obj, part, None)
+        obj = inspect.getattr_static(obj, part, None)
     if not callable(obj):
-        raise _bad("factory", factory, f"{module} has no callable {attr}")
-    return mod, obj
+        raise _bad("factory", factory, f"{mod.__name__} has no callable {attr}")
+    if inspect.getattr_static(obj, MARK, None) is not True:
+        raise _bad("factory", factory, "not marked as a body factory by its author (decorate "
+                   "it with @gbmodel.body_factory); nothing was called")
+    return obj
+
+
+# run in a child process: import, check the mark without calling, call once, say how it went
+_PROBE = """
+import importlib, json, os, sys
+factory, args = sys.argv[1], json.loads(sys.argv[2])
+sys.path[:] = json.loads(sys.argv[3])
+from gbmodel import body_loop
+module, attr = body_loop._parts(factory)
+def line(err):
+    return (f"{type(err).__name__}: {err}".splitlines() or [""])[0][:300]
+try:
+    mod = importlib.import_module(module)
+except BaseException as err:
+    said = ["error", f"cannot import {module}: {line(err)}"]
+else:
+    try:
+        make = body_loop._marked(mod, attr, factory)
+    except ValueError as err:
+        said = ["refused", str(err)]
+    else:
+        try:
+            said = ["ok" if callable(make(**args)) else "not callable"]
+        except BaseException as err:
+            said = ["error", line(err)]
+os.write(1, ("\\n" + body_loop._VERDICT + json.dumps(said) + "\\n").encode())
+os._exit(0)
+"""
+
+
+@lru_cache(maxsize=16)
+def _probe(factory: str, args_json: str) -> None:
+    """Import the factory's module and call it once in a child process, within TIME_LIMIT
+    seconds; ValueError, one line, if that hangs, ends the process, raises (SystemExit and
+    KeyboardInterrupt included) or finds no mark."""
+    gb = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # where gbmodel is
+    cmd = [sys.executable, "-c", _PROBE, factory, args_json, json.dumps([gb, *sys.path])]
+    proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                            stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        out = proc.communicate(timeout=TIME_LIMIT)[0].decode(errors="replace")
+    except subprocess.TimeoutExpired:
+        raise _bad("factory", factory, f"importing its module and calling it did not finish "
+                   f"in {TIME_LIMIT:g} s") from None
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    said = [line[len(_VERDICT):] for line in out.splitlines() if line.startswith(_VERDICT)]
+    if not said:
+        raise _bad("factory", factory, "importing its module or calling it ended the process "
+                   f"(exit status {proc.returncode}) without a word")
+    verdict = json.loads(said[-1])
+    if verdict[0] == "refused":
+        raise ValueError(verdict[1])
+    if verdict[0] == "error":
+        raise _bad("factory", factory, verdict[1])
+    if verdict[0] != "ok":
+        raise _bad("factory", factory, "must return the forward function (a callable)")
+
+
+def _object(factory: str, args_json: str):
+    """(module, the marked factory): tried in a child process first (_probe), then imported
+    here; nothing unmarked is called."""
+    module, attr = _parts(factory)
+    _probe(factory, args_json)
+    try:
+        mod = importlib.import_module(module)
+    except (Exception, SystemExit) as err:  # the user's module: any error importing it is one line
+        raise _bad("factory", factory, f"cannot import {module}: {type(err).__name__}: "
+                   f"{err}".splitlines()[0]) from None
+    return mod, _marked(mod, attr, factory)
 
 
 @lru_cache(maxsize=16)
 def _load(factory: str, args_json: str):
-    _, make = _object(factory)
+    _, make = _object(factory, args_json)
     try:
         forward = make(**json.loads(args_json))
-    except Exception as err:
+    except (Exception, SystemExit) as err:
         raise _bad("factory", factory, f"{type(err).__name__}: {err}".splitlines()[0]) from None
     if not callable(forward):
         raise _bad("factory", factory, "must return the forward function (a callable)")
     return forward
 
 
+def _args(section: dict) -> str:
+    return json.dumps(section.get("args") or {}, sort_keys=True)
+
+
 def load(section: dict) -> Forward:
     """The forward function of a checked `callable` section (one per process and description)."""
-    return _load(section["factory"], json.dumps(section.get("args") or {}, sort_keys=True))
+    return _load(section["factory"], _args(section))
+
+
+class Deferred:
+    """The forward function of a checked `callable` section, built at its first call: a body
+    described, validated or loaded with a model (pipeline.models) imports and calls nothing."""
+
+    def __init__(self, section: dict):
+        self.section = section
+
+    def __call__(self, angles: np.ndarray, factors: np.ndarray) -> np.ndarray:
+        return load(self.section)(angles, factors)
 
 
 def digest(section: dict) -> str:
     """The SHA-256 of what the key holds of the function: its factory's name, the source file of
     the module defining it, and the files it declares (module docstring)."""
     check(section)
-    mod, _ = _object(section["factory"])
+    mod, _ = _object(section["factory"], _args(section))
     h = hashlib.sha256(section["factory"].encode() + b"\0")
     try:
         source = inspect.getsourcefile(mod)
@@ -137,6 +263,8 @@ def positions(forward: Forward, angles: np.ndarray, factors: np.ndarray, name: s
     if out.shape != (len(flat), 3):
         raise ValueError(f"body {name!r}: its forward function returned shape {out.shape} for "
                          f"{len(flat)} postures; the protocol wants ({len(flat)}, 3)")
-    if not np.all(np.isfinite(out)):
-        raise ValueError(f"body {name!r}: its forward function returned a non-finite position")
+    if not np.all(np.abs(out) <= MAX_MAGNITUDE):  # NaN fails too
+        bad = out[~(np.abs(out) <= MAX_MAGNITUDE)][0]
+        raise ValueError(f"body {name!r}: its forward function returned the position {bad:g}; "
+                         f"positions are finite metres within +-{MAX_MAGNITUDE:g}, as a URDF's")
     return out.reshape(angles.shape[:-1] + (3,))

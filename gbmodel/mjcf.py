@@ -18,7 +18,10 @@ MuJoCo's compiler reads it:
   `zaxis`; a site's `fromto`), a joint's `type`, `pos`, `axis`, `ref`, `range`, `limited`;
 - `<include file=...>`, relative to the model's folder and confined to it (a subfolder is
   fine; `..`, an absolute path elsewhere or a link out of it is refused), replaced by the
-  children of the file it names, as MuJoCo does.
+  children of the file it names, as MuJoCo does; a model and its includes hold at most
+  urdf.MAX_BYTES in all, nested at most MAX_DEPTH elements deep;
+- numbers as C's strtod reads them (`1_0` is no number); a limited joint's range ascending;
+  a default class's name given once.
 
 The chain runs from body `root` (`world` included; its own joints move the frame the positions
 are given in, so they are not part of the chain) down to `tip`, a body (its frame, after its
@@ -39,9 +42,11 @@ from pathlib import Path
 
 import numpy as np
 
+from . import urdf
 from .urdf import _floats, _rot_axis, _z_onto, chosen, read_bytes, resolve
 
 MAX_FILES = 64  # the model and its includes
+MAX_DEPTH = 200  # elements nested in one another (the deepest shipped model nests a dozen)
 ORIENTATIONS = ("quat", "axisangle", "euler", "xyaxes", "zaxis")
 ELEMENTS = ("body", "frame", "site")  # what the path from root to tip may pass through
 
@@ -69,13 +74,16 @@ def read_model(file) -> tuple[ET.Element, str]:
     folder = path.resolve().parent
     h = hashlib.sha256(data)
     tree = _parse(data, file, path.name)
-    count = [1]
+    count, total = [1], [len(data)]  # files read, their bytes: at most urdf.MAX_BYTES in all
 
-    def expand(elem: ET.Element, active: tuple) -> None:
+    def expand(elem: ET.Element, active: tuple, depth: int = 0) -> None:
+        if depth > MAX_DEPTH:
+            raise _bad("file", str(file), f"{active[-1].name}: elements nested more than "
+                       f"{MAX_DEPTH} deep (at a <{elem.tag}>)")
         children = []
         for child in list(elem):
             if child.tag != "include":
-                expand(child, active)
+                expand(child, active, depth + 1)
                 children.append(child)
                 continue
             name = child.get("file")
@@ -91,14 +99,15 @@ def read_model(file) -> tuple[ET.Element, str]:
             if count[0] > MAX_FILES:
                 raise _bad("file", str(file), f"more than {MAX_FILES} files included")
             try:
-                included = read_bytes(str(target), "mjcf")
+                included = read_bytes(str(target), "mjcf", limit=urdf.MAX_BYTES - total[0])
             except ValueError as err:
                 raise _bad("file", str(file), f"<include file={name!r}>: "
                            + str(err).split(": ", 1)[-1]) from None
+            total[0] += len(included)
             rel = target.relative_to(folder).as_posix().encode()
             h.update(b"\0" + rel + b"\0" + len(included).to_bytes(8, "little") + included)
             sub = _parse(included, file, name)
-            expand(sub, active + (target,))
+            expand(sub, active + (target,), depth)
             children.extend(list(sub))
         elem[:] = children
 
@@ -128,11 +137,16 @@ def _compiler(tree, file) -> dict:
     return settings
 
 
-def _classes(tree) -> dict:
-    """{class name: {element tag: attributes}}, every class with what it inherits."""
+def _classes(tree, file) -> dict:
+    """{class name: {element tag: attributes}}, every class with what it inherits; a nested
+    class without a name, or a name given twice, is refused (as MuJoCo refuses it)."""
     classes: dict = {}
 
     def walk(elem, inherited, name):
+        if name is None or (name in classes and elem not in tops):
+            raise _bad("file", str(file), f"<default class={name!r}>: " + (
+                "a nested default class needs its name" if name is None else
+                "a default class of that name is defined twice"))
         own = {tag: dict(attrs) for tag, attrs in inherited.items()}
         for child in elem:
             if child.tag != "default":
@@ -142,7 +156,8 @@ def _classes(tree) -> dict:
             walk(sub, own, sub.get("class"))
 
     main: dict = {}
-    for top in tree.findall("default"):  # the main class (several: merged in order)
+    tops = tree.findall("default")
+    for top in tops:  # the main class (several: merged in order)
         walk(top, main, "main")
         main = classes["main"]
     classes.setdefault("main", {})
@@ -254,7 +269,7 @@ def read_chain(file, root: str, tip: str, joints=None, hold=None, sha256=None) -
                    "model and its includes differs); run the command again")
     if not tree.findall("worldbody"):
         raise _bad("file", str(file), f"{path.name} has no <worldbody>")
-    compiler, classes = _compiler(tree, file), _classes(tree)
+    compiler, classes = _compiler(tree, file), _classes(tree, file)
     # the root and the tip
     if root == "world":
         start = None
@@ -346,7 +361,10 @@ def read_chain(file, root: str, tip: str, joints=None, hold=None, sha256=None) -
         T = turn @ Zt @ back
         limited = ja.get("limited", "auto")
         has = limited == "true" or (limited == "auto" and compiler["autolimits"] == "true")
-        limits.append(list(lo_hi) if has and lo_hi is not None and lo_hi[0] < lo_hi[1]
-                      else [np.nan, np.nan])
+        if has and lo_hi is not None and not lo_hi[0] < lo_hi[1]:
+            raise _bad("file", str(file), f"joint {name!r}: its range {ja['range']!r} is "
+                       + ("reversed (lower above upper)" if lo_hi[0] > lo_hi[1] else
+                          "empty (lower equals upper)") + " on a limited joint")
+        limits.append(list(lo_hi) if has and lo_hi is not None else [np.nan, np.nan])
     return dict(frames=np.array(frames), tool=T[:3, 3].copy(), rest=T[:3, :3].copy(),
                 names=joints, limits=np.array(limits, float))

@@ -24,6 +24,7 @@ from __future__ import annotations
 import hashlib
 import importlib.metadata
 import os
+import re
 import stat
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -62,9 +63,11 @@ def resolve(file, kind="urdf") -> Path:
     return Path(file).expanduser()
 
 
-def read_bytes(file, kind="urdf") -> bytes:
+def read_bytes(file, kind="urdf", limit: int | None = None) -> bytes:
     """The bytes of the URDF `file` (a path or {package, path}): a regular file of at most
-    MAX_BYTES, else ValueError naming body.urdf.file (body.<kind>.file)."""
+    `limit` bytes (None: MAX_BYTES; an MJCF include: what its model has left of it), else
+    ValueError naming body.urdf.file (body.<kind>.file)."""
+    limit = MAX_BYTES if limit is None else limit
     path = resolve(file, kind)
     what = kind.upper()
     try:
@@ -77,15 +80,17 @@ def read_bytes(file, kind="urdf") -> bytes:
         if not stat.S_ISREG(info.st_mode):
             raise _bad("file", str(file), "not a regular file (a FIFO, device or folder)",
                        kind=kind)
-        if info.st_size > MAX_BYTES:
+        if info.st_size > limit:
             raise _bad("file", str(file), f"{info.st_size:,} bytes; a {what} is at most "
-                       f"{MAX_BYTES:,}", kind=kind)
+                       f"{MAX_BYTES:,}" if limit == MAX_BYTES else f"{info.st_size:,} bytes, "
+                       f"more than the {limit:,} left of the {MAX_BYTES:,} that a model and "
+                       "its includes may hold in all", kind=kind)
         with os.fdopen(os.dup(fd), "rb") as fh:
-            data = fh.read(MAX_BYTES + 1)
+            data = fh.read(limit + 1)
     finally:
         os.close(fd)
-    if len(data) > MAX_BYTES:
-        raise _bad("file", str(file), f"more than {MAX_BYTES:,} bytes", kind=kind)
+    if len(data) > limit:
+        raise _bad("file", str(file), f"more than {limit:,} bytes", kind=kind)
     return data
 
 
@@ -94,8 +99,18 @@ def digest(file) -> str:
     return hashlib.sha256(read_bytes(file)).hexdigest()
 
 
+# a number as C's strtod reads it, which URDF and MuJoCo parsers use (Python's float() would also
+# take 1_0 as 10, and digits of other scripts); nan and inf are read to be refused as such
+NUMBER = re.compile(r"[+-]?(?:(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?|inf|infinity|nan)",
+                    re.IGNORECASE)
+
+
 def _floats(text, n, what):
-    vals = [float(x) for x in (text or "").split()]
+    words = (text or "").split()
+    bad = [w for w in words if not NUMBER.fullmatch(w)]
+    if bad:
+        raise ValueError(f"{what} {text!r} ({bad[0]!r} is not a number)")
+    vals = [float(x) for x in words]
     if len(vals) != n:
         raise ValueError(what)
     arr = np.array(vals)

@@ -51,6 +51,15 @@ class UnsafeName(BadInput):
     """A name from the config or from a file on disk that cannot become one path component."""
 
 
+class FileTooLarge(OSError, BadInput):
+    """EFBIG: a write beyond the file system's largest file or the process's file-size limit
+    (ulimit -f; Python ignores SIGXFSZ, so the write fails): one line, exit 2 (a BadInput)."""
+
+    def __str__(self):
+        return (f"{self.filename}: file too large for the file system or the file-size limit "
+                "(ulimit -f); raise the limit or choose another paths.root")
+
+
 MAX_NAME = 100  # characters of one path component built from a name
 MAX_NAME_BYTES = 200  # its UTF-8 bytes (file systems allow 255; temporary names add some)
 
@@ -204,6 +213,8 @@ def _atomic(path, checked: bool = False):
         os.replace(tmp, path)
         tmp = None  # renamed: nothing left to delete
     except OSError as err:
+        if err.errno == errno.EFBIG:
+            raise FileTooLarge(errno.EFBIG, os.strerror(errno.EFBIG), path) from None
         raise _named(err, Path(path)) from None
     finally:
         if tmp is not None:
@@ -227,7 +238,13 @@ def atomic_path(path):
     writer that wants a file name (matplotlib); renamed onto `path` if the block succeeds."""
     with _atomic(path) as (tmp, fd):
         os.close(fd)
-        yield tmp
+        try:
+            yield tmp
+        except Exception as err:  # the writer's cleanup raised again over a full disk's error
+            cause = err  # (matplotlib's PDF writer: a zlib.error): the disk's error it is
+            while cause is not None and not isinstance(cause, OSError):
+                cause = cause.__context__
+            raise (err if cause is None else cause) from None
 
 
 @contextmanager
@@ -258,6 +275,10 @@ def new_dir(final):
                     raise
                 shutil.rmtree(old, ignore_errors=True)
         shutil.rmtree(old, ignore_errors=True)
+    except OSError as err:  # a full disk: named as the file will be called, not its temporary
+        if isinstance(err.filename, str) and err.filename.startswith(f"{tmp}{os.sep}"):
+            err.filename = str(final) + err.filename[len(str(tmp)):]
+        raise
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 

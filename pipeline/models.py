@@ -22,6 +22,14 @@ every M must be finite, of the shape its body and degree give. `python -m pipeli
 FILE...` seals a report's models file that has no seal (one written before seals) only after
 re-deriving the report's final errors from its models (verify_against_curves): each condition's
 mean and quartiles over trials at its last epoch, as curves.parquet beside it holds them.
+
+What the checks hold against, and what not: the seal and the checksums are unkeyed SHA-256s,
+so they detect damage (a truncated, garbled or hand-edited file), not a deliberate edit by
+someone who reseals the file afterwards; such a file is still validated as above. Loading
+calls no function a file names: a body in the loop (`callable`) is described, never built, and
+its factory is called only when a model is evaluated, and only if its author marked it
+(gbmodel.body_factory; docs/faults.md). A file whose `figure` is not its name (models/<figure>.json,
+<figure>/models.json: two files swapped or one renamed) is refused.
 """
 from __future__ import annotations
 
@@ -186,6 +194,9 @@ def read(path, sealed: bool = True) -> dict:
             _check_lines(path, raw)
         elif sealed:
             io.check_seal(data, path)
+        if data.get("figure") != _named_for(path):
+            raise io.DamagedFile(f"{path}: holds the models of figure {data.get('figure')!r}, "
+                                 f"not of {_named_for(path)!r} (swapped or renamed)")
         for label, c in data["conditions"].items():
             _check_condition(label, c)
     except io.DamagedFile as err:
@@ -194,6 +205,17 @@ def read(path, sealed: bool = True) -> dict:
         why = str(err).splitlines()[0] if str(err) else type(err).__name__
         raise io.DamagedFile(f"{path}: damaged ({why[:300]}); {_remedy(path)}") from None
     return data
+
+
+def _named_for(path: Path) -> str:
+    """The figure a models file's place names: <figure>.json, <figure>/models.json (a set of
+    <figure> in .<figure>.sets/ when the link was resolved)."""
+    if path.name != "models.json":
+        return path.stem
+    sets = path.parent.parent.name
+    if sets.startswith(".") and sets.endswith(".sets") and path.parent.name.startswith("set~"):
+        return sets[1:-len(".sets")]
+    return path.parent.name
 
 
 def _check_lines(path: Path, raw: bytes) -> None:

@@ -35,6 +35,7 @@ import yaml
 from gbmodel.growth import factors
 
 from .. import measures as curve_measures
+from . import register_schema
 from .figures import final_body
 
 SMOOTH = 5  # rebounds and blending: each trial's curve averaged over this many evaluation points
@@ -88,8 +89,8 @@ def criterion_hash(entry: dict) -> str:
 
 def load_register(path: Path = REGISTER) -> list[Claim]:
     """The claims of a register file, each reading's primary first; a ValueError names what is
-    wrong (no reading, not exactly one primary)."""
-    data = yaml.safe_load(Path(path).read_text())
+    wrong (its schema, register_schema; not exactly one primary)."""
+    data = register_schema.load(path)
     out = []
     for e in data["claims"]:
         rs = [Reading(id=str(r["id"]), label=r.get("label", r["id"]), criterion=r["criterion"],

@@ -13,8 +13,9 @@ outputs/report/values.csv (written by the report stage from pipeline/studies/val
 the template, never the page; numbers that are not the report's are plain text.
 
 Exit status: 0 every page equals its rendering (or is written); 1 (--check) one line per page
-that differs; 2 a bad reference or a missing values table (one line, `error: ...`), and nothing
-is written. A page is replaced in one rename (a kill leaves the old page or the new one).
+that differs; 2 a bad reference, a missing values table, or a template or page reached through
+a link (one line, `error: ...`), and nothing is written. A page is replaced in one rename (a
+kill leaves the old page or the new one).
 """
 from __future__ import annotations
 
@@ -44,13 +45,26 @@ def rendered(root: Path, values_path: Path | None = None) -> dict[Path, str]:
     vals = named.read(values_path)
     out = {}
     for rel in templates(root):
-        src = root / TEMPLATES / rel
+        src = unlinked(root, Path(TEMPLATES) / rel)
+        unlinked(root, rel)  # the page: never written through a link
         try:
             text = src.read_bytes().decode("utf-8")
         except UnicodeDecodeError as e:
             raise named.BadValue(f"{TEMPLATES}/{rel}: not UTF-8 (byte {e.start})") from None
         out[rel] = named.render(text, vals, f"{TEMPLATES}/{rel}")
     return out
+
+
+def unlinked(root: Path, rel: Path) -> Path:
+    """root / rel; BadValue if it or a folder on its way from root is a link (a template that
+    is a link would copy another file into a page, a linked folder put a page elsewhere)."""
+    p = root
+    for part in rel.parts:
+        p = p / part
+        if p.is_symlink():
+            raise named.BadValue(f"{p.relative_to(root)}: a link; the renderer reads no template "
+                                 "and writes no page through a link")
+    return p
 
 
 def write_values(path: Path) -> None:
@@ -97,10 +111,11 @@ def main(argv=None, root: Path | None = None) -> int:
         return 1 if stale else 0
     from .. import io
 
-    for rel in stale:  # one rename each: the old page or the new one
-        io.remove_stale_tmp((root / rel).parent)  # what a killed render of this host left
-        io.write_text(root / rel, pages[rel])
-        print(f"{rel}: rendered")
+    with io.confined(root):  # and nothing written outside the checkout
+        for rel in stale:  # one rename each: the old page or the new one
+            io.remove_stale_tmp((root / rel).parent)  # what a killed render of this host left
+            io.write_text(root / rel, pages[rel])
+            print(f"{rel}: rendered")
     return 0
 
 

@@ -23,11 +23,12 @@ from ..config import REPO_ROOT
 from ..studies import claims, measures_table, scorecard
 
 
-def rescore(report: Path, register: Path) -> dict:
+def rescore(report: Path, register) -> dict:
     """{"default": headline, "recommended": headline or None, "cells": the primary cells of the
-    figures (figure, claim, verdict, ...), "changed": rows (figure, claim, before, after)}."""
+    figures (figure, claim, verdict, ...), "changed": rows (figure, claim, before, after)}.
+    register: a register file, or its claims (claims.load_register's)."""
     t = measures_table.read(report / measures_table.NAME)
-    reg = claims.load_register(register)
+    reg = register if isinstance(register, list) else claims.load_register(register)
     groups = measures_table.measures(t)
     fig_ms = [m for (study, _, _), ms in groups.items() if study == "figures" for m in ms]
     counted = sorted(set(t.loc[(t["study"] == "figures") & t["counted"], "figure"]))
@@ -72,10 +73,15 @@ def main(argv=None) -> int:
               "none: regenerate the report)", file=sys.stderr)
         return 2
     start = time.perf_counter()
+    try:  # the register first: its schema checked before any of it is used (one line)
+        register = claims.load_register(a.register)
+    except ValueError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
     try:
-        out = rescore(a.report, a.register)
+        out = rescore(a.report, register)
     except (OSError, ValueError, KeyError, TypeError) as e:
-        print(f"error: {a.register}: {e}", file=sys.stderr)
+        print(f"error: {a.report}: {e}", file=sys.stderr)
         return 2
     if out["default"] is not None:
         print(f"default reading on {', '.join(out['counted'])}: "

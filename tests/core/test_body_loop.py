@@ -26,6 +26,9 @@ REPO = Path(__file__).resolve().parents[2]
 FORWARD = '''
 import numpy as np
 
+import gbmodel
+
+@gbmodel.body_factory
 def make(lengths=(0.3, 0.2), offset=0.0, width=3):
     lengths = np.asarray(lengths, float)
 
@@ -38,6 +41,7 @@ def make(lengths=(0.3, 0.2), offset=0.0, width=3):
 
 not_a_factory = 3
 
+@gbmodel.body_factory
 def gives_a_number():
     return 3
 '''

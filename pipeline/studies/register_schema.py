@@ -1,0 +1,144 @@
+"""The declared schema of a register of criteria (register.yaml), checked before any of it is
+used: a register is data, and an edited copy is what `python -m pipeline.tools.rescore
+--register FILE` reads.
+
+A register is a regular file of at most MAX_BYTES (checked before it is parsed), YAML of plain
+data (`yaml.safe_load`: no tag builds an object; nesting too deep for the parser is one line):
+a mapping {claims: [claim, ...]}; each claim a mapping of CLAIM's keys, its readings mappings
+of READING's keys, its changelog mappings of CHANGELOG's; each reading's params only PARAMS'
+keys (and the ones NEEDED_PARAMS says its claim reads), each value of its kind and range:
+numbers finite and within their bounds (a factor of 0, -1.5, .nan or .inf is refused, so it
+never becomes a verdict). Every fault is one ValueError naming the file and the key.
+"""
+from __future__ import annotations
+
+import math
+import os
+import stat
+
+import yaml
+
+MAX_BYTES = 2**20  # the committed register is 19 kB
+TEXT, FLAG, CHILDREN = "text", "true or false", "a list of mappings"
+CLAIM = dict(id=TEXT, words=TEXT, figures=TEXT, sentence=TEXT, measure=TEXT, diagnostic=FLAG,
+             min_trials=(1, 1000), readings=CHILDREN, changelog=CHILDREN)
+READING = dict(id=TEXT, label=TEXT, criterion=TEXT, why=TEXT, fixed_at=TEXT, primary=FLAG,
+               diagnostic=FLAG, always_shown=FLAG, params="a mapping")
+CHANGELOG = dict(date=TEXT, commit=TEXT, reason=TEXT, before=TEXT, after=TEXT, hash=TEXT)
+NEEDED = dict(claim=("id", "words", "figures", "measure", "readings"),
+              reading=("id", "criterion"), changelog=())
+# a reading's params (claims._bounds and claims.judge read exactly these): a choice, or a
+# number's closed range [lo, hi]
+SIDES = ("two-sided", "at-most")
+PARAMS = dict(scale=("metres", "size"), full=SIDES, smaller=SIDES, control=FLAG,
+              factor=(1.0, 1e3), above=(0.0, 1e6), below=(0.0, 1e6), rebound_below=(0.0, 1e6),
+              end_over_start_below=(0.0, 1e6), within_m=(0.0, 1e3), within_rad=(0.0, 1e3),
+              grows_by_rad=(0.0, 1e3), **{"from": (0, 2**63 - 1), "up_to": (0, 2**63 - 1)})
+NEEDED_PARAMS = dict(final=("factor", "full", "smaller"),
+                     after=("rebound_below", "end_over_start_below"))
+
+
+def _fail(path, where, value, why) -> ValueError:
+    text = repr(value)
+    return ValueError(f"{path}: {where}={text[:60] + '...' if len(text) > 60 else text}: {why}")
+
+
+def read_text(path) -> str:
+    """The register's text: a regular file of at most MAX_BYTES, UTF-8 (ValueError, one line)."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)  # a FIFO: opened, never waited on
+    except OSError as err:
+        raise ValueError(f"{path}: cannot read the register: {err.strerror}") from None
+    with os.fdopen(fd, "rb") as fh:
+        info = os.fstat(fh.fileno())
+        ok = stat.S_ISREG(info.st_mode) and info.st_size <= MAX_BYTES
+        raw = fh.read(MAX_BYTES + 1) if ok else b""
+    if not ok or len(raw) > MAX_BYTES:
+        raise ValueError(f"{path}: not a regular file of at most {MAX_BYTES:,} bytes "
+                         f"({info.st_size:,} bytes)")
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise ValueError(f"{path}: not UTF-8 (byte {err.start})") from None
+
+
+def load(path) -> dict:
+    """The register in `path`, checked against the schema (module docstring)."""
+    try:
+        data = yaml.safe_load(read_text(path))
+    except (yaml.YAMLError, RecursionError) as err:  # RecursionError: nested too deeply
+        why = " ".join(str(err).split()) or "nested too deeply"
+        raise ValueError(f"{path}: not a register ({type(err).__name__}: {why[:200]})") from None
+    if not isinstance(data, dict) or set(data) != {"claims"}:
+        raise _fail(path, "top level", sorted(data) if isinstance(data, dict) else
+                    type(data).__name__, "a register is a mapping {claims: [...]}")
+    if not isinstance(data["claims"], list) or not data["claims"]:
+        raise _fail(path, "claims", data["claims"], "a list of at least one claim")
+    for i, claim in enumerate(data["claims"]):
+        _entry(path, f"claims[{i}]", claim, CLAIM, "claim")
+        for j, r in enumerate(claim["readings"]):
+            _entry(path, f"claims[{i}].readings[{j}]", r, READING, "reading")
+            _params(path, f"claims[{i}].readings[{j}].params", r.get("params") or {},
+                    claim["id"])
+        for j, c in enumerate(claim.get("changelog") or ()):
+            _entry(path, f"claims[{i}].changelog[{j}]", c, CHANGELOG, "changelog")
+    return data
+
+
+def _entry(path, where, entry, schema: dict, kind: str) -> None:
+    if not isinstance(entry, dict):
+        raise _fail(path, where, entry, f"a {kind} is a mapping")
+    for key in NEEDED[kind]:
+        if key not in entry:
+            raise _fail(path, f"{where}.{key}", None, f"a {kind} needs {key}")
+    for key, value in entry.items():
+        want = schema.get(key)
+        if want is None:
+            raise _fail(path, f"{where}.{key}", value, f"not a key of a {kind}; it has "
+                        f"{sorted(schema)}")
+        _value(path, f"{where}.{key}", value, want)
+
+
+def _params(path, where, params, claim) -> None:
+    if not isinstance(params, dict):
+        raise _fail(path, where, params, "a mapping of params")
+    for key in NEEDED_PARAMS.get(claim, ()):
+        if key not in params:
+            raise _fail(path, f"{where}.{key}", None, f"a reading of {claim} needs {key}")
+    for key, value in params.items():
+        if key not in PARAMS:
+            raise _fail(path, f"{where}.{key}", value, f"not a param; they are {sorted(PARAMS)}")
+        _value(path, f"{where}.{key}", value, PARAMS[key])
+
+
+def _value(path, where, value, want) -> None:
+    """`value` of the kind `want`: TEXT (a string; a changelog's commit may read as a number),
+    FLAG, CHILDREN (a list of mappings), 'a mapping', a tuple of choices or a range (lo, hi)."""
+    if want == TEXT:
+        ok = isinstance(value, str) or (where.endswith(".commit") and isinstance(value, int))
+    elif want == FLAG:
+        ok = isinstance(value, bool)
+    elif want == CHILDREN:
+        ok = isinstance(value, list) and all(isinstance(v, dict) for v in value)
+    elif isinstance(want, str):
+        ok = isinstance(value, dict)
+    elif isinstance(want[0], str):
+        ok = value in want
+        want = f"one of {list(want)}"
+    else:
+        ok = _within(value, *want)
+        want = (f"an integer in [{want[0]:,}, {want[1]:,}]" if isinstance(want[0], int)
+                else f"a finite number in [{want[0]:g}, {want[1]:g}]")
+    if not ok:
+        raise _fail(path, where, value, f"must be {want}")
+
+
+def _within(value, lo, hi) -> bool:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or (
+            isinstance(lo, int) and not isinstance(value, int)):
+        return False
+    try:
+        return math.isfinite(float(value)) and lo <= value <= hi
+    except OverflowError:  # an integer of hundreds of digits
+        return False
+
