@@ -4,9 +4,10 @@ Every kernel (Goal Babbling's float32 batch kernel, online Goal Babbling's float
 kernel) takes its vectors, its sin and cos and its step through a chain from here, so that each
 computes lane by lane what it writes, on every x86-64 CPU:
 
-- `F32x16` (vload ... vsum, LANES = 16) and `sincos` on it, for the float32 kernel;
-- `F64x8` (vload8 ... vmul8, W8 = 8), whose lanes round as the scalar loop does (separate * and
-  +; vfma8, the fused multiply-add, where a kernel asks for it), and `sincos64`, a scalar float64 sin/cos, for the float64 kernel;
+- `F32x16` (vload ... vwhere, vsum; LANES = 16) and `sincos` on it, for the float32 kernel;
+- `F64x8` (vload8 ... vwhere8; W8 = 8), whose lanes round as the scalar loop does (separate *
+  and +; vfma8, the fused multiply-add, where a kernel asks for it), and `sincos64`, a scalar
+  float64 sin/cos, for the float64 kernel; both vector sets made by one definition (_vector_set);
 - `chain_kinematics` (F32x16) and `chain_forward64` (scalar float64): the hand point carried
   backwards through the chain laid out by gbmodel.kinematics.chain_layout, joint by joint
   (F32x16: joint by joint over a block of columns).
@@ -66,26 +67,27 @@ def fresh_cache(folder, files=()) -> bool:
     return True
 
 
-LANES = 16  # width of the explicit vectors (F32x16)
-
-# ---- explicit float32 vectors of LANES lanes -----------------------------------------------------
+LANES, W8 = 16, 8  # the lanes of F32x16 and of F64x8
 _VEC = ir.VectorType(ir.FloatType(), LANES)
+_VEC8 = ir.VectorType(ir.DoubleType(), W8)
+_LLVM = {"F32x16": _VEC, "F64x8": _VEC8}
 
 
-class F32x16Type(types.Type):
-    """LLVM <16 x float>: a value in vector registers (one zmm, or two ymm without AVX-512)."""
+class VectorType(types.Type):
+    """An LLVM vector of floats in registers: F32x16 (<16 x float>: one zmm register, or two ymm
+    halves without AVX-512, with the same result lane by lane) or F64x8 (<8 x double>)."""
 
-    def __init__(self):
-        super().__init__(name="F32x16")
-
-
-F32x16 = F32x16Type()
+    def __init__(self, name):
+        super().__init__(name=name)
 
 
-@register_model(F32x16Type)
-class _F32x16Model(models.PrimitiveModel):
+F32x16, F64x8 = VectorType("F32x16"), VectorType("F64x8")
+
+
+@register_model(VectorType)
+class _VectorModel(models.PrimitiveModel):
     def __init__(self, dmm, fe_type):
-        super().__init__(dmm, fe_type, _VEC)
+        super().__init__(dmm, fe_type, _LLVM[fe_type.name])
 
 
 def _vector_pointer(context, builder, sig, args, n, vec=_VEC):
@@ -98,103 +100,88 @@ def _vector_pointer(context, builder, sig, args, n, vec=_VEC):
     return builder.bitcast(ptr, vec.as_pointer())
 
 
-@intrinsic
-def vload(typingctx, a, k, i):
-    """a[k, i:i + LANES] of a 2-d float32 array with contiguous rows (no bounds check)."""
-    def codegen(context, builder, sig, args):
-        return builder.load(_vector_pointer(context, builder, sig, args, 2), align=4)
-    return F32x16(a, k, i), codegen
-
-
-@intrinsic
-def vload1(typingctx, a, i):
-    """a[i:i + LANES] of a contiguous 1-d float32 array (no bounds check)."""
-    def codegen(context, builder, sig, args):
-        return builder.load(_vector_pointer(context, builder, sig, args, 1), align=4)
-    return F32x16(a, i), codegen
-
-
-@intrinsic
-def vstore(typingctx, a, k, i, v):
-    """a[k, i:i + LANES] = v."""
-    def codegen(context, builder, sig, args):
-        builder.store(args[3], _vector_pointer(context, builder, sig, args, 2), align=4)
-        return context.get_dummy_value()
-    return types.none(a, k, i, v), codegen
-
-
-@intrinsic
-def vstore1(typingctx, a, i, v):
-    """a[i:i + LANES] = v."""
-    def codegen(context, builder, sig, args):
-        builder.store(args[2], _vector_pointer(context, builder, sig, args, 1), align=4)
-        return context.get_dummy_value()
-    return types.none(a, i, v), codegen
-
-
-@intrinsic
-def vsplat(typingctx, x):
-    """Every lane x (cast to float32)."""
-    def codegen(context, builder, sig, args):
-        x = context.cast(builder, args[0], sig.args[0], types.float32)
-        v = builder.insert_element(ir.Constant(_VEC, ir.Undefined), x,
-                                   ir.Constant(ir.IntType(32), 0))
-        return builder.shuffle_vector(v, v, ir.Constant(ir.VectorType(ir.IntType(32), LANES),
-                                                         [0] * LANES))
-    return F32x16(x), codegen
-
-
-def _llvm(builder, name, args):
-    """A call of the LLVM intrinsic `name` on vectors."""
+def _llvm(builder, name, args, vec=_VEC):
+    """A call of the LLVM intrinsic `name` on vectors `vec`."""
+    kind = "f32" if vec is _VEC else "f64"
     fn = cgutils.get_or_insert_function(
-        builder.module, ir.FunctionType(_VEC, [_VEC] * len(args)), f"{name}.v{LANES}f32")
+        builder.module, ir.FunctionType(vec, [vec] * len(args)), f"{name}.v{vec.count}{kind}")
     return builder.call(fn, args)
 
 
-@intrinsic
-def vadd(typingctx, a, b):
-    return F32x16(a, b), lambda context, builder, sig, args: builder.fadd(*args)
+def _vector_set(vt, scalar, suffix):
+    """The operations on the vector type `vt` (scalar: its lanes' numba type), named with
+    `suffix` (F32x16: none; F64x8: 8): load (a[k, i:i + lanes] of a 2-d array with contiguous
+    rows; load1: a[i:i + lanes] of a contiguous 1-d array; no bounds check), store, store1,
+    splat (every lane x, cast to the lanes' type), and single IEEE operations: add, sub, mul,
+    div (correctly rounded), neg, sqrt (correctly rounded), fma (a * b + c rounded once: one
+    instruction on an FMA CPU, a correctly rounded libm call without) and where (x where a > b,
+    else y, lane by lane; a NaN compares false)."""
+    vec, align = _LLVM[vt.name], 4 if scalar is types.float32 else 8
+
+    def pointer(context, builder, sig, args, n):
+        return _vector_pointer(context, builder, sig, args, n, vec)
+
+    def load(typingctx, a, k, i):
+        return vt(a, k, i), lambda context, builder, sig, args: builder.load(
+            pointer(context, builder, sig, args, 2), align=align)
+
+    def load1(typingctx, a, i):
+        return vt(a, i), lambda context, builder, sig, args: builder.load(
+            pointer(context, builder, sig, args, 1), align=align)
+
+    def stored(n):
+        def codegen(context, builder, sig, args):
+            builder.store(args[n + 1], pointer(context, builder, sig, args, n), align=align)
+            return context.get_dummy_value()
+        return codegen
+
+    def store(typingctx, a, k, i, v):
+        return types.none(a, k, i, v), stored(2)
+
+    def store1(typingctx, a, i, v):
+        return types.none(a, i, v), stored(1)
+
+    def splat(typingctx, x):
+        def codegen(context, builder, sig, args):
+            x = context.cast(builder, args[0], sig.args[0], scalar)
+            v = builder.insert_element(ir.Constant(vec, ir.Undefined), x,
+                                       ir.Constant(ir.IntType(32), 0))
+            return builder.shuffle_vector(v, v, ir.Constant(
+                ir.VectorType(ir.IntType(32), vec.count), [0] * vec.count))
+        return vt(x), codegen
+
+    def binary(op):
+        def typer(typingctx, a, b):
+            return vt(a, b), lambda context, builder, sig, args: getattr(builder, op)(*args)
+        return typer
+
+    def neg(typingctx, a):
+        return vt(a), lambda context, builder, sig, args: builder.fneg(args[0])
+
+    def sqrt(typingctx, a):
+        return vt(a), lambda context, builder, sig, args: _llvm(builder, "llvm.sqrt", args, vec)
+
+    def fma(typingctx, a, b, c):
+        return vt(a, b, c), lambda context, builder, sig, args: _llvm(builder, "llvm.fma",
+                                                                      args, vec)
+
+    def where(typingctx, a, b, x, y):
+        def codegen(context, builder, sig, args):
+            return builder.select(builder.fcmp_ordered(">", args[0], args[1]), args[2], args[3])
+        return vt(a, b, x, y), codegen
+
+    ops = dict(load=load, load1=load1, store=store, store1=store1, splat=splat,
+               add=binary("fadd"), sub=binary("fsub"), mul=binary("fmul"), div=binary("fdiv"),
+               neg=neg, sqrt=sqrt, fma=fma, where=where)
+    for name, fn in ops.items():
+        fn.__name__ = fn.__qualname__ = f"v{name}{suffix}"
+    return tuple(intrinsic(fn) for fn in ops.values())
 
 
-@intrinsic
-def vsub(typingctx, a, b):
-    return F32x16(a, b), lambda context, builder, sig, args: builder.fsub(*args)
-
-
-@intrinsic
-def vmul(typingctx, a, b):
-    return F32x16(a, b), lambda context, builder, sig, args: builder.fmul(*args)
-
-
-@intrinsic
-def vdiv(typingctx, a, b):
-    """a / b, correctly rounded (IEEE)."""
-    return F32x16(a, b), lambda context, builder, sig, args: builder.fdiv(*args)
-
-
-@intrinsic
-def vneg(typingctx, a):
-    return F32x16(a), lambda context, builder, sig, args: builder.fneg(args[0])
-
-
-@intrinsic
-def vsqrt(typingctx, a):
-    """sqrt(a), correctly rounded (IEEE)."""
-    return F32x16(a), lambda context, builder, sig, args: _llvm(builder, "llvm.sqrt", args)
-
-
-@intrinsic
-def vfma(typingctx, a, b, c):
-    """a * b + c, rounded once."""
-    return F32x16(a, b, c), lambda context, builder, sig, args: _llvm(builder, "llvm.fma", args)
-
-
-@intrinsic
-def vwhere(typingctx, a, b, x, y):
-    """x where a > b, else y, lane by lane (a NaN compares false)."""
-    def codegen(context, builder, sig, args):
-        return builder.select(builder.fcmp_ordered(">", args[0], args[1]), args[2], args[3])
-    return F32x16(a, b, x, y), codegen
+(vload, vload1, vstore, vstore1, vsplat, vadd, vsub, vmul, vdiv, vneg, vsqrt, vfma,
+ vwhere) = _vector_set(F32x16, types.float32, "")
+(vload8, vload18, vstore8, vstore18, vsplat8, vadd8, vsub8, vmul8, vdiv8, vneg8, vsqrt8, vfma8,
+ vwhere8) = _vector_set(F64x8, types.float64, "8")
 
 
 _ONE_REGISTER: dict = {}  # codegen.magic_tuple() -> whether an F32x16 lives in one register
@@ -394,69 +381,8 @@ def chain_kinematics(Q, X, C, joints, body):
                 vstore(X, j, c0 + c, vfma(vsplat(base[o, 2]), vload(P, 2, c), x))
 
 
-# ---- explicit float64 vectors of W8 lanes ------------------------------------------------------
-# LLVM <8 x double>: one zmm register, two ymm or four xmm halves. Used with separate roundings
-# of * and + (no fused multiply-add), a lane computes exactly what a scalar loop computes,
-# whatever the CPU's vector width. The float64 siblings of the float32 set above, named with a
-# trailing 8.
-W8 = 8
-_VEC8 = ir.VectorType(ir.DoubleType(), W8)
-
-
-class F64x8Type(types.Type):
-    """LLVM <8 x double>."""
-
-    def __init__(self):
-        super().__init__(name="F64x8")
-
-
-F64x8 = F64x8Type()
-
-
-@register_model(F64x8Type)
-class _F64x8Model(models.PrimitiveModel):
-    def __init__(self, dmm, fe_type):
-        super().__init__(dmm, fe_type, _VEC8)
-
-
-def _pointer8(context, builder, sig, args, n):
-    return _vector_pointer(context, builder, sig, args, n, _VEC8)
-
-
-@intrinsic
-def vload8(typingctx, a, k, i):
-    """a[k, i:i + 8] of a 2-d float64 array with contiguous rows (no bounds check)."""
-    def codegen(context, builder, sig, args):
-        return builder.load(_pointer8(context, builder, sig, args, 2), align=8)
-    return F64x8(a, k, i), codegen
-
-
-@intrinsic
-def vstore8(typingctx, a, k, i, v):
-    """a[k, i:i + 8] = v."""
-    def codegen(context, builder, sig, args):
-        builder.store(args[3], _pointer8(context, builder, sig, args, 2), align=8)
-        return context.get_dummy_value()
-    return types.none(a, k, i, v), codegen
-
-
-@intrinsic
-def vload18(typingctx, a, i):
-    """a[i:i + 8] of a contiguous 1-d float64 array (no bounds check)."""
-    def codegen(context, builder, sig, args):
-        return builder.load(_pointer8(context, builder, sig, args, 1), align=8)
-    return F64x8(a, i), codegen
-
-
-@intrinsic
-def vstore18(typingctx, a, i, v):
-    """a[i:i + 8] = v."""
-    def codegen(context, builder, sig, args):
-        builder.store(args[2], _pointer8(context, builder, sig, args, 1), align=8)
-        return context.get_dummy_value()
-    return types.none(a, i, v), codegen
-
-
+# ---- F64x8: with separate roundings of * and + (no fused multiply-add), a lane computes
+# exactly what a scalar loop computes, whatever the CPU's vector width.
 @intrinsic
 def vload8f(typingctx, a, k, i):
     """a[k, i:i + 8] of a 2-d float32 array with contiguous rows, as float64 lanes (exact)."""
@@ -464,45 +390,6 @@ def vload8f(typingctx, a, k, i):
         ptr = _vector_pointer(context, builder, sig, args, 2, ir.VectorType(ir.FloatType(), W8))
         return builder.fpext(builder.load(ptr, align=4), _VEC8)
     return F64x8(a, k, i), codegen
-
-
-@intrinsic
-def vsplat8(typingctx, x):
-    """Every lane x (as float64)."""
-    def codegen(context, builder, sig, args):
-        x = context.cast(builder, args[0], sig.args[0], types.float64)
-        v = builder.insert_element(ir.Constant(_VEC8, ir.Undefined), x,
-                                   ir.Constant(ir.IntType(32), 0))
-        return builder.shuffle_vector(v, v, ir.Constant(ir.VectorType(ir.IntType(32), W8),
-                                                         [0] * W8))
-    return F64x8(x), codegen
-
-
-@intrinsic
-def vadd8(typingctx, a, b):
-    return F64x8(a, b), lambda context, builder, sig, args: builder.fadd(*args)
-
-
-@intrinsic
-def vsub8(typingctx, a, b):
-    return F64x8(a, b), lambda context, builder, sig, args: builder.fsub(*args)
-
-
-@intrinsic
-def vmul8(typingctx, a, b):
-    return F64x8(a, b), lambda context, builder, sig, args: builder.fmul(*args)
-
-
-@intrinsic
-def vfma8(typingctx, a, b, c):
-    """a * b + c, rounded once (llvm.fma: one instruction on an FMA CPU, a correctly rounded
-    libm call without)."""
-    def codegen(context, builder, sig, args):
-        fn = cgutils.get_or_insert_function(
-            builder.module, ir.FunctionType(_VEC8, [_VEC8] * 3), f"llvm.fma.v{W8}f64")
-        return builder.call(fn, args)
-    return F64x8(a, b, c), codegen
-
 
 
 @intrinsic

@@ -404,7 +404,7 @@ def plan_conditions(trials: list[dict]) -> list[dict]:
 
 
 # CPU seconds per unit of cost(): Goal Babbling's fast path on arm5, the unit of the cost model
-# (`python -m pipeline.tools.bench_costs`, its first row, in ns)
+# (`python -m pipeline.tools.bench costs`, its first row, in ns)
 SECONDS_PER_COST = 1.9e-9
 
 

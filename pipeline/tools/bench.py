@@ -1,36 +1,34 @@
-"""Benchmark: microseconds per trial-epoch, fast path against the numpy reference path, and online
-Goal Babbling's epoch against a batch epoch.
+"""Benchmarks of the compiled kernel (`make bench`), and two commands beside it.
 
     python -m pipeline.tools.bench [bench.repeats=5] [bench.parallel=false]     (make bench)
+    python -m pipeline.tools.bench compare BASELINE_DIR [ROUNDS] [REPEATS] [LEARNER]
+    python -m pipeline.tools.bench costs
 
-For arm5 and the iCub at the paper's settings (the configs `body=arm5` and `body=icub` compose)
-it times whole trials (draws, epochs and the evaluation schedule) on one core, divides by the
-number of epochs, and reports the median over repeats for both paths, measured in the same run,
-and their ratio. Then the same for online Goal Babbling's compiled path (its epoch: K L path
-samples and the returns home, its random walk drawn with it) and the ratio of its median to the
-batch fast path's median of the same run (the target: at most 2), in wall-clock and in CPU
-time, and Goal Babbling with learner.solver=lstsq (its epoch: the Gram sums and the p x p solve
-instead of the gradient step) against the gradient epoch, and Goal Babbling with
-learner.updates=online (one step per sample) against the batch epoch. The paths' trials are
-interleaved (pipeline.tools.bench.paired), so that a shared machine's drifting speed moves them alike;
-beside each ratio of the wall-clock medians (`speedup`, `*_over_*`) stands the median over repeats
-of the same ratio in CPU time, pair by pair (`*_cpu`, paired_ratio): on a loaded machine a path's
-wall clock also counts the time it waited for a core, which hides a regression that CPU time shows.
-With bench.parallel, it also times the same batch of arm5 trials on one and on two worker
-processes of the pipeline's local engine. Writes paths.bench/bench.json.
+make bench: for arm5 and the iCub at the paper's settings it times whole trials (draws, epochs
+and the evaluation schedule) on one core per epoch, the fast path against the numpy reference,
+online Goal Babbling, learner.solver=lstsq and learner.updates=online against the batch epoch,
+all interleaved (`paired`: a shared machine's drifting speed moves them alike); beside each ratio
+of the wall-clock medians stands the median of the pairs' CPU-time ratios (`*_cpu`). Then the
+floors (pipeline.tools.floor): the flops of a sample over the peak of one core measured in the
+same run (`floor_ratio`), and the compiled epoch stage by stage (`floor.stages`, `stage_row`),
+each stage against its flops over the peak and against its counted floor (every class of
+operation the formula needs, at the throughputs measured on this CPU: `floor.counted_ratio`).
+With bench.parallel, the same arm5 trials on one and two workers. Writes paths.bench/bench.json.
 
-The floor: per body, the flops of one sample counted from the kernel's code (`sample_flops`, stage
-by stage, from m, n, p and the chain) over the peak of one core measured on this machine in the
-same run (`peak_gflops`: independent fused multiply-add chains on the kernel's vector type, before
-every repeat); `floor_ratio` is the fast path's CPU time per sample over flops / peak, the median
-of the repeats' ratios (a loaded machine slows the peak and the trial alike). Beside it
-(`floor.stages`, pipeline.tools.kernel_stages) the compiled epoch stage by stage, each against
-its own flops over the peak.
+compare: the fast path's time per trial-epoch of both bodies, a baseline checkout (`git archive
+<commit> | tar -x -C /tmp/base`) against this one, each in child processes timed in CPU seconds,
+interleaved A B B A ...; LEARNER goal_babbling (default) or online_goal_babbling.
+costs: every learner's CPU time per sample and joint against Goal Babbling's fast path (each
+learner's sample_cost).
 """
 from __future__ import annotations
 
+import json
 import os
 import platform
+import statistics
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -41,14 +39,28 @@ from omegaconf import DictConfig
 
 import gbmodel
 from gbmodel.features import exponents
-from gbmodel.kinematics import chain_layout
-from gbmodel.simd import LANES, W8, F4, vadd, vfma, vsplat, vsum
+from gbmodel.learners import goal_babbling as gb
+from gbmodel.learners.goal_babbling import fast
+from gbmodel.learners.goal_babbling.core import _BLOCK, _accumulate, _features, _predict
+from gbmodel.learners.goal_babbling.fast import _epoch
+from gbmodel.learners.goal_babbling.lstsq import solver_work
+from gbmodel.learners.goal_babbling.rollout import (
+    _box, _commands, _disturbances, _weights, _work, rollout,
+)
+from gbmodel.simd import LANES, chain_kinematics, fresh_cache
 
 from .. import cli, execute, io
-from . import kernel_stages
 from ..config import CONFIG_PATH, compose
 from ..plan import plan
+from .floor import (  # noqa: F401 (the floors' names, as bench.json's keys call them)
+    CLASSES, body_counts, counted_floor, online_sample_flops, peak_gflops, probe_ns, sample_counts, sample_flops,
+)
 
+# _part holds the kernels it calls, compiled in: its cache (with this folder's other kernels)
+# goes when their code changes, or the bench would time the kernels of before an edit
+fresh_cache(Path(__file__).parent, sorted(Path(fast.__file__).parent.glob("*.py")))
+
+REPO = Path(__file__).resolve().parents[2]
 # epochs per timed trial: long enough to swamp timer noise, short enough for the reference path
 EPOCHS = {"fast": {"arm5": 5000, "icub": 1000}, "reference": {"arm5": 100, "icub": 20},
           "online": {"arm5": 5000, "icub": 1000}, "lstsq": {"arm5": 5000, "icub": 1000},
@@ -105,103 +117,143 @@ RATIOS = {"speedup": ("reference", "fast"), "online_over_batch": ("online", "fas
           "updates_online_over_batch": ("updates_online", "fast")}  # speedup: fast is b's
 
 
-# ---- the floor: flops of a sample over the peak of one core -------------------------------------
-# Counted from the kernel's code (gbmodel/learners/goal_babbling: rollout.py, core.py, gradient.py;
-# gbmodel/simd.py): a fused multiply-add is 2 flops; an add, subtract, multiply, divide or square
-# root 1; a sign flip, compare, select (the clips, the guards of eq. 1-3) or a store 0.
-SINCOS_FLOPS = 23  # simd.sincos: 4 fma + 1 sub + 1 mul (reduction, r^2), 3 fma + 1 mul (sin),
-#                   4 fma (cos)
+# ---- the compiled epoch stage by stage --------------------------------------------------------
+# stage -> the flop stages of bench.sample_flops it computes
+STAGES = {"commands": ("commands",), "kinematics": ("kinematics",), "weights": ("weights",),
+          "features": ("features",), "M_phi_error": ("M_phi", "error"),
+          "gradient": ("gradient",)}
+_PARTS = ("commands", "kinematics", "weights", "features", "features_predict",
+          "features_predict_gradient", "epoch")
 
 
-def sample_flops(body, p: int, V: int, T: int) -> dict:
-    """Flops of one sample of an epoch of the batch kernel (solver=gradient), stage by stage, for
-    a body's chain (m joints, n outputs), p features, V variations of T + 1 samples: what the
-    kernel computes per sample column (simd.chain_kinematics, rollout._commands and _weights,
-    core._features, _predict and _accumulate); g along the path (once per path column, shared by
-    the V variations) is counted per sample."""
-    chain, m, n = chain_layout(body), body.m, body.n
-    kinematics = 0
-    for i in range(m):
-        theta = 2 if body.normalized else 1  # q (span / 2) + ... : an fma; q + offset: an add
-        if chain["general"]:
-            step = 3 * 6 + 6  # R_i p + t_i (9 fma), then Rz: 2 fma + 2 mul
+@njit(cache=True)
+def _part(what, reps, M, idx, raw, amp, chain, targets, home, parent, var, joints, radius,
+          steps, rate, plain, rule, ring, M0):
+    """`reps` times one part of the epoch (what: an index of _PARTS) on the samples of the
+    first epoch's rollout; 'epoch' runs the kernel's own epoch (fast._epoch: rollout and update)
+    over the draws in turn, on a copy of M. Returns the epoch's padded sample count."""
+    m, p = M.shape
+    n = targets.shape[1]
+    V, T = raw.shape[1], (idx.shape[1] - 1) * steps
+    work = _work(m, n, p, V, T)
+    box = _box(targets)
+    solving = solver_work(m, n, p, V, T, False)
+    rollout(M, idx[0], raw[0], amp[0], 1.0, chain, targets, home, parent, var, joints, radius,
+            steps, box, work)
+    Q, X, w, Phi, Rw, path, gpath, M32, GL = (work[0], work[1], work[2], work[3], work[4],
+                                              work[5], work[7], work[12], work[13])
+    Npad = len(w) - LANES
+    for e in range(reps):
+        if what == 0:  # the disturbances, g along the path, the commands
+            _disturbances(raw[0], amp[0], 1.0, box[0], box[1], radius, work[10], work[11])
+            _features(path, 0, gpath.shape[1], parent, var, work[6])
+            _predict(M32, work[6], gpath.shape[1], gpath, Q, w[:0], 0)
+            _commands(gpath, path, work[10], work[11], home, T, Npad, Q)
+        elif what == 1:
+            chain_kinematics(Q, X, Npad, joints, chain)
+        elif what == 2:
+            _weights(work[8], work[9], X, Q, V, T, Npad, w)
+        elif what == 6:
+            k = e % len(idx)
+            _epoch(M.copy(), idx[k], raw[k], amp[k], 1.0, chain, targets, home, parent,
+                   var, joints, radius, steps, rate, plain, rule, 1, box, work, ring, 0,
+                   0.0, 0.0, 0.0, M0, solving)
         else:
-            ca, sa = chain["cos_alpha"][i], chain["sin_alpha"][i]
-            twist = 1 if (ca, sa) in ((1, 0), (0, 1), (0, -1)) else 7  # pz +- d; or Rx(alpha)
-            step = 1 + twist + 6  # u = p_x + a; Rz: 2 fma + 2 mul
-        kinematics += theta + SINCOS_FLOPS + step
-    kinematics += 6 * n  # the base: 3 fma per output
-    path_columns = -(-(T + 1) // LANES) * LANES
-    flops = {
-        # g + A x* + b: an add and n fma per joint; g along the path (features, M Phi) per sample
-        "commands": m * (1 + 2 * n) + (p - 1 + m * (2 * p - 1)) * path_columns / (V * (T + 1)),
-        "kinematics": kinematics,  # theta, sin and cos, the chain step per joint, the base
-        # eq. 1-3: dx, dot, |dx|^2 per output; dq, |dq|^2 per joint; 2 sqrt, 2 div, 2 mul, 1 add
-        "weights": 5 * n + 3 * m + 8,
-        "features": p - 1,  # one product per monomial
-        "M_phi": m * (2 * p - 1),  # a product and p - 1 fma per row
-        "error": 2 * m,  # w (M phi - q): a subtract and a multiply per row
-        "gradient": 2 * m * p,  # one fma per entry of R Phi^T
-    }
-    flops["total"] = sum(flops.values())
-    return flops
+            for c0 in range(0, Npad, _BLOCK):
+                C = min(_BLOCK, Npad - c0)
+                _features(X, c0, C, parent, var, Phi)
+                if what >= 4:
+                    _predict(M32, Phi, C, Rw, Q, w, c0)
+                if what == 5:
+                    _accumulate(Rw, Phi, C, GL)
+    return Npad
 
 
-def online_sample_flops(body, p: int, V: int, T: int) -> dict:
-    """Flops of one sample of an epoch with learner.updates=online: the rollout's stages of
-    sample_flops (the same float32 kernel), then the online step in float64
-    (goal_babbling/online.py), counted from its code on the W = m rounded up to W8 lanes it
-    computes: per pair of samples s_t, g_t+1, s_t+1 (6 W), per feature the two steps and the two
-    predictions (4 fma: 8 W p), then g and P (4 W); per sample eta w (1), the features (p - 1)
-    and d = phi_t . phi_t+1 (2 p - 1). A float64 flop counts as two float32 ones: a vector holds
-    half as many lanes, and the peak is measured in float32."""
-    batch = sample_flops(body, p, V, T)
-    W = -(-body.m // W8) * W8
-    step = 4 * W * p + 5 * W + 1 + (p - 1) + (2 * p - 1)
-    flops = {k: batch[k] for k in ("commands", "kinematics", "weights")}
-    flops["online_step_float64_x2"] = 2 * step
-    flops["total"] = sum(flops.values())
-    return flops
+def _inputs(spec: dict, epochs: int = 64):
+    spec = gbmodel.TrialSpec.from_dict(spec)
+    body, (_, params) = spec.make_body(), spec.make_learner()
+    rng = np.random.default_rng(0)
+    M = gb.init(params, body, 1.0, rng)
+    idx, raw = gb.draw(params, body, epochs, rng)[:2]
+    exps = exponents(body.n, params.degree)
+    arr, opts = fast._arrays(body, exps), fast._options(params)
+    if opts["rule"] != fast.GRADIENT:
+        raise ValueError("the stages are the batch gradient rule's (solver=gradient, "
+                         "updates=batch)")
+    return (M, idx, raw, fast._amplitudes(raw, None), arr["chain"], arr["targets"], arr["home"],
+            arr["parent"], arr["var"], arr["joints"], opts["radius"], opts["steps"],
+            float(params.learning_rate), opts["plain"], opts["rule"], fast._NO_RING,
+            fast._NO_M0)
 
 
-@njit(cache=True)
-def _fma_chains(iters):
-    """6 independent chains of vfma on the kernel's vector type (F32x16: 12 ymm or 6 zmm
-    registers), iters steps each: 6 * LANES * 2 flops per step."""
-    m, c = vsplat(F4(0.999)), vsplat(F4(0.001))
-    a0, a1, a2, a3 = vsplat(1.0), vsplat(1.1), vsplat(1.2), vsplat(1.3)
-    a4, a5 = vsplat(1.4), vsplat(1.5)
-    for _ in range(iters):
-        a0, a1, a2 = vfma(a0, m, c), vfma(a1, m, c), vfma(a2, m, c)
-        a3, a4, a5 = vfma(a3, m, c), vfma(a4, m, c), vfma(a5, m, c)
-    return vsum(vadd(vadd(vadd(a0, a1), vadd(a2, a3)), vadd(a4, a5)))
+def stage_row(spec: dict, flops: dict, counts: dict, peak, repeats: int = 5,
+              seconds: float = 0.1) -> dict:
+    """Where a sample's time goes in the compiled epoch of `spec` (a TrialSpec as data:
+    paper_spec): each stage (rollout.py: the commands with the disturbances and g along the
+    path, the kinematics, the weights; gradient.py with core.py: the features, M Phi and the
+    weighted residuals, the gradient's register tiles) runs alone, many times over one epoch's
+    samples, in turn, in reversed order every other repeat; its CPU time per padded sample
+    (median) beside its flops (`flops`, by flop stage) over the peak measured before every
+    repeat (`peak()`), and beside its counted floor (`counts`, by flop stage: floor.
+    sample_counts, priced by floor.probe_ns measured here). What the stages leave of a whole
+    epoch (the path, the home posture, the update of M, the calls) is the `rest`."""
+    args = _inputs(spec)
+    Npad = _part(0, 1, *args)
+    reps = {}
+    for i in range(len(_PARTS)):  # compiled or loaded, and sized to about `seconds` each
+        t0 = time.process_time()
+        _part(i, 4, *args)
+        reps[i] = max(4, int(seconds / max(time.process_time() - t0, 1e-6) * 4))
+    ns, peaks, probe = {name: [] for name in _PARTS}, [], probe_ns()
+    for r in range(repeats):
+        peaks.append(peak())
+        for i in (range(len(_PARTS)) if r % 2 == 0 else reversed(range(len(_PARTS)))):
+            t0 = time.process_time()
+            _part(i, reps[i], *args)
+            ns[_PARTS[i]].append(1e9 * (time.process_time() - t0) / reps[i] / Npad)
+    t = {k: float(np.median(v)) for k, v in ns.items()}
+    peak = float(np.median(peaks))
+    times = {"commands": t["commands"], "kinematics": t["kinematics"], "weights": t["weights"],
+             "features": t["features"],
+             "M_phi_error": t["features_predict"] - t["features"],
+             "gradient": t["features_predict_gradient"] - t["features_predict"]}
+    stages = {}
+    for name, parts in STAGES.items():
+        f = sum(flops[k] for k in parts)
+        counted = counted_floor({c: sum(counts[k].get(c, 0) for k in parts)
+                                 for c in CLASSES}, probe)
+        stages[name] = {"ns_per_sample": times[name], "flops": f, "floor_ns": f / peak,
+                        "ratio": times[name] / (f / peak), "counted": counted,
+                        "counted_ratio": times[name] / counted["floor_ns"]}
+    stages["rest"] = {"ns_per_sample": t["epoch"] - sum(times.values()), "flops": 0,
+                      "floor_ns": 0.0, "ratio": None}
+    floor = sum(s["counted"]["floor_ns"] for s in stages.values() if "counted" in s)
+    return {"samples_padded": Npad, "peak_gflops": peak, "epoch_ns_per_sample": t["epoch"],
+            "epoch_floor_ratio": t["epoch"] / (sum(flops.values()) / peak), "stages": stages,
+            "probe_ns_per_vector": probe, "counted_floor_ns": floor,
+            "counted_ratio": t["epoch"] / floor}
 
 
-@njit(cache=True)
-def _fma_chains8(iters):
-    """8 chains (for a CPU whose fma latency times its fma units exceeds 6 vectors)."""
-    m, c = vsplat(F4(0.999)), vsplat(F4(0.001))
-    a0, a1, a2, a3 = vsplat(1.0), vsplat(1.1), vsplat(1.2), vsplat(1.3)
-    a4, a5, a6, a7 = vsplat(1.4), vsplat(1.5), vsplat(1.6), vsplat(1.7)
-    for _ in range(iters):
-        a0, a1, a2, a3 = vfma(a0, m, c), vfma(a1, m, c), vfma(a2, m, c), vfma(a3, m, c)
-        a4, a5, a6, a7 = vfma(a4, m, c), vfma(a5, m, c), vfma(a6, m, c), vfma(a7, m, c)
-    return vsum(vadd(vadd(vadd(a0, a1), vadd(a2, a3)), vadd(vadd(a4, a5), vadd(a6, a7))))
+def stage_lines(body_name: str, row: dict) -> list[str]:
+    out = [f"{body_name}: the compiled epoch {row['epoch_ns_per_sample']:.2f} ns per sample, "
+           f"{row['epoch_floor_ratio']:.2f}x its flop floor (peak {row['peak_gflops']:.0f} "
+           f"GFLOP/s), {row['counted_ratio']:.2f}x its counted floor "
+           f"({row['counted_floor_ns']:.2f} ns)"]
+    for name, s in row["stages"].items():
+        ratio = "" if s["ratio"] is None else (
+            f"  floor {s['floor_ns']:5.2f} ns ({s['flops']:4.0f} flops)  {s['ratio']:5.2f}x"
+            f"  counted {s['counted']['floor_ns']:5.2f} ns ({s['counted']['bound']})"
+            f"  {s['counted_ratio']:5.2f}x")
+        out.append(f"  {name:12s} {s['ns_per_sample']:6.2f} ns{ratio}")
+    return out
 
 
-def peak_gflops(iters: int = 2_000_000, tries: int = 3) -> float:
-    """The peak of one core in float32 GFLOP/s, measured: the best CPU-time rate of `tries` runs
-    of 6 and of 8 independent fma chains on F32x16 (about 10 ms each at 100 GFLOP/s)."""
-    best = 0.0
-    for fn, chains in ((_fma_chains, 6), (_fma_chains8, 8)):
-        fn(10)  # compiled or loaded outside the timing
-        for _ in range(tries):
-            c0 = time.process_time()
-            fn(iters)
-            dt = time.process_time() - c0
-            if dt > 0:
-                best = max(best, iters * chains * LANES * 2 / dt / 1e9)
-    return best
+def shape(body_name: str) -> tuple:
+    """(body, samples per epoch, features p, variations V, path steps T) at paper_spec's."""
+    spec = gbmodel.TrialSpec.from_dict(paper_spec(body_name, 10, True))
+    body, (learner, params) = spec.make_body(), spec.make_learner()
+    return (body, learner.samples_per_epoch(params, body), len(exponents(body.n, params.degree)),
+            params.variations, params.targets_per_epoch * params.steps)
 
 
 def floor_row(body_name: str, cpu_s: list, peaks: list, count=sample_flops) -> dict:
@@ -209,11 +261,8 @@ def floor_row(body_name: str, cpu_s: list, peaks: list, count=sample_flops) -> d
     and per stage, by `count`: sample_flops, or online_sample_flops for updates=online), the peak
     (median of the repeats) and floor_ratio, the median over repeats of the time per sample over
     flops / that repeat's peak."""
-    spec = gbmodel.TrialSpec.from_dict(paper_spec(body_name, 10, True))
-    body, (learner, params) = spec.make_body(), spec.make_learner()
-    N = learner.samples_per_epoch(params, body)
-    p = len(exponents(body.n, params.degree))
-    flops = count(body, p, params.variations, params.targets_per_epoch * params.steps)
+    body, N, p, V, T = shape(body_name)
+    flops = count(body, p, V, T)
     ns = [1e9 * t / N for t in cpu_s]
     return {"samples_per_epoch": N, "ns_per_sample": float(np.median(ns)),
             "flops_per_sample": flops["total"],
@@ -298,10 +347,13 @@ def bench(cfg: DictConfig) -> dict:
         row["updates_online_over_batch"] = (row["updates_online_us_per_trial_epoch"]
                                             / row["fast_us_per_trial_epoch"])
         row["floor"] = floor = floor_row(body, [t[1] for t in times["fast"]], peaks)
-        # where the compiled epoch's time goes, stage by stage against each stage's floor
-        floor["stages"] = kernel_stages.stage_row(paper_spec(body, 10, True),
-                                                  floor["flops_per_stage"],
-                                                  lambda: peak_gflops(tries=1), repeats)
+        # where the compiled epoch's time goes, stage by stage against each stage's floors
+        b, _, p, V, T = shape(body)
+        floor["stages"] = st = stage_row(paper_spec(body, 10, True), floor["flops_per_stage"],
+                                         body_counts(b, p, V, T), lambda: peak_gflops(tries=1),
+                                         repeats)
+        floor["counted_floor_ns"], floor["counted_ratio"] = (st["counted_floor_ns"],
+                                                             st["counted_ratio"])
         row["updates_online_floor"] = online = floor_row(
             body, [t[1] for t in times["updates_online"]], peaks, online_sample_flops)
         # the online/batch ratio that both at their floors would give
@@ -324,7 +376,7 @@ def bench(cfg: DictConfig) -> dict:
             flush=True)
         print(f"{body}: floor: " + floor_line(floor)
               + f", peak {floor['peak_gflops']:.1f} GFLOP/s measured", flush=True)
-        print("\n".join(kernel_stages.lines(body, floor["stages"])), flush=True)
+        print("\n".join(stage_lines(body, floor["stages"])), flush=True)
         print(f"{body}: updates=online floor: " + floor_line(online) + "; online/batch at both "
               f"floors {row['updates_online_over_batch_at_floor']:.2f}", flush=True)
     if cfg.bench.parallel:
@@ -335,6 +387,86 @@ def bench(cfg: DictConfig) -> dict:
     io.write_json(out, result)
     print(f"wrote {out}")
     return result
+
+
+# ---- compare: two checkouts side by side; costs: every learner against the fast path --------
+CHILD = r'''
+import json, sys, time
+import numpy as np, gbmodel
+from pipeline.tools.bench import EPOCHS, paper_spec
+
+
+def time_trial(spec, seed=0):
+    t0 = time.process_time()
+    gbmodel.run_trial(gbmodel.TrialSpec.from_dict(spec), np.random.default_rng(seed))
+    return (time.process_time() - t0) / spec["epochs"]
+
+
+out, learner = {}, sys.argv[2]
+path = "online" if learner == "online_goal_babbling" else "fast"
+for body in ("arm5", "icub"):
+    spec = paper_spec(body, EPOCHS[path][body], True, learner)
+    time_trial(paper_spec(body, 10, True, learner))
+    out[body] = [time_trial(spec, s) * 1e6 for s in range(int(sys.argv[1]))]
+print(json.dumps(out))
+'''
+
+
+def compare(baseline: str, rounds: int = 4, reps: int = 3, learner: str = "goal_babbling") -> dict:
+    """Medians [us per trial-epoch, CPU] per body of `baseline` and this checkout, each round
+    `reps` trials per body in a child process of each, in turn; prints them with the ratios."""
+    trees = {"baseline": str(Path(baseline).resolve()), "this": str(REPO)}
+    res = {t: {"arm5": [], "icub": []} for t in trees}
+    for r in range(rounds):
+        for t, path in (trees.items() if r % 2 == 0 else reversed(list(trees.items()))):
+            p = subprocess.run([sys.executable, "-c", CHILD, str(reps), learner], cwd=path,
+                               capture_output=True, text=True,
+                               env={"PYTHONPATH": path, "PATH": "/usr/bin:/bin"})
+            assert p.returncode == 0, p.stderr[-2000:]
+            for b, times in json.loads(p.stdout.strip().splitlines()[-1]).items():
+                res[t][b] += times
+    for b in ("arm5", "icub"):
+        m = {t: statistics.median(res[t][b]) for t in trees}
+        print(f"{b}: baseline {m['baseline']:.1f} us/trial-epoch, this {m['this']:.1f} "
+              f"us/trial-epoch, ratio this/baseline {m['this'] / m['baseline']:.3f} "
+              f"(medians of {len(res['baseline'][b])})")
+    return res
+
+
+COSTS = [("goal_babbling", []), ("goal_babbling", ["learner.fast=false"]),
+         ("goal_babbling", ["learner.updates=online"]), ("online_goal_babbling", []),
+         ("online_goal_babbling", ["learner.fast=false"]), ("motor_babbling", []),
+         ("example_memory", []), ("example_memory", ["learner.window=0"])]
+
+
+def per_unit(body: str, learner: str, extra: list[str], least_s: float = 1.0) -> float:
+    """CPU seconds per unit of unweighted cost (epochs x samples per epoch x joints) of one
+    trial without growth, its epochs quadrupled until it takes `least_s` of CPU time."""
+    spec = plan(compose([f"body={body}", f"learner={learner}", "growth=none", "trials.count=1",
+                         "learner.epochs=10", *extra]))[0]["spec"]
+    gbmodel.run_trial(gbmodel.TrialSpec.from_dict(spec), np.random.default_rng(0))
+    epochs = 10
+    while True:
+        spec = {**spec, "epochs": epochs}
+        t0 = time.process_time()
+        gbmodel.run_trial(gbmodel.TrialSpec.from_dict(spec), np.random.default_rng(1))
+        seconds = time.process_time() - t0
+        if seconds > least_s:
+            break
+        epochs *= 4
+    trial = gbmodel.TrialSpec.from_dict(spec)
+    (module, params), b = trial.make_learner(), trial.make_body()
+    return seconds / (epochs * module.samples_per_epoch(params, b) * b.m)
+
+
+def costs() -> None:
+    for body in ("arm5", "icub"):
+        base = None
+        for learner, extra in COSTS:
+            t = per_unit(body, learner, extra)
+            base = base or t
+            print(f"{body:5s} {learner:21s} {' '.join(extra):24s} {1e9 * t:9.2f} ns per sample "
+                  f"and joint, {t / base:8.1f}x Goal Babbling's fast path", flush=True)
 
 
 def run(cfg: DictConfig) -> int:
@@ -349,4 +481,9 @@ def main(cfg: DictConfig) -> None:
 
 
 if __name__ == "__main__":
-    cli.main(main)
+    if sys.argv[1:2] == ["compare"]:
+        compare(sys.argv[2], *(int(a) for a in sys.argv[3:5]), *sys.argv[5:6])
+    elif sys.argv[1:2] == ["costs"]:
+        costs()
+    else:
+        cli.main(main)

@@ -1,43 +1,39 @@
-"""Benchmark: the pipeline on sweeps of many short trials, from nothing, stage by stage.
+"""Benchmarks of the pipeline at scale: sweeps of many short trials from nothing, stage by stage
+(`make scale`); a cold report against another checkout; the cached Makefile stages.
 
     python -m pipeline.tools.scale                           # 1,000 and 10,000 trials
     python -m pipeline.tools.scale --sizes 100000            # the large one (about an hour)
     python -m pipeline.tools.scale --baseline /tmp/base      # the same, beside another checkout
     python -m pipeline.tools.scale --sampled 100000          # 100,000 planned, 1,000 run
+    python -m pipeline.tools.scale report --baseline /tmp/base [--rounds 3] [--profile full]
+                                          [--experiments E1,E2] [--aggregates this|own]
+    python -m pipeline.tools.scale stages [--profile full] [--repeats 3]
 
-A sweep is arm5 trials of `--epochs` (10) epochs, over ten conditions (growth periods 1 ... 10,
-trials.count = size / 10), in its own temporary root. Each stage runs as the command a user
-types (`python -m pipeline.<stage> ...`, in the checkout under test), and each is recorded with
-its wall time, CPU time (its processes and their workers), peak memory (the largest process)
-and the files under the cache afterwards:
+A sweep: arm5 trials of --epochs (10) epochs over ten conditions (growth periods 1 ... 10), in
+a temporary root; each stage runs as the command a user types, in the checkout under test, with
+its wall and CPU time (its processes and workers), peak memory and the cache's files: simulate
+(from nothing), simulate_cached, aggregate, aggregate_cached, aggregate_one (after one trial
+changed: its sidecar's content, sealed again). --sampled N plans all N as simulate does (then
+from the saved plan) and runs the stages on --sample trials (1,000), whose costs per trial times
+N estimate the stages at N (`estimated_cpu_s`). --smoke-experiments (make scale passes make
+smoke's) also times a fully cached make smoke, --repeat times after bringing it up to date. The
+last lines: the cached smoke's CPU (target SMOKE_TARGET_S) and aggregate's after one changed
+trial of 10,000 (target ONE_TRIAL_TARGET_S), each the median of --repeat runs. With --baseline,
+every size runs on the baseline right after this one, the start-up runs alternating (a shared
+machine's load falls on both alike). Results: --out (JSON) and a table (ms CPU per trial).
 
-    simulate          from nothing
-    simulate_cached   again: every trial cached
-    aggregate         the first build
-    aggregate_cached  again: nothing changed
-    aggregate_one     after one trial changed (its sidecar's content, sealed again)
-
---sampled N measures a sweep of N trials without running them all: planning all N as simulate
-does (compose, plan, the saved plan written; then again, the saved plan read), in a process of
-its own, and every stage above on a sample of --sample trials (1,000) whose costs per trial,
-times N, estimate the stages at N (recorded as `estimated_cpu_s`, with `sampled`).
-
---smoke-experiments E1,E2,... (make scale passes make smoke's FIGURES) also times a fully
-cached `make smoke`: its three stage commands (simulate, aggregate, report at profile=smoke in the
-checkout's own outputs/smoke) once to bring the cache and the report up to date, then --repeat
-times, measured (`cached_smoke`). The last lines say the two start-up numbers the targets are set on:
-the cached smoke's CPU (target at most SMOKE_TARGET_S) and aggregate's after one changed trial of
-the 10,000-trial sweep (at most ONE_TRIAL_TARGET_S).
-
-With --baseline, every size runs on the baseline checkout right after this one (paired: the
-load of a shared machine falls on both alike). The two start-up numbers are each the median of
---repeat runs (3), the checkouts' runs alternating (a single run on a shared two-core machine
-varied by a third): aggregate_one changes one more trial before each run. The results go to --out as JSON and are printed as
-a table; per-trial figures (ms CPU per trial) make sizes comparable.
+report: a cold report (every figure drawn), this checkout against BASELINE (`git worktree add
+/tmp/base <commit>`) in CPU time, A B then B A ...; both on this checkout's aggregates (make
+smoke, or make reproduce for --profile full, first), or with --aggregates own each on its own
+outputs/ (an older checkout). A report that fails or writes no report.md stops it with its error.
+It prints each pair's ratio this / baseline, their median (the figure to quote) and the files
+whose bytes differ in the last pair. stages: the three stage commands of every make list's
+experiments on a fully cached tree (cached_smoke), --repeats times: each one's median.
 """
 from __future__ import annotations
 
 import argparse
+import filecmp
 import json
 import os
 import shutil
@@ -87,20 +83,11 @@ def run_command(code: Path, stage: str, args: list[str]) -> tuple[dict, int, byt
             os.waitstatus_to_exitcode(status), err)
 
 
-def smoke_args(experiments: str) -> list[str]:
-    return [f"experiments=[{experiments}]", "profile=smoke"]
-
-
-def smoke_ready(code: Path, experiments: str) -> None:
-    """make smoke's three commands in checkout `code` (its outputs/smoke), unmeasured: the
-    cache, the aggregates and the report brought up to date."""
-    for stage in SMOKE_STAGES:
-        run_stage(code, stage, smoke_args(experiments))
-
-
-def smoke_once(code: Path, experiments: str) -> dict:
-    """make smoke's three commands again, all cached: each stage's wall, CPU and peak memory."""
-    out = {stage: run_stage(code, stage, smoke_args(experiments)) for stage in SMOKE_STAGES}
+def smoke_once(code: Path, experiments: str, profile: str = "smoke") -> dict:
+    """make smoke's three commands (or make reproduce's: profile full) in checkout `code`: each
+    stage's wall, CPU and peak memory."""
+    args = [f"experiments=[{experiments}]", f"profile={profile}"]
+    out = {stage: run_stage(code, stage, args) for stage in SMOKE_STAGES}
     return dict(out, cpu_s=round(sum(out[s]["cpu_s"] for s in SMOKE_STAGES), 3))
 
 
@@ -111,15 +98,17 @@ def median_of(runs: list[dict]) -> dict:
     return dict(out, runs_cpu_s=[r["cpu_s"] for r in runs])
 
 
-def cached_smoke(codes: list[Path], experiments: str, repeat: int) -> list[dict]:
-    """A fully cached make smoke in each checkout: brought up to date, then `repeat` measured
-    runs, the checkouts alternating; per checkout each stage's median and the median total."""
+def cached_smoke(codes: list[Path], experiments: str, repeat: int,
+                 profile: str = "smoke") -> list[dict]:
+    """A fully cached make smoke in each checkout: brought up to date (the cache, the aggregates
+    and the report, unmeasured), then `repeat` measured runs, the checkouts alternating; per
+    checkout each stage's median and the median total."""
     for code in codes:
-        smoke_ready(code, experiments)
+        smoke_once(code, experiments, profile)
     runs = {code: [] for code in codes}
     for _ in range(repeat):
         for code in codes:
-            runs[code].append(smoke_once(code, experiments))
+            runs[code].append(smoke_once(code, experiments, profile))
     return [dict({s: median_of([r[s] for r in runs[code]]) for s in SMOKE_STAGES}, code=str(code),
                  cpu_s=round(statistics.median(r["cpu_s"] for r in runs[code]), 3),
                  runs_cpu_s=[r["cpu_s"] for r in runs[code]]) for code in codes]
@@ -197,14 +186,9 @@ def finish(out: dict, runs: list[dict]) -> dict:
     return out
 
 
-def sweep(code: Path, size: int, epochs: int, workers: int, keep: bool, repeat: int = 1) -> dict:
+def sweep(code: Path, size: int, epochs: int, workers: int, keep: bool) -> dict:
     """Every stage of one sweep of `size` trials on checkout `code`, in a new temporary root."""
-    out, root = prepare(code, size, epochs, workers)
-    try:
-        return finish(out, [changed_once(code, root, size, epochs) for _ in range(repeat)])
-    finally:
-        if not keep:
-            shutil.rmtree(root, ignore_errors=True)
+    return paired([code], size, epochs, workers, keep, 1)[0]
 
 
 def paired(codes: list[Path], size: int, epochs: int, workers: int, keep: bool,
@@ -268,10 +252,9 @@ def sampled(code: Path, size: int, sample: int, epochs: int, workers: int, keep:
 
 
 def packing(n: int, rows: int = 11) -> dict:
-    """The cache's file layout against a packed one, on `n` synthetic trial curves of `rows`
-    epochs (TRIAL_CURVE) and their sidecars: files, bytes, and ms per trial to write them and to
-    read and checksum them back. per_trial: a Parquet curve and a JSON sidecar each (the cache);
-    packed: one Parquet of every curve (a key column) and one JSON of every sidecar."""
+    """The cache's layout (per_trial: a Parquet curve and a JSON sidecar each) against a packed
+    one (one Parquet of every curve, a key column, and one JSON of every sidecar), on `n`
+    synthetic curves of `rows` epochs: files, MB, ms per trial to write and to read back."""
     import hashlib
 
     import numpy as np
@@ -345,7 +328,111 @@ def load() -> str:
     return f"load average {one:.2f} {five:.2f} {fifteen:.2f} on {os.cpu_count()} CPUs"
 
 
+# ---- report: a cold report against a baseline; stages: the cached Makefile stages ----------------
+def report_args(experiments: list[str], profile: str, out: Path, root: Path = REPO) -> list[str]:
+    """The Makefile's report command of `experiments` (pipeline.report's arguments), on the
+    aggregates under `root` (this checkout's), into `out` (inside `root`)."""
+    return [f"experiments=[{','.join(experiments)}]", f"profile={profile}", f"paths.root={root}",
+            f"paths.report={out}"]
+
+
+def cold_report(code: Path, args: list[str], out: Path) -> float:
+    """CPU seconds of one report of checkout `code` into `out`; RuntimeError with the stage's
+    last words when it fails or leaves no report.md."""
+    usage, rc, err = run_command(code, "report", args)
+    if rc != 0 or not (out / "report.md").is_file():
+        tail = " | ".join(err.decode(errors="replace").strip().splitlines()[-3:])
+        raise RuntimeError(f"the report of {code} exited {rc} without {out}/report.md: {tail}")
+    return usage["cpu_s"]
+
+
+def differing(a: Path, b: Path) -> list[str]:
+    """The files of report folder `a` whose bytes differ from `b`'s (or that only one has)."""
+    files = {p.relative_to(a).as_posix() for p in a.rglob("*") if p.is_file()}
+    files |= {p.relative_to(b).as_posix() for p in b.rglob("*") if p.is_file()}
+    return sorted(f for f in files if not ((a / f).is_file() and (b / f).is_file()
+                                           and filecmp.cmp(a / f, b / f, shallow=False)))
+
+
+def report_pairs(trees: dict, roots: dict, exps: list[str], profile: str, rounds: int) -> tuple:
+    """`rounds` pairs of cold reports of the checkouts `trees` (this, baseline) on the aggregates
+    under `roots`: (CPU seconds per checkout, the files that differ in the last pair)."""
+    cpu, tmps = {t: [] for t in trees}, {}
+    try:
+        for t in trees:  # a report is written under paths.root only
+            (roots[t] / "outputs").mkdir(exist_ok=True)
+            tmps[t] = Path(tempfile.mkdtemp(prefix=f".bench_report_{t}_",
+                                            dir=roots[t] / "outputs"))
+        for r in range(rounds):
+            for t in (list(trees) if r % 2 == 0 else list(trees)[::-1]):
+                out = tmps[t] / f"{t}{r}"
+                cpu[t].append(cold_report(trees[t], report_args(exps, profile, out, roots[t]),
+                                          out))
+            print(f"round {r + 1}: this {cpu['this'][-1]:.2f} s CPU, baseline "
+                  f"{cpu['baseline'][-1]:.2f} s, ratio {cpu['this'][-1] / cpu['baseline'][-1]:.3f}",
+                  flush=True)
+        last = rounds - 1
+        return cpu, differing(tmps["this"] / f"this{last}", tmps["baseline"] / f"baseline{last}")
+    finally:
+        for tmp in tmps.values():
+            shutil.rmtree(tmp, ignore_errors=True)
+
+
+def report_main(argv: list[str]) -> int:
+    from ..experiments import listed
+    from .experiments import config_folders
+
+    ap = argparse.ArgumentParser(prog="python -m pipeline.tools.scale report")
+    ap.add_argument("--baseline", type=Path, required=True, help="another checkout")
+    ap.add_argument("--rounds", type=int, default=3, help="pairs of reports (default 3)")
+    ap.add_argument("--profile", default="smoke", choices=("smoke", "full"))
+    ap.add_argument("--experiments", help="comma-separated (default: every make list's)")
+    ap.add_argument("--aggregates", choices=("this", "own"), default="this",
+                    help="whose aggregates each checkout reports (own: each its own outputs/)")
+    a = ap.parse_args(argv)
+    bad = ((not (a.baseline / "pipeline" / "report.py").is_file(),
+            f"--baseline={a.baseline}: not a checkout of this project"),
+           (a.rounds < 1, f"--rounds={a.rounds}: at least 1"))
+    for why in (why for is_bad, why in bad if is_bad):
+        print(f"error: {why}", file=sys.stderr)
+        return 2
+    exps = a.experiments.split(",") if a.experiments else listed(config_folders())
+    trees = {"this": REPO, "baseline": a.baseline.resolve()}
+    roots = {t: (trees[t] if a.aggregates == "own" else REPO) for t in trees}
+    try:
+        cpu, diff = report_pairs(trees, roots, exps, a.profile, a.rounds)
+    except RuntimeError as err:
+        return print(f"error: {err}", file=sys.stderr) or 2
+    ratios = [x / y for x, y in zip(cpu["this"], cpu["baseline"])]
+    print(f"cold {a.profile} report ({len(exps)} experiments), {a.rounds} interleaved pairs: "
+          f"this {statistics.median(cpu['this']):.2f} s CPU, baseline "
+          f"{statistics.median(cpu['baseline']):.2f} s (medians); median ratio this / baseline "
+          f"{statistics.median(ratios):.3f} [{min(ratios):.3f}, {max(ratios):.3f}], "
+          f"{1 / statistics.median(ratios):.2f}x faster")
+    print(f"files that differ ({len(diff)}): {', '.join(diff) or 'none'}")
+    return 0
+
+
+def stages_main(argv: list[str]) -> int:
+    from ..experiments import listed
+    from .experiments import config_folders
+
+    ap = argparse.ArgumentParser(prog="python -m pipeline.tools.scale stages")
+    ap.add_argument("--profile", default="smoke", choices=("smoke", "full"))
+    ap.add_argument("--repeats", type=int, default=3)
+    a = ap.parse_args(argv)
+    r = cached_smoke([REPO], ",".join(listed(config_folders())), a.repeats, a.profile)[0]
+    print(f"fully cached stages, profile={a.profile}, {a.repeats} repeats (medians):")
+    for name in SMOKE_STAGES:
+        print(f"  {name:10s} {r[name]['wall_s']:6.1f} s wall  {r[name]['cpu_s']:6.1f} s CPU")
+    print(f"  total      {r['cpu_s']:6.1f} s CPU ({', '.join(map(str, r['runs_cpu_s']))})")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] in (["report"], ["stages"]):
+        return (report_main if argv[0] == "report" else stages_main)(argv[1:])
     ap = argparse.ArgumentParser(prog="python -m pipeline.tools.scale", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", default="1000,10000", help="trials per sweep, comma-separated")
@@ -366,8 +453,7 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
     if a.packing is not None:
         if a.packing < 1:
-            print(f"error: --packing={a.packing}: at least 1 trial", file=sys.stderr)
-            return 2
+            return print(f"error: --packing={a.packing}: at least 1 trial", file=sys.stderr) or 2
         print(json.dumps(dict(trials=a.packing, **packing(a.packing), machine=load()), indent=1))
         return 0
     try:
@@ -378,11 +464,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: --sizes={a.sizes}: positive multiples of {CONDITIONS}", file=sys.stderr)
         return 2
     if a.baseline is not None and not (a.baseline / "pipeline" / "simulate.py").is_file():
-        print(f"error: --baseline={a.baseline}: not a checkout of this project", file=sys.stderr)
-        return 2
+        return print(f"error: --baseline={a.baseline}: not a checkout of this project",
+                     file=sys.stderr) or 2
     if a.epochs < 1 or a.workers < 1 or a.repeat < 1:
-        print("error: --epochs, --workers and --repeat: at least 1", file=sys.stderr)
-        return 2
+        return print("error: --epochs, --workers and --repeat: at least 1", file=sys.stderr) or 2
     if a.sampled is not None and not (CONDITIONS <= a.sample <= a.sampled and a.sample % CONDITIONS == 0
                                       and a.sampled % CONDITIONS == 0):
         print(f"error: --sampled={a.sampled} --sample={a.sample}: multiples of {CONDITIONS}, "

@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.tools import bench
+from pipeline.tools import bench, floor
 from pipeline.config import compose
 
 
@@ -47,6 +47,18 @@ def test_bench_writes_medians_and_the_fast_path_wins(tmp_path):
                 assert s["ratio"] == pytest.approx(s["ns_per_sample"] / s["floor_ns"])
         assert sum(s["ns_per_sample"] for s in stages.values()) == pytest.approx(
             floor["stages"]["epoch_ns_per_sample"])
+        # the counted floor: each stage's busiest unit at the probes' throughputs, their sum
+        assert floor["counted_floor_ns"] == pytest.approx(
+            sum(s["counted"]["floor_ns"] for s in stages.values() if "counted" in s))
+        assert floor["counted_ratio"] == pytest.approx(
+            floor["stages"]["epoch_ns_per_sample"] / floor["counted_floor_ns"])
+        for name, s in stages.items():
+            if name != "rest":
+                assert s["counted"]["floor_ns"] == max(s["counted"]["unit_ns"].values()) > 0
+                assert s["counted_ratio"] == pytest.approx(
+                    s["ns_per_sample"] / s["counted"]["floor_ns"])
+        assert set(floor["stages"]["probe_ns_per_vector"]) == {
+            "fma", "add", "mul", "select", "div", "sqrt", "load", "bcast", "store"}
         # updates=online's floor: the rollout's stages, then the float64 step (counted twice)
         online = row["updates_online_floor"]
         assert online["samples_per_epoch"] == floor["samples_per_epoch"]
@@ -98,3 +110,48 @@ def test_peak_is_measured():
     """The peak of one core: a few GFLOP/s at least on any CPU the kernel runs on, and at most
     what 2 fma units of 16 float32 lanes at 6 GHz could do."""
     assert 1 < bench.peak_gflops(iters=200_000, tries=1) < 2 * 16 * 2 * 6
+
+
+def test_counts_of_a_one_joint_arm_by_hand():
+    """One normalised, saturating joint (twist 0), one output, features (1, x), one variation of
+    16 samples (one vector of path columns: g along the path counts once per sample), 2 x 2
+    tiles: every operation of a sample column, counted by hand from the code."""
+    c = floor.sample_counts(1, 1, 2, 1, 15, [0], True, True, 2)
+    nz = {stage: {k: v for k, v in counts.items() if v} for stage, counts in c.items()}
+    # g (Phi = (1, x): x and Phi0 loaded, a product, 2 stores; M Phi: Phi0, Phi1 loaded, M's
+    # two entries broadcast, a mul and an fma, a store), then q = A x* + (g + b): x* and g
+    # loaded, A and b broadcast, an add, an fma, a store
+    assert nz["commands"] == dict(load=6, bcast=4, add=1, fma=2, mul=2, store=4)
+    # q loaded, clipped (2 selects) and stored back; theta (an fma); sin and cos (10 fma, 2 mul,
+    # a subtract, the quadrant's 2 selects and 9 integer ops); P loaded and stored (3 + 3);
+    # twist 0 (2 adds); Rz (2 fma, 2 mul, a sign flip); P zeroed (3 stores); the base (3
+    # loads, 3 fma, a store)
+    assert nz["kinematics"] == dict(load=7, store=8, select=4, fma=16, mul=4, add=3, logic=10)
+    assert nz["weights"] == dict(load=6, fma=3, add=3, mul=3, sqrt=2, div=2, select=5, store=1)
+    assert nz["features"] == dict(mul=1, load=2, store=2)
+    assert nz["M_phi"] == dict(fma=1, mul=1, load=2, bcast=2, store=1)
+    assert nz["error"] == dict(add=1, mul=1, load=2)
+    assert nz["gradient"] == dict(fma=2, load=3)  # a 1 x 2 tile: Rw and two rows of Phi
+    # the flops follow: an fma 2, an add, mul, div or sqrt 1
+    assert floor.flops(c["commands"]) == 7 and floor.flops(c["weights"]) == 5 + 3 + 8
+
+
+def test_counted_floor_is_the_busiest_unit():
+    """Priced at 16 ns per vector (1 ns per lane), the weights of the one-joint arm: the vector
+    pipes 3 fma + 3 adds + 3 mul + 5 selects = 14 ns, the divider 4, loads 6, stores 1; with a
+    division ten times as slow the divider binds (2 x 10 + 2)."""
+    c = floor.sample_counts(1, 1, 2, 1, 15, [0], True, True, 2)["weights"]
+    probe = dict.fromkeys(("fma", "add", "mul", "select", "div", "sqrt", "load", "bcast",
+                           "store"), 16.0)
+    row = floor.counted_floor(c, probe)
+    assert row["unit_ns"] == dict(vector=14, divider=4, load=6, store=1)
+    assert (row["floor_ns"], row["bound"]) == (14, "vector")
+    row = floor.counted_floor(c, dict(probe, div=160.0))
+    assert (row["floor_ns"], row["bound"]) == (22, "divider")
+
+
+def test_probes_measure_this_cpu():
+    """Every class a positive time per vector; a division or square root slower than an fma."""
+    ns = floor.probe_ns(iters=20_000, tries=1)
+    assert all(v > 0 for v in ns.values())
+    assert ns["div"] > ns["fma"] and ns["sqrt"] > ns["fma"]

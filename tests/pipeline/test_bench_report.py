@@ -1,15 +1,15 @@
-"""The cold report benchmark (pipeline/tools/bench_report.py): its input checks, the command it
-times, and the files it says differ."""
+"""The cold report benchmark (`python -m pipeline.tools.scale report`): its input checks, the
+command it times, and the files it says differ."""
 import pytest
 
-from pipeline.tools import bench_report
+from pipeline.tools import scale as bench_report
 from pipeline.tools.scale import REPO
 
 
 @pytest.mark.parametrize("args", [["--baseline", "/nonexistent"],
                                   ["--baseline", str(REPO), "--rounds", "0"]])
 def test_bad_input_is_exit_2(args, capsys):
-    assert bench_report.main(args) == 2
+    assert bench_report.main(["report", *args]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error: ")
 

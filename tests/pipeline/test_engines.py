@@ -30,7 +30,7 @@ def fake_cost(t):
 
 def test_cost_weighs_each_learners_path():
     """A trial's cost is its samples x joints x epochs times its learner's measured cost per
-    sample and joint (its sample_cost, measured by pipeline.tools.bench_costs): online Goal
+    sample and joint (its sample_cost, measured by pipeline.tools.bench costs): online Goal
     Babbling's 106 samples an epoch cost more than Goal Babbling's 2120, as they do in CPU time;
     every shipped learner states its weight."""
     from gbmodel import learners

@@ -303,7 +303,7 @@ def samples_per_epoch(params: Params, body) -> int:
 
 def sample_cost(params: Params) -> float:
     """CPU time per sample and joint, relative to the fast batch path (for a run's ETA and its
-    shards' balance; `python -m pipeline.tools.bench_costs` measures them): the numpy reference
+    shards' balance; `python -m pipeline.tools.bench costs` measures them): the numpy reference
     about 60 times, one step per sample (updates=online) about 2 times the batch step."""
     return (1.0 if params.fast else 60.0) * (2.0 if params.updates == "online" else 1.0)
 
