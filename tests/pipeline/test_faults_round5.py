@@ -191,6 +191,31 @@ def test_r24_r25_exits_hangs_and_interrupts_are_one_line(mods, monkeypatch, sour
     assert says in _one_line(err) and time.perf_counter() - t < 30
 
 
+def test_r25_what_the_import_started_is_stopped_with_it(mods, tmp_path):
+    """Variant: the import starts a process that outlives it (holding its output open): the
+    probe does not wait for it, and it is killed with the probe's session."""
+    pid = tmp_path / "pid"
+    name = mods("spawns", f"""
+        import subprocess
+        p = subprocess.Popen(["sleep", "600"])
+        open({str(pid)!r}, "w").write(str(p.pid))
+        import gbmodel
+        @gbmodel.body_factory
+        def make():
+            return None
+        """)
+    t = time.perf_counter()
+    with pytest.raises(ValueError, match="must return the forward function"):
+        _forward(_desc(f"{name}:make"))
+    assert time.perf_counter() - t < 30
+    stat = Path(f"/proc/{pid.read_text()}/stat")
+    for _ in range(50):  # killed, then reaped by whoever adopted it
+        if not stat.exists() or stat.read_text().split()[2] == "Z":
+            break
+        time.sleep(0.1)
+    assert not stat.exists() or stat.read_text().split()[2] == "Z"
+
+
 def test_r24_planning_a_module_that_exits_0_is_exit_2_not_success(mods, tmp_path):
     name = mods("exits", "import sys\nsys.exit(0)\n")
     conf = tmp_path / "conf" / "body"
