@@ -33,9 +33,8 @@ def _desc(factory, **callable_):
 
 
 def _one_line(err) -> str:
-    text = str(err.value if hasattr(err, "value") else err)
-    assert "\n" not in text, text
-    return text
+    assert "\n" not in str(err.value), str(err.value)
+    return str(err.value)
 
 
 @pytest.fixture
@@ -55,8 +54,7 @@ def mods(tmp_path, monkeypatch):
 
 
 def _forward(desc):
-    body = body_from(desc)
-    return body.forward(np.zeros((1, 2)))
+    return body_from(desc).forward(np.zeros((1, 2)))
 
 
 # ---- rows 20, 21: the standard library named as a factory --------------------------------------
@@ -83,19 +81,23 @@ def test_r20_r21_the_standard_library_is_refused_before_anything_runs(tmp_path, 
     assert not mark.exists() and (victim / "keep").exists()
 
 
-def test_r20_planning_a_body_file_naming_subprocess_is_one_line_exit_2(tmp_path):
-    conf = tmp_path / "conf" / "body"
+@pytest.mark.parametrize("source, factory, says", [
+    (None, "subprocess:run", "subprocess is the standard library"),
+    ("import sys\nsys.exit(0)\n", "{m}:make", "SystemExit: 0"),  # row 24: exit 2, not success
+])
+def test_r20_r24_planning_such_a_body_file_is_one_line_exit_2(mods, tmp_path, source, factory,
+                                                              says):
+    conf, mark = tmp_path / "conf" / "body", tmp_path / "MARK"
     conf.mkdir(parents=True)
-    mark = tmp_path / "MARK"
-    (conf / "evil.yaml").write_text(json.dumps(_desc("subprocess:run",
-                                                     args={"args": ["touch", str(mark)]})
-                                               | {"name": "evil"}))
+    factory = factory.format(m=mods("exits", source) if source else "")
+    (conf / "evil.yaml").write_text(json.dumps(
+        _desc(factory, args={"args": ["touch", str(mark)]}) | {"name": "evil"}))
     r = subprocess.run([sys.executable, "-m", "pipeline.simulate",
                         f"hydra.searchpath=[file://{conf.parent}]", "body=evil",
                         "learner.fast=false", "trials.count=1", f"paths.root={tmp_path / 'o'}"],
                        cwd=REPO_ROOT, capture_output=True, text=True, timeout=120)
-    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
-    assert "subprocess is the standard library" in r.stderr and not mark.exists()
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and says in r.stderr, r.stderr
+    assert not mark.exists()
 
 
 def test_r20_an_unmarked_function_is_never_called(mods, tmp_path):
@@ -216,20 +218,6 @@ def test_r25_what_the_import_started_is_stopped_with_it(mods, tmp_path):
     assert not stat.exists() or stat.read_text().split()[2] == "Z"
 
 
-def test_r24_planning_a_module_that_exits_0_is_exit_2_not_success(mods, tmp_path):
-    name = mods("exits", "import sys\nsys.exit(0)\n")
-    conf = tmp_path / "conf" / "body"
-    conf.mkdir(parents=True)
-    (conf / "ex.yaml").write_text(json.dumps(_desc(f"{name}:make") | {"name": "ex"}))
-    r = subprocess.run([sys.executable, "-m", "pipeline.simulate",
-                        f"hydra.searchpath=[file://{conf.parent}]", "body=ex",
-                        "learner.fast=false", "trials.count=1", f"paths.root={tmp_path / 'o'}"],
-                       cwd=REPO_ROOT, capture_output=True, text=True, timeout=120,
-                       env=dict(os.environ))
-    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "SystemExit: 0" in r.stderr, \
-        r.stderr
-
-
 # ---- row 26: positions held to +-1000 m ----------------------------------------------------------
 @pytest.mark.parametrize("value", ["1e300", "-1e4", "float('nan')", "1000.5"])
 def test_r26_positions_beyond_1000_m_are_one_line(mods, value):
@@ -261,9 +249,7 @@ def test_r31_swapped_models_files_are_refused(tmp_path):
     with pytest.raises(io.DamagedFile, match="figure 'fig2', not of 'mine'"):
         models.load(tmp_path / "mine.json")
     assert models.load(src / "fig2.json").labels == ["const1.0"]
-
-
-def test_r31_an_aggregate_set_read_through_its_resolved_folder_is_its_figure(tmp_path):
+    # an aggregate's models.json: its folder, or the set that folder links to, names it
     assert models._named_for(tmp_path / "agg" / ".f2.sets" / "set~h~1~0" / "models.json") == "f2"
     assert models._named_for(tmp_path / "agg" / "f3" / "models.json") == "f3"
 
