@@ -275,12 +275,17 @@ def new_dir(final):
                     raise
                 shutil.rmtree(old, ignore_errors=True)
         shutil.rmtree(old, ignore_errors=True)
-    except OSError as err:  # a full disk: named as the file will be called, not its temporary
-        if isinstance(err.filename, str) and err.filename.startswith(f"{tmp}{os.sep}"):
-            err.filename = str(final) + err.filename[len(str(tmp)):]
-        raise
+    except OSError as err:
+        raise _as_final(err, tmp, final)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _as_final(err: OSError, tmp: Path, final: Path) -> OSError:
+    """`err` (a full disk) naming the file as it will be called, not its temporary folder's."""
+    if isinstance(err.filename, str) and err.filename.startswith(f"{tmp}{os.sep}"):
+        err.filename = str(final) + err.filename[len(str(tmp)):]
+    return err
 
 
 def write_text(path, text: str) -> None:
@@ -491,9 +496,9 @@ def new_set(folder):
         link = _tmp_name(folder)
         os.symlink(os.path.relpath(done, folder.parent), link)
         os.replace(link, folder)  # the one step that switches sets
-    except BaseException:
+    except BaseException as err:
         shutil.rmtree(fresh, ignore_errors=True)
-        raise
+        raise _as_final(err, fresh, folder) if isinstance(err, OSError) else err
     if old is not None and old.parent.resolve() == sets.resolve():  # never a foreign folder
         shutil.rmtree(old, ignore_errors=True)
     remove_stale_tmp(sets)

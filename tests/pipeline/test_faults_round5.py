@@ -415,12 +415,14 @@ except (io.BadInput, OSError) as err:
     ("figures.save(fig, Path(sys.argv[1]) / 'x', 100)", 15_000),  # the PNG
     ("figures.save(fig, Path(sys.argv[1]) / 'x', 100)", 40_000),  # the PDF after the PNG
     ("io.write_text(Path(sys.argv[1]) / 'x.md', 'x' * 50_000)", 20_000),  # variant: a page
+    ("with io.new_set(Path(sys.argv[1]) / 'set') as d: io.write_text(d / 'x', 'x' * 50_000)",
+     20_000),  # variant: a file of an aggregate's set, named as it will be called
 ])
 def test_r40_a_file_size_limit_is_one_line_exit_2_no_temporary(tmp_path, write, limit):
     r = subprocess.run([sys.executable, "-c", SAVE.format(write=write), str(tmp_path),
                         str(limit)], cwd=REPO_ROOT, capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr[-3000:]
-    assert "file too large" in r.stderr and "ulimit -f" in r.stderr
+    assert "file too large" in r.stderr and "ulimit -f" in r.stderr and "~" not in r.stderr
     assert not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]
 
 
