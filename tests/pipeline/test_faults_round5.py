@@ -39,8 +39,7 @@ def _one_line(err) -> str:
 
 @pytest.fixture
 def mods(tmp_path, monkeypatch):
-    """A folder of the test's own modules, importable here and in child processes: write(name,
-    source) makes one (fresh names per test: imports are cached)."""
+    """write(name, source): a module of the test's own, importable here and in children."""
     folder = tmp_path / "mods"
     folder.mkdir()
     monkeypatch.syspath_prepend(str(folder))
@@ -344,8 +343,9 @@ def test_r46_a_huge_register_is_refused_before_it_is_parsed(tmp_path, capsys, si
     assert rc == 2 and f"{size:,} bytes" in err, err
 
 
-def test_r33_the_committed_register_passes_its_schema():
-    assert register_schema.load(claims.REGISTER)["claims"]
+def test_r33_the_committed_register_passes_its_schema(tmp_path):  # and with a date unquoted
+    text = claims.REGISTER.read_text().replace("date: '2026-12-03'", "date: 2026-12-03")
+    assert register_schema.load(_register(tmp_path, text=text))["claims"]
 
 
 # ---- row 37: links refused by the renderer -------------------------------------------------------
