@@ -232,6 +232,9 @@ def atomic_file(path):
         yield fh
 
 
+_FULL = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)  # no room for what a writer writes
+
+
 @contextmanager
 def atomic_path(path):
     """Yield the path of a new, empty temporary file beside `path` (created exclusively) for a
@@ -242,7 +245,7 @@ def atomic_path(path):
             yield tmp
         except Exception as err:  # the writer's cleanup raised again over a full disk's error
             cause = err  # (matplotlib's PDF writer: a zlib.error): the disk's error it is
-            while cause is not None and not isinstance(cause, OSError):
+            while cause is not None and getattr(cause, "errno", None) not in _FULL:
                 cause = cause.__context__
             raise (err if cause is None else cause) from None
 
