@@ -47,7 +47,9 @@ import os
 import signal
 import subprocess
 import sys
+import tempfile
 from functools import lru_cache
+from pathlib import Path
 from typing import Protocol
 
 import numpy as np
@@ -91,7 +93,6 @@ def check(section) -> dict:
 
 MARK = "__gbmodel_body_factory__"  # set by body_factory on the function its author marks
 TIME_LIMIT = 60.0  # seconds: a factory's import and first call, in a child process
-_VERDICT = "\0gbmodel-body-factory:"  # the child's answer, its last line
 
 
 def body_factory(func):
@@ -132,7 +133,7 @@ def _marked(mod, attr: str, factory: str):
 # run in a child process: import, check the mark without calling, call once, say how it went
 _PROBE = """
 import importlib, json, os, sys
-factory, args = sys.argv[1], json.loads(sys.argv[2])
+factory, args, answer = sys.argv[1], json.loads(sys.argv[2]), sys.argv[4]
 sys.path[:] = json.loads(sys.argv[3])
 from gbmodel import body_loop
 module, attr = body_loop._parts(factory)
@@ -152,7 +153,9 @@ else:
             said = ["ok" if callable(make(**args)) else "not callable"]
         except BaseException as err:
             said = ["error", line(err)]
-os.write(1, ("\\n" + body_loop._VERDICT + json.dumps(said) + "\\n").encode())
+with open(answer + ".tmp", "w") as fh:
+    fh.write(json.dumps(said))
+os.replace(answer + ".tmp", answer)
 os._exit(0)
 """
 
@@ -163,23 +166,28 @@ def _probe(factory: str, args_json: str) -> None:
     seconds; ValueError, one line, if that hangs, ends the process, raises (SystemExit and
     KeyboardInterrupt included) or finds no mark."""
     gb = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # where gbmodel is
-    cmd = [sys.executable, "-c", _PROBE, factory, args_json, json.dumps([gb, *sys.path])]
-    proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                            stderr=subprocess.DEVNULL, start_new_session=True)
-    try:
-        out = proc.communicate(timeout=TIME_LIMIT)[0].decode(errors="replace")
-    except subprocess.TimeoutExpired:
-        raise _bad("factory", factory, f"importing its module and calling it did not finish "
-                   f"in {TIME_LIMIT:g} s") from None
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
+    with tempfile.TemporaryDirectory(prefix="gbmodel-probe-") as folder:
+        answer = os.path.join(folder, "verdict.json")
+        proc = subprocess.Popen([sys.executable, "-c", _PROBE, factory, args_json,
+                                 json.dumps([gb, *sys.path]), answer], stdin=subprocess.DEVNULL,
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                start_new_session=True)
+        try:
+            proc.wait(timeout=TIME_LIMIT)
+        except subprocess.TimeoutExpired:
+            raise _bad("factory", factory, f"importing its module and calling it did not "
+                       f"finish in {TIME_LIMIT:g} s") from None
+        finally:  # the child and whatever it started (its session's group)
+            try:
+                os.killpg(proc.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
             proc.wait()
-    said = [line[len(_VERDICT):] for line in out.splitlines() if line.startswith(_VERDICT)]
+        said = Path(answer).read_text() if os.path.exists(answer) else ""
     if not said:
         raise _bad("factory", factory, "importing its module or calling it ended the process "
                    f"(exit status {proc.returncode}) without a word")
-    verdict = json.loads(said[-1])
+    verdict = json.loads(said)
     if verdict[0] == "refused":
         raise ValueError(verdict[1])
     if verdict[0] == "error":

@@ -232,6 +232,9 @@ def atomic_file(path):
         yield fh
 
 
+_FULL = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)  # no room for what a writer writes
+
+
 @contextmanager
 def atomic_path(path):
     """Yield the path of a new, empty temporary file beside `path` (created exclusively) for a
@@ -242,7 +245,7 @@ def atomic_path(path):
             yield tmp
         except Exception as err:  # the writer's cleanup raised again over a full disk's error
             cause = err  # (matplotlib's PDF writer: a zlib.error): the disk's error it is
-            while cause is not None and not isinstance(cause, OSError):
+            while cause is not None and getattr(cause, "errno", None) not in _FULL:
                 cause = cause.__context__
             raise (err if cause is None else cause) from None
 
@@ -275,12 +278,17 @@ def new_dir(final):
                     raise
                 shutil.rmtree(old, ignore_errors=True)
         shutil.rmtree(old, ignore_errors=True)
-    except OSError as err:  # a full disk: named as the file will be called, not its temporary
-        if isinstance(err.filename, str) and err.filename.startswith(f"{tmp}{os.sep}"):
-            err.filename = str(final) + err.filename[len(str(tmp)):]
-        raise
+    except OSError as err:
+        raise _as_final(err, tmp, final)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _as_final(err: OSError, tmp: Path, final: Path) -> OSError:
+    """`err` (a full disk) naming the file as it will be called, not its temporary folder's."""
+    if isinstance(err.filename, str) and err.filename.startswith(f"{tmp}{os.sep}"):
+        err.filename = str(final) + err.filename[len(str(tmp)):]
+    return err
 
 
 def write_text(path, text: str) -> None:
@@ -491,9 +499,9 @@ def new_set(folder):
         link = _tmp_name(folder)
         os.symlink(os.path.relpath(done, folder.parent), link)
         os.replace(link, folder)  # the one step that switches sets
-    except BaseException:
+    except BaseException as err:
         shutil.rmtree(fresh, ignore_errors=True)
-        raise
+        raise _as_final(err, fresh, folder) if isinstance(err, OSError) else err
     if old is not None and old.parent.resolve() == sets.resolve():  # never a foreign folder
         shutil.rmtree(old, ignore_errors=True)
     remove_stale_tmp(sets)

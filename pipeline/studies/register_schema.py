@@ -12,6 +12,7 @@ never becomes a verdict). Every fault is one ValueError naming the file and the 
 """
 from __future__ import annotations
 
+import datetime
 import math
 import os
 import stat
@@ -112,10 +113,11 @@ def _params(path, where, params, claim) -> None:
 
 
 def _value(path, where, value, want) -> None:
-    """`value` of the kind `want`: TEXT (a string; a changelog's commit may read as a number),
+    """`value` of the kind `want`: TEXT (a string; a changelog's commit or date may read as a number or a date),
     FLAG, CHILDREN (a list of mappings), 'a mapping', a tuple of choices or a range (lo, hi)."""
     if want == TEXT:
-        ok = isinstance(value, str) or (where.endswith(".commit") and isinstance(value, int))
+        ok = isinstance(value, str) or (where.endswith((".commit", ".date"))
+                                        and isinstance(value, (int, datetime.date)))
     elif want == FLAG:
         ok = isinstance(value, bool)
     elif want == CHILDREN:

@@ -33,15 +33,13 @@ def _desc(factory, **callable_):
 
 
 def _one_line(err) -> str:
-    text = str(err.value if hasattr(err, "value") else err)
-    assert "\n" not in text, text
-    return text
+    assert "\n" not in str(err.value), str(err.value)
+    return str(err.value)
 
 
 @pytest.fixture
 def mods(tmp_path, monkeypatch):
-    """A folder of the test's own modules, importable here and in child processes: write(name,
-    source) makes one (fresh names per test: imports are cached)."""
+    """write(name, source): a module of the test's own, importable here and in children."""
     folder = tmp_path / "mods"
     folder.mkdir()
     monkeypatch.syspath_prepend(str(folder))
@@ -55,8 +53,7 @@ def mods(tmp_path, monkeypatch):
 
 
 def _forward(desc):
-    body = body_from(desc)
-    return body.forward(np.zeros((1, 2)))
+    return body_from(desc).forward(np.zeros((1, 2)))
 
 
 # ---- rows 20, 21: the standard library named as a factory --------------------------------------
@@ -83,19 +80,23 @@ def test_r20_r21_the_standard_library_is_refused_before_anything_runs(tmp_path, 
     assert not mark.exists() and (victim / "keep").exists()
 
 
-def test_r20_planning_a_body_file_naming_subprocess_is_one_line_exit_2(tmp_path):
-    conf = tmp_path / "conf" / "body"
+@pytest.mark.parametrize("source, factory, says", [
+    (None, "subprocess:run", "subprocess is the standard library"),
+    ("import sys\nsys.exit(0)\n", "{m}:make", "SystemExit: 0"),  # row 24: exit 2, not success
+])
+def test_r20_r24_planning_such_a_body_file_is_one_line_exit_2(mods, tmp_path, source, factory,
+                                                              says):
+    conf, mark = tmp_path / "conf" / "body", tmp_path / "MARK"
     conf.mkdir(parents=True)
-    mark = tmp_path / "MARK"
-    (conf / "evil.yaml").write_text(json.dumps(_desc("subprocess:run",
-                                                     args={"args": ["touch", str(mark)]})
-                                               | {"name": "evil"}))
+    factory = factory.format(m=mods("exits", source) if source else "")
+    (conf / "evil.yaml").write_text(json.dumps(
+        _desc(factory, args={"args": ["touch", str(mark)]}) | {"name": "evil"}))
     r = subprocess.run([sys.executable, "-m", "pipeline.simulate",
                         f"hydra.searchpath=[file://{conf.parent}]", "body=evil",
                         "learner.fast=false", "trials.count=1", f"paths.root={tmp_path / 'o'}"],
                        cwd=REPO_ROOT, capture_output=True, text=True, timeout=120)
-    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
-    assert "subprocess is the standard library" in r.stderr and not mark.exists()
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and says in r.stderr, r.stderr
+    assert not mark.exists()
 
 
 def test_r20_an_unmarked_function_is_never_called(mods, tmp_path):
@@ -191,18 +192,29 @@ def test_r24_r25_exits_hangs_and_interrupts_are_one_line(mods, monkeypatch, sour
     assert says in _one_line(err) and time.perf_counter() - t < 30
 
 
-def test_r24_planning_a_module_that_exits_0_is_exit_2_not_success(mods, tmp_path):
-    name = mods("exits", "import sys\nsys.exit(0)\n")
-    conf = tmp_path / "conf" / "body"
-    conf.mkdir(parents=True)
-    (conf / "ex.yaml").write_text(json.dumps(_desc(f"{name}:make") | {"name": "ex"}))
-    r = subprocess.run([sys.executable, "-m", "pipeline.simulate",
-                        f"hydra.searchpath=[file://{conf.parent}]", "body=ex",
-                        "learner.fast=false", "trials.count=1", f"paths.root={tmp_path / 'o'}"],
-                       cwd=REPO_ROOT, capture_output=True, text=True, timeout=120,
-                       env=dict(os.environ))
-    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "SystemExit: 0" in r.stderr, \
-        r.stderr
+def test_r25_what_the_import_started_is_stopped_with_it(mods, tmp_path):
+    """Variant: the import starts a process that outlives it (holding its output open): the
+    probe does not wait for it, and it is killed with the probe's session."""
+    pid = tmp_path / "pid"
+    name = mods("spawns", f"""
+        import subprocess
+        p = subprocess.Popen(["sleep", "600"])
+        open({str(pid)!r}, "w").write(str(p.pid))
+        import gbmodel
+        @gbmodel.body_factory
+        def make():
+            return None
+        """)
+    t = time.perf_counter()
+    with pytest.raises(ValueError, match="must return the forward function"):
+        _forward(_desc(f"{name}:make"))
+    assert time.perf_counter() - t < 30
+    stat = Path(f"/proc/{pid.read_text()}/stat")
+    for _ in range(50):  # killed, then reaped by whoever adopted it
+        if not stat.exists() or stat.read_text().split()[2] == "Z":
+            break
+        time.sleep(0.1)
+    assert not stat.exists() or stat.read_text().split()[2] == "Z"
 
 
 # ---- row 26: positions held to +-1000 m ----------------------------------------------------------
@@ -236,9 +248,7 @@ def test_r31_swapped_models_files_are_refused(tmp_path):
     with pytest.raises(io.DamagedFile, match="figure 'fig2', not of 'mine'"):
         models.load(tmp_path / "mine.json")
     assert models.load(src / "fig2.json").labels == ["const1.0"]
-
-
-def test_r31_an_aggregate_set_read_through_its_resolved_folder_is_its_figure(tmp_path):
+    # an aggregate's models.json: its folder, or the set that folder links to, names it
     assert models._named_for(tmp_path / "agg" / ".f2.sets" / "set~h~1~0" / "models.json") == "f2"
     assert models._named_for(tmp_path / "agg" / "f3" / "models.json") == "f3"
 
@@ -333,8 +343,9 @@ def test_r46_a_huge_register_is_refused_before_it_is_parsed(tmp_path, capsys, si
     assert rc == 2 and f"{size:,} bytes" in err, err
 
 
-def test_r33_the_committed_register_passes_its_schema():
-    assert register_schema.load(claims.REGISTER)["claims"]
+def test_r33_the_committed_register_passes_its_schema(tmp_path):  # and with a date unquoted
+    text = claims.REGISTER.read_text().replace("date: '2026-12-03'", "date: 2026-12-03")
+    assert register_schema.load(_register(tmp_path, text=text))["claims"]
 
 
 # ---- row 37: links refused by the renderer -------------------------------------------------------
@@ -404,12 +415,14 @@ except (io.BadInput, OSError) as err:
     ("figures.save(fig, Path(sys.argv[1]) / 'x', 100)", 15_000),  # the PNG
     ("figures.save(fig, Path(sys.argv[1]) / 'x', 100)", 40_000),  # the PDF after the PNG
     ("io.write_text(Path(sys.argv[1]) / 'x.md', 'x' * 50_000)", 20_000),  # variant: a page
+    ("with io.new_set(Path(sys.argv[1]) / 'set') as d: io.write_text(d / 'x', 'x' * 50_000)",
+     20_000),  # variant: a file of an aggregate's set, named as it will be called
 ])
 def test_r40_a_file_size_limit_is_one_line_exit_2_no_temporary(tmp_path, write, limit):
     r = subprocess.run([sys.executable, "-c", SAVE.format(write=write), str(tmp_path),
                         str(limit)], cwd=REPO_ROOT, capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr[-3000:]
-    assert "file too large" in r.stderr and "ulimit -f" in r.stderr
+    assert "file too large" in r.stderr and "ulimit -f" in r.stderr and "~" not in r.stderr
     assert not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]
 
 
