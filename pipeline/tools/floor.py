@@ -5,19 +5,19 @@ the kernel's code, at the speed of the CPU the bench runs on.
 writes them (gbmodel/simd.py: chain_kinematics, sincos; gbmodel/learners/goal_babbling:
 rollout._commands and _weights, core._features, _predict and _accumulate), by class: fma, add
 (add, subtract), mul, logic (sign flips, the integer ops of sin/cos's quadrant), select (a
-compare and a blend: vwhere, the clips), div, sqrt, load (a broadcast of an array's element
-inside a loop over columns included: a splat the code writes there is a load) and store. A
-block's or an epoch's fixed work (the zeroing of the gradient's lanes, the eq. 8 scaling, the
+compare and a blend: vwhere, the clips), div, sqrt, load, bcast (a broadcast of an array's
+element inside a loop over columns, such as M's entries in M Phi: a load of its own; splats of
+constants are hoisted and count 0) and store. A block's or an epoch's fixed work (the zeroing of the gradient's lanes, the eq. 8 scaling, the
 path) is left out; g along the path (once per path column, shared by the V variations) is
 counted per sample. `sample_flops` follows from the counts: an fma 2 flops; an add, mul, div or
-sqrt 1; logic, select, load and store 0.
+sqrt 1; logic, select, load, bcast and store 0.
 
 `probe_ns` measures, on the running CPU, the CPU time of one F32x16 operation of each class at
-full throughput (compiled microkernels: 6 independent chains of the operation, or 12 loads per
-step for `load`, 6 stores of registers for `store`; the best of `tries`). `counted_floor` prices
-a stage's counts with them: the operations of each unit (the vector pipes: fma, add, mul, logic
-and select, priced as an add; the divider: div and sqrt; the load ports; the store port) add
-up, the units work side by side, and the stage's floor is its busiest unit's time. The epoch's
+full throughput (compiled microkernels: 6 independent chains of the operation, or 12 loads or
+12 broadcasts per step from L1, or 6 stores of registers; the best of `tries`). `counted_floor`
+prices a stage's counts with them (logic as an add: no probe of its own): the operations of each
+unit (the vector pipes: fma, add, mul, logic and select; the divider: div and sqrt; the load
+ports: load and bcast; the store port) add up, the units work side by side, and the stage's floor is its busiest unit's time. The epoch's
 floor is the sum of its stages' floors (they run one after another).
 """
 from __future__ import annotations
