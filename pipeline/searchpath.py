@@ -1,8 +1,9 @@
 """A conf/ folder of the working directory on Hydra's search path, by convention.
 
 A user's own bodies, learners and experiments in ./conf/body/, ./conf/experiment/, ... are found
-as if named on hydra.searchpath: after the shipped configs (a shipped name wins) and before
-hydra.searchpath's folders. pipeline.config registers the plugin with Hydra when it is imported
+as if named on hydra.searchpath: after the shipped configs and before hydra.searchpath's
+folders. A shipped name wins, and a file of the user's that it hides is named in one line
+(shadowed): `./conf/body/arm5.yaml` is ignored, not run in silence as the shipped arm5. pipeline.config registers the plugin with Hydra when it is imported
 (Hydra's manual registration: no hydra_plugins package to install or discover); it acts only
 when the primary config is gbgrowth's own (pipeline.config.CONFIG_PATH, given to register).
 """
@@ -39,3 +40,19 @@ def register(config_path: str) -> None:
     """Make Hydra call the plugin for the stages' primary config `config_path`."""
     WorkingDirConf.config_path = config_path
     Plugins.instance().register(WorkingDirConf)
+
+
+def shadowed(shipped: Path, folders: list[Path]) -> list[str]:
+    """One line for each config file of `folders` (./conf, the folders of hydra.searchpath)
+    that a shipped file of the same group and name hides (Hydra reads the first it finds)."""
+    out = []
+    for folder in folders:
+        if not folder.is_dir() or folder.resolve() == shipped.resolve():
+            continue
+        for path in sorted(folder.rglob("*.yaml")):
+            rel = path.relative_to(folder)
+            if (shipped / rel).is_file():
+                out.append(f"note: {path} is ignored: the shipped config "
+                           f"{rel.with_suffix('').as_posix()} has that name (Hydra reads the "
+                           f"shipped one); give yours another name")
+    return out
