@@ -309,7 +309,7 @@ def run_mine(cfg: DictConfig, mine: list[dict], claims: dict, summary: Summary,
             claims[t["key"]].release()
             progress.update(t, failed)
         for trial, result in engines.run(
-                OmegaConf.to_container(cfg.engine), ready, cfg.workers,
+                OmegaConf.to_container(cfg.engine), ready, cfg.workers, execute.run_one,
                 logs=Path(cfg.paths.out) / "logs" / "submitit", warm_up=execute.warm_up,
                 pool=execute.local, cost=cost):
             record(cache_dir, trial, result, summary)

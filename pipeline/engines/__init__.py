@@ -39,6 +39,10 @@ from typing import Callable
 from ..errors import ConfigError
 from ..plugins import ENGINES, load_plugins
 
+# every worker, whichever engine starts it, runs one BLAS/OpenMP/numba thread
+THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
+               "NUMBA_NUM_THREADS", "VECLIB_MAXIMUM_THREADS")
+
 
 @dataclass
 class NoSettings:
@@ -163,14 +167,13 @@ def settings_of(conf: dict) -> tuple[Engine, object]:
 def run(conf: dict, todo: list[dict], workers: int, fn=None, logs=None, warm_up=None,
         **given):
     """Yield (trial, fn(trial)) for every trial of `todo` on the engine `conf` names, with its
-    settings (the `engine` config section as plain data); logs: a folder for its job files;
+    settings (the `engine` config section as plain data); fn: what a worker runs on a trial
+    (the stage's pipeline.worker.run_one); logs: a folder for its job files;
     warm_up(todo): loads the trials' kernels in this process (execute.warm_up), first, unless
     the engine does it in its own workers (Engine.warms_up); given: what the engines may take
     (Engine.takes: pool, the local pool; cost, a trial's estimated cost), each engine gets the
     ones it declares."""
     e, settings = settings_of(conf)
-    if fn is None:
-        from ..worker import run_one as fn
     if not todo:
         return
     if warm_up is not None and not e.warms_up:  # the kernels loaded once here, not per worker

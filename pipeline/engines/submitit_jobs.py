@@ -20,8 +20,7 @@ import time
 import traceback
 from pathlib import Path
 
-from ..worker import THREAD_VARS
-from . import _error, call, failed
+from . import THREAD_VARS, _error, call, failed
 
 LOCAL_POLL_S = 0.5
 # a job that ended without its result file: how long to look for the file before calling the
