@@ -17,10 +17,12 @@ from pathlib import Path
 from hydra.core.override_parser.overrides_parser import OverridesParser
 
 from .config import (CONF_DIR, ConfigError, check_choices, check_experiments, check_hydra,
-                     check_keys, compose, config_notes, declared, overrides_of, without_hydra)
+                     check_keys, check_run, compose, config_notes, declared, overrides_of,
+                     without_hydra)
 from .config.hydra_run import MODE, compose_as_run
 from .labels import condition_labels
 from .plan import plan, plan_conditions
+from .planned import checked_marker, was_checked
 from .searchpath import shadowed
 
 # a sweep's jobs composed and planned up front: the first job, then each other value of each
@@ -28,6 +30,8 @@ from .searchpath import shadowed
 # second); every value of a swept key with a declared range (config.declared) is checked by it
 _MAX_COMBINATIONS = 8
 MAX_SWEEP_JOBS = 10_000  # jobs of one multirun: each is a Hydra job with its own folder
+PASSED: list = []  # (note, trials, root) of the one-job command line check() planned, for the
+# stage's end (cli.finish) to keep: the same command line again plans nothing (planned.py)
 
 
 def sweep_size(override) -> int | None:
@@ -139,6 +143,7 @@ def check(argv: list[str], stage=None) -> str | None:
     saying why. `stage`: the stage's @hydra.main function; a one-job command line is then
     composed as Hydra's run of it composes it (compose_as_run), and the run is given that
     config instead of composing it again (config.hydra_run.composed_once)."""
+    PASSED.clear()
     try:
         overrides, parsed, multirun = _parsed(argv)
         choices, sweeps, hydra_own = _choices(parsed, multirun)
@@ -156,7 +161,7 @@ def check(argv: list[str], stage=None) -> str | None:
                     check_sweep_values(sweeps, cfg)
                 else:
                     cfg = compose(given)
-                trials = _planned(cfg, given, notes, remember=n_jobs == 1)
+                trials = _planned(cfg, given, notes, n_jobs == 1, hydra_own)
                 planned.setdefault(cfg.figure, []).extend(trials)
             except ConfigError:
                 raise
@@ -242,14 +247,23 @@ def _first(given: list[str], hydra_own: list[str], stage, overrides: list[str]):
     return without_hydra(full) if not hydra_own else compose(given)
 
 
-def _planned(cfg, given: list[str], notes: list[str], remember: bool) -> list[dict]:
+def _planned(cfg, given: list[str], notes: list[str], one_job: bool,
+             hydra_own: list[str]) -> list[dict]:
     """The trials of one job's config, its keys and its choices checked; its notes added to
-    `notes`. remember: its stage takes this plan instead of planning again (plan)."""
+    `notes`. one_job: its stage takes this plan instead of planning again (plan), and a note
+    of a run of the same command line, config files and code (planned.checked_marker) skips
+    the planning: the run's own settings are checked (check_run), [] returned."""
     check_keys(cfg)
     notes += [n for n in config_notes(cfg) if n not in notes]
-    trials = plan(cfg, remember=remember)  # checks the values, the limits
+    marker = checked_marker(cfg, given + hydra_own) if one_job else None
+    if was_checked(marker, cfg.paths.root):
+        check_run(cfg)
+        return []
+    trials = plan(cfg, remember=one_job)  # checks the values, the limits
     check_choices(cfg, given)  # what plan accepts but a user did not mean
     keeps_experiment(given, trials)
+    if one_job:  # kept when the stage has run (cli.finish): a refused run writes nothing
+        PASSED[:] = [(marker, trials, cfg.paths.root)]
     return trials
 
 

@@ -8,11 +8,12 @@ import sys
 from pathlib import Path
 
 from . import io, stop
-from .check import check
+from .check import PASSED, check
 from .config import ConfigError
 from .config.hydra_run import COMPOSED, MODE, composed_once, known_mode
 from .fingerprint import CodeChanged
 from .io import BadInput
+from .planned import mark_checked
 
 __all__ = ["check", "finish", "main", "hydra_run", "snapshot", "disk_message"]
 
@@ -43,7 +44,7 @@ DISK_ERRNOS = (errno.ENOSPC, errno.EROFS, errno.EACCES, errno.EPERM, errno.EDQUO
 
 def finish(run, cfg, record: bool = True) -> None:
     """Run a stage on its composed config and exit with its status (record=False: a tool that
-    only reads and prints leaves no config snapshot behind). What every stage can meet
+    only reads and prints leaves no config snapshot and no checked-plan note behind). What every stage can meet
     is one line: a bad value (ConfigError), missing or damaged input (FileNotFoundError,
     pipeline.io's BadInput: DamagedFile, UnsafeName), gbmodel code edited since the import
     (CodeChanged) or a full, read-only or forbidden folder (OSError) exits 2; Ctrl-C, SIGTERM and SIGHUP stop the workers, release the claims (the stage's
@@ -78,6 +79,10 @@ def finish(run, cfg, record: bool = True) -> None:
             rc = stop.exit_status(err)
         finally:
             io.confine(None)
+    if rc in (0, 1) and record:  # the stage ran (1: some trials failed or inputs are missing)
+        for marker, trials, root in PASSED:
+            mark_checked(marker, trials, root)
+    PASSED.clear()
     if rc:
         sys.exit(rc)
 

@@ -2,13 +2,18 @@
 
 paths.out/planned/<digest>.json keeps a command's jobs (the cache holds trials), named by
 plan_digest: the config, the overrides and every file a plan is made from (planning_sources);
-misplanned checks a saved plan like a cache."""
+misplanned checks a saved plan like a cache. A command line that planned without error leaves a
+note (checked_marker) so that its next run skips the check, unless a body file it read changed
+since."""
 from __future__ import annotations
 
 import hashlib
+import json
+import os
 from functools import lru_cache
 from pathlib import Path
 
+import gbmodel.bodies
 from omegaconf import DictConfig, OmegaConf
 
 from .keys import canonical, trial_key
@@ -67,6 +72,71 @@ def plan_digest(cfg: DictConfig, overrides) -> str:
     if own is not None:  # (absent: the digests of a checkout's runs stay as they were)
         body["config_sources"] = own
     return hashlib.sha256(canonical(body).encode()).hexdigest()[:24]
+
+
+def checked_marker(cfg: DictConfig, overrides) -> Path | None:
+    """Where the note that this command line's config planned without error is kept:
+    paths.out/planned/checked/<digest>.json (plan_digest of the config and `overrides`); None
+    when the config does not resolve outside Hydra's run (then it is planned every time)."""
+    try:
+        digest = plan_digest(cfg, ["checked", list(overrides)])
+    except Exception:  # an interpolation only Hydra's own run resolves
+        return None
+    return Path(cfg.paths.out) / PLANNED / "checked" / f"{digest}.json"
+
+
+def _body_files(trials: list[dict]) -> list[list]:
+    """(section, its description, sha256) of every file the trials' bodies read (a URDF, an MJCF
+    model, a body in the loop's function: outside plan_digest)."""
+    seen, out = set(), []
+    for t in trials:
+        if id(t["spec"]) in seen:
+            continue
+        seen.add(id(t["spec"]))
+        for section in gbmodel.bodies.READS:
+            value = t["spec"]["body"].get(section)
+            if isinstance(value, dict) and "sha256" in value:
+                entry = [section, {k: v for k, v in value.items() if k != "sha256"},
+                         value["sha256"]]
+                if entry not in out:
+                    out.append(entry)
+    return out
+
+
+def was_checked(marker: Path | None, root=None) -> bool:
+    """Whether `marker` (checked_marker) says the config planned without error, and every body
+    file it read still has those bytes. A marker reached through a link that leaves `root`
+    (paths.root) is no note of this project's (it could be planted to skip the checks)."""
+    if marker is None:
+        return False
+    from . import io
+
+    try:
+        with io.confined(root):
+            io.check_inside(marker)
+        fd = os.open(marker, os.O_RDONLY | os.O_NOFOLLOW)
+        with os.fdopen(fd, "rb") as fh:
+            note = json.loads(fh.read())
+        return all(gbmodel.bodies.source_digest(section, value) == sha
+                   for section, value, sha in note["body_files"])
+    except (OSError, ValueError, TypeError, KeyError):
+        return False
+
+
+def mark_checked(marker: Path | None, trials: list[dict], root=None) -> None:
+    """Keep `marker` for the next run of the same command line, confined to `root` (paths.root:
+    a link at planned/ or planned/checked that leads elsewhere is refused, never followed); a
+    folder that cannot be written leaves it out (the stage names that folder itself)."""
+    if marker is None:
+        return
+    from . import io
+
+    try:
+        with io.confined(root):
+            io.write_json(marker, dict(trials=len(trials), body_files=_body_files(trials)),
+                          compact=True)
+    except (OSError, io.UnsafeName):
+        pass
 
 
 def misplanned(specs: list[dict], jobs: list[dict]) -> str | None:

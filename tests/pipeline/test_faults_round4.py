@@ -332,6 +332,27 @@ def test_r12_what_the_allow_list_permits_passes(tmp_path, args):
                       f"paths.root={tmp_path}"]) is None
 
 
+def test_r13_a_link_at_planned_checked_is_neither_written_nor_read(tmp_path):
+    from pipeline import cli, planned
+    from pipeline.config import compose
+    root, elsewhere = tmp_path / "root", tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (root / "outputs" / "planned").mkdir(parents=True)
+    os.symlink(elsewhere, root / "outputs" / "planned" / "checked")
+    args = ["figure=bi", "learner.epochs=20", "trials.count=1", "workers=1", f"paths.root={root}"]
+    assert cli.check(args) is None
+    cli.finish(lambda cfg: 0, compose(args))  # the stage ran: the note would be written now
+    assert not any(elsewhere.iterdir())  # never through the link
+    marker = planned.checked_marker(compose(args), args)
+    marker.write_text('{"trials": 1, "body_files": []}')  # planted there (through the link)
+    assert (elsewhere / marker.name).exists()
+    assert not planned.was_checked(marker, str(root))  # not a note of this root's
+    os.unlink(root / "outputs" / "planned" / "checked")
+    (root / "outputs" / "planned" / "checked").mkdir()
+    marker.write_text('{"trials": 1, "body_files": []}')
+    assert planned.was_checked(marker, str(root))  # a real one inside the root is
+
+
 # ---- row 6: sealed models ------------------------------------------------------------------------
 def _report_copy(tmp_path, figure="fig2"):
     """The committed report's models/<figure>.json and curves.parquet in a report folder."""
