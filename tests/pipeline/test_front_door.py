@@ -5,7 +5,7 @@ its package tree.
 """
 import pytest
 
-from conftest import REPO_ROOT, run_cli, tiny_overrides
+from conftest import REPO_ROOT, declare_plugin, run_cli, tiny_overrides
 from pipeline import cli
 
 BASE = ["figure=bi", "learner.epochs=20", "trials.count=1", "workers=1"]
@@ -100,6 +100,25 @@ def test_a_searchpath_file_that_a_shipped_one_hides_is_named(tmp_path, capsys):
                       f"paths.root={tmp_path / 'out'}"]) is None
     err = capsys.readouterr().err
     assert "experiment/fig2.yaml is ignored: the shipped config experiment/fig2" in err, err
+
+
+def test_a_config_package_declared_as_an_entry_point_adds_its_bodies(tmp_path):
+    """A distribution's package of config files (an entry point of gbgrowth.conf) is on the
+    search path after the shipped ones: its body composes and runs; a package not declared
+    adds nothing."""
+    package = tmp_path / "plugins" / "gbgrowth_bodies_toy"
+    (package / "body").mkdir(parents=True)
+    (package / "body" / "toy_arm.yaml").write_text(
+        (REPO_ROOT / "conf" / "body" / "arm5.yaml").read_text().replace("name: arm5",
+                                                                         "name: toy_arm"))
+    args = tiny_overrides(tmp_path / "run", "body=toy_arm", "growth=none", "figure=toy")
+    r = run_cli("pipeline.simulate", *args, env={"PYTHONPATH": str(tmp_path / "plugins")})
+    assert r.returncode == 2 and "body=toy_arm: unknown option" in r.stderr, r.stderr
+    declare_plugin(tmp_path / "plugins", "gbgrowth.conf", "toy", "gbgrowth_bodies_toy", "")
+    (tmp_path / "plugins" / "gbgrowth_bodies_toy.py").unlink()  # the package, not a module
+    (package / "__init__.py").write_text("")
+    r = run_cli("pipeline.simulate", *args, env={"PYTHONPATH": str(tmp_path / "plugins")})
+    assert r.returncode == 0 and "1 trials: 0 cached, 1 run, 0 failed" in r.stderr, r.stderr
 
 
 # ---- issue 53 item 4: no memo of the project's own in its package tree ----------------------------
