@@ -73,14 +73,19 @@ def _read(path: Path) -> Experiment:
 def config_folders() -> tuple[Path, ...]:
     """The config folders whose experiment files the project's lists are read from: conf/ (the
     checkout's, or the installed package's) and, in a running stage, every folder of Hydra's
-    search path (an experiment of one's own)."""
+    search path (an experiment of one's own, a config package of gbgrowth.conf)."""
+    import importlib.util
+
     from gbmodel.bodies import CONF_DIR
     from hydra.core.hydra_config import HydraConfig
 
     folders = [Path(CONF_DIR)]
-    if HydraConfig.initialized():
-        folders += [Path(s.path) for s in HydraConfig.get().runtime.config_sources
-                    if s.schema == "file"]
+    for s in HydraConfig.get().runtime.config_sources if HydraConfig.initialized() else ():
+        if s.schema == "file":
+            folders.append(Path(s.path))
+        elif s.schema == "pkg" and s.provider.startswith("gbgrowth:"):  # a declared package
+            spec = importlib.util.find_spec(s.path.replace("/", "."))
+            folders += [Path(p) for p in (spec.submodule_search_locations or [])] if spec else []
     return tuple(dict.fromkeys(f.resolve() for f in folders))
 
 

@@ -13,10 +13,8 @@ such as a dataclass's defaults: evaluated from the file as read now and compared
 import made) are checked. Such a file raises CodeChanged, a one-line error: run the command again.
 
 What is learnt from a file's text (its syntax tree without docstrings, its compiled code, the
-expressions of its constants and defaults, its imports: _facts) is kept in gbmodel/__pycache__/,
-named by the SHA-256 of the text and checked against a checksum of its own: a file is parsed and
-compiled once per content, by any process, and again only when its bytes change (never judged
-by a modification time). The checks against the imported module run on every fingerprint, from
+expressions of its constants and defaults, its imports: _facts) is learnt once per process and
+kept nowhere else. The checks against the imported module run on every fingerprint, from
 those facts.
 """
 from __future__ import annotations
@@ -24,10 +22,7 @@ from __future__ import annotations
 import ast
 import hashlib
 import inspect
-import marshal
-import os
 import sys
-import tempfile
 from functools import lru_cache
 from pathlib import Path
 
@@ -67,14 +62,6 @@ def source_fingerprint(sources) -> str:
         h.update(name.encode() + b"\0")
         h.update(_facts(text)["tree"].encode() + b"\0")
     return h.hexdigest()[:16]
-
-
-FACTS_FORMAT = 1  # the layout of _facts' record: a new one is a new file name
-
-
-def _facts_folder() -> Path:
-    return (Path(gbmodel.__file__).resolve().parent / "__pycache__"
-            / f"fingerprint.{sys.implementation.cache_tag}.{FACTS_FORMAT}")
 
 
 def _compiled(node):
@@ -126,50 +113,10 @@ def _learn(text: str) -> dict:
                 imports=imports)
 
 
-def kept(path: Path) -> bytes | None:
-    """The body of a record `keep` wrote at `path`, or None when there is none or its checksum
-    fails (a damaged or foreign file is never trusted)."""
-    try:
-        data = path.read_bytes()
-    except OSError:
-        return None
-    body = data[64:]
-    return body if data[:64] == hashlib.sha256(body).hexdigest().encode() else None
-
-
-def keep(path: Path, body: bytes) -> None:
-    """Write `body` to `path` behind its SHA-256 (atomically); a folder that cannot be written
-    is only not kept."""
-    tmp = None
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem[:16]}.")
-        with os.fdopen(fd, "wb") as f:
-            f.write(hashlib.sha256(body).hexdigest().encode() + body)
-        os.replace(tmp, path)
-    except OSError:
-        if tmp is not None:
-            Path(tmp).unlink(missing_ok=True)
-
-
 @lru_cache(maxsize=512)
 def _facts(text: str) -> dict:
-    """_learn(text), kept on disk by the SHA-256 of `text` with a checksum of the record: read
-    back when one is there and intact, else learnt and written (atomically; a folder that
-    cannot be written is only not kept)."""
-    key = hashlib.sha256(text.encode()).hexdigest()
-    path = _facts_folder() / f"{key}.marshal"
-    body = kept(path)
-    if body is not None:
-        try:
-            facts = marshal.loads(body)
-            if isinstance(facts, dict) and facts.get("key") == key:
-                return facts
-        except (ValueError, EOFError, TypeError):
-            pass
-    facts = dict(_learn(text), key=key)
-    keep(path, marshal.dumps(facts))
-    return facts
+    """_learn(text), once per text and process."""
+    return _learn(text)
 
 
 def _codes(code, out=None) -> dict:

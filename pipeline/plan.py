@@ -14,9 +14,7 @@ from __future__ import annotations
 
 import json
 import logging
-import os
 from functools import lru_cache
-from pathlib import Path
 
 import numpy as np
 
@@ -25,8 +23,7 @@ import gbmodel.bodies
 from gbmodel.spec import check_int
 from omegaconf import DictConfig, OmegaConf
 
-from .config import (ConfigError, check_limits, check_names, check_ranges, check_root,
-                     check_stamp)
+from .config import ConfigError, check_limits, check_run
 from .fingerprint import code_fingerprint
 from .keys import canonical, condition_id, stable_hash32, trial_key
 
@@ -244,37 +241,6 @@ def check_reach(body_json: str) -> None:
                     body.name, np.round(body.targets[missed[0]], 3).tolist())
 
 
-def check_paths(cfg: DictConfig) -> None:
-    """Every output folder is a folder (or can become one), and writable, except the cache: a
-    read-only cache where every trial is cached is read, never written (aggregate, report, and
-    simulate with nothing to run); a write it would need fails there in one line (a disk error,
-    pipeline.cli.finish) before any trial runs: the claims come first."""
-    for key in ("root", "out", "cache", "aggregate", "report", "published", "bench"):
-        path = Path(cfg.paths[key])
-        for p in [path, *path.parents]:
-            if p.exists():
-                if not p.is_dir():
-                    _bad(f"paths.{key}", str(path), f"{p} is a file, not a folder")
-                if key != "cache" and not os.access(p, os.W_OK | os.X_OK) and p == path:
-                    _bad(f"paths.{key}", str(path), "is not writable")
-                break
-
-
-def check_run(cfg: DictConfig) -> None:
-    """The checks of a run's own settings (not of its trials'): cheap, so that they are made
-    on every run, a planned one (planned) too."""
-    check_int("trials.count", cfg.trials.count, 1)
-    check_int("trials.root_seed", cfg.trials.root_seed, 0)
-    check_int("workers", cfg.workers, 1)
-    check_ranges(cfg)  # the stages' own ranges (aggregate, report): not in a variant's copy
-    if not cfg.figure or "/" in cfg.figure or cfg.figure.startswith("."):
-        _bad("figure", cfg.figure, "must be a plain name (it names a folder)")
-    check_root(cfg)
-    check_names(cfg)
-    check_stamp(cfg)
-    check_paths(cfg)
-
-
 _CHECKED: dict[str, list] = {}  # the plan the command-line check made, taken once by its stage
 
 
@@ -297,6 +263,7 @@ def plan(cfg: DictConfig, remember: bool = False) -> list[dict]:
     of planning again: the config is checked once per stage)."""
     key = _config_key(cfg) if (remember or _CHECKED) else None
     if key is not None and key in _CHECKED:
+        check_run(cfg)  # the place may have changed since (a folder made a file): cheap
         return _CHECKED.pop(key)
     trials = _plan(cfg)
     if remember and key is not None:
@@ -308,9 +275,7 @@ def plan(cfg: DictConfig, remember: bool = False) -> list[dict]:
 def _plan(cfg: DictConfig) -> list[dict]:
     trials = []
     try:
-        check_int("trials.count", cfg.trials.count, 1)
         check_run(cfg)
-        check_ranges(cfg)  # the stages' keys (aggregate., report.): a variant's copy lacks them
         for variant, vcfg in variants(cfg):
             check_limits(vcfg)  # a variant's `set` may change what the command line did not
             for cond in conditions(vcfg):

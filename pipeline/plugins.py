@@ -1,19 +1,21 @@
-"""Modules named <prefix><name> anywhere on the Python path: the engines' (gbgrowth_engine_) and
-the studies' (gbgrowth_study_) way in from outside the repository."""
+"""Engines and studies kept outside the repository, found through standard entry points: a
+distribution declares `[project.entry-points."gbgrowth.engines"] toy = "my_package.toy"` (or
+"gbgrowth.studies") and its module registers itself when imported. Nothing else on the Python
+path is imported."""
 from __future__ import annotations
 
-import importlib
-import pkgutil
+from importlib.metadata import entry_points
+
+ENGINES, STUDIES = "gbgrowth.engines", "gbgrowth.studies"  # the groups (pyproject.toml)
 
 
-def import_plugins(prefix: str, broken: dict[str, str]) -> None:
-    """Import every module on the Python path whose name starts with `prefix` (each registers
-    itself when imported). Someone else's module that fails to import costs no other command:
-    broken[name] says why, for the one that asks for it by name."""
-    for m in pkgutil.iter_modules():
-        if m.name.startswith(prefix):
-            try:
-                importlib.import_module(m.name)
-            except Exception as err:
-                why = str(err).splitlines()[0] if str(err) else ""
-                broken[m.name[len(prefix):]] = f"{m.name}: {type(err).__name__}: {why}"
+def load_plugins(group: str, broken: dict[str, str]) -> None:
+    """Load every entry point of `group` (each module registers itself when imported). Someone
+    else's module that fails to import costs no other command: broken[name] says why, for the
+    one that asks for it by name."""
+    for ep in entry_points(group=group):
+        try:
+            ep.load()
+        except Exception as err:
+            why = str(err).splitlines()[0] if str(err) else ""
+            broken[ep.name] = f"{ep.value}: {type(err).__name__}: {why}"

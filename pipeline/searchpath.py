@@ -1,8 +1,13 @@
-"""A conf/ folder of the working directory on Hydra's search path, by convention.
+"""A conf/ folder of the working directory, and the config packages distributions declare, on
+Hydra's search path.
 
 A user's own bodies, learners and experiments in ./conf/body/, ./conf/experiment/, ... are found
-as if named on hydra.searchpath: after the shipped configs (a shipped name wins) and before
-hydra.searchpath's folders. pipeline.config registers the plugin with Hydra when it is imported
+as if named on hydra.searchpath: after the shipped configs and before hydra.searchpath's
+folders; then those of every package declared as an entry point of `gbgrowth.conf`
+(`[project.entry-points."gbgrowth.conf"] mine = "my_package.conf"`: a package holding body/,
+experiment/, ...), an installed library of bodies and studies. A shipped name wins, and a file
+of the user's that it hides is named in one line (shadowed): `./conf/body/arm5.yaml` is ignored,
+not run in silence as the shipped arm5. pipeline.config registers the plugin with Hydra when it is imported
 (Hydra's manual registration: no hydra_plugins package to install or discover); it acts only
 when the primary config is gbgrowth's own (pipeline.config.CONFIG_PATH, given to register).
 """
@@ -16,6 +21,7 @@ from hydra.core.plugins import Plugins
 from hydra.plugins.search_path_plugin import SearchPathPlugin
 
 PROVIDER = "gbgrowth: conf/ of the working directory"
+CONF_GROUP = "gbgrowth.conf"  # entry points naming config packages (pyproject.toml)
 
 
 def _folder(path: str) -> str:
@@ -33,9 +39,34 @@ class WorkingDirConf(SearchPathPlugin):
         if here.is_dir() and not any(Path(_folder(p)).resolve() == here.resolve()
                                      for p in mains if not p.startswith("pkg://")):
             search_path.append(provider=PROVIDER, path=f"file://{here}")
+        for package in declared():
+            search_path.append(provider=f"gbgrowth: {CONF_GROUP}", path=f"pkg://{package}")
+
+
+def declared() -> list[str]:
+    """The config packages of the entry points of CONF_GROUP (named, never imported here)."""
+    from importlib.metadata import entry_points
+
+    return sorted({ep.value for ep in entry_points(group=CONF_GROUP)})
 
 
 def register(config_path: str) -> None:
     """Make Hydra call the plugin for the stages' primary config `config_path`."""
     WorkingDirConf.config_path = config_path
     Plugins.instance().register(WorkingDirConf)
+
+
+def shadowed(shipped: Path, folders: list[Path]) -> list[str]:
+    """One line for each config file of `folders` (./conf, the folders of hydra.searchpath)
+    that a shipped file of the same group and name hides (Hydra reads the first it finds)."""
+    out = []
+    for folder in folders:
+        if not folder.is_dir() or folder.resolve() == shipped.resolve():
+            continue
+        for path in sorted(folder.rglob("*.yaml")):
+            rel = path.relative_to(folder)
+            if (shipped / rel).is_file():
+                out.append(f"note: {path} is ignored: the shipped config "
+                           f"{rel.with_suffix('').as_posix()} has that name (Hydra reads the "
+                           f"shipped one); give yours another name")
+    return out

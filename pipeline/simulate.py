@@ -24,9 +24,11 @@ import hydra
 from omegaconf import DictConfig, OmegaConf
 
 from . import cache, checkpoint, cli, engines, execute, io
+from .check import keeps_experiment
 from .config import CONFIG_PATH
 from .fingerprint import code_fingerprint
-from .plan import check_run, plan, plan_conditions
+from .config import check_run
+from .plan import cost, plan, plan_conditions
 from .planned import PLANNED, misplanned, plan_digest
 from .progress import Progress, estimate
 
@@ -193,7 +195,7 @@ def plan_jobs(cfg: DictConfig, overrides, experiment: str | None) -> list[Job]:
     for name in names:
         ecfg = compose([f"experiment={name}", *rest])
         trials = plan(ecfg)
-        cli.keeps_experiment([f"experiment={name}", *rest], trials)
+        keeps_experiment([f"experiment={name}", *rest], trials)
         jobs.append(Job(ecfg.figure, OmegaConf.to_container(ecfg.paper), trials, name))
     return jobs
 
@@ -220,28 +222,11 @@ def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = Non
     cache_dir = Path(cfg.paths.cache)
     names = list(dict.fromkeys(j.figure for j in jobs))
     figure = ", ".join(names) if len(names) <= 3 else f"{len(names)} figures"
-    unique = {}
-    for j in jobs:
-        for t in j.trials:
-            unique.setdefault(t["key"], t)  # the same trial under two figures: computed once
-    for t in list(unique.values()):  # a continuation's base: run (or cached) with its state
-        b = t.get("base")
-        if b is not None:
-            unique[b["key"]] = {**unique.get(b["key"], b), "keep_state": True}
-    trials = list(unique.values())
+    trials = unique_trials(jobs)
     (cache_dir / cache.TRIALS).mkdir(parents=True, exist_ok=True)
     for folder in (cache_dir / cache.TRIALS).glob("*"):
         io.remove_stale_tmp(folder)
-    todo, diverged = [], {}
-    for t in trials:
-        done, damaged = finished(cache_dir, t)
-        if damaged:
-            print(f"[{t['figure']}] recomputing {t['growth_label']} trial "
-                  f"{t['labels']['trial']}: {damaged}", file=sys.stderr)
-        if done is None:
-            todo.append(t)
-        elif done["status"] == "diverged":
-            diverged[t["key"]] = f"{done['error']} (cached)"
+    todo, diverged = to_run(cache_dir, trials)
     costs = execute.costs_of(todo)  # each condition's once (sorting, progress, batches)
     todo.sort(key=lambda t: costs[t["key"]], reverse=True)
     summary = Summary(figure=figure, total=len(trials), cached=len(trials) - len(todo),
@@ -265,40 +250,8 @@ def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = Non
     if ahead:
         print(f"[{figure}] {ahead}", file=sys.stderr, flush=True)
     try:
-        # continuations after every other trial: their bases are then in the cache
-        for wave in ([t for t in mine if "base" not in t], [t for t in mine if "base" in t]):
-            ready = []
-            for t in wave:
-                trial, failed = resumed(cache_dir, t)
-                if failed is None:
-                    ready.append(trial)
-                    continue
-                record(cache_dir, t, failed, summary)
-                claims[t["key"]].release()
-                progress.update(t, failed)
-            for trial, result in engines.run(  # the chosen engine, with its own settings only
-                    OmegaConf.to_container(cfg.engine), ready, cfg.workers,
-                    logs=Path(cfg.paths.out) / "logs" / "submitit", warm_up=execute.warm_up):
-                record(cache_dir, trial, result, summary)
-                claims[trial["key"]].release()
-                progress.update(trial, result)
-        while elsewhere:  # trials another run claimed: wait for them, or take over if it died
-            trial = elsewhere.pop(0)
-            claim = claims[trial["key"]]
-            if finished(cache_dir, trial)[0] is not None:
-                summary.cached += 1
-            elif claim.acquire() and finished(cache_dir, trial)[0] is not None:
-                claim.release()
-                summary.cached += 1
-            elif claim.fh is not None:
-                ready, result = resumed(cache_dir, trial)
-                result = result or execute.run_one(ready)
-                record(cache_dir, trial, result, summary)
-                claim.release()
-                progress.update(trial, result)
-            else:
-                elsewhere.append(trial)
-                time.sleep(WAIT_POLL_S)
+        run_mine(cfg, mine, claims, summary, progress)
+        wait_for(elsewhere, cache_dir, claims, summary, progress)
     finally:
         progress.close()
         for c in claims.values():
@@ -307,6 +260,83 @@ def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = Non
     for j in jobs:
         write_figure(cache_dir, j, group, job)
     return summary
+
+
+def unique_trials(jobs: list[Job]) -> list[dict]:
+    """Every trial of the jobs once (the same trial under two figures is computed once), with
+    the bases of the continuations among them, to be run (or taken from the cache) with their
+    state."""
+    unique = {}
+    for j in jobs:
+        for t in j.trials:
+            unique.setdefault(t["key"], t)
+    for t in list(unique.values()):
+        b = t.get("base")
+        if b is not None:
+            unique[b["key"]] = {**unique.get(b["key"], b), "keep_state": True}
+    return list(unique.values())
+
+
+def to_run(cache_dir, trials: list[dict]) -> tuple[list[dict], dict]:
+    """(the trials not in the cache, key -> error of those cached as diverged); a damaged
+    cached trial is said in one line and run again."""
+    todo, diverged = [], {}
+    for t in trials:
+        done, damaged = finished(cache_dir, t)
+        if damaged:
+            print(f"[{t['figure']}] recomputing {t['growth_label']} trial "
+                  f"{t['labels']['trial']}: {damaged}", file=sys.stderr)
+        if done is None:
+            todo.append(t)
+        elif done["status"] == "diverged":
+            diverged[t["key"]] = f"{done['error']} (cached)"
+    return todo, diverged
+
+
+def run_mine(cfg: DictConfig, mine: list[dict], claims: dict, summary: Summary,
+             progress: Progress) -> None:
+    """Run the trials this run claimed on the chosen engine, with its own settings only; the
+    continuations after every other trial (their bases are then in the cache)."""
+    cache_dir = Path(cfg.paths.cache)
+    for wave in ([t for t in mine if "base" not in t], [t for t in mine if "base" in t]):
+        ready = []
+        for t in wave:
+            trial, failed = resumed(cache_dir, t)
+            if failed is None:
+                ready.append(trial)
+                continue
+            record(cache_dir, t, failed, summary)
+            claims[t["key"]].release()
+            progress.update(t, failed)
+        for trial, result in engines.run(
+                OmegaConf.to_container(cfg.engine), ready, cfg.workers, execute.run_one,
+                logs=Path(cfg.paths.out) / "logs" / "submitit", warm_up=execute.warm_up,
+                pool=execute.local, cost=cost):
+            record(cache_dir, trial, result, summary)
+            claims[trial["key"]].release()
+            progress.update(trial, result)
+
+
+def wait_for(elsewhere: list[dict], cache_dir, claims: dict, summary: Summary,
+             progress: Progress) -> None:
+    """Trials another run claimed: wait for them, or take one over if that run died."""
+    while elsewhere:
+        trial = elsewhere.pop(0)
+        claim = claims[trial["key"]]
+        if finished(cache_dir, trial)[0] is not None:
+            summary.cached += 1
+        elif claim.acquire() and finished(cache_dir, trial)[0] is not None:
+            claim.release()
+            summary.cached += 1
+        elif claim.fh is not None:
+            ready, result = resumed(cache_dir, trial)
+            result = result or execute.run_one(ready)
+            record(cache_dir, trial, result, summary)
+            claim.release()
+            progress.update(trial, result)
+        else:
+            elsewhere.append(trial)
+            time.sleep(WAIT_POLL_S)
 
 
 def finished(cache_dir, trial: dict) -> tuple[dict | None, str | None]:

@@ -1,6 +1,6 @@
 """What runs in a worker process, whichever engine started it: one trial, plain data in and out,
 with one BLAS/OpenMP/numba thread. The local pool (pipeline.execute) and the engines
-(pipeline.engines) import it; it imports neither."""
+(pipeline.engines) run it; it imports only the engines' THREAD_VARS."""
 from __future__ import annotations
 
 import ctypes
@@ -10,8 +10,7 @@ import time
 import traceback
 from contextlib import contextmanager
 
-THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
-               "NUMBA_NUM_THREADS", "VECLIB_MAXIMUM_THREADS")
+from .engines import THREAD_VARS
 
 
 def run_one(trial: dict) -> dict:

@@ -45,6 +45,18 @@ def run_cli(module: str, *args: str, timeout: int = 300, env: dict | None = None
                           cwd="/", env=env, timeout=timeout)
 
 
+def declare_plugin(folder: Path, group: str, name: str, module: str, source: str) -> None:
+    """A distribution in `folder` (put it on the Python path) whose entry point `name` of
+    `group` (gbgrowth.engines, gbgrowth.studies) is the module `module`, written from `source`:
+    what `pip install` of a package of one's own leaves (pipeline.plugins)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / f"{module}.py").write_text(source)
+    info = folder / f"{module}-0.1.dist-info"
+    info.mkdir(exist_ok=True)
+    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {module}\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text(f"[{group}]\n{name} = {module}\n")
+
+
 def files_of(folder: Path) -> dict[str, bytes]:
     """Relative path -> bytes of every file under folder, lock files left out. A plan record
     (cache/<figure>/plans/*.json) is compared by its content: the time and process id of the run

@@ -3,14 +3,16 @@
     python -m pipeline.simulate experiment=fig4 engine=ray engine.address=auto
     python -m pipeline.simulate experiment=fig4 engine=slurm engine.partition=short workers=64
 
-An engine is a module of this package (or a module named gbgrowth_engine_<name> anywhere on the
-Python path, for one kept outside the repository): a settings dataclass and a run function,
-registered with `@engine(name, Settings)`. The config group `engine` is generated from them
+An engine is a module of this package (or, for one kept outside the repository, a module its
+distribution declares as an entry point of `gbgrowth.engines`: pipeline.plugins): a settings
+dataclass and a run function, registered with `@engine(name, Settings)`. The config group `engine` is generated from them
 (register_configs: `engine=<name>` picks one, `engine.<field>=...` sets its settings, typed by
 the dataclass), so an engine added is an engine on the command line, with no other edit.
 
 run(todo, workers, fn, settings, logs) yields (trial, fn(trial)) for every trial of `todo`
-(plain data, longest first) as they finish; the driver (pipeline.simulate) writes every result
+(plain data, longest first) as they finish; an engine that needs more is given it by the stage,
+as arguments it declares (`takes`: the local `pool`, the trials' `cost`), and imports nothing
+of the pipeline above it; the driver (pipeline.simulate) writes every result
 to the cache itself. So no cache file is ever written by a worker or by two jobs, the per-trial
 claims and plan records stay where they are, and the trial files are byte for byte those of a
 local run (a result is the same plain data whichever process computed it). A worker checks that
@@ -34,9 +36,12 @@ import typing
 from dataclasses import dataclass
 from typing import Callable
 
-from ..plugins import import_plugins
+from ..errors import ConfigError
+from ..plugins import ENGINES, load_plugins
 
-PLUGIN_PREFIX = "gbgrowth_engine_"  # a module of this name on the Python path is an engine too
+# every worker, whichever engine starts it, runs one BLAS/OpenMP/numba thread
+THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
+               "NUMBA_NUM_THREADS", "VECLIB_MAXIMUM_THREADS")
 
 
 @dataclass
@@ -54,17 +59,18 @@ class Engine:
     # it loads the kernels in its own workers (local: the pool's first worker, or this process);
     # else run() has them loaded here first (its warm_up), into numba's cache its workers read
     warms_up: bool = False
+    takes: tuple = ()  # what else run() is given, by keyword: "pool", "cost" (engines.run)
 
 
 _ENGINES: dict[str, Engine] = {}
-_BROKEN: dict[str, str] = {}  # engine name -> why its gbgrowth_engine_<name> module did not import
+_BROKEN: dict[str, str] = {}  # engine name -> why its entry point's module did not import
 
 
 def engine(name: str, settings: type = NoSettings, package: str | None = None,
-           extra: str | None = None, warms_up: bool = False):
+           extra: str | None = None, warms_up: bool = False, takes: tuple = ()):
     """Register the decorated run function as engine `name`, with its settings dataclass and
     the package it needs (checked by the stage that submits, before anything runs); warms_up:
-    it loads the kernels itself (Engine.warms_up)."""
+    it loads the kernels itself (Engine.warms_up); takes: what else it is given (Engine)."""
     if not dataclasses.is_dataclass(settings):
         raise TypeError(f"engine {name!r}: settings must be a dataclass, not {settings!r}")
 
@@ -73,7 +79,7 @@ def engine(name: str, settings: type = NoSettings, package: str | None = None,
         if other is not None and other.run.__module__ != run.__module__:
             raise ValueError(f"engine {name!r} is registered by {other.run.__module__} and "
                              f"{run.__module__}")
-        _ENGINES[name] = Engine(name, settings, run, package, extra, warms_up)
+        _ENGINES[name] = Engine(name, settings, run, package, extra, warms_up, tuple(takes))
         return run
 
     return register
@@ -83,12 +89,12 @@ _DISCOVERED: list = []  # [True] once discover() ran in this process
 
 
 def discover() -> tuple[str, ...]:
-    """Import every engine module (this package's, and gbgrowth_engine_* on the Python path);
+    """Import every engine module (this package's, and the entry points of gbgrowth.engines);
     the names registered, sorted. An engine module imports what it runs on (a pool, Ray,
     submitit) inside its run function: naming the engines costs no such import."""
     for m in pkgutil.iter_modules(__path__):
         importlib.import_module(f"{__name__}.{m.name}")
-    import_plugins(PLUGIN_PREFIX, _BROKEN)  # a failure is named when its engine is chosen
+    load_plugins(ENGINES, _BROKEN)  # a failure is named when its engine is chosen
     _DISCOVERED[:] = [True]
     return tuple(sorted(_ENGINES))
 
@@ -99,8 +105,6 @@ def available() -> tuple[str, ...]:
 
 
 def _error(message: str) -> Exception:
-    from ..errors import ConfigError  # not from ..config: the config imports this registry
-
     return ConfigError(message)
 
 
@@ -160,19 +164,21 @@ def settings_of(conf: dict) -> tuple[Engine, object]:
         raise _error(f"engine={e.name}: {err}") from None
 
 
-def run(conf: dict, todo: list[dict], workers: int, fn=None, logs=None, warm_up=None):
+def run(conf: dict, todo: list[dict], workers: int, fn=None, logs=None, warm_up=None,
+        **given):
     """Yield (trial, fn(trial)) for every trial of `todo` on the engine `conf` names, with its
-    settings (the `engine` config section as plain data); logs: a folder for its job files;
+    settings (the `engine` config section as plain data); fn: what a worker runs on a trial
+    (the stage's pipeline.worker.run_one); logs: a folder for its job files;
     warm_up(todo): loads the trials' kernels in this process (execute.warm_up), first, unless
-    the engine does it in its own workers (Engine.warms_up)."""
+    the engine does it in its own workers (Engine.warms_up); given: what the engines may take
+    (Engine.takes: pool, the local pool; cost, a trial's estimated cost), each engine gets the
+    ones it declares."""
     e, settings = settings_of(conf)
-    if fn is None:
-        from ..worker import run_one as fn
     if not todo:
         return
     if warm_up is not None and not e.warms_up:  # the kernels loaded once here, not per worker
         warm_up(todo)
-    yield from e.run(todo, workers, fn, settings, logs)
+    yield from e.run(todo, workers, fn, settings, logs, **{k: given.get(k) for k in e.takes})
 
 
 # --- shared by the engines ------------------------------------------------------------------

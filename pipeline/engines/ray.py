@@ -21,8 +21,7 @@ import traceback
 from dataclasses import dataclass
 from typing import Optional
 
-from ..worker import THREAD_VARS
-from . import call, engine, failed
+from . import THREAD_VARS, call, engine, failed
 
 RAY_OBJECT_STORE_BYTES = 100 * 1000**2  # a result is a few hundred kB at most
 RAY_POLL_S = 5.0  # how often the driver looks at the cluster while no trial finishes

@@ -42,6 +42,8 @@ class SlurmSettings:
     lost_s: float = 60.0
 
 
-@engine("slurm", SlurmSettings, package="submitit", extra="slurm")
-def run(todo: list[dict], workers: int, fn, settings: SlurmSettings, logs=None):
-    yield from submitit_jobs.results(todo, workers, fn, "slurm", asdict(settings), logs)
+@engine("slurm", SlurmSettings, package="submitit", extra="slurm", takes=("cost",))
+def run(todo: list[dict], workers: int, fn, settings: SlurmSettings, logs=None,
+        cost=None):
+    yield from submitit_jobs.results(todo, workers, fn, "slurm", asdict(settings), logs,
+                                     cost)

@@ -20,8 +20,7 @@ import time
 import traceback
 from pathlib import Path
 
-from ..worker import THREAD_VARS
-from . import _error, call, failed
+from . import THREAD_VARS, _error, call, failed
 
 LOCAL_POLL_S = 0.5
 # a job that ended without its result file: how long to look for the file before calling the
@@ -97,8 +96,7 @@ def shards(todo: list[dict], n: int, cost=None) -> list[list[dict]]:
     within a shard in the order of `todo`; no shard is empty; the first shard is the costliest."""
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise ValueError(f"shards: n={n!r} must be an int >= 1")
-    if cost is None:
-        from ..plan import cost
+    cost = cost or (lambda t: 1.0)  # (the stage gives pipeline.plan.cost)
     costs = [float(cost(t)) for t in todo]
     n = min(n, len(todo))
     loads, members = [0.0] * n, [[] for _ in range(n)]
@@ -151,11 +149,14 @@ def queued_jobs() -> set[str] | None:
     return set(out.split())
 
 
-def results(todo: list[dict], workers: int, fn, cluster: str, opts: dict, logs=None):
+def results(todo: list[dict], workers: int, fn, cluster: str, opts: dict, logs=None,
+            cost=None):
     """The trials in shards, one array job each, `workers` at a time; yield each trial's result
     as its job spools it, and a failed or lost job's unfinished trials as failed results.
     cluster: slurm or local (submitit's); opts: the engine's settings (SlurmSettings' fields;
-    submitit_local: timeout_min, shards, setup)."""
+    submitit_local: timeout_min, shards, setup); logs: the folder of the job files (the
+    stage's <paths.out>/logs/submitit; else ./outputs/logs/submitit); cost: a trial's
+    estimated cost (pipeline.plan.cost, given by the stage)."""
     import submitit
 
     if cluster == "slurm" and shutil.which("sbatch") is None:
@@ -164,13 +165,8 @@ def results(todo: list[dict], workers: int, fn, cluster: str, opts: dict, logs=N
     n = opts["shards"] or workers
     if cluster == "local":
         n = min(n, workers)  # every local job starts at once
-    parts = shards(todo, n)
-    if logs:
-        folder = Path(logs)
-    else:  # imported here: naming an engine (the config group) loads no config
-        from ..config import REPO_ROOT
-
-        folder = REPO_ROOT / "outputs" / "logs" / "submitit"
+    parts = shards(todo, n, cost)
+    folder = Path(logs) if logs else Path.cwd() / "outputs" / "logs" / "submitit"
     folder.mkdir(parents=True, exist_ok=True)
     executor = submitit.AutoExecutor(folder=str(folder / "%j"), cluster=cluster)
     executor.update_parameters(**job_parameters(opts, workers, cluster,

@@ -18,6 +18,9 @@ class SubmititLocalSettings:
     setup: list[str] = field(default_factory=list)  # shell lines before each job
 
 
-@engine("submitit_local", SubmititLocalSettings, package="submitit", extra="slurm")
-def run(todo: list[dict], workers: int, fn, settings: SubmititLocalSettings, logs=None):
-    yield from submitit_jobs.results(todo, workers, fn, "local", asdict(settings), logs)
+@engine("submitit_local", SubmititLocalSettings, package="submitit", extra="slurm",
+        takes=("cost",))
+def run(todo: list[dict], workers: int, fn, settings: SubmititLocalSettings, logs=None,
+        cost=None):
+    yield from submitit_jobs.results(todo, workers, fn, "local", asdict(settings), logs,
+                                     cost)

@@ -5,7 +5,7 @@ Each experiment declares its study in its config (`paper.study`, next to `paper.
 that name with its place in the report; it gets a Context (the settings, the output folder,
 every study's aggregates) and returns its Markdown lines, writing its files through the
 Context. Adding a study is one module that registers its section (in this package, or a
-gbgrowth_study_<name> module anywhere on the Python path), and its experiment files (conf/ or
+module a distribution declares as an entry point of `gbgrowth.studies`), and its experiment files (conf/ or
 ./conf/experiment/ of the working directory); tests/studies/test_toy_study.py adds one so.
 """
 from __future__ import annotations
@@ -14,7 +14,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 DEFAULT = "figures"
-PLUGIN_PREFIX = "gbgrowth_study_"  # a module of this name on the Python path is a study too
 SECTIONS: dict[str, tuple[int, object]] = {}  # study -> (place in the report, section)
 
 
@@ -45,22 +44,22 @@ def study_of(agg: dict) -> str:
 
 
 def _load() -> None:
-    """Import every module of the studies package, and every module named gbgrowth_study_<name>
-    on the Python path (a study kept outside the repository, as an engine is
-    gbgrowth_engine_<name>): each registers its section when imported, so a new study is its
-    module and its experiment file, with no edit anywhere else."""
+    """Import every module of the studies package, and every study a distribution declares
+    (the entry points `gbgrowth.studies`, as an engine is `gbgrowth.engines`): each registers
+    its section when imported, so a new study is its module and its experiment file, with no
+    edit anywhere else."""
     import importlib
     import pkgutil
 
-    from ..plugins import import_plugins
+    from ..plugins import STUDIES, load_plugins
 
     for m in pkgutil.iter_modules([str(Path(__file__).parent)]):
         if m.name != "__main__":
             importlib.import_module(f"{__package__}.{m.name}")
-    import_plugins(PLUGIN_PREFIX, _BROKEN)  # a failure is named where its study is asked for
+    load_plugins(STUDIES, _BROKEN)  # a failure is named where its study is asked for
 
 
-_BROKEN: dict[str, str] = {}  # study -> why its gbgrowth_study_<name> module did not import
+_BROKEN: dict[str, str] = {}  # study -> why its entry point's module did not import
 
 
 def group(aggs: dict) -> dict:

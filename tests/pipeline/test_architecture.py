@@ -478,6 +478,52 @@ def test_pipeline_has_no_import_circle_and_the_machinery_knows_no_study():
         assert not studies, f"{m} imports the studies {sorted(studies)}"
 
 
+# The floors of pipeline/, from the ground up: a room (a module, or a folder of modules) imports
+# only rooms on lower floors, at the top of a file or inside a function alike (the engines got
+# their pool and cost model as arguments for this). A new module is put on a floor here.
+FLOORS = [
+    ("errors", "keys", "io", "stop", "searchpath", "plugins", "measures"),
+    ("__init__", "experiments", "fingerprint", "warm", "engines", "cache"),
+    ("config", "planned", "checkpoint"),
+    ("plan", "labels", "worker"),
+    ("check", "progress", "studies", "execute"),
+    ("cli",),
+    ("simulate", "aggregate", "tools"),
+    ("report", "models"),
+    ("__main__",),
+]
+
+
+def _room(module: str) -> str:
+    """pipeline.config.schema -> config; pipeline.cli -> cli; pipeline -> __init__."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else "__init__"
+
+
+def _back_up(graph: dict[str, set[str]], floors) -> list[str]:
+    floor = {room: n for n, rooms in enumerate(floors) for room in rooms}
+    out = []
+    for m, deps in sorted(graph.items()):
+        for d in sorted(deps):
+            a, b = _room(m), _room(d)
+            if a != b and floor.get(b, len(floors)) >= floor.get(a, -1):
+                out.append(f"{m} -> {d}")
+    return out
+
+
+def test_every_import_of_pipeline_runs_down_its_declared_floors():
+    """Every module of pipeline/ stands on a declared floor (FLOORS), and imports only what
+    stands lower: an import that runs back up (or across a floor) fails here, naming it."""
+    graph = _imports("pipeline")
+    undeclared = sorted({_room(m) for m in graph} - {r for rooms in FLOORS for r in rooms})
+    assert undeclared == [], f"put these rooms of pipeline/ on a floor (FLOORS): {undeclared}"
+    assert _back_up(graph, FLOORS) == []
+    assert len(FLOORS) <= 9  # gbmodel on the ground floor beside the first (farm-studio look)
+    # the check itself: an engine that imported the pool again would run back up
+    assert _back_up({"pipeline.engines.local": {"pipeline.execute"}}, FLOORS) == [
+        "pipeline.engines.local -> pipeline.execute"]
+
+
 def _named(doc: str, paths, folders: bool = True) -> list[str]:
     """The paths whose file name (and, with folders, each folder above it, as `folder/`) the
     doc does not name."""

@@ -1,6 +1,6 @@
 """A stage's config is composed once (issue 43 item 4): cli.check composes a one-job command line
-as Hydra's run of the stage composes it (cli.compose_as_run), and the run is given that config
-(cli.composed_once) instead of a second compose, only when its loader is asked for the very same
+as Hydra's run of the stage composes it (config.hydra_run.compose_as_run), and the run is given
+that config (composed_once) instead of a second compose, only when its loader is asked for the very same
 thing (arguments, search path, job name, working directory, environment)."""
 import os
 import subprocess
@@ -10,6 +10,7 @@ from conftest import tiny_overrides
 
 from pipeline import cli, simulate
 from pipeline.config import REPO_ROOT
+from pipeline.config import hydra_run as hr
 
 # Hydra's real run composes (the shortcut left out); what check() kept must be that config
 SAME = """
@@ -17,20 +18,21 @@ import sys
 from hydra._internal.config_loader_impl import ConfigLoaderImpl
 from omegaconf import OmegaConf
 from pipeline import cli, simulate
+from pipeline.config import hydra_run as hr
 sys.argv = ["pipeline.simulate", *sys.argv[1:]]
 assert cli.check(sys.argv[1:], simulate.main) is None
-key, given = cli._COMPOSED[0]
+key, given = hr.COMPOSED[0]
 real = ConfigLoaderImpl.load_configuration
 def capture(self, **k):
     cfg = real(self, **k)
-    print("KEY", cli._load_key(self, k["config_name"], k["overrides"], k["run_mode"],
+    print("KEY", hr._load_key(self, k["config_name"], k["overrides"], k["run_mode"],
                               k["from_shell"], k["validate_sweep_overrides"]) == key)
     print("YAML", OmegaConf.to_yaml(cfg) == OmegaConf.to_yaml(given))
     print("TYPES", OmegaConf.get_type(cfg.learner) is OmegaConf.get_type(given.learner),
           OmegaConf.is_struct(cfg) == OmegaConf.is_struct(given))
     raise SystemExit(0)
 ConfigLoaderImpl.load_configuration = capture
-with cli.known_mode(cli._MODE):
+with hr.known_mode(hr.MODE):
     simulate.main()
 """
 
@@ -53,18 +55,18 @@ def test_a_load_of_anything_else_composes(tmp_path, monkeypatch):
     same ones under another environment, are composed (never the kept, stale config)."""
     argv = tiny_overrides(tmp_path, "workers=1")
     assert cli.check(argv, simulate.main) is None
-    kept = list(cli._COMPOSED)
-    cli._COMPOSED.clear()
+    kept = list(hr.COMPOSED)
+    hr.COMPOSED.clear()
     assert len(kept) == 1 and kept[0][1].workers == 1
     obj = kept[0][1]
-    with cli.composed_once(kept):
-        other = cli.compose_as_run(simulate.main, tiny_overrides(tmp_path, "workers=2",
+    with hr.composed_once(kept):
+        other = hr.compose_as_run(simulate.main, tiny_overrides(tmp_path, "workers=2",
                                                                  "hydra.mode=RUN"))
         assert other.workers == 2 and len(kept) == 1
         monkeypatch.setenv("GBGROWTH_TEST_COMPOSED_ONCE", "1")
-        again = cli.compose_as_run(simulate.main, [*argv, "hydra.mode=RUN"])
+        again = hr.compose_as_run(simulate.main, [*argv, "hydra.mode=RUN"])
         assert again is not obj and len(kept) == 1  # another environment
         monkeypatch.delenv("GBGROWTH_TEST_COMPOSED_ONCE")
-        same = cli.compose_as_run(simulate.main, [*argv, "hydra.mode=RUN"])
+        same = hr.compose_as_run(simulate.main, [*argv, "hydra.mode=RUN"])
         assert same is obj and kept == []  # the very load: given the kept config, once
-    cli._COMPOSED.clear()
+    hr.COMPOSED.clear()

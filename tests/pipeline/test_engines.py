@@ -12,7 +12,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from conftest import run_cli, tiny_overrides
+from conftest import declare_plugin, run_cli, tiny_overrides
 from pipeline import engines, execute, simulate
 from pipeline.engines import submitit_jobs
 from pipeline.config import REPO_ROOT, ConfigError, compose
@@ -77,7 +77,7 @@ def test_shards_hold_the_trials_a_local_run_computes(tmp_path):
                                  "conditions.periods=[10,100]"))
     trials = plan(cfg)
     todo = sorted(trials, key=cost, reverse=True)
-    parts = submitit_jobs.shards(todo, 4)
+    parts = submitit_jobs.shards(todo, 4, cost)
     assert sorted(t["key"] for p in parts for t in p) == sorted(t["key"] for t in trials)
     by_key = {t["key"]: t for t in trials}
     assert all(t == by_key[t["key"]] for p in parts for t in p)
@@ -133,7 +133,7 @@ def test_each_engine_gets_its_own_settings_only(tmp_path, compose_tiny, monkeypa
     got = []
 
     def spy(name):
-        def run(todo, workers, fn, settings, logs):
+        def run(todo, workers, fn, settings, logs, **given):  # (slurm's: its cost)
             got.append((name, settings, logs))
             yield from execute.local(todo, workers, fn)
         return run
@@ -173,12 +173,13 @@ def run(todo, workers, fn, settings, logs):
 
 
 def test_a_toy_engine_in_one_module_runs_a_figure_with_no_other_edit(tmp_path):
-    """An engine added as one module (here gbgrowth_engine_toy.py on the Python path; in the
-    repository: pipeline/engines/toy.py) is engine=toy on the command line, its settings
-    engine.<field>, and runs the trials; the unknown-engine line names it."""
+    """An engine added as one module (here gbgrowth_engine_toy.py, which its distribution
+    declares as an entry point of gbgrowth.engines; in the repository: pipeline/engines/toy.py)
+    is engine=toy on the command line, its settings engine.<field>, and runs the trials; the
+    unknown-engine line names it. A module that only bears the old prefix is never imported."""
     plugins = tmp_path / "plugins"
-    plugins.mkdir()
-    (plugins / "gbgrowth_engine_toy.py").write_text(TOY)
+    declare_plugin(plugins, "gbgrowth.engines", "toy", "gbgrowth_engine_toy", TOY)
+    (plugins / "gbgrowth_engine_stray.py").write_text("print('STRAY IMPORTED')\n")
     env = {"PYTHONPATH": str(plugins)}
     out = tmp_path / "run"
     r = run_cli("pipeline.simulate", *tiny_overrides(out, "engine=toy", "engine.greeting=hi",
@@ -189,6 +190,7 @@ def test_a_toy_engine_in_one_module_runs_a_figure_with_no_other_edit(tmp_path):
     assert "2 trials: 0 cached, 2 run, 0 failed" in r.stderr, r.stderr
     r = run_cli("pipeline.simulate", *tiny_overrides(tmp_path / "x", "engine=dask"), env=env)
     assert r.returncode == 2 and "toy" in r.stderr.strip().splitlines()[-1], r.stderr
+    assert "stray" not in r.stderr.strip().splitlines()[-1] and "STRAY" not in r.stdout
 
 
 def test_a_worker_with_other_code_fails_the_trial_instead_of_caching_it(tmp_path):
@@ -359,12 +361,12 @@ def test_a_failing_sacct_is_reported_once_not_every_poll():
 
 
 def test_a_plugin_that_does_not_import_costs_no_other_command(tmp_path):
-    """A gbgrowth_engine_<name> module on the Python path that fails to import (a missing
+    """An engine's module (an entry point of gbgrowth.engines) that fails to import (a missing
     package) left every command a traceback, since every command imports the registry; now
     only engine=<name> is refused, in one line naming the module and its error."""
     plugins = tmp_path / "plugins"
-    plugins.mkdir()
-    (plugins / "gbgrowth_engine_broken.py").write_text("import a_package_not_installed_zz\n")
+    declare_plugin(plugins, "gbgrowth.engines", "broken", "gbgrowth_engine_broken",
+                   "import a_package_not_installed_zz\n")
     env = {"PYTHONPATH": str(plugins)}
     r = run_cli("pipeline", "--version", env=env)
     assert r.returncode == 0 and r.stdout.startswith("gbgrowth "), r.stderr

@@ -470,18 +470,18 @@ def test_r6_an_aggregate_models_json_is_checked_against_its_manifest(tmp_path):
 
 # ---- large but allowed inputs ----------------------------------------------------------------------
 def test_large_a_10000_job_sweep_is_checked_in_a_few_composes(tmp_path, monkeypatch):
-    from pipeline import cli, config
+    from pipeline import check, cli, config
     composed, real = [], config.compose
 
     def counting(overrides=(), hydra=False):
         composed.append(list(overrides))
         return real(overrides, hydra)
 
-    monkeypatch.setattr(cli, "compose", counting)
+    monkeypatch.setattr(check, "compose", counting)
     args = ["-m", "growth.period=range(1,10001)", "figure=bi", "learner.epochs=20",
             "trials.count=1", "workers=1", f"paths.root={tmp_path}"]
     assert cli.check(args) is None
-    assert len(composed) <= cli._MAX_COMBINATIONS + 1  # (+1: Hydra's own section, once)
+    assert len(composed) <= check._MAX_COMBINATIONS + 1  # (+1: Hydra's own section, once)
     # Hydra composes each batch before launching it: batches of a few jobs, not all 10,000
     assert real(["paths.root=/"], hydra=True).hydra.sweeper.max_batch_size <= 16
 

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+from pipeline import check as check_module
 from pipeline import cli, config, io, plan, planned, simulate
 from pipeline.config import ConfigError, compose
 from conftest import tiny_overrides
@@ -145,7 +146,7 @@ def plans(monkeypatch):
         n.append(cfg.figure)
         return real(cfg, remember)
 
-    monkeypatch.setattr(cli, "plan", counting)
+    monkeypatch.setattr(check_module, "plan", counting)
     return n
 
 
@@ -217,7 +218,7 @@ def test_a_refused_stage_leaves_no_note(tmp_path, plans):
     assert cli.check(argv) is None
     with pytest.raises(SystemExit):
         cli.finish(lambda cfg: 2, None)
-    assert notes(tmp_path) == [] and cli._PASSED == []
+    assert notes(tmp_path) == [] and check_module.PASSED == []
 
 
 def test_an_edited_experiment_of_the_working_directory_plans_again(tmp_path, compose_tiny,

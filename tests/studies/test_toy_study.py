@@ -1,11 +1,12 @@
 """A study added as exactly two files, with no other edit: its module (gbgrowth_study_toy.py,
-anywhere on the Python path, as a toy engine is gbgrowth_engine_<name>.py) and its experiment
-file (conf/experiment/toy.yaml of the working directory). simulate, aggregate and report run it
+declared by its distribution as an entry point of gbgrowth.studies, as a toy engine is one of
+gbgrowth.engines) and its experiment file (conf/experiment/toy.yaml of the working directory). simulate, aggregate and report run it
 from that directory, and the report holds its section and its table."""
 import os
 import subprocess
 import sys
 
+from conftest import declare_plugin
 from pipeline import report
 from pipeline.config import REPO_ROOT
 
@@ -57,8 +58,7 @@ def stage(module, work, env, *overrides):
 def test_a_toy_study_in_two_files_is_run_and_reported_with_no_other_edit(tmp_path):
     plugins, work = tmp_path / "plugins", tmp_path / "work"
     (work / "conf" / "experiment").mkdir(parents=True)
-    plugins.mkdir()
-    (plugins / "gbgrowth_study_toy.py").write_text(MODULE)
+    declare_plugin(plugins, "gbgrowth.studies", "toy", "gbgrowth_study_toy", MODULE)
     (work / "conf" / "experiment" / "toy.yaml").write_text(EXPERIMENT)
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(REPO_ROOT), str(plugins)]))
     for module in ("pipeline.simulate", "pipeline.aggregate", "pipeline.report"):
@@ -78,7 +78,7 @@ def test_a_toy_study_in_two_files_is_run_and_reported_with_no_other_edit(tmp_pat
 
 def test_a_study_module_that_does_not_import_costs_only_its_own_experiments(tmp_path,
                                                                             monkeypatch):
-    """A gbgrowth_study_<name> module on the Python path that fails to import made every report
+    """A study's module (an entry point of gbgrowth.studies) that fails to import made every report
     a traceback (the registry imports each one); now a report without its study is made, and
     an experiment naming it is refused in one line naming the module's error."""
     import pytest
@@ -86,7 +86,8 @@ def test_a_study_module_that_does_not_import_costs_only_its_own_experiments(tmp_
     from pipeline.config import ConfigError
     from pipeline.studies import sections
 
-    (tmp_path / "gbgrowth_study_broken.py").write_text("import a_package_not_installed_zz\n")
+    declare_plugin(tmp_path, "gbgrowth.studies", "broken", "gbgrowth_study_broken",
+                   "import a_package_not_installed_zz\n")
     monkeypatch.syspath_prepend(str(tmp_path))
     mine = dict(models=dict(paper=dict(study="figures")))
     assert list(sections.group({"fig": mine})) == ["figures"]

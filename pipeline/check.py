@@ -1,0 +1,341 @@
+"""The command line's check: compose and plan every configuration it can produce.
+
+Hydra reports a bad override (an unknown option, a value of the wrong type, an unknown key) in
+several lines with hints about stack traces, and a bad value in the second job of a sweep only
+after the first job ran. Each stage therefore first composes and plans every configuration its
+command line can produce (each value of a sweep) with the compose API; a failure is reported as
+one line, `error: ...`, with exit status 2, before Hydra or the stage has written anything.
+"""
+from __future__ import annotations
+
+import itertools
+import math
+import re
+import sys
+from pathlib import Path
+
+from hydra.core.override_parser.overrides_parser import OverridesParser
+
+from .config import (CONF_DIR, ConfigError, check_choices, check_experiments, check_hydra,
+                     check_keys, check_run, compose, config_notes, declared, overrides_of,
+                     without_hydra)
+from .config.hydra_run import MODE, compose_as_run
+from .labels import condition_labels
+from .plan import plan, plan_conditions
+from .planned import checked_marker, was_checked
+from .searchpath import shadowed
+
+# a sweep's jobs composed and planned up front: the first job, then each other value of each
+# swept key in turn (the others at their first), at most this many (each compose takes about a
+# second); every value of a swept key with a declared range (config.declared) is checked by it
+_MAX_COMBINATIONS = 8
+MAX_SWEEP_JOBS = 10_000  # jobs of one multirun: each is a Hydra job with its own folder
+PASSED: list = []  # (note, trials, root) of the one-job command line check() planned, for the
+# stage's end (cli.finish) to keep: the same command line again plans nothing (planned.py)
+
+
+def sweep_size(override) -> int | None:
+    """How many values a sweep override has, counted without building them (a range of 10^8
+    values would fill the memory); None for a glob (its size depends on the config)."""
+    from hydra.core.override_parser.types import ChoiceSweep, RangeSweep
+
+    v = override.value()
+    if isinstance(v, RangeSweep):
+        if not v.step:
+            return 0
+        return max(0, math.ceil((v.stop - v.start) / v.step))
+    if isinstance(v, ChoiceSweep):
+        return len(v.list)
+    return None
+
+
+def check_sweep_size(parsed) -> str | None:
+    """One line when the sweeps of a command line make more than MAX_SWEEP_JOBS jobs."""
+    total = 1
+    for o in parsed:
+        if o.is_sweep_override():
+            n = sweep_size(o)
+            total *= 1 if n is None else n
+            if total > MAX_SWEEP_JOBS:
+                return (f"{o.input_line}: the sweep makes more than {MAX_SWEEP_JOBS:,} jobs; "
+                        "sweep fewer values (or list the conditions in one experiment)")
+    return None
+
+
+def _one_line(err: BaseException) -> str:
+    """The innermost message of an exception chain, folded into one line that names the key."""
+    while err.__cause__ is not None and str(err.__cause__):
+        err = err.__cause__
+    text = str(err)
+    missing = re.search(r"Could not find '([^']+)/([^']+)'", text)
+    if missing:  # an unknown option of a config group
+        group, value = missing.groups()
+        listing = text.split(f"Available options in '{group}':", 1)[-1]
+        listing = listing.split("Config search path", 1)[0]
+        options = [ln.strip() for ln in listing.splitlines() if ln.startswith("\t")]
+        return f"{group}={value}: unknown option; choose one of: {', '.join(options)}"
+    lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
+    key = next((ln.split(":", 1)[1].strip() for ln in lines if ln.startswith("full_key:")), None)
+    lines = [ln for ln in lines if not ln.startswith(
+        ("full_key:", "object_type=", "reference_type=", "Set the environment"))]
+    message = "; ".join(lines) or type(err).__name__
+    return f"{key}: {message}" if key else message
+
+
+def missing_folder(searchpath) -> str | None:
+    """One line when a `file://` folder of hydra.searchpath does not exist (Hydra skips it, and
+    the body it should hold surfaces as `body=my_arm: unknown option`)."""
+    for entry in searchpath if isinstance(searchpath, list) else [searchpath]:
+        entry = str(entry)
+        if entry.startswith("file://"):
+            folder = Path(entry[len("file://"):])
+            if not folder.is_dir():
+                return (f"hydra.searchpath: {folder} is not a folder; give the absolute path of "
+                        "your config folder (the one that holds body/)")
+    return None
+
+
+def renamed_group(override: str) -> str | None:
+    """One line for an override of the group `executor`, which is `engine` now (one name for
+    one thing), saying what to write instead; None for any other override."""
+    bare = override.lstrip("+~")
+    key, _, value = bare.partition("=")
+    if key.split(".", 1)[0] != "executor":
+        return None
+    rest = key.removeprefix("executor").removeprefix(".").removeprefix("slurm").removeprefix(".")
+    new = "engine" if rest in ("", "backend") else f"engine.{rest}"
+    return (f"{override}: the group executor is named engine now; write "
+            f"{override[:len(override) - len(bare)]}{new}={value} (docs/engines.md)")
+
+
+def empty_config_file(err: BaseException, overrides: list[str]) -> str | None:
+    """One line when composing failed on a config file that is empty (a body's learner settings
+    from a shell redirect `tool > file` whose command failed: Hydra then says "Key
+    'body_learner' not in 'Config'")."""
+    found = re.search(r"In '([\w./-]+)'", str(err))
+    if not found:
+        return None
+    folders = [CONF_DIR, Path.cwd() / "conf", *searchpath_folders(overrides)]
+    for folder in folders:
+        path = folder / f"{found.group(1)}.yaml"
+        if path.is_file() and not path.read_text().strip():
+            return (f"{path}: the file is empty; write it with `python -m pipeline.tools.rate "
+                    "... --write` (a shell redirect `> file` leaves it empty when the command "
+                    "fails), or remove it")
+    return None
+
+
+# Hydra's flags that would read config files the check does not compose (a config dir or
+# name of one's own: hydra.searchpath is the checked way) or a pickled config (code)
+_UNCHECKED_FLAGS = {"--config-path", "-cp", "--config-name", "-cn", "--config-dir", "-cd",
+                    "--experimental-rerun"}
+
+
+def searchpath_folders(overrides: list[str]) -> list[Path]:
+    """The `file://` folders of hydra.searchpath among `overrides`."""
+    return [Path(str(e)[len("file://"):]) for o in overrides if o.startswith("hydra.searchpath=")
+            for e in OverridesParser.create().parse_override(o).value()
+            if str(e).startswith("file://")]
+
+
+def check(argv: list[str], stage=None) -> str | None:
+    """None when every configuration of the command line composes and plans, else one line
+    saying why. `stage`: the stage's @hydra.main function; a one-job command line is then
+    composed as Hydra's run of it composes it (compose_as_run), and the run is given that
+    config instead of composing it again (config.hydra_run.composed_once)."""
+    PASSED.clear()
+    try:
+        overrides, parsed, multirun = _parsed(argv)
+        choices, sweeps, hydra_own = _choices(parsed, multirun)
+        n_jobs = math.prod(len(c) for c in choices)
+        planned = {}
+        notes = shadowed(CONF_DIR, [Path.cwd() / "conf", *searchpath_folders(overrides)])
+        combinations = itertools.islice(_one_at_a_time(choices), _MAX_COMBINATIONS)
+        for n, combination in enumerate(combinations):
+            given = list(combination)
+            try:  # values too: every sweep job is checked up front
+                if n == 0:
+                    one = stage is not None and n_jobs == 1 and not multirun
+                    cfg = _first(given, hydra_own, stage if one else None, overrides)
+                    check_experiments(cfg, given)
+                    check_sweep_values(sweeps, cfg)
+                else:
+                    cfg = compose(given)
+                trials = _planned(cfg, given, notes, n_jobs == 1, hydra_own)
+                planned.setdefault(cfg.figure, []).extend(trials)
+            except ConfigError:
+                raise
+            except Exception as err:
+                return empty_config_file(err, given) or _one_line(err)
+        for trials in planned.values():  # a sweep's jobs make one figure: their labels differ
+            condition_labels(plan_conditions(trials))
+    except ConfigError as err:
+        return str(err)
+    for note in notes:
+        print(note, file=sys.stderr)
+    return None
+
+
+def _parsed(argv: list[str]) -> tuple[list[str], list, bool]:
+    """(the overrides, Hydra's parse of them, whether -m): ConfigError for a flag that reads
+    unchecked files, characters Hydra cannot read, a syntax error, too large a sweep, a sweep
+    of Hydra's own settings or of a renamed group."""
+    for arg in argv:
+        if arg.split("=", 1)[0] in _UNCHECKED_FLAGS:
+            raise ConfigError(f"{arg}: the stages read the project's config and the folders of "
+                              "hydra.searchpath=[file://...] only (where every file is checked)")
+    overrides = overrides_of(argv)
+    for o in overrides:
+        if not o.isascii() and "LexerNoViableAlt" in (_parse_error(o) or ""):
+            key = o.split("=", 1)[0]
+            raise ConfigError(f"{o}: Hydra reads characters beyond ASCII only inside quotes; "
+                              f"write '{key}=\"{o.split('=', 1)[-1]}\"'")
+    try:
+        parsed = OverridesParser.create().parse_overrides(overrides)
+    except Exception as err:  # a syntax error in an override
+        raise ConfigError(_one_line(err)) from None
+    problem = check_sweep_size(parsed)
+    for o in parsed:  # callbacks, launchers, the searchpath: composed and checked once
+        if o.is_hydra_override() and o.is_sweep_override():
+            problem = problem or (f"{o.input_line}: Hydra's own settings take one value per "
+                                  "command; sweep the stage's keys only")
+        problem = problem or renamed_group(o.input_line)
+    if problem:
+        raise ConfigError(problem)
+    return overrides, parsed, "-m" in argv or "--multirun" in argv
+
+
+def _choices(parsed, multirun: bool) -> tuple[list[list[str]], list, list[str]]:
+    """(each override's values as overrides, the sweep overrides, Hydra's own overrides but the
+    searchpath): ConfigError for a sweep without -m or a searchpath folder that is missing."""
+    choices, sweeps = [], []
+    for o in parsed:
+        if o.is_hydra_override():
+            if o.get_key_element() == "hydra.searchpath":  # where config groups (a body) live
+                missing = missing_folder(o.value())
+                if missing:
+                    raise ConfigError(missing)
+                choices.append([o.input_line])
+            continue  # hydra/launcher=... and hydra.*: checked on the composed config
+        if o.is_sweep_override():
+            if not multirun:
+                raise ConfigError(f"{o.input_line}: a sweep over several values needs -m "
+                                  "(--multirun)")
+            values = itertools.islice(o.sweep_string_iterator(), _MAX_COMBINATIONS)
+            choices.append([f"{o.get_key_element()}={v}" for v in values])
+            sweeps.append(o)
+        else:
+            choices.append([o.input_line])
+    hydra_own = [o.input_line for o in parsed if o.is_hydra_override()
+                 and o.get_key_element() != "hydra.searchpath"]
+    return choices, sweeps, hydra_own
+
+
+def _first(given: list[str], hydra_own: list[str], stage, overrides: list[str]):
+    """The first job's config, composed once with Hydra's section (as Hydra's run composes it
+    where `stage` is given and the job is the whole command line), Hydra's section checked
+    (check_hydra) and then dropped."""
+    full = None
+    if stage is not None and given + hydra_own == overrides:
+        full = compose_as_run(stage, overrides)
+    if full is None:
+        full = compose(given + hydra_own, hydra=True)
+    check_hydra(full)
+    MODE[:] = [full.hydra.mode]  # a sweep's values leave it as it is
+    # without Hydra's own overrides the config is that composition without its section (what
+    # Hydra's compose API returns): one compose, not two (each about 0.2 s CPU)
+    return without_hydra(full) if not hydra_own else compose(given)
+
+
+def _planned(cfg, given: list[str], notes: list[str], one_job: bool,
+             hydra_own: list[str]) -> list[dict]:
+    """The trials of one job's config, its keys and its choices checked; its notes added to
+    `notes`. one_job: its stage takes this plan instead of planning again (plan), and a note
+    of a run of the same command line, config files and code (planned.checked_marker) skips
+    the planning: the run's own settings are checked (check_run), [] returned."""
+    check_keys(cfg)
+    notes += [n for n in config_notes(cfg) if n not in notes]
+    marker = checked_marker(cfg, given + hydra_own) if one_job else None
+    if was_checked(marker, cfg.paths.root):
+        check_run(cfg)
+        return []
+    trials = plan(cfg, remember=one_job)  # checks the values, the limits
+    check_choices(cfg, given)  # what plan accepts but a user did not mean
+    keeps_experiment(given, trials)
+    if one_job:  # kept when the stage has run (cli.finish): a refused run writes nothing
+        PASSED[:] = [(marker, trials, cfg.paths.root)]
+    return trials
+
+
+def _one_at_a_time(choices: list[list[str]]):
+    """The first combination, then each other value of each choice with the rest at their
+    first: every value is in some combination (the product's first ones hold one value of the
+    first key only)."""
+    first = [c[0] for c in choices]
+    yield tuple(first)
+    for i, c in enumerate(choices):
+        for v in c[1:]:
+            yield tuple(first[:i] + [v] + first[i + 1:])
+
+
+def _sweep_values(o):
+    """The typed values of sweep override `o`, lazily (a range's numbers are computed)."""
+    from hydra.core.override_parser.types import ChoiceSweep, RangeSweep
+
+    v = o.value()
+    if isinstance(v, RangeSweep):
+        x = v.start
+        while (x < v.stop) if v.step > 0 else (x > v.stop):
+            yield x
+            x += v.step
+    elif isinstance(v, ChoiceSweep):
+        yield from v.list
+
+
+def check_sweep_values(sweeps, cfg) -> None:
+    """ConfigError for the first value of a sweep outside its key's declared range
+    (config.declared): every job's value is checked, not only the composed ones'."""
+    groups = {o.get_key_element() for o in sweeps}
+    for o in sweeps:
+        key = o.get_key_element().lstrip("+~")
+        if key.split(".")[0] in groups:  # swept with its group (learner=a,b): a range each
+            continue
+        constraint = declared(key, cfg)
+        if constraint is None:
+            continue
+        for value in _sweep_values(o):
+            if not constraint.ok(value):
+                raise ConfigError(f"{key}={value!r} (a value of the sweep {o.input_line}): "
+                                  f"must be {constraint.describe()}")
+
+
+# Overrides that leave an experiment's conditions as they are (where, how and how many)
+_KEEPS_CONDITIONS = ("profile", "paths.", "workers", "engine", "trials.count", "report.",
+                     "aggregate.", "bench.", "experiments")
+
+
+def keeps_experiment(overrides: list[str], trials: list[dict]) -> None:
+    """ConfigError when `experiment=E` with other settings would replace E's figure: the run
+    must then name its own figure (figure=NAME), so that E's stays as the experiment made it."""
+    keys = {o.lstrip("+~").split("=", 1)[0]: o for o in overrides}
+    if "experiment" not in keys or "figure" in keys or not trials:
+        return
+    own = [o for k, o in keys.items() if k == "experiment" or k.startswith(_KEEPS_CONDITIONS)]
+    if len(own) == len(keys) or {t["condition"] for t in plan(compose(own))} == {
+            t["condition"] for t in trials}:
+        return
+    changed = " ".join(o for k, o in keys.items() if o not in own)
+    figure = trials[0]["figure"]
+    raise ConfigError(f"{keys['experiment']} with {changed} would replace figure {figure} (the "
+                      f"experiment's own settings) with other settings; name this run: "
+                      f"figure={figure}_custom (any plain name)")
+
+
+def _parse_error(override: str) -> str | None:
+    try:
+        OverridesParser.create().parse_overrides([override])
+    except Exception as err:
+        return type(err.__cause__ or err).__name__ + str(err)
+    return None
+
+

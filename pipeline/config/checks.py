@@ -1,0 +1,233 @@
+"""The checks of a config's values, each made once, where the value enters: the run's own
+settings (check_run: paths, names, workers, the stages' ranges) on every run, a variant's trial
+settings (check_limits) when it is planned, a trial's own values by gbmodel (TrialSpec.validate
+and the LIMITS tables of gbmodel.spec), each a ConfigError of one line naming the key.
+"""
+from __future__ import annotations
+
+import dataclasses
+import os
+from pathlib import Path
+
+from omegaconf import DictConfig, OmegaConf
+
+import gbmodel
+from gbmodel.growth import LIMITS as growth_limits
+from gbmodel.spec import MAX_EPOCHS, MAX_INT64, MAX_SIZE, Int, Number, check_int
+
+from ..errors import ConfigError
+from .schema import Config
+
+
+def _bad(key, value, why):
+    raise ConfigError(f"{key}={value!r}: {why}")
+
+
+# ---- limits, checked by plan() before it plans a variant's trials ---------------------------------
+MAX_TRIALS = 10_000  # trials.count: independent trials per condition (the paper's figures use 20)
+MAX_PLANNED = 100_000  # trials of one run in all (conditions x variants x trials.count)
+MAX_FRAMES = 100  # conditions.frames: the report draws each condition's frames (~0.12 s each)
+# key -> its range (gbmodel.spec's constraints): a number of the config outside it is one line
+RANGES = {"aggregate.fail_factor": Number(1.0, 1e3, lo_open=True),  # x the median: <= 1 flags
+          # half or all
+          "conditions.budget_scale": Number(0.0, 1e3, lo_open=True),
+          "conditions.growth_share": Number(0.0, 1.0, lo_open=True),
+          "conditions.frames": Int(0, MAX_FRAMES, " (the report draws every frame of every "
+                                   "condition)"),
+          "report.dpi": Number(10, 1200),
+          **{f"growth.{k}": growth_limits[k] for k in ("start_size", "end_size", "fixed_scale")}}
+
+
+def declared(key: str, cfg):
+    """The declared range of a config key (a gbmodel.spec constraint), or None: RANGES, the
+    limits of growth (gbmodel.growth.LIMITS), of the config's learner (its LIMITS) and the
+    counts of check_limits."""
+    section, _, name = key.partition(".")
+    if key in RANGES:
+        return RANGES[key]
+    if section == "growth":
+        return growth_limits.get(name)
+    if section == "learner":
+        if name == "epochs":
+            return Int(1, MAX_EPOCHS)
+        learner = OmegaConf.select(cfg, "learner.name", default=None)
+        if learner in gbmodel.learners.available():
+            return getattr(gbmodel.learners.get(learner), "LIMITS", {}).get(name)
+    if key == "trials.count":
+        return Int(1, MAX_TRIALS)
+    return None
+
+
+STAGE_SECTIONS = ("aggregate", "report")  # check_run's; a trial's are check_limits'
+
+
+def check_ranges(cfg, stages: bool = False) -> None:
+    """Refuse (one line naming the key and its range) a value outside RANGES: those of the
+    stages' sections (stages) or of the trial's (a variant's copy holds those only)."""
+    for key, constraint in RANGES.items():
+        if (key.split(".")[0] in STAGE_SECTIONS) != stages:
+            continue
+        value = OmegaConf.select(cfg, key, default=None)
+        if value is not None and not constraint.ok(value):
+            raise ConfigError(f"{key}={value!r}: must be {constraint.describe()}")
+    if stages:
+        return
+    for s in cfg.conditions.references:
+        if isinstance(s, (int, float)) and not isinstance(s, bool) and not s <= MAX_SIZE:
+            raise ConfigError(f"conditions.references={s!r}: a size factor of at most "
+                              f"{MAX_SIZE:g}")
+
+
+def _too_big(key, value, limit, unit, shown=None):
+    if isinstance(value, int) and not isinstance(value, bool) and value > limit:
+        raise ConfigError(f"{key}={value!r}: at most {shown or f'{limit:,}'} {unit}")
+
+
+def check_limits(cfg) -> None:
+    """Refuse (ConfigError naming the key and its unit) what would exhaust memory or overflow
+    before a trial is planned: the trial count, the epochs, growth periods beyond int64, and the
+    whole run's size; and a trial setting outside its range (RANGES). Made on each variant's
+    copy (a variant's `set` may change what the command line did not)."""
+    check_int("trials.count", cfg.trials.count, 1)
+    _too_big("trials.count", cfg.trials.count, MAX_TRIALS, "trials per condition")
+    _too_big("learner.epochs", cfg.learner.epochs, MAX_EPOCHS, "epochs per trial",
+             f"{MAX_EPOCHS:.0e}")  # before planning multiplies the trials
+    check_ranges(cfg)
+    _too_big("growth.period", cfg.growth.get("period"), MAX_INT64, "epochs (int64)")
+    for p in cfg.conditions.periods:
+        _too_big("conditions.periods", p, MAX_INT64, "epochs (int64)")
+    count = cfg.trials.count
+    conditions = max(len(cfg.conditions.periods) + len(cfg.conditions.references), 1)
+    total = count * conditions * max(len(cfg.conditions.variants), 1)
+    if total > MAX_PLANNED:
+        raise ConfigError(f"trials.count={count}: {total:,} trials in all ({conditions} "
+                          f"conditions x {max(len(cfg.conditions.variants), 1)} variants); "
+                          f"at most {MAX_PLANNED:,} per run")
+
+
+def config_notes(cfg) -> list[str]:
+    """Notes about legitimate but unusual values (a shrinking body)."""
+    growth, notes = cfg.growth, []
+    start, end, period = growth.get("start_size"), growth.get("end_size"), growth.get("period")
+    if (isinstance(start, (int, float)) and isinstance(end, (int, float)) and start > end
+            and (period or cfg.conditions.periods)):
+        notes.append(f"note: growth.start_size={start} > growth.end_size={end} (size factors): "
+                     "the body shrinks over the growth period")
+    loop = cfg.body.get("callable") if "body" in cfg else None
+    if loop is not None and loop.get("factory"):
+        notes.append(f"note: body.callable: the cache key holds {loop.factory}, the source of its "
+                     f"module and the files in body.callable.files ({len(loop.get('files') or [])}"
+                     "), not the modules it imports, a simulator's version or a robot's state: "
+                     "change body.callable.version when those change (gbmodel/body_loop.py)")
+    return notes
+
+
+def check_choices(cfg, overrides) -> None:
+    """Refuse (one line) what a command line would otherwise accept in silence: a body file
+    whose `name:` differs from its file name (`body=my_arm` loading `name: other`), a growth
+    period with growth=none (it would become 0), and a growth period given on the command line
+    that is longer than the run (the body would never reach its end size)."""
+    given = {o.lstrip("+~").split("=", 1)[0]: o.split("=", 1)[1] for o in overrides if "=" in o}
+    body = given.get("body")
+    if body is not None and "body.name" not in given and cfg.body.name != body:
+        raise ConfigError(f"body={body}: its file {body}.yaml says name: {cfg.body.name}; a body "
+                          f"file is named after its body (rename one of them)")
+    g = cfg.growth
+    if g.pattern == "none" and g.period:
+        raise ConfigError(f"growth.period={g.period}: growth=none keeps the body at one size, so "
+                          "it has no period; drop growth.period or choose a growth pattern "
+                          "(growth=proportional)")
+    epochs = cfg.learner.epochs
+    if ("growth.period" in given and g.pattern != "none" and not cfg.conditions.periods
+            and cfg.conditions.budget is None and isinstance(epochs, int)
+            and isinstance(g.period, int) and g.period > epochs):
+        raise ConfigError(f"growth.period={g.period}: longer than the run (learner.epochs="
+                          f"{epochs}), so the body never reaches its end size; choose a period "
+                          "of at most learner.epochs")
+
+
+def check_keys(cfg) -> None:
+    """Refuse a top-level key the schema does not know (`+foo=1` is composed without a word)."""
+    known = {f.name for f in dataclasses.fields(Config)}
+    unknown = sorted(set(cfg.keys()) - known - {"hydra"})
+    if unknown:
+        raise ConfigError(f"{unknown[0]}: not a config key; the top-level keys are "
+                          f"{', '.join(sorted(known))}")
+
+
+def check_root(cfg) -> None:
+    """paths.root must be an absolute folder, and every output folder must lie under it or be
+    the committed report (`published`, `bench`): an empty root would write at the file system's
+    root, a relative one wherever the command happens to run."""
+    root = cfg.paths.root
+    if not isinstance(root, str) or not root.strip():
+        raise ConfigError(f"paths.root={root!r}: must be a folder (an absolute path)")
+    if not Path(root).is_absolute():
+        raise ConfigError(f"paths.root={root!r}: must be an absolute path (it would be "
+                          f"{Path(root).resolve()} here); e.g. paths.root=$PWD/{root}")
+    base = Path(root).resolve()
+    for key in ("out", "cache", "aggregate", "report", "published", "bench"):
+        path = Path(cfg.paths[key])
+        if not path.is_absolute() or ".." in path.parts:
+            raise ConfigError(f"paths.{key}={str(path)!r}: must be an absolute path without '..'")
+        resolved = path.resolve()
+        if resolved != base and base not in resolved.parents:
+            raise ConfigError(f"paths.{key}={str(path)!r}: outside paths.root={root}")
+
+
+def check_names(cfg) -> None:
+    """Every name of the config that becomes part of a path (pipeline.io.safe_name): the figure,
+    the posture figures and their panels' figure names, the joint-space figure. A name like
+    `../../esc` would write outside paths.root."""
+    from ..io import UnsafeName, safe_name
+
+    try:
+        safe_name("figure", cfg.figure)
+        safe_name("report.joint_space_figure", cfg.report.joint_space_figure)
+        for name, panels in cfg.report.postures.items():
+            safe_name("report.postures", name)
+            for panel in panels or ():
+                if panel:
+                    safe_name(f"report.postures.{name}", str(panel[0]))
+    except UnsafeName as err:
+        raise ConfigError(str(err)) from None
+
+
+def check_stamp(cfg) -> None:
+    """report.stamp_findings rewrites the committed pipeline/studies/findings_numbers.csv: only
+    the publishing run (make reproduce: report.publish=true) may, never a smoke or custom run."""
+    if cfg.report.stamp_findings and not cfg.report.publish:
+        raise ConfigError("report.stamp_findings=true: only with report.publish=true (make "
+                          "stamp, after make studies); this run's numbers are not "
+                          "the committed report's")
+
+
+
+
+def check_paths(cfg: DictConfig) -> None:
+    """Every output folder is a folder (or can become one), and writable, except the cache: a
+    read-only cache where every trial is cached is read, never written (aggregate, report, and
+    simulate with nothing to run); a write it would need fails there in one line (a disk error,
+    pipeline.cli.finish) before any trial runs: the claims come first."""
+    for key in ("root", "out", "cache", "aggregate", "report", "published", "bench"):
+        path = Path(cfg.paths[key])
+        for p in [path, *path.parents]:
+            if p.exists():
+                if not p.is_dir():
+                    _bad(f"paths.{key}", str(path), f"{p} is a file, not a folder")
+                if key != "cache" and not os.access(p, os.W_OK | os.X_OK) and p == path:
+                    _bad(f"paths.{key}", str(path), "is not writable")
+                break
+
+
+def check_run(cfg: DictConfig) -> None:
+    """The checks of a run's own settings (not of its trials': check_limits), on every run."""
+    check_int("trials.root_seed", cfg.trials.root_seed, 0)
+    check_int("workers", cfg.workers, 1)
+    check_ranges(cfg, stages=True)
+    if not cfg.figure or "/" in cfg.figure or cfg.figure.startswith("."):
+        _bad("figure", cfg.figure, "must be a plain name (it names a folder)")
+    check_root(cfg)
+    check_names(cfg)
+    check_stamp(cfg)
+    check_paths(cfg)

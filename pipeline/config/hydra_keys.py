@@ -1,0 +1,204 @@
+"""What a config may set under `hydra`: an allow-list of Hydra's keys, each checked on its
+resolved value (the command line and every config file on the search path alike).
+
+Hydra's section of the composed config is read key by key: a key is allowed only where HYDRA_KEYS
+names it (or a folder above it), and then its value must pass that key's check. Everything else
+(a key Hydra may add, hydra.env, a launcher's or sweeper's own code) is one line, exit 2: a
+logging factory, a callback or an environment variable (PYTHONPATH, LD_PRELOAD) runs code, a folder
+outside paths.root is written outside it. The folders are checked as they resolve, so
+`hydra.output_subdir=${oc.env:X}` is checked as the folder it names, not as the text.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from omegaconf import OmegaConf
+
+from ..errors import ConfigError
+
+OWN_TARGETS = ("pipeline.",)  # a `_target_` the project's config may name
+HYDRA_TARGETS = ("hydra._internal.", "hydra_plugins.")  # Hydra's own launchers and sweepers
+LAUNCHER_KEYS = {"_target_", "n_jobs", "backend", "prefer", "require", "verbose", "timeout",
+                 "pre_dispatch", "batch_size", "max_nbytes", "mmap_mode"}
+LOG_HANDLERS = ("logging.StreamHandler", "logging.NullHandler")
+LOG_STREAMS = ("ext://sys.stdout", "ext://sys.stderr")
+LOG_FORMATTER_KEYS = {"format", "datefmt", "style", "validate"}
+LOG_HANDLER_KEYS = {"class", "formatter", "stream", "level"}
+LOG_LOGGER_KEYS = {"level", "handlers", "propagate"}
+# what each allowed key is (the message of a refused one lists them); None: filled by Hydra
+HYDRA_KEYS = {
+    "searchpath": "where config groups live (a body or an experiment of one's own)",
+    "mode": "RUN or MULTIRUN", "verbose": "Hydra's debug logging",
+    "job.chdir": "change into the run's folder (inside paths.root)",
+    "job.name": "a plain name (it names the sweep's folder)",
+    "job.config.override_dirname": "how override_dirname is spelt",
+    "launcher": "Hydra's own launchers (hydra/launcher=basic|joblib), not their temp_folder",
+    "sweeper": "Hydra's own sweepers",
+    "job_logging": "to the terminal: StreamHandler to sys.stdout/stderr or NullHandler, "
+                   "formatters by format, no factory ('()', class, ext://) of any kind",
+    "hydra_logging": "the same as job_logging",
+    "run.dir": "a folder inside paths.root (or the project's '.', where nothing is written)",
+    "sweep.dir": "a folder inside paths.root", "sweep.subdir": "a relative name, no '..'",
+    "output_subdir": "null, or a relative name inside a run folder under paths.root",
+    "help": "the text of --help", "hydra_help": "the text of --hydra-help",
+    "job.env_copy": "empty (an environment variable of every job runs code)",
+    **dict.fromkeys(("runtime", "overrides", "job.override_dirname", "job.id", "job.num",
+                     "job.config_name")),
+}
+
+
+def _flat(node, where: str = "") -> dict:
+    """Dotted key -> leaf value of a plain config tree (lists are leaves, an empty dict none)."""
+    if isinstance(node, dict):
+        out = {}
+        for k, v in node.items():
+            out.update(_flat(v, f"{where}.{k}" if where else str(k)))
+        return out
+    return {where: node}
+
+
+def _targets(node, where: str):
+    """(key, value) of every `_target_` in a plain config tree."""
+    if isinstance(node, dict):
+        for k, v in node.items():
+            key = f"{where}.{k}" if where else str(k)
+            if k == "_target_":
+                yield key, v
+            else:
+                yield from _targets(v, key)
+    elif isinstance(node, list):
+        for i, v in enumerate(node):
+            yield from _targets(v, f"{where}[{i}]")
+
+
+def check_hydra(cfg) -> None:
+    """Refuse what would make Hydra call or write something the project did not choose. `cfg` is
+    composed with hydra=True: the command line and every config file (a body YAML on
+    hydra.searchpath) count. Outside `hydra`: a `_target_` that is not the project's own. Under
+    it: a key that HYDRA_KEYS does not allow, or an allowed key whose resolved value fails its
+    check."""
+    tree = OmegaConf.to_container(cfg, resolve=False)
+    hydra = tree.pop("hydra", None) or {}
+    for key, target in _targets(tree, ""):
+        if not (isinstance(target, str) and target.startswith(OWN_TARGETS)):
+            raise ConfigError(f"{key}={target!r}: the config names no code to run (only "
+                              "pipeline's own)")
+    for name in hydra.get("callbacks") or {}:
+        raise ConfigError(f"hydra.callbacks.{name}: Hydra callbacks run code on every job; the "
+                          "stages take none")
+    job = hydra.get("job") or {}
+    for name in [*(job.get("env_set") or {}), *(job.get("env_copy") or [])]:
+        raise ConfigError(f"hydra.job.env_set.{name}: sets an environment variable of every job "
+                          "(PYTHONPATH, LD_PRELOAD: code the workers run); the stages take none")
+    for key, value in sorted(_flat(hydra).items()):
+        if not any(key == k or key.startswith(k + ".") for k in HYDRA_KEYS):
+            raise ConfigError(f"hydra.{key}={value!r}: not a setting the stages take from Hydra "
+                              f"(allowed under hydra: {', '.join(k for k, v in HYDRA_KEYS.items() if v)}"
+                              "; docs/faults.md)")
+    for section in ("launcher", "sweeper"):
+        target = (hydra.get(section) or {}).get("_target_")
+        if target is not None and not (isinstance(target, str)
+                                       and target.startswith(HYDRA_TARGETS)):
+            raise ConfigError(f"hydra.{section}._target_={target!r}: only Hydra's own "
+                              f"{section}s (hydra/{section}=...)")
+    _check_launcher(hydra.get("launcher") or {})
+    for section in ("job_logging", "hydra_logging"):
+        _check_logging(section, hydra.get(section) or {})
+    _check_dirs(cfg)
+
+
+def _check_launcher(launcher: dict) -> None:
+    n_jobs = launcher.get("n_jobs")
+    if n_jobs is not None and (isinstance(n_jobs, bool) or not isinstance(n_jobs, int)
+                               or n_jobs == 0):
+        raise ConfigError(f"hydra.launcher.n_jobs={n_jobs!r}: a non-zero integer (-1: one "
+                          "job per core)")
+    for key in sorted(k for k, v in launcher.items() if k not in LAUNCHER_KEYS and v is not None):
+        raise ConfigError(f"hydra.launcher.{key}={launcher[key]!r}: not a launcher setting the "
+                          f"stages take ({', '.join(sorted(LAUNCHER_KEYS))}; a temp_folder "
+                          "would be written outside paths.root)")
+
+
+def _check_logging(section: str, conf: dict) -> None:
+    """A logging config (logging.config.dictConfig) that builds nothing but terminal handlers:
+    no factory ('()') anywhere, no filters, a class only on a handler and only LOG_HANDLERS, a
+    stream only sys.stdout or sys.stderr (ext:// imports any object), formatters by format."""
+    where = f"hydra.{section}"
+    for key, value in _flat(conf).items():
+        if "()" in key.split(".") or (isinstance(value, str) and "ext://" in value
+                                      and value not in LOG_STREAMS):
+            raise ConfigError(f"{where}.{key}={value!r}: builds or imports its own object; the "
+                              f"stages log to the terminal (hydra/{section}=stdout)")
+    for name, f in (conf.get("formatters") or {}).items():
+        for key in sorted(set(f or {}) - LOG_FORMATTER_KEYS):
+            raise ConfigError(f"{where}.formatters.{name}.{key}: a formatter is its format "
+                              f"({', '.join(sorted(LOG_FORMATTER_KEYS))}); nothing is built")
+    for name in conf.get("filters") or {}:
+        raise ConfigError(f"{where}.filters.{name}: a logging filter is built by a factory; the "
+                          "stages take none")
+    for name, h in (conf.get("handlers") or {}).items():
+        h = h if isinstance(h, dict) else {}
+        extra = sorted(set(h) - LOG_HANDLER_KEYS)
+        if h.get("class") not in LOG_HANDLERS or extra or h.get("stream", LOG_STREAMS[0]) \
+                not in LOG_STREAMS:
+            raise ConfigError(f"{where}.handlers.{name}: writes a log file or builds its own "
+                              "handler; the stages log to the terminal "
+                              f"(hydra/{section}=stdout: {' or '.join(LOG_HANDLERS)} to "
+                              "sys.stdout or sys.stderr)")
+    loggers = dict(conf.get("loggers") or {}, root=conf.get("root") or {})
+    for name, logger in loggers.items():
+        for key in sorted(set(logger or {}) - LOG_LOGGER_KEYS):
+            raise ConfigError(f"{where}.loggers.{name}.{key}: not a logger setting the stages "
+                              f"take ({', '.join(sorted(LOG_LOGGER_KEYS))})")
+
+
+def _resolved(cfg, key: str):
+    """The value of hydra.<key> as the run will see it (a job's number: 0); ConfigError where
+    it cannot be resolved before the run."""
+    node = OmegaConf.masked_copy(cfg, ["hydra", "paths"])
+    OmegaConf.set_readonly(node, False)
+    for k, v in (("job.num", 0), ("job.id", "0")):
+        if OmegaConf.select(node, f"hydra.{k}", throw_on_missing=False) is None:
+            OmegaConf.update(node, f"hydra.{k}", v, force_add=True)
+    try:
+        return OmegaConf.select(node, f"hydra.{key}", throw_on_missing=True)
+    except Exception as err:
+        why = str(err).splitlines()[0] if str(err) else type(err).__name__
+        raise ConfigError(f"hydra.{key}: cannot be resolved before the run ({why}); write it "
+                          "from ${paths.out}") from None
+
+
+def _relative(key: str, value) -> None:
+    if not isinstance(value, str) or Path(value).is_absolute() or ".." in Path(value).parts:
+        raise ConfigError(f"hydra.{key}={value!r}: null, or a relative name without '..' (a "
+                          "folder inside the run's or the sweep's)")
+
+
+def _check_dirs(cfg) -> None:
+    """Hydra's folders lie inside paths.root, as they resolve: run.dir (made at every run; `.`,
+    where nothing is written while output_subdir is null), sweep.dir and its subdir, and the
+    output_subdir its config files go to (relative, inside the run's folder); job.name (it
+    names the sweep's folder) is a plain name."""
+    from ..io import UnsafeName, safe_name
+
+    root = OmegaConf.select(cfg, "paths.root", default=None)
+    if not isinstance(root, str) or not Path(root).is_absolute():
+        return  # check_root names it
+    base = Path(root).resolve()
+    try:
+        safe_name("hydra.job.name", _resolved(cfg, "job.name"))
+    except UnsafeName as err:
+        raise ConfigError(str(err)) from None
+    out = _resolved(cfg, "output_subdir")
+    if out is not None:
+        _relative("output_subdir", out)
+    _relative("sweep.subdir", str(_resolved(cfg, "sweep.subdir")))
+    for key in ("run.dir", "sweep.dir"):
+        raw = _resolved(cfg, key)
+        path = Path(str(raw))
+        led = (path if path.is_absolute() else Path.cwd() / path).resolve()
+        if key == "run.dir" and raw == "." and out is None:
+            continue  # the project's own: nothing is written there
+        if ".." in path.parts or (led != base and base not in led.parents):
+            raise ConfigError(f"hydra.{key}={str(raw)!r}: outside paths.root={root}; Hydra "
+                              "would write there")

@@ -1,0 +1,250 @@
+"""The config's schema: dataclasses registered in Hydra's ConfigStore.
+
+The YAML files under conf/ extend these dataclasses, so a misspelt key or a value of the wrong type
+fails when the config is composed, before any stage starts. The sections that describe a trial
+(body, growth, learner, evaluation) are generated from gbmodel's own dataclasses, so every value
+of the numerical core has one source: its default in gbmodel, or the YAML file that changes it.
+A learner's schema is read from its source (learner_params) where it is plain, so composing a
+config imports no learner (numba, scipy: 0.7 s CPU) and keeps no record of it anywhere.
+"""
+from __future__ import annotations
+
+import ast
+import dataclasses
+import sys
+import typing
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Optional
+
+from hydra.core.config_store import ConfigStore
+from omegaconf import MISSING
+
+import gbmodel
+from gbmodel import evaluation
+
+from ..experiments import Declares
+
+
+def defaults_of(cls) -> list[tuple[str, Any, Any]]:
+    """(name, type, default) of each field of dataclass `cls` that has a default."""
+    hints = typing.get_type_hints(cls)
+    return [(f.name, hints[f.name], f.default) for f in dataclasses.fields(cls)
+            if f.default is not dataclasses.MISSING]
+
+
+def schema_of(cls, name: str, extra: tuple = (), defaults: list | None = None) -> type:
+    """A Hydra schema with the fields (types and defaults) of gbmodel dataclass `cls` (or the
+    `defaults` of defaults_of(cls) given), plus `extra` (name, type, default) fields."""
+    fields = [(k, kind, field(default=v))
+              for k, kind, v in (defaults_of(cls) if defaults is None else defaults)]
+    return dataclasses.make_dataclass(name, list(extra) + fields)
+
+
+def conf_of(cls, name: str) -> type:
+    """A Hydra schema with every field of gbmodel dataclass `cls`, its type and its default (a
+    field without one is MISSING: it must be given); a field whose type is a dataclass gets that
+    class's schema, generated the same way."""
+    hints = typing.get_type_hints(cls)
+    out = []
+    for f in dataclasses.fields(cls):
+        kind = hints[f.name]
+        if dataclasses.is_dataclass(kind):
+            kind = conf_of(kind, f"{kind.__name__}Conf")
+            out.append((f.name, kind, field(default_factory=kind)))
+        elif f.default_factory is not dataclasses.MISSING:
+            out.append((f.name, kind, field(default_factory=f.default_factory)))
+        else:
+            default = MISSING if f.default is dataclasses.MISSING else f.default
+            out.append((f.name, kind, field(default=default)))
+    return dataclasses.make_dataclass(name, out)
+
+
+# body: gbmodel.bodies.Description's fields (conf/body/<name>.yaml). It goes into every trial's
+# spec, so editing one body's file recomputes that body's trials only.
+BodyConf = conf_of(gbmodel.bodies.Description, "BodyConf")
+# growth: gbmodel.Growth's fields; pattern `none` is a body of constant size end_size
+GrowthConf = schema_of(gbmodel.Growth, "GrowthConf")
+EvaluationConf = dataclasses.make_dataclass(
+    "EvaluationConf", [(k, type(v), field(default=v)) for k, v in evaluation.DEFAULTS.items()])
+LEARNER_EXTRA = (("name", str, field(default=MISSING)), ("epochs", int, field(default=MISSING)),
+                 ("evals_per_decade", int, field(default=MISSING)))
+
+
+@dataclass
+class TrialsConf:
+    count: int = MISSING
+    root_seed: int = MISSING
+
+
+@dataclass
+class PathsConf:
+    root: str = MISSING
+    out: str = MISSING
+    cache: str = MISSING
+    aggregate: str = MISSING
+    report: str = MISSING
+    published: str = MISSING
+    bench: str = MISSING
+
+
+@dataclass
+class VariantConf:
+    """One variant of an experiment: a label and the dotted overrides that make it."""
+
+    label: str = MISSING
+    choice: str = ""  # what is varied (a row group of the choices table)
+    chosen: bool = False  # the value this project uses
+    set: list[str] = field(default_factory=list)  # e.g. ["learner.learning_rate=0.5"]
+
+
+@dataclass
+class ConditionsConf:
+    """What an experiment sweeps. Empty lists: the single condition of the growth group."""
+
+    periods: list[int] = field(default_factory=list)  # growth periods T_G, one condition each
+    references: list[float] = field(default_factory=list)  # constant sizes run as references
+    snapshots: list[int] = field(default_factory=list)  # epochs after which M is stored
+    # more epochs after which M is stored: this many, log-spaced over 1 ... epochs (the report's
+    # animation of each condition, pipeline/studies/animation.py); 0: none
+    frames: int = 0
+    variants: list[VariantConf] = field(default_factory=list)  # each: all of the above again
+    # a budget of reaching movements (forward-kinematics samples) per trial instead of epochs:
+    # each learner gets budget / its samples per epoch epochs, growing over growth_share of them
+    budget: Optional[int] = None
+    growth_share: float = 0.5
+    budget_scale: float = 1.0  # profiles shrink the budget (smoke)
+    # a continuation: each trial starts from the saved state after this many epochs of the trial
+    # of its condition and index under the experiment's settings without its variants
+    # (pipeline.checkpoint); a multiple of 1000 (the draw block), ignored where the run has no
+    # more epochs (the smoke profile); null: every trial starts at epoch 1
+    continues: Optional[int] = None
+
+
+@dataclass
+class PaperConf:
+    title: str = ""
+    final_abs_error: Optional[float] = None  # the paper's stated final accuracy [m], if any
+    # whether the report checks the paper's claims on this experiment: its figures and studies
+    # declare it; a custom experiment does not, and is reported by its curves alone
+    claims: bool = False
+    # the report section that reports it (pipeline/studies/sections.py): figures, readings,
+    # baselines, explain, choices, or a study of one's own
+    study: str = "figures"
+    # the figure whose cells the scorecard's headline counts instead of this one's, when both
+    # are reported (Fig. 7 on fig7_20trials); this one's are shown beside
+    judged_on: Optional[str] = None
+
+
+@dataclass
+class AggregateConf:
+    fail_factor: float = MISSING
+
+
+@dataclass
+class ReportConf:
+    dpi: int = MISSING
+    log_error_axis: bool = MISSING
+    postures: dict[str, Any] = MISSING
+    joint_space_figure: str = MISSING
+    publish: bool = False  # write the committed report (paths.published): make reproduce / make studies only
+    paper_experiments: list[str] = MISSING  # what the committed report must hold, at full scale
+    stamp_findings: bool = False  # record these numbers as the ones findings.md discusses
+    # a GIF per figure and condition whose trial 0 stored >= 2 models (conditions.frames)
+    animate: bool = True
+    explain: bool = True  # the explanation rows, read from the explain_* aggregates (explain.py)
+    scale: str = ""  # a reduced scale the title names ("smoke"; set by the profile), "" = as set
+
+
+@dataclass
+class BenchConf:
+    repeats: int = 5  # timed trials per body and path (medians are reported)
+    parallel: bool = True  # also time 8 arm5 trials on 1 and on 2 workers
+
+
+@dataclass
+class Config:
+    body: BodyConf = field(default_factory=BodyConf)
+    growth: Any = field(default_factory=GrowthConf)
+    learner: Any = MISSING
+    evaluation: Any = field(default_factory=EvaluationConf)
+    trials: TrialsConf = field(default_factory=TrialsConf)
+    paths: PathsConf = field(default_factory=PathsConf)
+    conditions: ConditionsConf = field(default_factory=ConditionsConf)
+    paper: PaperConf = field(default_factory=PaperConf)
+    # where the experiment belongs: its make list and place, what it reads (pipeline.experiments)
+    declares: Declares = field(default_factory=Declares)
+    aggregate: AggregateConf = field(default_factory=AggregateConf)
+    report: ReportConf = field(default_factory=ReportConf)
+    engine: Any = MISSING  # where the trials run: engine=<name> (pipeline.engines, generated)
+    bench: BenchConf = field(default_factory=BenchConf)
+    figure: str = MISSING
+    workers: int = MISSING
+    # simulate: plan these experiments in one process (make smoke / make reproduce); the
+    # other overrides of the command line apply to each
+    experiments: list[str] = field(default_factory=list)
+
+
+def register_schemas() -> None:
+    """The primary schema, and one schema per learner (`learner/<name>_schema`) that its YAML
+    file extends: the learner's Params fields with their defaults, plus name and epochs. A
+    shipped learner not imported yet is described by learner_params (no import of its kernels)."""
+    cs = ConfigStore.instance()
+    cs.store(name="base_config", node=Config)
+    for name in gbmodel.learners.available():
+        loaded = name in gbmodel.learners._REGISTERED or (
+            f"{gbmodel.learners.__name__}.{name}" in sys.modules)
+        defaults = None if loaded else learner_params(name)
+        params = None if defaults is not None else gbmodel.learners.get(name).Params
+        cs.store(group="learner", name=f"{name}_schema",
+                 node=schema_of(params, f"{name}_conf", LEARNER_EXTRA, defaults))
+
+
+_PLAIN_TYPES = {t.__name__: t for t in (int, float, str, bool)}
+
+
+def _plain_type(node):
+    """The type an annotation names when it is int, float, str, bool or one of them `| None`;
+    None for any other."""
+    if isinstance(node, ast.Name):
+        return _PLAIN_TYPES.get(node.id)
+    if isinstance(node, ast.BinOp) and isinstance(node.op, ast.BitOr):
+        sides = [node.left, node.right]
+        nones = [s for s in sides if isinstance(s, ast.Constant) and s.value is None]
+        inner = [_plain_type(s) for s in sides if s not in nones]
+        if len(nones) == 1 and inner[0] is not None:
+            return inner[0] | None
+    return None
+
+
+def learner_params(name: str) -> list | None:
+    """defaults_of(the Params of shipped learner `name`), read from its source file: the fields
+    of its top-level dataclass `Params` with a plain type (_plain_type) and a literal default.
+    None where the class is not that plain (a base class, a computed default): it is imported."""
+    folder = Path(gbmodel.learners.__file__).parent
+    path = folder / f"{name}.py"
+    path = path if path.is_file() else folder / name / "__init__.py"
+    try:
+        tree = ast.parse(path.read_text())
+    except (OSError, SyntaxError, ValueError):
+        return None
+    cls = next((n for n in tree.body if isinstance(n, ast.ClassDef) and n.name == "Params"),
+               None)
+    if cls is None or cls.bases or cls.keywords:
+        return None
+    out = []
+    for node in cls.body:
+        if isinstance(node, (ast.Assign, ast.AugAssign)):
+            return None  # a class attribute: not read here
+        if not isinstance(node, ast.AnnAssign) or node.value is None:
+            continue  # a method, a docstring, a field without a default (not in defaults_of)
+        try:
+            value = ast.literal_eval(node.value)
+        except ValueError:
+            return None
+        kind = _plain_type(node.annotation)
+        if kind is None or not isinstance(node.target, ast.Name) or \
+                type(value) not in (*_PLAIN_TYPES.values(), type(None)):
+            return None
+        out.append((node.target.id, kind, value))
+    return out
