@@ -128,7 +128,8 @@ notebooks: $(STAMP) ## install the extra [notebooks], run every notebook (notebo
 publish: $(STAMP) ## build the sdist and wheel into dist/, check them with twine, validate CITATION.cff
 	$(PY) -m pip install --quiet -c requirements.lock -e '.[test,publish]'
 	rm -rf dist && $(PY) -m build --outdir dist . && $(PY) -m twine check --strict dist/*
-	$(PY) -m cffconvert --validate -i CITATION.cff
+	rm -rf build/cff && $(PYTHON) -m venv build/cff && build/cff/bin/pip install --quiet 'cffconvert>=2.0,<3'
+	build/cff/bin/cffconvert --validate -i CITATION.cff
 
 clean: ## remove generated outputs (asks first; YES=1 to skip the question); keeps the committed report and bench
 	@if [ "$(YES)" != 1 ]; then \
