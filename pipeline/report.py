@@ -198,6 +198,8 @@ def report(cfg: DictConfig, explicit: bool = False) -> list[Path]:
                                                  / "manifest.json").get("inputs") for n in names})
     if up_to_date(out, digest) and not cfg.report.stamp_findings:
         log.info("report: up to date (the same aggregates, settings and code) -> %s", out)
+        if not (out / "report.html").exists():  # a report made before report.html was
+            return [html_report.write_html(out / "report.md")]
         return []
     log.info("report: %d figure(s) into %s, each study's section in turn", len(names), out)
     aggs = load_aggregates(folder, names)
