@@ -66,10 +66,8 @@ def sac_curve(steps: int, growth_evals: int, seed: int, every: int) -> tuple:
 def goal_babbling_curve(learner: str, evals: int, growth_evals: int, seed: int) -> tuple:
     """Goal Babbling's held-out error [m] against its forward evaluations, with the growth
     ending after growth_evals of them (T_G in epochs of its own samples)."""
-    spec = gbmodel.TrialSpec(body={"name": "arm5"}, learner={"name": learner}, epochs=1,
-                             growth={})
-    spe = gbmodel.TrialSpec.make_learner(spec)[0].samples_per_epoch(
-        spec.make_learner()[1], spec.make_body())
+    module, params = gbmodel.TrialSpec(learner={"name": learner}).make_learner()
+    spe = module.samples_per_epoch(params, gbmodel.make_body("arm5"))
     period = max(1, round(growth_evals / spe))
     spec = gbmodel.TrialSpec(body={"name": "arm5"}, learner={"name": learner},
                              growth=dict(pattern="proportional", period=period, start_size=0.5,
