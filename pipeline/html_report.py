@@ -161,7 +161,8 @@ def describe(report_md: Path) -> dict:
     figure = re.search(r"!\[[^\]]*\]\(([^)\s]+)\)", text)
     made = MADE.search(text)
     return dict(title=title, figure=figure.group(1) if figure else None,
-                date=made.group(1) if made else "", args=made.group(2).split()[3:] if made else [])
+                date=made.group(1) if made else "",  # the command's settings: its overrides
+                args=[a for a in made.group(2).split() if "=" in a] if made else [])
 
 
 def write_index(root: Path) -> Path:
