@@ -23,7 +23,7 @@ ARGS    ?=
 TESTJOBS ?= 2
 
 .DEFAULT_GOAL := help
-.PHONY: help experiments setup reproduce studies stamp docs smoke simulate aggregate choices report pipeline bench scale test test-slow test-cluster clean
+.PHONY: help experiments setup reproduce studies stamp docs smoke simulate aggregate choices report pipeline bench scale test test-slow test-cluster test-browser html gym-figure notebooks publish clean
 
 help: ## list the targets
 	@awk 'BEGIN {FS = ":.*## "} /^[a-z-]+:.*## / {printf "  make %-10s %s\n", $$1, $$2}' $(MAKEFILE_LIST)
@@ -107,6 +107,29 @@ test-cluster: $(STAMP) ## start a one-host SLURM (as root: apt-get installs it) 
 	  || echo "SLURM not installed: its tests will skip"; fi
 	$(PY) -m pip install --quiet -c requirements.lock -e '.[test,ray,slurm]'
 	$(PY) -m pytest -m cluster
+
+html: $(STAMP) ## render report.html beside every report.md under outputs/ and write outputs/index.html
+	$(PY) -m pipeline.html_report outputs
+
+test-browser: $(STAMP) ## install Debian's chromium (as root), open the HTML reports in it headless (screenshots: outputs/browser/)
+	@if ! command -v chromium >/dev/null; then \
+	  if [ "$$(id -u)" = 0 ]; then apt-get update -q && apt-get install -y -q --no-install-recommends chromium; \
+	  else echo "no chromium: install it (apt-get install chromium) or run as root"; exit 2; fi; fi
+	$(PY) -m pytest -m browser tests/pipeline/test_html_report.py
+
+gym-figure: $(STAMP) ## install the extra [rl] (torch CPU, stable-baselines3), redraw docs/img/sac_vs_goal_babbling.png
+	$(PY) -m pip install --quiet -c requirements.lock -e '.[test,rl]'
+	$(PY) examples/06_sac_against_goal_babbling.py $(ARGS)
+
+notebooks: $(STAMP) ## install the extra [notebooks], run every notebook (notebooks/*.py) in a kernel
+	$(PY) -m pip install --quiet -c requirements.lock -e '.[test,notebooks]'
+	$(PY) -m pytest tests/e2e/test_notebooks.py
+
+publish: $(STAMP) ## build the sdist and wheel into dist/, check them with twine, validate CITATION.cff
+	$(PY) -m pip install --quiet -c requirements.lock -e '.[test,publish]'
+	rm -rf dist && $(PY) -m build --outdir dist . && $(PY) -m twine check --strict dist/*
+	rm -rf build/cff && $(PYTHON) -m venv build/cff && build/cff/bin/pip install --quiet 'cffconvert>=2.0,<3'
+	build/cff/bin/cffconvert --validate -i CITATION.cff
 
 clean: ## remove generated outputs (asks first; YES=1 to skip the question); keeps the committed report and bench
 	@if [ "$(YES)" != 1 ]; then \

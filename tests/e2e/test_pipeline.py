@@ -116,7 +116,9 @@ def test_report_lists_its_files(smoke_tree):
             "fig6_postures.png", "summary.csv", "summary.md", "claims.csv", "curves.parquet",
             "choices.csv", "choices.md", "readings.csv", "explanations.csv",
             "report.md"} <= set(listed)
-    assert sorted(files_of(out)) == sorted(listed)
+    assert sorted(set(files_of(out)) - {"report.html"}) == sorted(listed)  # report.md rendered
+    assert (out / "report.html").read_text().count("<img ") >= 1
+    assert (Path(cfg.paths.out) / "index.html").is_file()
     choices = pd.read_csv(out / "choices.csv")
     assert {"choices_arm2", "choices_arm5", "choices_icub"} == set(choices["figure"])
     # the discussion belongs to the committed full-scale run, not to these numbers
@@ -132,8 +134,8 @@ def test_report_regenerates_byte_for_byte_and_publishes_the_committed_reports_fi
     pipeline/test_stage_faults.py.)"""
     committed = REPO_ROOT / "outputs" / "report"
     listed = listed_files(committed / "report.md")
-    assert sorted(listed) == sorted(p.relative_to(committed).as_posix()
-                                    for p in committed.rglob("*") if p.is_file())  # models/ too
+    assert sorted(listed + ["report.html"]) == sorted(  # report.html: report.md rendered
+        p.relative_to(committed).as_posix() for p in committed.rglob("*") if p.is_file())
     root, cfg, _ = smoke_tree
     monkeypatch.setattr(report, "check_published_scale", lambda cfg, aggs: None)
     pub_cfg = compose(tiny_overrides(root, "report.publish=true"))
