@@ -107,18 +107,18 @@ def main(argv: list[str] | None = None) -> int:
     after = machine()
     doc = dict(commit=commit(REPO)[:7], machine=dict(before, load_average_after=after["load_average"]),
                **results)
-    if any(r["rc"] != 0 for r in results.values()):
-        print("error: a command failed (its output above); nothing written", file=sys.stderr)
-        return 1
     from .. import io
 
     io.write_text(args.out, json.dumps(doc, indent=1) + "\n")
-    print(f"{args.out}: written", file=sys.stderr)
-    return 0
+    failed = [name for name, r in results.items() if r["rc"] != 0]
+    print(f"{args.out}: written" + (f" (failed: {', '.join(failed)}; its output above)"
+                                    if failed else ""), file=sys.stderr)
+    return 1 if failed else 0
 
 
-def values(path: Path) -> dict[str, float]:
-    """The named values of a first_hour.json: `first_hour.<command>.<measure>` (numbers only)."""
+def values(path: Path) -> dict:
+    """The named values of a first_hour.json: `first_hour.<command>.<measure>` (its numbers),
+    first_hour.date and first_hour.commit (text); none without the file."""
     if not path.is_file():
         return {}
     doc = json.loads(path.read_text())
@@ -129,7 +129,8 @@ def values(path: Path) -> dict[str, float]:
     loads = doc["machine"].get("load_average", [])
     if loads:
         out["first_hour.machine.load_1min"] = float(loads[0])
-    return out
+    return dict(out, **{"first_hour.date": doc["machine"]["date"][:10],
+                        "first_hour.commit": doc["commit"]})
 
 
 if __name__ == "__main__":
