@@ -95,7 +95,8 @@ def main(argv: list[str] | None = None) -> int:
     tmp = Path(tempfile.mkdtemp(prefix="gbgrowth-first-hour-"))
     clone = tmp / "clone"
     subprocess.run(["git", "clone", "--quiet", str(REPO), str(clone)], check=True)
-    subprocess.run(["git", "checkout", "--quiet", commit(REPO)], cwd=clone, check=True)
+    head = commit(REPO)  # measured as committed now, whatever the checkout does meanwhile
+    subprocess.run(["git", "checkout", "--quiet", head], cwd=clone, check=True)
     before = machine()
     try:
         results = measure(clone, not args.no_test)
@@ -105,7 +106,7 @@ def main(argv: list[str] | None = None) -> int:
         else:
             shutil.rmtree(tmp, ignore_errors=True)
     after = machine()
-    doc = dict(commit=commit(REPO)[:7], machine=dict(before, load_average_after=after["load_average"]),
+    doc = dict(commit=head[:7], machine=dict(before, load_average_after=after["load_average"]),
                **results)
     from .. import io
 
