@@ -97,15 +97,20 @@ def describe(desc: dict) -> list[str]:
                   "every one reached by a posture within the limits"))
     grid = propose_grid(body, g.get("num"))
     if grid is None:
-        out.append("proposed grid: none found around home (the hand at home on the edge of the "
-                   "workspace: a stretched arm, a joint at its limit?); choose another home, or a "
-                   "grid inside the workspace above")
+        out.append("proposed grid: none found around home (too few sampled hand positions near "
+                   "it); choose one inside the workspace above")
     else:
         sides = ", ".join(f"{AXES[k]} {h - lo:.3f} m" for k, lo, h in
                           zip(body.outputs, grid["lo"], grid["hi"]))
         widest = 100 * max(np.subtract(grid["hi"], grid["lo"])) / reach
-        out.append(f"proposed grid ({sides}: {widest:.0f} % of the reach at most; it holds the hand at home, and every target is reached "
-                   "at full and half size; paste it into the body file):")
+        home = body.forward(body.home)
+        holds = all(lo <= h <= hi for lo, h, hi in zip(grid["lo"], home, grid["hi"]))
+        out.append(f"proposed grid ({sides}: {widest:.0f} % of the reach at most; every target "
+                   "reached at full and half size; "
+                   + ("it holds the hand at home" if holds else
+                      "the hand at home is on the edge of the workspace, where no box holds it: "
+                      "this one lies beside it (or choose a bent home)")
+                   + "; paste it into the body file):")
         out.append(f"  grid: {{lo: {grid['lo']}, hi: {grid['hi']}, num: {grid['num']}}}")
     return out
 
@@ -118,10 +123,10 @@ def propose_grid(body, num=None, near: float = 0.5, tail: float = 5.0, side: flo
     `near` x the reach of h (gbmodel.workspace): per axis their `tail` ... 100 - `tail`
     percentiles, widened to hold h, each side at most `side` x the reach (cut about h); then
     shrunk towards h until every target is reached; bounds rounded outwards to the millimetre.
-    num: points per axis (the body's own grid's when it has as many axes; else 4). None when
-    no such box is found (h at a thin edge of the workspace)."""
-    from dataclasses import replace
-
+    A home on the edge of the workspace (a stretched arm) has no such box: then the same about
+    the middle of those samples instead (a grid beside home, which describe() says). num:
+    points per axis (the body's own grid's when it has as many axes; else 4). None when neither
+    is found."""
     x = workspace.hand_samples(body, seed=seed)
     n = x.shape[1]
     num = [int(k) for k in num] if num is not None and len(num) == n else [4] * n
@@ -130,13 +135,25 @@ def propose_grid(body, num=None, near: float = 0.5, tail: float = 5.0, side: flo
     close = x[np.linalg.norm(x - home, axis=1) <= near * reach]
     if len(close) < 10 * n:
         return None
-    lo = np.minimum(np.percentile(close, tail, axis=0), home)
-    hi = np.maximum(np.percentile(close, 100 - tail, axis=0), home)
-    cut = np.minimum(1.0, side * reach / np.maximum(hi - lo, 1e-12))
-    lo, hi = home + cut * (lo - home), home + cut * (hi - home)
+    lo, hi = np.percentile(close, tail, axis=0), np.percentile(close, 100 - tail, axis=0)
+    for anchor in (home, np.median(close, axis=0)):
+        grid = _box(body, anchor, np.minimum(lo, anchor), np.maximum(hi, anchor), side * reach,
+                    num, seed)
+        if grid is not None:
+            return grid
+    return None
+
+
+def _box(body, anchor, lo, hi, longest: float, num: list, seed: int) -> dict | None:
+    """The box lo ... hi (which holds anchor), each side cut to `longest` about anchor, shrunk
+    towards anchor until every target of its grid is reached at full and half size."""
+    from dataclasses import replace
+
+    cut = np.minimum(1.0, longest / np.maximum(hi - lo, 1e-12))
+    lo, hi = anchor + cut * (lo - anchor), anchor + cut * (hi - anchor)
     for shrink in (1.0, 0.8, 0.6, 0.4, 0.2):
-        g_lo = np.floor(1e3 * (home + shrink * (lo - home)) + 1e-9) / 1e3
-        g_hi = np.ceil(1e3 * (home + shrink * (hi - home)) - 1e-9) / 1e3
+        g_lo = np.floor(1e3 * (anchor + shrink * (lo - anchor)) + 1e-9) / 1e3
+        g_hi = np.ceil(1e3 * (anchor + shrink * (hi - anchor)) - 1e-9) / 1e3
         if np.any(g_hi <= g_lo):
             return None
         grid = dict(lo=[round(float(v), 3) for v in g_lo],

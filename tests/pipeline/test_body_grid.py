@@ -1,7 +1,7 @@
 """The body inspector's proposed grid (pipeline.tools.body.propose_grid): on the 5-DOF arm, an
 MJCF arm (Gymnasium's Pusher) and a URDF arm (tests/new_robots.py: Panda-like) it holds the hand's
 home position, each side is a sane part of the reach, and every target is reached at full and
-half size; a home on the edge of the workspace (the stretched arm) gets no grid, said in a line."""
+half size; a home on the edge of the workspace (the stretched arm) gets a grid beside it, said."""
 import dataclasses
 
 import numpy as np
@@ -38,10 +38,15 @@ def test_the_proposed_grid_holds_home_and_is_sane_against_the_reach(name, tmp_pa
                                           np.random.default_rng(0), size=size).size == 0
 
 
-def test_a_home_on_the_edge_of_the_workspace_gets_no_grid_and_a_reason(tmp_path):
-    body = _body("arm5", tmp_path, "body.home=[0,0,0,0,0]")  # stretched: the hand at the reach
-    assert tool.propose_grid(body) is None
+def test_a_home_on_the_edge_of_the_workspace_gets_a_grid_beside_it_and_a_reason(tmp_path):
+    """The stretched arm (home all zeros: the hand at the reach): no box holding home is reached
+    everywhere, so the grid lies beside home, and the inspector says so."""
+    body = _body("arm5", tmp_path, "body.home=[0,0,0,0,0]")
+    grid = tool.propose_grid(body)
+    home = body.forward(body.home)
+    assert grid is not None and not all(
+        lo <= h <= hi for lo, h, hi in zip(grid["lo"], home, grid["hi"]))
     lines = tool.describe(OmegaConf.to_container(compose(
         ["body=arm5", "body.home=[0,0,0,0,0]"]).body))
-    assert lines[-1].startswith("proposed grid: none found around home (the hand at home on the "
-                                "edge of the workspace")
+    assert "the hand at home is on the edge of the workspace" in lines[-2]
+    assert lines[-1].startswith(f"  grid: {{lo: {grid['lo']}, hi: {grid['hi']}, num: ")
