@@ -10,8 +10,7 @@ from pipeline import models
 @pytest.fixture
 def root(tmp_path, monkeypatch):
     """An installed package's working directory: paths.root is the working directory."""
-    monkeypatch.setattr(pipeline.config, "IN_CHECKOUT", False)
-    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(pipeline.config, "default_root", lambda: str(tmp_path))
     return tmp_path / "outputs"
 
 

@@ -50,3 +50,26 @@ def test_log_axes_stay_the_default_and_a_bad_unit_is_one_line():
     assert opts["log_x"] and opts["log_y"] and opts["unit"] == "m"
     with pytest.raises(ConfigError, match=r"^report.error_unit=cm: one of m, mm$"):
         paper.figure_options(OmegaConf.create({"report": {"error_unit": "cm"}}))
+
+
+def _schema_has_the_keys() -> bool:
+    import dataclasses
+
+    from pipeline import config
+
+    report = next(f for f in dataclasses.fields(config.Config) if f.name == "report")
+    names = {f.name for f in dataclasses.fields(report.default_factory())}
+    return {"title", "error_unit", "log_epoch_axis"} <= names
+
+
+@pytest.mark.skipif(not _schema_has_the_keys(), reason="report.title, report.error_unit and "
+                    "report.log_epoch_axis are not in the config schema's ReportConf yet")
+def test_the_keys_compose_on_the_command_line():
+    from pipeline.config import compose
+
+    cfg = compose(["report.title=Radius x period", "report.error_unit=mm",
+                   "report.log_error_axis=false", "report.log_epoch_axis=false"])
+    assert paper.figure_options(cfg) == dict(log_y=False, log_x=False, unit="mm",
+                                             suptitle="Radius x period")
+    assert paper.figure_options(compose([])) == dict(log_y=True, log_x=True, unit="m",
+                                                     suptitle=None)
