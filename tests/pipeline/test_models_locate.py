@@ -9,7 +9,7 @@ from pipeline import models
 
 @pytest.fixture
 def root(tmp_path, monkeypatch):
-    """An installed package's working directory: paths.root is the working directory."""
+    """paths.root is tmp_path, as an installed package's working directory."""
     monkeypatch.setattr(pipeline.config, "default_root", lambda: str(tmp_path))
     return tmp_path / "outputs"
 
