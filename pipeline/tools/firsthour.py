@@ -119,7 +119,8 @@ def main(argv: list[str] | None = None) -> int:
 
 def values(path: Path) -> dict:
     """The named values of a first_hour.json: `first_hour.<command>.<measure>` (its numbers),
-    first_hour.date and first_hour.commit (text); none without the file."""
+    first_hour.date, first_hour.commit and first_hour.test.counts ("1,156 passed, 34 skipped")
+    as text; none without the file."""
     if not path.is_file():
         return {}
     doc = json.loads(path.read_text())
@@ -130,8 +131,10 @@ def values(path: Path) -> dict:
     loads = doc["machine"].get("load_average", [])
     if loads:
         out["first_hour.machine.load_1min"] = float(loads[0])
+    counts = ", ".join(f"{doc['test'][k]:,} {k}" for k in ("passed", "failed", "error", "skipped")
+                       if doc.get("test", {}).get(k))
     return dict(out, **{"first_hour.date": doc["machine"]["date"][:10],
-                        "first_hour.commit": doc["commit"]})
+                        "first_hour.commit": doc["commit"], "first_hour.test.counts": counts})
 
 
 if __name__ == "__main__":
