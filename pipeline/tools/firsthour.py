@@ -1,6 +1,6 @@
 """The first hour, measured: set-up, make smoke and make test in a fresh clone of this checkout.
 
-    python -m pipeline.tools.firsthour                 # all three (~20 min on 2 cores); make first-hour
+    python -m pipeline.tools.firsthour                 # all three (make first-hour)
     python -m pipeline.tools.firsthour --no-test       # set-up and smoke only (~5 min)
     python -m pipeline.tools.firsthour --keep          # keep the clone (its path is printed)
 
@@ -33,8 +33,11 @@ COUNTS = re.compile(r"(\d+) (passed|skipped|failed|errors?)\b")
 
 def run(cwd: Path, *cmd: str) -> tuple[dict, str]:
     """`cmd` in `cwd`: its wall and CPU time (the process and all it waited for), and its output."""
+    env = {k: v for k, v in os.environ.items()  # as typed in a shell, not as make's child
+           if k not in ("MAKEFLAGS", "MFLAGS", "MAKELEVEL", "MAKEOVERRIDES")}
     start = time.perf_counter()
-    proc = subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    proc = subprocess.Popen(cmd, cwd=cwd, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT)
     text = proc.stdout.read().decode(errors="replace")
     _, status, usage = os.wait4(proc.pid, 0)
     wall, cpu = time.perf_counter() - start, usage.ru_utime + usage.ru_stime
@@ -44,12 +47,15 @@ def run(cwd: Path, *cmd: str) -> tuple[dict, str]:
 
 
 def pytest_counts(text: str) -> dict:
-    """pytest's last summary line ("1156 passed, 34 skipped in 812.3s") as {passed: 1156, ...}."""
+    """pytest's last summary line ("1156 passed, 34 skipped in 812.3s") as {passed: 1156, ...},
+    and the tests that failed (its FAILED lines) as failures: [test id, ...]."""
     lines = [ln for ln in text.splitlines() if " in " in ln and COUNTS.search(ln)]
     if not lines:
         return {}
-    return {kind.rstrip("s") if kind.startswith("error") else kind: int(n)
-            for n, kind in COUNTS.findall(lines[-1])}
+    failures = [ln.split()[1] for ln in text.splitlines() if ln.startswith(("FAILED ", "ERROR "))]
+    out = {kind.rstrip("s") if kind.startswith("error") else kind: int(n)
+           for n, kind in COUNTS.findall(lines[-1])}
+    return dict(out, failures=failures) if failures else out
 
 
 def trials_in(cache: Path) -> int:
@@ -65,7 +71,8 @@ def machine() -> dict:
 def measure(clone: Path, test: bool) -> dict:
     """set-up, smoke (and test) in the fresh clone `clone`, each failing command's tail printed."""
     out = {}
-    steps = [("setup", "make setup"), ("smoke", "make smoke")] + ([("test", "make test")] if test else [])
+    steps = [("setup", "make setup"), ("smoke", "make smoke")] + (
+        [("test", "make test")] if test else [])
     for name, cmd in steps:
         print(f"{cmd} in {clone} ...", file=sys.stderr, flush=True)
         out[name], text = run(clone, *cmd.split())
@@ -133,8 +140,10 @@ def values(path: Path) -> dict:
         out["first_hour.machine.load_1min"] = float(loads[0])
     counts = ", ".join(f"{doc['test'][k]:,} {k}" for k in ("passed", "failed", "error", "skipped")
                        if doc.get("test", {}).get(k))
+    failures = ", ".join(f"`{t}`" for t in doc.get("test", {}).get("failures", [])) or "none"
     return dict(out, **{"first_hour.date": doc["machine"]["date"][:10],
-                        "first_hour.commit": doc["commit"], "first_hour.test.counts": counts})
+                        "first_hour.commit": doc["commit"], "first_hour.test.counts": counts,
+                        "first_hour.test.failures": failures})
 
 
 if __name__ == "__main__":
