@@ -23,7 +23,7 @@ ARGS    ?=
 TESTJOBS ?= 2
 
 .DEFAULT_GOAL := help
-.PHONY: help experiments setup reproduce studies stamp docs smoke simulate aggregate choices report pipeline bench scale test test-slow test-cluster test-browser html gym-figure notebooks publish clean
+.PHONY: help experiments setup reproduce studies stamp docs smoke simulate aggregate choices report pipeline bench scale first-hour test test-slow test-cluster test-browser html gym-figure notebooks publish clean
 
 help: ## list the targets
 	@awk 'BEGIN {FS = ":.*## "} /^[a-z-]+:.*## / {printf "  make %-10s %s\n", $$1, $$2}' $(MAKEFILE_LIST)
@@ -91,6 +91,9 @@ bench: $(STAMP) ## time the fast path against the numpy reference (outputs/bench
 
 scale: $(STAMP) ## time sweeps of 1,000 and 10,000 short trials stage by stage and a cached make smoke (outputs/bench/scale.json; ARGS="--baseline DIR")
 	$(PY) -m pipeline.tools.scale --smoke-experiments '$(shell echo $(FIGURES) | tr ' ' ',')' $(ARGS)
+
+first-hour: $(STAMP) ## time make setup, make smoke and make test in a fresh clone (outputs/bench/first_hour.json; ARGS="--no-test")
+	$(PY) -m pipeline.tools.firsthour $(ARGS)
 
 test: $(STAMP) ## run the test suite (slow tests excluded) on TESTJOBS processes
 	$(PY) -m pytest -n $(TESTJOBS) --dist loadfile

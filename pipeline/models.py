@@ -122,11 +122,12 @@ class Figure(Mapping):
 
 
 def load(figure, aggregate_dir=None) -> Figure:
-    """The trained models of `figure`: a figure's name, found in paths.aggregate (default:
-    outputs/aggregate under the default paths.root, the checkout or, installed, the working
-    directory; pass the folder for another root or profile, e.g. outputs/smoke/aggregate), or
-    in a report folder's models/<figure>.json (the report stage writes them; without a local
-    aggregate, the committed report's, outputs/report/models/, are read: a fresh clone); or a
+    """The trained models of `figure`: a figure's name, found under outputs/ of the default
+    paths.root (the checkout or, installed, the working directory): in the full profile's
+    aggregate (outputs/aggregate), then any other profile's (outputs/smoke/aggregate: make
+    smoke), then a report folder's models/<figure>.json (the report stage writes them; the
+    committed report's, outputs/report/models/, are read on a fresh clone); or in the
+    aggregate folder `aggregate_dir` only (another root); or a
     path: a models JSON file (outputs/report/models/fig4.json) or a figure's aggregate folder
     (outputs/aggregate/fig4). A name is plain (no folder separator, no .json); anything else
     is a path, relative to the working directory."""
@@ -160,15 +161,21 @@ def locate(figure, aggregate_dir=None) -> Path:
 
     root = Path(default_root()) / "outputs"
     folders = ([Path(aggregate_dir)] if aggregate_dir is not None else
-               [root / "aggregate", root / "report"])
+               [root / "aggregate", *sorted(root.glob("*/aggregate")), root / "report"])
     tried = [p for d in folders
              for p in (d / figure / "models.json", d / "models" / f"{figure}.json")]
     path = next((p for p in tried if p.exists()), None)
     if path is None:
-        raise FileNotFoundError(f"{tried[0]}: not aggregated (run pipeline.simulate and "
-                                "pipeline.aggregate for this figure, or pipeline.report for "
-                                "its models/<figure>.json)")
+        raise FileNotFoundError(f"{figure}: no models under {', '.join(map(str, folders))} "
+                                f"(they hold: {', '.join(_held(folders)) or 'none'}; run "
+                                "pipeline.simulate and pipeline.aggregate for this figure)")
     return path
+
+
+def _held(folders: list[Path]) -> list[str]:
+    """The figures whose models `folders` hold (aggregate folders, a report's models/)."""
+    names = {p.parent.name for d in folders for p in d.glob("*/models.json")}
+    return sorted(names | {p.stem for d in folders for p in d.glob("models/*.json")})
 
 
 def _remedy(path: Path) -> str:

@@ -232,11 +232,18 @@ def condition_styles(summary) -> dict:
     return styles
 
 
-def learning_curves(curves, summary, title: str, log_y: bool = True, paper_abs=None):
+UNITS = {"m": 1.0, "mm": 1e3}  # report.error_unit: the errors' unit -> its factor from metres
+
+
+def learning_curves(curves, summary, title: str, log_y: bool = True, paper_abs=None,
+                    unit: str = "m", log_x: bool = True, suptitle: str | None = None):
     """Fig. 4/5/7: (a) absolute and (b) relative error against epochs, mean over trials with the
     inter-quartile band, one line per growth period and per reference; the paper's stated final
     accuracy, if given, as a horizontal line in (a). The legend lies below the panels, never over
-    the data; a sweep's legend has one entry per level of each varied factor (sweep_handles)."""
+    the data; a sweep's legend has one entry per level of each varied factor (sweep_handles).
+    For a paper (report.title, report.error_unit, report.log_error_axis, report.log_epoch_axis):
+    `suptitle` replaces the title line, `unit` (m or mm) is the errors' unit, log_x and log_y
+    choose log or linear axes."""
     styles = condition_styles(summary)
     sweep = not by_growth(summary)
     handles = (sweep_handles(summary["condition"]) if sweep else
@@ -247,29 +254,34 @@ def learning_curves(curves, summary, title: str, log_y: bool = True, paper_abs=N
     if paper_abs is not None:
         handles.append(plt.Line2D([], [], color="tab:red", lw=0.9, ls="-.",
                                   label=f"paper: final error ≈ {1000 * paper_abs:g} mm"))
+    if unit not in UNITS:
+        raise ValueError(f"unit {unit!r}: one of {', '.join(UNITS)}")
+    k = UNITS[unit]
     fig, axes = plt.subplots(1, 2, figsize=(9.0, 3.6))
-    for ax, col, ylabel in ((axes[0], "abs_error", "absolute error [m]"),
-                            (axes[1], "rel_error", "relative error [m / size factor]")):
+    for ax, col, ylabel in ((axes[0], "abs_error", f"absolute error [{unit}]"),
+                            (axes[1], "rel_error", f"relative error [{unit} / size factor]")):
         for _, row in summary.iterrows():
             cu = curves[curves["condition"] == row["condition"]].sort_values("epoch")
             if not len(cu):
                 continue
             st = styles[row["condition"]]
-            ax.fill_between(cu["epoch"], cu[f"{col}_q25"], cu[f"{col}_q75"], color=st["color"],
-                            alpha=0.15, lw=0)
-            ax.plot(cu["epoch"], cu[f"{col}_mean"], label=condition_label(row), lw=1.3, **st)
+            band = [cu[f"{col}_{q}"] if k == 1.0 else k * cu[f"{col}_{q}"] for q in ("q25", "q75")]
+            mean = cu[f"{col}_mean"] if k == 1.0 else k * cu[f"{col}_mean"]
+            ax.fill_between(cu["epoch"], *band, color=st["color"], alpha=0.15, lw=0)
+            ax.plot(cu["epoch"], mean, label=condition_label(row), lw=1.3, **st)
         mark_growth_end(ax, summary, styles)
-        ax.set_xscale("log")
+        if log_x:
+            ax.set_xscale("log")
         if log_y:
             ax.set_yscale("log")
         ax.set_xlabel("epoch")
         ax.set_ylabel(ylabel)
     if paper_abs is not None:
-        axes[0].axhline(paper_abs, color="tab:red", lw=0.9, ls="-.")
+        axes[0].axhline(paper_abs if k == 1.0 else k * paper_abs, color="tab:red", lw=0.9, ls="-.")
     axes[0].set_title("(a) absolute error")
     axes[1].set_title("(b) relative error")
     n = int(summary["n_trials"].max()) if len(summary) else 0
-    fig.suptitle(f"{title} (mean and quartiles over {n} trials)")
+    fig.suptitle(suptitle or f"{title} (mean and quartiles over {n} trials)")
     legend_below(fig, handles, 3.6)
     return fig
 

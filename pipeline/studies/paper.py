@@ -71,6 +71,20 @@ def summary_markdown(summary: pd.DataFrame) -> str:
     return "\n".join(lines) + "\n"
 
 
+def figure_options(cfg) -> dict:
+    """The learning curves' options for a paper: report.title (the title line; "" keeps the
+    figure's), report.error_unit (m or mm), report.log_error_axis and report.log_epoch_axis (log
+    or linear axes). A key the config lacks keeps its default."""
+    from ..config import ConfigError
+
+    get = lambda key, default: OmegaConf.select(cfg, f"report.{key}", default=default)  # noqa: E731
+    unit = get("error_unit", "m")
+    if unit not in figures.UNITS:
+        raise ConfigError(f"report.error_unit={unit}: one of {', '.join(figures.UNITS)}")
+    return dict(log_y=bool(get("log_error_axis", True)), log_x=bool(get("log_epoch_axis", True)),
+                unit=unit, suptitle=get("title", "") or None)
+
+
 def _title(figure: str, agg: dict) -> str:
     return agg["models"].get("paper", {}).get("title") or f"{figure}"
 
@@ -225,8 +239,8 @@ def curves_part(ctx: Context, p: Paper) -> list[str]:
     for name, agg in p.aggs.items():
         title, summ = _title(name, agg), agg["summary"]
         fig = figures.learning_curves(
-            agg["curves"], summ, title, log_y=cfg.report.log_error_axis,
-            paper_abs=agg["models"].get("paper", {}).get("final_abs_error"))
+            agg["curves"], summ, title, paper_abs=agg["models"].get("paper", {}).get("final_abs_error"),
+            **figure_options(cfg))
         image = ctx.save(fig, f"{name}_curves")[0].name
         md += [f"## {title}", ""]
         if len(summ):

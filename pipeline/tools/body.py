@@ -5,13 +5,19 @@ that does (gbmodel.workspace: sampled postures, not a guess from the link length
     python -m pipeline.tools.body body=arm5
     python -m pipeline.tools.body 'hydra.searchpath=[file:///abs/my_conf]' body=my_arm
 
-The proposed grid is a box around the hand's home position (where Goal Babbling starts) whose
-every target a posture within the limits reaches, at full and at half size: paste its `grid:`
-line into the body file. It prints to stdout and writes nothing.
+The proposed grid is a box around the hand's home position (where Goal Babbling starts), which
+it contains, whose every target a posture within the limits reaches, at full and at half size
+(propose_grid): paste its `grid:` line into the body file. It prints to stdout and writes nothing.
+
+After a run, `--within PCT` checks every trial of a figure instead: its held-out error at the
+last epoch in % of the body's reach, one line per trial, and the trials above PCT named (exit 1):
+
+    python -m pipeline.tools.body figure=my_arm --within 1.5
 """
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 import hydra
 import numpy as np
@@ -22,10 +28,12 @@ import gbmodel.mjcf
 import gbmodel.urdf
 from gbmodel import workspace
 
-from .. import cli
+from .. import cli, io
 from ..config import CONFIG_PATH, ConfigError
 
 AXES = "xyz"
+WITHIN = "--within"
+_WITHIN: list = [None]  # the percentage of --within (take_flags), None: describe the body
 
 
 def _fmt(values, digits: int = 3) -> str:
@@ -87,20 +95,125 @@ def describe(desc: dict) -> list[str]:
                + (f"{len(missed)} reached by no posture within 1 mm (e.g. "
                   f"{_fmt(body.targets[missed[0]])})" if len(missed) else
                   "every one reached by a posture within the limits"))
-    grid = workspace.propose_grid(body, g.get("num"))
+    grid = propose_grid(body, g.get("num"))
     if grid is None:
-        out.append("proposed grid: none found around home (a home posture at a joint limit or "
-                   "in a thin part of the workspace?); choose one inside the workspace above")
+        out.append("proposed grid: none found around home (too few sampled hand positions near "
+                   "it); choose one inside the workspace above")
     else:
-        out.append("proposed grid (around the hand at home, every target reached at full and "
-                   "half size; paste it into the body file):")
+        sides = ", ".join(f"{AXES[k]} {h - lo:.3f} m" for k, lo, h in
+                          zip(body.outputs, grid["lo"], grid["hi"]))
+        widest = 100 * max(np.subtract(grid["hi"], grid["lo"])) / reach
+        home = body.forward(body.home)
+        holds = all(lo <= h <= hi for lo, h, hi in zip(grid["lo"], home, grid["hi"]))
+        out.append(f"proposed grid ({sides}: {widest:.0f} % of the reach at most; every target "
+                   "reached at full and half size; "
+                   + ("it holds the hand at home" if holds else
+                      "the hand at home is on the edge of the workspace, where no box holds it: "
+                      "this one lies beside it (or choose a bent home)")
+                   + "; paste it into the body file):")
         out.append(f"  grid: {{lo: {grid['lo']}, hi: {grid['hi']}, num: {grid['num']}}}")
     return out
 
 
+def propose_grid(body, num=None, near: float = 0.5, tail: float = 5.0, side: float = 0.8,
+                 seed: int = workspace.SEED) -> dict | None:
+    """A target grid (dict(lo, hi, num), as a body file's `grid:`) around the hand's home
+    position h, which it contains, whose every target some posture within the limits reaches
+    (gbmodel.bodies.unreachable, at full and half size). From the sampled hand positions within
+    `near` x the reach of h (gbmodel.workspace): per axis their `tail` ... 100 - `tail`
+    percentiles, widened to hold h, each side at most `side` x the reach (cut about h); then
+    shrunk towards h until every target is reached; bounds rounded outwards to the millimetre.
+    A home on the edge of the workspace (a stretched arm) has no such box: then the same about
+    the middle of those samples instead (a grid beside home, which describe() says). num:
+    points per axis (the body's own grid's when it has as many axes; else 4). None when neither
+    is found."""
+    x = workspace.hand_samples(body, seed=seed)
+    n = x.shape[1]
+    num = [int(k) for k in num] if num is not None and len(num) == n else [4] * n
+    home = np.asarray(body.forward(body.home), np.float64).reshape(n)
+    reach = 0.5 * workspace.diameter(x)
+    close = x[np.linalg.norm(x - home, axis=1) <= near * reach]
+    if len(close) < 10 * n:
+        return None
+    lo, hi = np.percentile(close, tail, axis=0), np.percentile(close, 100 - tail, axis=0)
+    for anchor in (home, np.median(close, axis=0)):
+        grid = _box(body, anchor, np.minimum(lo, anchor), np.maximum(hi, anchor), side * reach,
+                    num, seed)
+        if grid is not None:
+            return grid
+    return None
+
+
+def _box(body, anchor, lo, hi, longest: float, num: list, seed: int) -> dict | None:
+    """The box lo ... hi (which holds anchor), each side cut to `longest` about anchor, shrunk
+    towards anchor until every target of its grid is reached at full and half size."""
+    from dataclasses import replace
+
+    cut = np.minimum(1.0, longest / np.maximum(hi - lo, 1e-12))
+    lo, hi = anchor + cut * (lo - anchor), anchor + cut * (hi - anchor)
+    for shrink in (1.0, 0.8, 0.6, 0.4, 0.2):
+        g_lo = np.floor(1e3 * (anchor + shrink * (lo - anchor)) + 1e-9) / 1e3
+        g_hi = np.ceil(1e3 * (anchor + shrink * (hi - anchor)) - 1e-9) / 1e3
+        if np.any(g_hi <= g_lo):
+            return None
+        grid = dict(lo=[round(float(v), 3) for v in g_lo],
+                    hi=[round(float(v), 3) for v in g_hi], num=num)
+        candidate = replace(body, targets=gbmodel.bodies.grid_points(**grid))
+        if all(gbmodel.bodies.unreachable(candidate, np.random.default_rng(seed), size=s).size
+               == 0 for s in (1.0, 0.5)):
+            return grid
+    return None
+
+
+def trials_within(folder, figure: str, pct: float) -> tuple[list[str], int]:
+    """(the lines, the trials above pct): each trial of an aggregated figure, its held-out error
+    at its last epoch in % of its condition's reach (trials.parquet, summary.parquet)."""
+    d = io.set_of(folder)
+    trials = io.read_table(d / "trials.parquet").to_pandas()
+    reach = dict(zip(*io.read_table(d / "summary.parquet").select(
+        ["condition", "reach"]).to_pydict().values()))
+    last = trials.sort_values("epoch").groupby(["condition", "trial"], sort=True).tail(1)
+    out, missed = [], []
+    for _, t in last.sort_values(["condition", "trial"]).iterrows():
+        p = 100 * t["heldout_abs_error"] / reach[t["condition"]]
+        out.append(f"[{figure}] {t['condition']} trial {t['trial']}: held out "
+                   f"{1e3 * t['heldout_abs_error']:.1f} mm = {p:.2f} % of the reach")
+        if not p <= pct:  # NaN (a diverged trial) misses too
+            missed.append(f"{t['condition']} trial {t['trial']} ({p:.2f} %)")
+    out.append(f"[{figure}] every one of {len(last)} trials within {pct:g} % of the reach"
+               if not missed else f"[{figure}] {len(missed)} of {len(last)} trials above "
+               f"{pct:g} % of the reach: {', '.join(missed)}")
+    return out, len(missed)
+
+
 def run(cfg: DictConfig) -> int:
+    if _WITHIN[0] is not None:
+        folder = Path(cfg.paths.aggregate) / io.safe_name("figure", cfg.figure)
+        if not folder.exists():
+            raise FileNotFoundError(f"{folder}: figure={cfg.figure} is not aggregated (run "
+                                    f"pipeline.aggregate figure={cfg.figure})")
+        lines, missed = trials_within(folder, cfg.figure, _WITHIN[0])
+        print("\n".join(lines), flush=True)
+        return 1 if missed else 0
     print("\n".join(describe(OmegaConf.to_container(cfg.body))), flush=True)
     return 0
+
+
+def take_flags(argv: list[str]) -> list[str]:
+    """argv without `--within PCT` (Hydra's parser would refuse it), noted; a bad PCT is one
+    line and exit 2."""
+    if WITHIN not in argv:
+        return argv
+    k = argv.index(WITHIN)
+    try:
+        _WITHIN[0] = float(argv[k + 1])
+        if not _WITHIN[0] > 0:
+            raise ValueError
+    except (IndexError, ValueError):
+        print(f"error: {WITHIN} takes a percentage of the reach above 0 (--within 1.5)",
+              file=sys.stderr)
+        sys.exit(2)
+    return argv[:k] + argv[k + 2:]
 
 
 @hydra.main(config_path=CONFIG_PATH, config_name="config", version_base="1.3")
@@ -111,4 +224,5 @@ def main(cfg: DictConfig) -> None:
 if __name__ == "__main__":
     if len(sys.argv) == 1:
         print(__doc__.split("\n\n")[1], file=sys.stderr)
+    sys.argv = [sys.argv[0], *take_flags(sys.argv[1:])]
     cli.main(main)

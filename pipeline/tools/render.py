@@ -10,7 +10,9 @@ the same path (docs/templates/docs/results.md -> docs/results.md): its text with
 `{{ name:.1f }}` where each number of the report stands, `{{ name }}` where a generated table
 does (pipeline/studies/values.py: the names, the formats). The values are the committed report's,
 outputs/report/values.csv (written by the report stage from pipeline/studies/values.yaml). Edit
-the template, never the page; numbers that are not the report's are plain text.
+the template, never the page; numbers that are not the report's are plain text, except the
+first-hour times (set-up, make smoke, make test: `{{ first_hour.smoke.cpu_min:.1f }}`), which are
+outputs/bench/first_hour.json's (`make first-hour`, pipeline/tools/firsthour.py).
 
 Exit status: 0 every page equals its rendering (or is written); 1 (--check) one line per page
 that differs; 2 a bad reference, a missing values table, or a template or page reached through
@@ -24,6 +26,7 @@ import sys
 from pathlib import Path
 
 from ..studies import values as named
+from . import firsthour
 
 REPO_ROOT = Path(__file__).resolve().parents[2]  # the checkout (pipeline.config's, without Hydra)
 
@@ -42,7 +45,7 @@ def rendered(root: Path, values_path: Path | None = None) -> dict[Path, str]:
     values_path = root / VALUES if values_path is None else values_path
     if not values_path.is_file():
         raise named.BadValue(f"{values_path}: no values table (the report stage writes it)")
-    vals = named.read(values_path)
+    vals = {**named.read(values_path), **firsthour.values(root / firsthour.OUT)}
     out = {}
     for rel in templates(root):
         src = unlinked(root, Path(TEMPLATES) / rel)

@@ -12,11 +12,13 @@ import sys
 
 import numpy as np
 import pytest
+import yaml
 from omegaconf import OmegaConf
 
 import gbmodel
 from gbmodel import workspace
 from pipeline import models
+from pipeline.tools import body as body_tool
 from pipeline.tools import rate
 from pipeline.config import REPO_ROOT, compose
 
@@ -24,7 +26,8 @@ import new_robots
 
 SECTION = REPO_ROOT.joinpath("README.md").read_text().split("**Another body**", 1)[1]
 SECTION = SECTION.split("\n**", 1)[0]
-RECIPE = [ln.strip() for ln in SECTION.splitlines() if ln.startswith("    ")]
+CODE = "\n".join(ln.strip() for ln in SECTION.splitlines() if ln.startswith("    "))
+RECIPE = CODE.replace(" \\\n", " ").splitlines()  # a line continued by a backslash is one
 
 
 def run(line, env, root):
@@ -36,10 +39,11 @@ def run(line, env, root):
 def test_the_readme_recipe_learns_a_new_urdf_robot(tmp_path):
     import os
 
-    assert RECIPE[0] == "MY_CONF=$PWD/my_conf" and len(RECIPE) == 5, RECIPE
+    assert RECIPE[0] == "MY_CONF=$PWD/my_conf" and len(RECIPE) == 6, RECIPE
     stages = [line.split()[2] for line in RECIPE[1:]]
     assert stages == ["pipeline.tools.body", "pipeline.tools.rate", "pipeline.simulate",
-                      "pipeline.aggregate"], RECIPE
+                      "pipeline.aggregate", "pipeline.tools.body"], RECIPE
+    assert RECIPE[5].endswith(" --within 1.5")  # the percentage the README promises
     assert RECIPE[2].endswith(" --write")
     folder = tmp_path / "my_conf"
     new_robots.write("panda_like", tmp_path)  # tmp/panda_like.urdf, tmp/conf/body/...
@@ -57,6 +61,9 @@ def test_the_readme_recipe_learns_a_new_urdf_robot(tmp_path):
         [f"hydra.searchpath=[file://{folder}]", "body=my_arm"]).body))
     assert shown == pytest.approx(new_robots.reach("panda_like", body), rel=0.02)
     grid = re.search(r"^  (grid: \{lo: .*\})$", r.stdout, re.M).group(1)  # pasted as printed
+    g = OmegaConf.create(yaml.safe_load(grid.split(": ", 1)[1]))
+    home = body.forward(body.home)
+    assert all(lo <= h <= hi for lo, h, hi in zip(g.lo, home, g.hi)), (grid, home)
     body_file.write_text(re.sub(r"^grid: .*$", grid, body_file.read_text(), flags=re.M))
 
     r = run(RECIPE[2], env, tmp_path)  # pipeline.tools.rate --write
@@ -75,6 +82,16 @@ def test_the_readme_recipe_learns_a_new_urdf_robot(tmp_path):
     assert said, r.stdout + r.stderr
     mm, pct, reach = map(float, said.groups())
     assert pct <= 1.5 and reach == pytest.approx(shown, abs=1e-3)
+
+    r = run(RECIPE[5], env, tmp_path)  # every trial against the README's 1.5 %
+    assert r.returncode == 0, r.stdout + r.stderr
+    lines = r.stdout.splitlines()
+    assert len(lines) == 4 and lines[-1] == "[my_arm] every one of 3 trials within 1.5 % of the reach"
+    assert re.match(r"\[my_arm\] const1\.0 trial 0: held out [\d.]+ mm = [\d.]+ % of the reach$",
+                    lines[0]), lines
+    r = run(RECIPE[5].replace("1.5", "0.001"), env, tmp_path)  # a promise no trial keeps
+    assert r.returncode == 1 and r.stdout.splitlines()[-1].startswith(
+        "[my_arm] 3 of 3 trials above 0.001 % of the reach: const1.0 trial 0 ("), r.stdout
 
     fig = models.load("my_arm", tmp_path / "outputs" / "aggregate")
     m = fig["const1.0"]
@@ -137,7 +154,7 @@ def test_the_reachability_check_has_no_false_positives_on_the_test_arms(tmp_path
     reachable = dataclasses.replace(body, targets=body.forward(q))
     assert gbmodel.bodies.unreachable(reachable, np.random.default_rng(0)).size == 0
     assert gbmodel.bodies.unreachable(body, np.random.default_rng(0)).size == 0
-    grid = workspace.propose_grid(body, [4, 4, 4])
+    grid = body_tool.propose_grid(body, [4, 4, 4])
     assert grid is not None and grid["num"] == [4, 4, 4]
     assert workspace.reach(body) == pytest.approx(new_robots.reach(name, body), rel=0.02)
 

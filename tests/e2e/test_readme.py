@@ -77,6 +77,9 @@ def test_every_readme_command_runs(tree, i):
 
 def test_the_readme_loads_a_model_and_draws_the_arm(tree):
     root, _ = tree
-    r = run(["-c", PYTHON[0]], root)
+    assert 'models.load("vsweep")' in PYTHON[0]  # by its name: paths.root's outputs/, any profile
+    # as in an installed package's folder: paths.root is the working directory (this test's root)
+    r = run(["-c", "import os, pipeline.config; pipeline.config.default_root = os.getcwd\n"
+             + PYTHON[0]], root)
     assert r.returncode == 0, r.stderr[-2000:]
     assert (root / "outputs" / "reach.png").exists()

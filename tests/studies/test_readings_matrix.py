@@ -1,5 +1,5 @@
 """The readings x figures matrix, the recommended reading and its check against the verdicts,
-README's block, and the readings figure's layout, on synthetic aggregates."""
+the readings page's block, and the readings figure's layout, on synthetic aggregates."""
 import numpy as np
 import pandas as pd
 import pytest
@@ -62,16 +62,19 @@ def test_the_markdown_is_the_csvs(cards, tmp_path):
     assert "| eta = 0.1 / W | 4 |" in md and "✓ reproduced" in md
 
 
-def test_the_readme_shows_the_committed_matrix_as_its_named_value():
-    """README.md's readings table is the named value readings.table (tests/studies/test_values.py
-    renders every page from values.csv): here, that value is what the committed matrix gives."""
+def test_the_readings_page_shows_the_committed_matrix_as_its_named_value():
+    """docs/readings.md's readings table (the README links to it) is the named value
+    readings.table (tests/studies/test_values.py renders every page from values.csv): here, that
+    value is what the committed matrix gives."""
     from pipeline.studies import values
 
     csv = REPO_ROOT / "outputs" / "report" / "readings_matrix.csv"
     table = values.read(REPO_ROOT / "outputs" / "report" / values.FILE)["readings.table"]
     assert table == readings.matrix_markdown(readings.read_matrix(csv)).rstrip("\n")
-    assert table in (REPO_ROOT / "README.md").read_text()
-    assert "{{ readings.table }}" in (REPO_ROOT / "docs" / "templates" / "README.md").read_text()
+    assert table in (REPO_ROOT / "docs" / "readings.md").read_text()
+    templates = REPO_ROOT / "docs" / "templates"
+    assert "{{ readings.table }}" in (templates / "docs" / "readings.md").read_text()
+    assert "docs/readings.md#the-matrix" in (templates / "README.md").read_text()
 
 
 def test_a_recommendation_the_verdicts_contradict_is_said_loudly(cards):

@@ -1,0 +1,150 @@
+"""The first hour, measured: set-up, make smoke and make test in a fresh clone of this checkout.
+
+    python -m pipeline.tools.firsthour                 # all three (make first-hour)
+    python -m pipeline.tools.firsthour --no-test       # set-up and smoke only (~5 min)
+    python -m pipeline.tools.firsthour --keep          # keep the clone (its path is printed)
+
+The clone is of the committed HEAD (uncommitted edits are not measured), in a temporary folder.
+Each command runs as a new user types it (`make setup`, `make smoke`, `make test`) and is
+recorded with its wall time and CPU time (the make and every process under it); make smoke also
+with the trials it ran, make test with pytest's counts (passed, skipped). The machine's state goes
+beside them (cores, load average before and after, date, commit): on a shared machine the wall
+times are longer in proportion. The results go to --out (outputs/bench/first_hour.json), which
+the README and docs/results.md quote as named values `first_hour.*` (pipeline.tools.render:
+`{{ first_hour.smoke.cpu_min:.1f }}`): the pages' times are this file's, never typed by hand.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+OUT = Path("outputs") / "bench" / "first_hour.json"
+COUNTS = re.compile(r"(\d+) (passed|skipped|failed|errors?)\b")
+
+
+def run(cwd: Path, *cmd: str) -> tuple[dict, str]:
+    """`cmd` in `cwd`: its wall and CPU time (the process and all it waited for), and its output."""
+    env = {k: v for k, v in os.environ.items()  # as typed in a shell, not as make's child
+           if k not in ("MAKEFLAGS", "MFLAGS", "MAKELEVEL", "MAKEOVERRIDES")}
+    start = time.perf_counter()
+    proc = subprocess.Popen(cmd, cwd=cwd, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT)
+    text = proc.stdout.read().decode(errors="replace")
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall, cpu = time.perf_counter() - start, usage.ru_utime + usage.ru_stime
+    rc = os.waitstatus_to_exitcode(status)
+    return dict(wall_s=round(wall, 1), wall_min=round(wall / 60, 2), cpu_s=round(cpu, 1),
+                cpu_min=round(cpu / 60, 2), rc=rc), text
+
+
+def pytest_counts(text: str) -> dict:
+    """pytest's last summary line ("1156 passed, 34 skipped in 812.3s") as {passed: 1156, ...},
+    and the tests that failed (its FAILED lines) as failures: [test id, ...]."""
+    lines = [ln for ln in text.splitlines() if " in " in ln and COUNTS.search(ln)]
+    if not lines:
+        return {}
+    failures = [ln.split()[1] for ln in text.splitlines() if ln.startswith(("FAILED ", "ERROR "))]
+    out = {kind.rstrip("s") if kind.startswith("error") else kind: int(n)
+           for n, kind in COUNTS.findall(lines[-1])}
+    return dict(out, failures=failures) if failures else out
+
+
+def trials_in(cache: Path) -> int:
+    """The trials a cache holds (one sidecar each)."""
+    return sum(1 for p in cache.glob("trials/*/*.json") if not p.name.endswith(".state.json"))
+
+
+def machine() -> dict:
+    return dict(cores=os.cpu_count(), load_average=[round(x, 2) for x in os.getloadavg()],
+                date=time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()))
+
+
+def measure(clone: Path, test: bool) -> dict:
+    """set-up, smoke (and test) in the fresh clone `clone`, each failing command's tail printed."""
+    out = {}
+    steps = [("setup", "make setup"), ("smoke", "make smoke")] + (
+        [("test", "make test")] if test else [])
+    for name, cmd in steps:
+        print(f"{cmd} in {clone} ...", file=sys.stderr, flush=True)
+        out[name], text = run(clone, *cmd.split())
+        if name == "smoke":
+            out[name]["trials"] = trials_in(clone / "outputs" / "smoke" / "cache")
+        if name == "test":
+            out[name].update(pytest_counts(text))
+        print(f"  {json.dumps(out[name])}", file=sys.stderr, flush=True)
+        if out[name]["rc"] != 0:
+            print(text[-3000:], file=sys.stderr)
+            break
+    return out
+
+
+def commit(code: Path) -> str:
+    return subprocess.run(["git", "rev-parse", "HEAD"], cwd=code, capture_output=True,
+                          text=True, check=True).stdout.strip()
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m pipeline.tools.firsthour",
+                                 description=__doc__.split("\n")[0])
+    ap.add_argument("--out", type=Path, default=REPO / OUT, help=f"the results (default: {OUT})")
+    ap.add_argument("--no-test", action="store_true", help="set-up and smoke only")
+    ap.add_argument("--keep", action="store_true", help="keep the fresh clone")
+    args = ap.parse_args(argv)
+    tmp = Path(tempfile.mkdtemp(prefix="gbgrowth-first-hour-"))
+    clone = tmp / "clone"
+    subprocess.run(["git", "clone", "--quiet", str(REPO), str(clone)], check=True)
+    head = commit(REPO)  # measured as committed now, whatever the checkout does meanwhile
+    subprocess.run(["git", "checkout", "--quiet", head], cwd=clone, check=True)
+    before = machine()
+    try:
+        results = measure(clone, not args.no_test)
+    finally:
+        if args.keep:
+            print(f"the clone: {clone}", file=sys.stderr)
+        else:
+            shutil.rmtree(tmp, ignore_errors=True)
+    after = machine()
+    doc = dict(commit=head[:7], machine=dict(before, load_average_after=after["load_average"]),
+               **results)
+    from .. import io
+
+    io.write_text(args.out, json.dumps(doc, indent=1) + "\n")
+    failed = [name for name, r in results.items() if r["rc"] != 0]
+    print(f"{args.out}: written" + (f" (failed: {', '.join(failed)}; its output above)"
+                                    if failed else ""), file=sys.stderr)
+    return 1 if failed else 0
+
+
+def values(path: Path) -> dict:
+    """The named values of a first_hour.json: `first_hour.<command>.<measure>` (its numbers),
+    first_hour.date, first_hour.commit and first_hour.test.counts ("1,156 passed, 34 skipped")
+    as text; none without the file."""
+    if not path.is_file():
+        return {}
+    doc = json.loads(path.read_text())
+    out = {f"first_hour.{cmd}.{k}": float(v) for cmd in ("setup", "smoke", "test")
+           for k, v in doc.get(cmd, {}).items() if isinstance(v, (int, float))}
+    out.update({f"first_hour.machine.{k}": float(v) for k, v in doc["machine"].items()
+                if isinstance(v, (int, float))})
+    loads = doc["machine"].get("load_average", [])
+    if loads:
+        out["first_hour.machine.load_1min"] = float(loads[0])
+    counts = ", ".join(f"{doc['test'][k]:,} {k}" for k in ("passed", "failed", "error", "skipped")
+                       if doc.get("test", {}).get(k))
+    failures = ", ".join(f"`{t}`" for t in doc.get("test", {}).get("failures", [])) or "none"
+    return dict(out, **{"first_hour.date": doc["machine"]["date"][:10],
+                        "first_hour.commit": doc["commit"], "first_hour.test.counts": counts,
+                        "first_hour.test.failures": failures})
+
+
+if __name__ == "__main__":
+    sys.exit(main())
