@@ -148,7 +148,7 @@ def check(argv: list[str], stage=None) -> str | None:
         overrides, parsed, multirun = _parsed(argv)
         choices, sweeps, hydra_own = _choices(parsed, multirun)
         n_jobs = math.prod(len(c) for c in choices)
-        planned = {}
+        planned, growing, ignored = {}, False, None
         notes = shadowed(CONF_DIR, [Path.cwd() / "conf", *searchpath_folders(overrides)])
         combinations = itertools.islice(_one_at_a_time(choices), _MAX_COMBINATIONS)
         for n, combination in enumerate(combinations):
@@ -163,10 +163,15 @@ def check(argv: list[str], stage=None) -> str | None:
                     cfg = compose(given)
                 trials = _planned(cfg, given, notes, n_jobs == 1, hydra_own)
                 planned.setdefault(cfg.figure, []).extend(trials)
+                growing = growing or cfg.growth.pattern != "none"
+                if cfg.growth.pattern == "none" and cfg.growth.period:
+                    ignored = ignored or (cfg, given)
             except ConfigError:
                 raise
             except Exception as err:
                 return empty_config_file(err, given) or _one_line(err)
+        if ignored and not growing:  # a period every job ignores: refused as in one run
+            check_choices(*ignored)
         for trials in planned.values():  # a sweep's jobs make one figure: their labels differ
             condition_labels(plan_conditions(trials))
     except ConfigError as err:
@@ -260,7 +265,9 @@ def _planned(cfg, given: list[str], notes: list[str], one_job: bool,
         check_run(cfg)
         return []
     trials = plan(cfg, remember=one_job)  # checks the values, the limits
-    check_choices(cfg, given)  # what plan accepts but a user did not mean
+    note = check_choices(cfg, given, sweep=not one_job)  # what plan accepts but a user did
+    if note and note not in notes:  # not mean; in a sweep, a key some jobs ignore: one line
+        notes.append(note)
     keeps_experiment(given, trials)
     if one_job:  # kept when the stage has run (cli.finish): a refused run writes nothing
         PASSED[:] = [(marker, trials, cfg.paths.root)]
