@@ -128,9 +128,10 @@ def disk_message(err: OSError) -> str:
 
 def main(hydra_main) -> None:
     """Run a stage's @hydra.main function after checking its command line. A signal before the
-    stage runs ends the process with one line (pipeline.stop). `--help` prints help_text."""
+    stage runs ends the process with one line (pipeline.stop). `--help` prints help_text
+    (`--help-all`: with the whole config)."""
     stop.install()
-    if "--help" in sys.argv[1:] or "-h" in sys.argv[1:]:
+    if {"--help", "-h", "--help-all"} & set(sys.argv[1:]):
         import __main__
 
         from .config.help import help_text
@@ -141,7 +142,7 @@ def main(hydra_main) -> None:
             stage = hydra_main.__module__
         text = help_text(stage, sys.argv[1:])
         if sys.argv[0].startswith("gbgrowth "):  # as typed (pipeline.__main__ sets argv[0])
-            text = text.replace(f"python -m {stage}", sys.argv[0], 1)
+            text = text.replace(f"python -m {stage}", sys.argv[0])
         sys.stdout.write(text)
         sys.exit(0)
     COMPOSED.clear()
