@@ -32,6 +32,8 @@ _MAX_COMBINATIONS = 8
 MAX_SWEEP_JOBS = 10_000  # jobs of one multirun: each is a Hydra job with its own folder
 PASSED: list = []  # (note, trials, root) of the one-job command line check() planned, for the
 # stage's end (cli.finish) to keep: the same command line again plans nothing (planned.py)
+SWEEP: list = []  # [(the jobs of a sweep, the trials of each job check() planned, its cache,
+# its workers)]: what the sweep will run, said before its first job (simulate.before_sweep)
 
 
 def sweep_size(override) -> int | None:
@@ -144,11 +146,12 @@ def check(argv: list[str], stage=None) -> str | None:
     composed as Hydra's run of it composes it (compose_as_run), and the run is given that
     config instead of composing it again (config.hydra_run.composed_once)."""
     PASSED.clear()
+    SWEEP.clear()
     try:
         overrides, parsed, multirun = _parsed(argv)
         choices, sweeps, hydra_own = _choices(parsed, multirun)
         n_jobs = math.prod(len(c) for c in choices)
-        planned, growing, ignored = {}, False, None
+        planned, growing, ignored, jobs = {}, False, None, []
         notes = shadowed(CONF_DIR, [Path.cwd() / "conf", *searchpath_folders(overrides)])
         combinations = itertools.islice(_one_at_a_time(choices), _MAX_COMBINATIONS)
         for n, combination in enumerate(combinations):
@@ -163,6 +166,7 @@ def check(argv: list[str], stage=None) -> str | None:
                     cfg = compose(given)
                 trials = _planned(cfg, given, notes, n_jobs == 1, hydra_own)
                 planned.setdefault(cfg.figure, []).extend(trials)
+                jobs.append(trials)
                 growing = growing or cfg.growth.pattern != "none"
                 if cfg.growth.pattern == "none" and cfg.growth.period:
                     ignored = ignored or (cfg, given)
@@ -178,6 +182,8 @@ def check(argv: list[str], stage=None) -> str | None:
         return str(err)
     for note in notes:
         print(note, file=sys.stderr)
+    if n_jobs > 1:
+        SWEEP[:] = [(n_jobs, jobs, cfg.paths.cache, cfg.workers)]  # (the last job's place)
     return None
 
 

@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from . import io, stop
-from .check import PASSED, check
+from .check import PASSED, SWEEP, check
 from .config import ConfigError
 from .config.hydra_run import COMPOSED, MODE, composed_once, known_mode
 from .fingerprint import CodeChanged
@@ -150,5 +150,8 @@ def main(hydra_main) -> None:
     if problem is not None:
         print(f"error: {problem}", file=sys.stderr)
         sys.exit(2)
+    before = getattr(sys.modules.get(getattr(hydra_main, "__module__", "")), "before_sweep", None)
+    if SWEEP and before is not None:  # a stage that says what a whole sweep costs (simulate)
+        before(*SWEEP[0])
     with known_mode(MODE), composed_once(COMPOSED):
         hydra_main()
