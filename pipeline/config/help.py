@@ -94,7 +94,8 @@ def help_text(stage: str, argv: list[str]) -> str:
     command line composes to as well (Hydra's own help listed the internal schemas too)."""
     overrides = overrides_of(argv)
     what, options, example = STAGES.get(stage, ("", [], f"python -m {stage}"))
-    lines = [f"usage: python -m {stage} [group=option ...] [key=value ...] [-m for a sweep]"]
+    sweep = " [-m for a sweep]" if stage.count(".") == 1 else ""  # a stage's, not a tool's
+    lines = [f"usage: python -m {stage} [group=option ...] [key=value ...]{sweep}"]
     lines += ["", *_wrapped(what)] if what else []
     if options:
         width = max(len(o) for o, _ in options)
