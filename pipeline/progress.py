@@ -46,9 +46,9 @@ def estimate(trials: list[dict], workers: int, costs: dict | None = None,
     span = f"{epochs[0]:,}" if len(epochs) == 1 else f"{epochs[0]:,} to {epochs[-1]:,}"
     n = round(len(trials) * every / planned)
     workers = max(1, min(workers, n))
-    sweep = ("" if jobs is None else f"the sweep's {every:,} jobs" + (
-        f" ({every - planned:,} counted at the mean of the {planned} planned)" if every > planned else "")
-        + ", ")
+    sweep = "" if jobs is None else f"the sweep's {every:,} jobs, "
+    if every > planned:
+        sweep = f"{sweep[:-2]} ({every - planned:,} counted at the mean of the {planned} planned), "
     return (f"estimate: {sweep}{n:,} trials of {span} epochs, about "
             f"{fmt_duration(cpu)} of CPU time (the cost model, pipeline.plan.cost), so about "
             f"{fmt_duration(cpu / workers)} on {workers} worker(s) with a core each; "

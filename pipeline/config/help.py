@@ -57,7 +57,9 @@ STAGES = {
     "pipeline.tools.body": (
         "Prints a body's chain, joints, limits and reach, whether its target grid is reachable, "
         "and a grid that is; writes nothing.",
-        [("body=NAME", "the body"), _SEARCH],
+        [("body=NAME", "the body"), _SEARCH,
+         ("figure=NAME --within PCT", "after a run: each trial's held-out error against PCT % "
+          "of the reach; the trials above it named (exit 1)")],
         "python -m pipeline.tools.body body=arm5"),
     "pipeline.tools.bench": (
         "Times whole trials of the compiled kernel against the numpy reference (make bench) "
