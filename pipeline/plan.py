@@ -370,7 +370,7 @@ def plan_conditions(trials: list[dict]) -> list[dict]:
 
 # CPU seconds per unit of cost(), and a trial's fixed work (its body, draws, evaluation grid and
 # files), calibrated on whole trials: the report's measured CPU per experiment (16 experiments,
-# 2,235 trials, outputs/report/report.md's provenance) falls within 0.84 to 1.14 x cpu_seconds
+# 2,235 trials, outputs/report/report.md's provenance) falls within 0.83 to 1.13 x cpu_seconds
 # (tests/pipeline/test_sweeps.py). The kernel alone: 1.9 ns per unit on arm5 (`python -m
 # pipeline.tools.bench costs`, its first row); a whole trial costs about 1.15 times that.
 SECONDS_PER_COST = 2.2e-9
