@@ -39,10 +39,25 @@ commands:
   models      FIGURE|PATH [AGGREGATE_DIR]: the trained models of a figure, one line per condition
               (models seal FILE...: verify a report's models file against its curves, seal it)
 
-  gbgrowth COMMAND --help    a stage's help (the config groups and options you choose)
+  gbgrowth COMMAND --help    a command's help (its options, an example; --help-all: its config)
   gbgrowth --version
 
 Outputs go under paths.root: the working directory outside a checkout (docs/install.md)."""
+
+
+MODELS_HELP = """usage: gbgrowth models FIGURE|PATH [AGGREGATE_DIR]
+       gbgrowth models seal FILE...
+
+Lists the trained models of a figure (pipeline.models.load): one line per condition, with its
+body, its trials, the body's size and the epochs it learned for.
+
+  FIGURE|PATH     a figure's name (its aggregate, or a report's models/<figure>.json), or
+                  the path of a models file or of a figure's aggregate folder
+  AGGREGATE_DIR   look for FIGURE under this aggregate folder only
+  seal FILE...    verify each report models file against the report's curves, then seal it
+
+Example:
+  gbgrowth models fig4"""
 
 
 def models(args: list[str]) -> int:
@@ -52,6 +67,9 @@ def models(args: list[str]) -> int:
 
     if args[:1] == ["seal"]:  # python -m pipeline.models seal FILE...
         return loader.main(args)
+    if args[:1] in (["-h"], ["--help"]):
+        print(MODELS_HELP)
+        return 0
     if not args or len(args) > 2 or args[0].startswith("-"):
         print("usage: gbgrowth models FIGURE|PATH [AGGREGATE_DIR]", file=sys.stderr)
         return 2

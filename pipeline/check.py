@@ -32,6 +32,8 @@ _MAX_COMBINATIONS = 8
 MAX_SWEEP_JOBS = 10_000  # jobs of one multirun: each is a Hydra job with its own folder
 PASSED: list = []  # (note, trials, root) of the one-job command line check() planned, for the
 # stage's end (cli.finish) to keep: the same command line again plans nothing (planned.py)
+SWEEP: list = []  # [(the jobs of a sweep, the trials of each job check() planned, its cache,
+# its workers)]: what the sweep will run, said before its first job (simulate.before_sweep)
 
 
 def sweep_size(override) -> int | None:
@@ -144,11 +146,12 @@ def check(argv: list[str], stage=None) -> str | None:
     composed as Hydra's run of it composes it (compose_as_run), and the run is given that
     config instead of composing it again (config.hydra_run.composed_once)."""
     PASSED.clear()
+    SWEEP.clear()
     try:
         overrides, parsed, multirun = _parsed(argv)
         choices, sweeps, hydra_own = _choices(parsed, multirun)
         n_jobs = math.prod(len(c) for c in choices)
-        planned = {}
+        planned, growing, ignored, jobs = {}, False, None, []
         notes = shadowed(CONF_DIR, [Path.cwd() / "conf", *searchpath_folders(overrides)])
         combinations = itertools.islice(_one_at_a_time(choices), _MAX_COMBINATIONS)
         for n, combination in enumerate(combinations):
@@ -163,16 +166,24 @@ def check(argv: list[str], stage=None) -> str | None:
                     cfg = compose(given)
                 trials = _planned(cfg, given, notes, n_jobs == 1, hydra_own)
                 planned.setdefault(cfg.figure, []).extend(trials)
+                jobs.append(trials)
+                growing = growing or cfg.growth.pattern != "none"
+                if cfg.growth.pattern == "none" and cfg.growth.period:
+                    ignored = ignored or (cfg, given)
             except ConfigError:
                 raise
             except Exception as err:
                 return empty_config_file(err, given) or _one_line(err)
+        if ignored and not growing:  # a period every job ignores: refused as in one run
+            check_choices(*ignored)
         for trials in planned.values():  # a sweep's jobs make one figure: their labels differ
             condition_labels(plan_conditions(trials))
     except ConfigError as err:
         return str(err)
     for note in notes:
         print(note, file=sys.stderr)
+    if n_jobs > 1:
+        SWEEP[:] = [(n_jobs, jobs, cfg.paths.cache, cfg.workers)]  # (the last job's place)
     return None
 
 
@@ -260,7 +271,9 @@ def _planned(cfg, given: list[str], notes: list[str], one_job: bool,
         check_run(cfg)
         return []
     trials = plan(cfg, remember=one_job)  # checks the values, the limits
-    check_choices(cfg, given)  # what plan accepts but a user did not mean
+    note = check_choices(cfg, given, sweep=not one_job)  # what plan accepts but a user did
+    if note and note not in notes:  # not mean; in a sweep, a key some jobs ignore: one line
+        notes.append(note)
     keeps_experiment(given, trials)
     if one_job:  # kept when the stage has run (cli.finish): a refused run writes nothing
         PASSED[:] = [(marker, trials, cfg.paths.root)]

@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from . import io, stop
-from .check import PASSED, check
+from .check import PASSED, SWEEP, check
 from .config import ConfigError
 from .config.hydra_run import COMPOSED, MODE, composed_once, known_mode
 from .fingerprint import CodeChanged
@@ -128,9 +128,10 @@ def disk_message(err: OSError) -> str:
 
 def main(hydra_main) -> None:
     """Run a stage's @hydra.main function after checking its command line. A signal before the
-    stage runs ends the process with one line (pipeline.stop). `--help` prints help_text."""
+    stage runs ends the process with one line (pipeline.stop). `--help` prints help_text
+    (`--help-all`: with the whole config)."""
     stop.install()
-    if "--help" in sys.argv[1:] or "-h" in sys.argv[1:]:
+    if {"--help", "-h", "--help-all"} & set(sys.argv[1:]):
         import __main__
 
         from .config.help import help_text
@@ -141,7 +142,7 @@ def main(hydra_main) -> None:
             stage = hydra_main.__module__
         text = help_text(stage, sys.argv[1:])
         if sys.argv[0].startswith("gbgrowth "):  # as typed (pipeline.__main__ sets argv[0])
-            text = text.replace(f"python -m {stage}", sys.argv[0], 1)
+            text = text.replace(f"python -m {stage}", sys.argv[0])
         sys.stdout.write(text)
         sys.exit(0)
     COMPOSED.clear()
@@ -149,5 +150,8 @@ def main(hydra_main) -> None:
     if problem is not None:
         print(f"error: {problem}", file=sys.stderr)
         sys.exit(2)
+    before = getattr(sys.modules.get(getattr(hydra_main, "__module__", "")), "before_sweep", None)
+    if SWEEP and before is not None:  # a stage that says what a whole sweep costs (simulate)
+        before(*SWEEP[0])
     with known_mode(MODE), composed_once(COMPOSED):
         hydra_main()

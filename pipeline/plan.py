@@ -368,9 +368,18 @@ def plan_conditions(trials: list[dict]) -> list[dict]:
     return list(out.values())
 
 
-# CPU seconds per unit of cost(): Goal Babbling's fast path on arm5, the unit of the cost model
-# (`python -m pipeline.tools.bench costs`, its first row, in ns)
-SECONDS_PER_COST = 1.9e-9
+# CPU seconds per unit of cost(), and a trial's fixed work (its body, draws, evaluation grid and
+# files), calibrated on whole trials: the report's measured CPU per experiment (16 experiments,
+# 2,235 trials, outputs/report/report.md's provenance) falls within 0.83 to 1.13 x cpu_seconds
+# (tests/pipeline/test_sweeps.py). The kernel alone: 1.9 ns per unit on arm5 (`python -m
+# pipeline.tools.bench costs`, its first row); a whole trial costs about 1.15 times that.
+SECONDS_PER_COST = 2.2e-9
+SECONDS_PER_TRIAL = 0.05
+
+
+def cpu_seconds(units: float, trials: int) -> float:
+    """The CPU seconds the cost model gives `trials` trials of `units` of cost() in all."""
+    return SECONDS_PER_COST * units + SECONDS_PER_TRIAL * trials
 
 
 def cost(trial: dict) -> float:

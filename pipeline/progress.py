@@ -25,22 +25,31 @@ def fmt_duration(seconds: float) -> str:
 ESTIMATE_ABOVE_S = 60.0  # a run estimated to take longer than this says so before it starts
 
 
-def estimate(trials: list[dict], workers: int, costs: dict | None = None) -> str | None:
+def estimate(trials: list[dict], workers: int, costs: dict | None = None,
+             jobs: tuple[int, int] | None = None) -> str | None:
     """One line before a run longer than ESTIMATE_ABOVE_S of CPU: its trials, their epochs and
-    the CPU time the cost model gives (pipeline.plan.cost x SECONDS_PER_COST: calibrated on Goal
-    Babbling's fast path; startup, compilation and the other stages not counted), and the wall
-    time on `workers`; None for a shorter run."""
-    from .plan import SECONDS_PER_COST, cost
+    the CPU time the cost model gives (pipeline.plan.cpu_seconds: calibrated on whole trials;
+    startup, compilation and the other stages not counted), and the wall
+    time on `workers`; None for a shorter run. jobs=(planned, all): `trials` are those of the
+    `planned` jobs of a sweep of `all` jobs, the others counted at their mean (one line before
+    the sweep's first job)."""
+    from .plan import cost, cpu_seconds
 
     if not trials:
         return None
-    cpu = SECONDS_PER_COST * sum((costs or {}).get(t["key"]) or cost(t) for t in trials)
+    planned, every = jobs or (1, 1)
+    units = sum((costs or {}).get(t["key"]) or cost(t) for t in trials)
+    cpu = cpu_seconds(units, len(trials)) * every / planned
     if cpu <= ESTIMATE_ABOVE_S:
         return None
     epochs = sorted({int(t["spec"]["epochs"]) for t in trials})
     span = f"{epochs[0]:,}" if len(epochs) == 1 else f"{epochs[0]:,} to {epochs[-1]:,}"
-    workers = max(1, min(workers, len(trials)))
-    return (f"estimate: {len(trials):,} trials of {span} epochs, about "
+    n = round(len(trials) * every / planned)
+    workers = max(1, min(workers, n))
+    sweep = "" if jobs is None else f"the sweep's {every:,} jobs, "
+    if every > planned:
+        sweep = f"{sweep[:-2]} ({every - planned:,} counted at the mean of the {planned} planned), "
+    return (f"estimate: {sweep}{n:,} trials of {span} epochs, about "
             f"{fmt_duration(cpu)} of CPU time (the cost model, pipeline.plan.cost), so about "
             f"{fmt_duration(cpu / workers)} on {workers} worker(s) with a core each; "
             "Ctrl-C stops it, and the same command resumes")

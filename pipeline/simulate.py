@@ -398,6 +398,17 @@ def write_figure(cache_dir, j: Job, group: str | None, job: int) -> None:
               "keep both)", file=sys.stderr)
 
 
+def before_sweep(n_jobs: int, jobs: list[list[dict]], cache_dir, workers: int) -> None:
+    """One line before the first job of a sweep of `n_jobs` estimated above a minute of CPU in
+    all (progress.estimate): the trials of the `jobs` the check planned that are not in
+    `cache_dir`, the jobs it did not plan counted at their mean (Hydra composes each job when
+    it starts)."""
+    todo = [t for job in jobs for t in job if finished(Path(cache_dir), t)[0] is None]
+    ahead = estimate(todo, workers, jobs=(len(jobs), n_jobs))
+    if ahead:
+        print(ahead, file=sys.stderr, flush=True)
+
+
 def run(cfg: DictConfig) -> int:
     """simulate() for the command line: the summary, and exit status 1 if a trial failed."""
     summary = simulate(cfg, *cli.hydra_run())

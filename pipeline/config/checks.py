@@ -122,17 +122,22 @@ def config_notes(cfg) -> list[str]:
     return notes
 
 
-def check_choices(cfg, overrides) -> None:
+def check_choices(cfg, overrides, sweep: bool = False) -> str | None:
     """Refuse (one line) what a command line would otherwise accept in silence: a body file
     whose `name:` differs from its file name (`body=my_arm` loading `name: other`), a growth
     period with growth=none (it would become 0), and a growth period given on the command line
-    that is longer than the run (the body would never reach its end size)."""
+    that is longer than the run (the body would never reach its end size). In a `sweep` whose
+    other jobs grow (`-m growth=none,proportional growth.period=300`), growth=none's period is
+    ignored, as planning does (its condition is the constant body): a note, returned."""
     given = {o.lstrip("+~").split("=", 1)[0]: o.split("=", 1)[1] for o in overrides if "=" in o}
     body = given.get("body")
     if body is not None and "body.name" not in given and cfg.body.name != body:
         raise ConfigError(f"body={body}: its file {body}.yaml says name: {cfg.body.name}; a body "
                           f"file is named after its body (rename one of them)")
     g = cfg.growth
+    if g.pattern == "none" and g.period and sweep:
+        return (f"note: growth.period={g.period} is ignored in the jobs of growth=none (a body "
+                "of one size has no period); the sweep's growing jobs use it")
     if g.pattern == "none" and g.period:
         raise ConfigError(f"growth.period={g.period}: growth=none keeps the body at one size, so "
                           "it has no period; drop growth.period or choose a growth pattern "
@@ -144,6 +149,7 @@ def check_choices(cfg, overrides) -> None:
         raise ConfigError(f"growth.period={g.period}: longer than the run (learner.epochs="
                           f"{epochs}), so the body never reaches its end size; choose a period "
                           "of at most learner.epochs")
+    return None
 
 
 def check_keys(cfg) -> None:

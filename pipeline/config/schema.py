@@ -154,6 +154,11 @@ class ReportConf:
     animate: bool = True
     explain: bool = True  # the explanation rows, read from the explain_* aggregates (explain.py)
     scale: str = ""  # a reduced scale the title names ("smoke"; set by the profile), "" = as set
+    # a learning-curve figure for a paper (pipeline.studies.paper.figure_options, docs/figures.md):
+    title: str = ""  # its title line; "" keeps the figure's name and its trial count
+    error_unit: str = "m"  # the errors' unit: m or mm (curves, bands, the paper's line, labels)
+    log_epoch_axis: bool = True  # the epoch axis on a log scale; false: linear (log_error_axis:
+    # the error axis)
 
 
 @dataclass

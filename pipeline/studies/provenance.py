@@ -13,7 +13,7 @@ measured CPU time (the seconds each trial took when it was computed, whichever r
 it: pipeline.cache.read_times; a trial computed before times were kept counts as unmeasured).
 Everything else in the report is reproducible byte for byte, and so is the block within one
 process (the date is taken once). The estimate beside it is the plan's cost model
-(pipeline.plan.cost) times SECONDS_PER_COST.
+(pipeline.plan.cost) in CPU seconds (pipeline.plan.cpu_seconds).
 """
 from __future__ import annotations
 
@@ -29,7 +29,7 @@ from importlib import metadata
 from pathlib import Path
 
 from ..config import IN_CHECKOUT, REPO_ROOT
-from ..plan import SECONDS_PER_COST  # CPU seconds per unit of pipeline.plan.cost
+from ..plan import cpu_seconds  # the CPU seconds of trials of pipeline.plan.cost
 from .sections import Context, register
 
 PACKAGES = ("numpy", "numba", "scipy", "pandas", "pyarrow", "matplotlib", "hydra-core",
@@ -155,7 +155,7 @@ def distinct_costs(aggs: dict, out_dir) -> tuple[int, int, float, float]:
                 key = key or (id(c), i)  # no key recorded: this condition's own trial
                 if key not in est:
                     units = cost(dict(spec=c["spec"])) if units is None else units
-                    est[key] = units * SECONDS_PER_COST
+                    est[key] = cpu_seconds(units, 1)
                     if key in times:
                         seen[key] = times[key]
     return len(est), len(seen), sum(seen.values()), sum(est.values())
@@ -176,7 +176,7 @@ def figure_costs(aggs: dict) -> dict[str, tuple[int, float]]:
             k = len(c["trials"]) + len(c.get("diverged", {}))
             n += k
             units += k * cost(dict(spec=c["spec"]))
-        out[name] = (n, units * SECONDS_PER_COST)
+        out[name] = (n, cpu_seconds(units, n))
     return out
 
 
@@ -221,8 +221,8 @@ def markdown(aggs: dict, out_dir=None) -> list[str]:
     md.append(f"| all, each shared trial once | {n} | {mine} | {_duration(seconds)} |")
     md += ["", "CPU time: measured, the CPU seconds each trial took when it was computed (any "
            "run; a trial cached before times were kept is not measured); estimated, the plan's "
-           "cost model (pipeline.plan.cost) on Goal Babbling's calibration "
-           "(pipeline.tools.bench_costs); the last row counts a trial that several figures "
+           "cost model (pipeline.plan.cost), calibrated on whole trials "
+           "(pipeline.plan.cpu_seconds); the last row counts a trial that several figures "
            "share (the same condition, pipeline.plan.stream) once. The final models of every "
            "condition: `models/<figure>.json` (`pipeline.models.load(path)`).", ""]
     lines = credits(aggs)

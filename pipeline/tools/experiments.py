@@ -4,7 +4,9 @@
     python -m pipeline.tools.experiments paper choices   # fig2 fig4 ... choices_icub
     python -m pipeline.tools.experiments --make          # paper:fig2 ... studies:baselines_icub
 
-The Makefile reads its lists (PAPER, CHOICES, EXPLAIN, STUDIES) from `--make`, once per make.
+GROUP...: the experiments of these groups (paper, choices, explain, studies), in their order;
+--make: every experiment that declares a group, as group:name. The Makefile reads its lists
+(PAPER, CHOICES, EXPLAIN, STUDIES) from `--make`, once per make.
 """
 from __future__ import annotations
 
@@ -25,6 +27,9 @@ def config_folders() -> tuple[Path, ...]:
 
 def main(argv=None) -> int:
     args = list(sys.argv[1:] if argv is None else argv)
+    if args[:1] in (["-h"], ["--help"]):
+        print(__doc__.rstrip())
+        return 0
     try:
         if args == ["--make"]:
             found = declared(config_folders())

@@ -96,7 +96,7 @@ def test_the_total_counts_a_trial_shared_by_two_figures_once(tmp_path):
             "g": dict(models=dict(conditions={"c": one("b", "c", "d")}))}  # b: f's trial too
     n, k, spent, seconds = provenance.distinct_costs(aggs, tmp_path)
     assert (n, k, spent) == (4, 3, 7.5)  # d not measured
-    assert seconds == pytest.approx(4 * cost(dict(spec=spec)) * provenance.SECONDS_PER_COST)
+    assert seconds == pytest.approx(provenance.cpu_seconds(4 * cost(dict(spec=spec)), 4))
     assert provenance.distinct_costs(aggs, None)[:3] == (4, 0, 0)
     block = "\n".join(provenance.markdown(aggs, tmp_path))
     assert "| all, each shared trial once | 4 | 7.5 s (3 of 4 trials) |" in block
@@ -128,7 +128,7 @@ def test_estimated_cpu_time_follows_the_cost_model():
                 evaluation={}, epochs=1000, evals_per_decade=20, snapshots=[])
     aggs = {"f": dict(models=dict(conditions={"c": dict(spec=spec, trials={"0": {}, "1": {}})}))}
     n, seconds = provenance.figure_costs(aggs)["f"]
-    assert n == 2 and seconds == pytest.approx(2 * cost(dict(spec=spec)) * provenance.SECONDS_PER_COST)
+    assert n == 2 and seconds == pytest.approx(provenance.cpu_seconds(2 * cost(dict(spec=spec)), 2))
 
 
 def _example(name, tmp_path, **env):
