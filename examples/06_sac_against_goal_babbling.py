@@ -36,6 +36,10 @@ LEARNERS = {"goal_babbling": "Goal Babbling (batch, the paper's)",
             "online_goal_babbling": "online Goal Babbling"}
 
 
+# %% [markdown]
+# The two learners, each returning its held-out error against forward evaluations.
+
+# %%
 def sac_curve(steps: int, growth_evals: int, seed: int, every: int) -> tuple:
     """SAC + HER on the growing arm: the held-out error [m] after every `every` steps (one
     step: one posture, one forward evaluation), and the reach [m] of the full-size body."""
@@ -76,6 +80,10 @@ def goal_babbling_curve(learner: str, evals: int, growth_evals: int, seed: int) 
     return r.epoch * spe, r.heldout_abs_error
 
 
+# %% [markdown]
+# Both learners on the same seeds, one figure and its numbers.
+
+# %%
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--steps", type=int, default=10_000, help="SAC's budget of forward evaluations")
