@@ -38,7 +38,6 @@ from __future__ import annotations
 
 import hashlib
 import xml.etree.ElementTree as ET
-from pathlib import Path
 
 import numpy as np
 
@@ -270,18 +269,26 @@ def read_chain(file, root: str, tip: str, joints=None, hold=None, sha256=None) -
     if not tree.findall("worldbody"):
         raise _bad("file", str(file), f"{path.name} has no <worldbody>")
     compiler, classes = _compiler(tree, file), _classes(tree, file)
-    # the root and the tip
+    steps, parent = _path(tree, root, tip, path.name)
+    ops = _ops(tree, steps, parent, classes, compiler, root, file)
+    joints, hold = chosen([op[1] for op in ops if op[0] == "hinge"], joints, hold, "hinge",
+                          kind="mjcf")
+    return _compile(ops, joints, hold, compiler, file)
+
+
+def _path(tree, root, tip, name):
+    """The elements from below `root` down to `tip` (root to tip), and {child: parent}."""
     if root == "world":
         start = None
     else:
         hits = _find(tree, "body", root)
         if len(hits) != 1:
-            raise _bad("root", root, f"{len(hits)} bodies of that name in {path.name}")
+            raise _bad("root", root, f"{len(hits)} bodies of that name in {name}")
         start = hits[0]
     bodies, sites = _find(tree, "body", tip), _find(tree, "site", tip)
     if len(bodies) + len(sites) != 1:
         raise _bad("tip", tip, f"{len(bodies)} bodies and {len(sites)} sites of that name in "
-                   f"{path.name}; name one body or one site")
+                   f"{name}; name one body or one site")
     end = (bodies or sites)[0]
     parent = {c: p for wb in tree.findall("worldbody") for p in wb.iter() for c in p}
     steps, elem = [], end
@@ -297,7 +304,11 @@ def read_chain(file, root: str, tip: str, joints=None, hold=None, sha256=None) -
     steps.reverse()
     if any(e.tag == "site" for e in steps[:-1]):
         raise _bad("tip", tip, "a site inside a site")
+    return steps, parent
 
+
+def _ops(tree, steps, parent, classes, compiler, root, file) -> list:
+    """("pose", 4x4) or ("hinge", name, attributes) per step of the chain, root to tip."""
     def cls(elem):  # the class of an element without its own: the nearest childclass around it
         e = parent.get(elem)
         while e is not None:
@@ -307,7 +318,7 @@ def read_chain(file, root: str, tip: str, joints=None, hold=None, sha256=None) -
         return "main"
 
     coupled = _couplings(tree)
-    ops = []  # ("pose", 4x4) or ("hinge", name, attributes), root to tip
+    ops = []
     for elem in steps:
         attrs = _attrs(elem, "site", cls(elem), classes, file) if elem.tag == "site" \
             else elem.attrib  # bodies and frames take no defaults
@@ -328,8 +339,11 @@ def read_chain(file, root: str, tip: str, joints=None, hold=None, sha256=None) -
                 raise _bad("root", root, f"joint {j.get('name')!r} on the chain is coupled to "
                            f"others by {coupled[j.get('name')]}: its angle is not free")
             ops.append(("hinge", j.get("name"), ja))
-    movable = [op[1] for op in ops if op[0] == "hinge"]
-    joints, hold = chosen(movable, joints, hold, "hinge", kind="mjcf")
+    return ops
+
+
+def _compile(ops, joints, hold, compiler, file) -> dict:
+    """The chain form (frames, tool, rest, names, limits) of the ops, `joints` commanded."""
     angle = np.deg2rad if compiler["angle"] == "degree" else (lambda x: x)
     T, frames, limits = np.eye(4), [], []
     for op in ops:

@@ -23,6 +23,9 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from .errors import BadInput, DamagedFile, FileTooLarge, UnsafeName  # noqa: F401 (the face)
+from .keys import SEAL, check_seal, seal, sealed_json  # noqa: F401 (the face)
+
 # The learning curve of one trial (and, concatenated, of a figure). External scripts read these.
 LABELS = pa.schema([("figure", pa.string()), ("body", pa.string()), ("learner", pa.string()),
                     ("growth", pa.string()), ("growth_period", pa.int64()),
@@ -38,39 +41,15 @@ CURVE_COLUMNS = CURVE.names
 TRIAL_CURVE = pa.schema([f for f in CURVE if f.name not in LABELS.names])
 
 
-class BadInput(ValueError):
-    """A fault of the input that a stage reports in one line (pipeline.cli: exit 2)."""
-
-
-class DamagedFile(BadInput):
-    """A file the pipeline wrote is not what it should be (truncated, edited, of another
-    version): the message names it, and the stage that meets it replaces nothing."""
-
-
-class UnsafeName(BadInput):
-    """A name from the config or from a file on disk that cannot become one path component."""
-
-
-class FileTooLarge(OSError, BadInput):
-    """EFBIG: a write beyond the file system's largest file or the process's file-size limit
-    (ulimit -f; Python ignores SIGXFSZ, so the write fails): one line, exit 2 (a BadInput)."""
-
-    def __str__(self):
-        return (f"{self.filename}: file too large for the file system or the file-size limit "
-                "(ulimit -f); raise the limit or choose another paths.root")
-
-
 MAX_NAME = 100  # characters of one path component built from a name
 MAX_NAME_BYTES = 200  # its UTF-8 bytes (file systems allow 255; temporary names add some)
 
 
 def safe_name(key: str, value) -> str:
     """`value` if it can name one file or folder inside an output folder, else UnsafeName naming
-    `key`: no path separator, NUL or control character, not `.`, `..` or hidden (a leading dot is
-    how temporary files are named), not empty, at most MAX_NAME characters and MAX_NAME_BYTES
-    bytes, no format character (a bidirectional override shows a name other than it is). Call it on every name
-    from the config (figure, labels, posture panels) or from files on disk (plan records) before
-    it becomes part of a path, so that no write leaves paths.root."""
+    `key` (a leading dot is how temporary files are named; a bidirectional override shows a name
+    other than it is). Call it on every name from the config or from files on disk before it
+    becomes part of a path, so that no write leaves paths.root."""
     why = None
     if not isinstance(value, str) or not value:
         why = "must be a non-empty name"
@@ -102,9 +81,8 @@ _ALSO: set[Path] = set()  # single files outside it a stage writes on purpose (a
 
 
 def confine(root) -> None:
-    """Confine every later write and delete of this process (through this module, and
-    pipeline.cache's) to `root`: a path whose existing part resolves elsewhere (a link planted
-    inside the outputs) is UnsafeName. None: no confinement (the API's default)."""
+    """Confine every later write and delete of this process (here and in pipeline.cache) to
+    `root`: a path whose existing part resolves elsewhere is UnsafeName. None: no confinement."""
     _ROOT[:] = [] if root is None else [Path(root).resolve()]
 
 
@@ -132,8 +110,7 @@ def allow(path) -> None:
 
 
 def check_inside(path) -> Path:
-    """`path` if the part of it that exists resolves under the confined root (confine), else
-    UnsafeName: a link inside the outputs that leads elsewhere is never followed."""
+    """`path` if the part of it that exists resolves under the confined root, else UnsafeName."""
     path = Path(path)
     if not _ROOT or path.absolute() in _ALSO:
         return path
@@ -156,43 +133,38 @@ _HOST = re.sub(r"[^A-Za-z0-9.-]", "_", socket.gethostname()) or "host"
 _serial = itertools.count()
 
 
-def _tmp_name(path: Path) -> Path:
+def _tmp_name(path):
     """`.<name>~<host>~<pid>~<n>.tmp` beside `path`: whose it is, so that a stale one can be told
     from another host's live one (remove_stale_tmp)."""
-    return Path(_tmp_text(os.fspath(path)))
+    folder, name = os.path.split(os.fspath(path))
+    return Path(folder, f".{name}~{_HOST}~{os.getpid()}~{next(_serial)}.tmp")
 
 
-def _tmp_text(path: str) -> str:
-    folder, name = os.path.split(path)
-    return os.path.join(folder, f".{name}~{_HOST}~{os.getpid()}~{next(_serial)}.tmp")
+def _mine_and_dead(name: str) -> bool:
+    """Whether the temporary `name` (`...~<host>~<pid>~<n>`) is this host's and its pid is gone."""
+    parts = name.rsplit("~", 3)
+    return len(parts) == 4 and parts[1] == _HOST and parts[2].isdigit() and not _alive(
+        int(parts[2]))
 
 
 def _exclusive(path: str) -> tuple[str, int]:
-    """A new temporary file beside `path`, created by this call (O_EXCL: never an existing file,
-    O_NOFOLLOW: never through a symlink): (its path, an open descriptor). FileNotFoundError when
-    path's folder is not there."""
+    """A new temporary file beside `path` (O_EXCL, O_NOFOLLOW): (its path, an open descriptor).
+    FileNotFoundError when path's folder is not there."""
     while True:
-        tmp = _tmp_text(path)
+        tmp = os.fspath(_tmp_name(path))
         try:
             return tmp, os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o644)
         except FileExistsError:  # left by a dead process that had our pid: take the next name
             continue
 
 
-def _named(err: OSError, path: Path) -> OSError:
-    """The error with the final file's name (not the temporary one's), for a one-line message."""
-    err.filename = str(path)
-    return err
-
 
 @contextmanager
 def _atomic(path, checked: bool = False):
     """Yield (temporary path, open descriptor) of a new file beside `path`; rename it onto
-    `path` if the block succeeds, else delete it. OSError (a full disk, a read-only folder)
-    names `path`. checked: the caller has checked path's folder with check_inside in this
-    process (pipeline.cache: once per trial folder), so only the name itself is looked at (a
-    link there is checked as check_inside checks it) and the folder is made only when it is not
-    there: a short trial's files written with a few system calls."""
+    `path` if the block succeeds, else delete it. OSError names `path`. checked: the caller has
+    checked path's folder with check_inside in this process (pipeline.cache: once per trial
+    folder), so only a link at the name is checked and the folder made only when missing."""
     path = os.fspath(path)
     tmp = None
     if not checked:
@@ -215,7 +187,8 @@ def _atomic(path, checked: bool = False):
     except OSError as err:
         if err.errno == errno.EFBIG:
             raise FileTooLarge(errno.EFBIG, os.strerror(errno.EFBIG), path) from None
-        raise _named(err, Path(path)) from None
+        err.filename = str(Path(path))  # the final file's name, not the temporary one's
+        raise err from None
     finally:
         if tmp is not None:
             try:
@@ -253,11 +226,9 @@ def atomic_path(path):
 @contextmanager
 def new_dir(final):
     """Yield an empty folder beside `final`; if the block succeeds, it replaces `final` as one
-    set (two renames: the old set aside, the new one in, then the old one removed). A reader, or a
-    process killed at any moment, sees the old set, the new set or none, never a mix. The folders
-    are named `.<final>.new~<host>~<pid>~<n>.tmp` (and `.old~`): what a killed run of this host
-    left is removed by the next (remove_stale_tmp), another host's never; two runs that finish
-    at once each put their set in, the later one's stays."""
+    set (the old set renamed aside, the new one in, the old one removed): a reader, or a process
+    killed at any moment, sees the old set, the new set or none, never a mix. Of two runs that
+    finish at once, the later one's set stays."""
     final = Path(final)
     check_inside(final)
     final.parent.mkdir(parents=True, exist_ok=True)
@@ -349,8 +320,8 @@ def table_bytes(table: pa.Table) -> pa.Buffer:
 
 
 def write_in_checked(path: str, data) -> None:
-    """Write `data` (bytes or a buffer) to `path` as atomic_file does, where the caller has
-    checked path's folder with check_inside in this process (_atomic's `checked`)."""
+    """Write `data` (bytes or a buffer) to `path` as atomic_file does, its folder checked
+    (_atomic's `checked`)."""
     with _atomic(path, checked=True) as (_, fd):
         try:
             view = memoryview(data)
@@ -362,9 +333,8 @@ def write_in_checked(path: str, data) -> None:
 
 def read_table(path, columns=None, schema: pa.Schema | None = None) -> pa.Table:
     """The Parquet table in `path` (with `schema`'s columns, if given); DamagedFile naming the
-    file if it cannot be read (truncated, not Parquet, columns missing). Read as one file
-    (pq.ParquetFile): pq.read_table goes through pyarrow.dataset, whose import loads pandas
-    (about 0.4 s CPU for a stage that needs neither); the same table, schema and metadata."""
+    file if it cannot be read. pq.ParquetFile, not pq.read_table: the latter's import loads
+    pandas (0.4 s CPU)."""
     try:
         with pq.ParquetFile(path) as f:
             absent = sorted(set(columns or ()) - set(f.schema_arrow.names))
@@ -413,10 +383,8 @@ _NUMPY_OF = {pa.int64(): np.dtype(np.int64), pa.float64(): np.dtype(np.float64)}
 
 
 def _column(values, type_: pa.DataType) -> pa.Array:
-    """pa.array(np.asarray(values), type=type_): a 1-D array of the column's own numpy type
-    is taken as its buffer (no nulls, the same values and bytes), which spares pyarrow's
-    import of pandas (pa.array asks pandas about every array: 0.6 s of CPU in the first call of
-    a process that needs no pandas, simulate's driver)."""
+    """pa.array(np.asarray(values), type=type_); a 1-D array of the column's own numpy type is
+    taken as its buffer (the same bytes), sparing pa.array's import of pandas (0.6 s CPU)."""
     a = np.asarray(values)
     if a.ndim == 1 and a.dtype == _NUMPY_OF.get(type_):
         a = np.ascontiguousarray(a)
@@ -429,29 +397,26 @@ def sha256_file(path) -> str:
 
 
 def remove_stale_tmp(folder, recursive: bool = False) -> list[Path]:
-    """Delete the temporary files (and unfinished sets, new_set) that a killed process of this
-    host left in `folder`: its pid no longer runs. Another host's are never touched (its process
-    may be running: a shared cluster folder), nor names of another form. Returns what went."""
+    """Delete the temporary files (and unfinished sets) that a killed process of this host left
+    in `folder`; another host's are never touched (a shared cluster folder). Returns what went."""
     gone = []
     folder = Path(folder)
     if not folder.is_dir():
         return gone
     check_inside(folder)
     for tmp in (folder.rglob if recursive else folder.glob)(".*~*~*~*.tmp"):
-        parts = tmp.name[:-len(".tmp")].rsplit("~", 3)
-        if len(parts) != 4 or not parts[2].isdigit() or parts[1] != _HOST:
+        if not _mine_and_dead(tmp.name[:-len(".tmp")]):
             continue
-        if not _alive(int(parts[2])):
-            if tmp.is_dir() and not tmp.is_symlink():
-                shutil.rmtree(tmp, ignore_errors=True)
-            else:
-                try:
-                    tmp.unlink(missing_ok=True)
-                except OSError as err:  # a read-only folder: the leftover stays, never read
-                    if err.errno not in (errno.EROFS, errno.EACCES, errno.EPERM):
-                        raise
-                    continue
-            gone.append(tmp)
+        if tmp.is_dir() and not tmp.is_symlink():
+            shutil.rmtree(tmp, ignore_errors=True)
+        else:
+            try:
+                tmp.unlink(missing_ok=True)
+            except OSError as err:  # a read-only folder: the leftover stays, never read
+                if err.errno not in (errno.EROFS, errno.EACCES, errno.EPERM):
+                    raise
+                continue
+        gone.append(tmp)
     return gone
 
 
@@ -461,7 +426,7 @@ def _alive(pid: int) -> bool:
     except ProcessLookupError:
         return False
     except PermissionError:
-        return True
+        pass
     return True
 
 
@@ -469,13 +434,9 @@ def _alive(pid: int) -> bool:
 @contextmanager
 def new_set(folder):
     """Yield a new, empty folder to write a stage's whole output set into; on success `folder`
-    becomes a symlink to it in one rename, so that a reader sees the old set or the new one,
-    never a mix (kill -9 between writes leaves the old set in place). The sets live in
-    `.<name>.sets/` beside it; the replaced one is removed afterwards. A reader that opens several
-    files of a set resolves `folder` once (set_of) and reads them all from there.
-
-    The first time, a `folder` that is a real directory (the old layout) is moved into the sets
-    folder first: the one moment `folder` is missing, once."""
+    becomes a symlink to it in one rename (sets in `.<name>.sets/` beside it), so that a reader
+    sees the old set or the new one, never a mix; a reader of several files resolves `folder`
+    once (set_of). A `folder` that is a real directory (the old layout) is moved in first."""
     folder = Path(folder)
     sets = folder.parent / f".{folder.name}.sets"
     check_inside(folder)
@@ -509,15 +470,14 @@ def new_set(folder):
 
 def remove_leaked_sets(folder) -> list[Path]:
     """Delete the finished sets of `folder` that a killed process of this host made but never
-    switched to (`set~<host>~<pid>~<n>` in `.<name>.sets/`, its pid gone, not the current set)."""
+    switched to (`set~<host>~<pid>~<n>` in `.<name>.sets/`, not the current set)."""
     folder = Path(folder)
     sets = folder.parent / f".{folder.name}.sets"
     current = set_of(folder) if folder.is_symlink() else None
     gone = []
     for d in sets.glob("set~*~*~*"):
-        parts = d.name.split("~")
-        if (len(parts) == 4 and parts[1] == _HOST and parts[2].isdigit() and d.is_dir()
-                and not d.is_symlink() and d.resolve() != current and not _alive(int(parts[2]))):
+        if (d.name.count("~") == 3 and d.is_dir() and not d.is_symlink()
+                and d.resolve() != current and _mine_and_dead(d.name)):
             shutil.rmtree(d, ignore_errors=True)
             gone.append(d)
     return gone
@@ -526,54 +486,3 @@ def remove_leaked_sets(folder) -> list[Path]:
 def set_of(folder) -> Path:
     """The folder that holds the current set of `folder` (itself, in the old layout)."""
     return Path(folder).resolve()
-
-
-# ---- a checksum over a whole record --------------------------------------------------------------
-SEAL = "seal"
-
-
-def _digest(record: dict) -> str:
-    """The seal of `record`: the SHA-256 of its canonical JSON without the seal (_encoded)."""
-    return _sha_of(_encoded(record))
-
-
-def _encoded(record: dict) -> dict[str, str]:
-    """Each member of `record` but the seal as canonical JSON text, `"key":value` (sorted keys
-    within, no spaces): joined in key order between braces, json.dumps's text of the record."""
-    enc = _COMPACT.encode
-    return {k: f"{enc(k)}:{enc(v)}" for k, v in record.items() if k != SEAL}
-
-
-def _joined(items: dict[str, str]) -> str:
-    return "{" + ",".join(items[k] for k in sorted(items)) + "}"
-
-
-def _sha_of(items: dict[str, str]) -> str:
-    return hashlib.sha256(_joined(items).encode()).hexdigest()
-
-
-def sealed_json(record: dict) -> bytes:
-    """The file write_json(path, seal(record), compact=True) writes, with each value of
-    `record` encoded once (seal and write_json encode the whole record each)."""
-    items = _encoded(record)
-    items[SEAL] = f"{_COMPACT.encode(SEAL)}:{_COMPACT.encode(_sha_of(items))}"
-    return (_joined(items) + "\n").encode()
-
-
-_COMPACT = json.JSONEncoder(sort_keys=True, separators=(",", ":"), allow_nan=True)
-
-
-def seal(record: dict) -> dict:
-    """`record` with `seal`: the SHA-256 of everything else in it (canonical JSON), so that an
-    edit of any field (a sidecar's model M, snapshots, status, error) is caught by check_seal."""
-    return {**record, SEAL: _digest(record)}
-
-
-def check_seal(record: dict, path=None) -> dict:
-    """`record` if its seal matches its content, else DamagedFile naming `path`."""
-    where = f"{path}: " if path is not None else ""
-    if SEAL not in record:
-        raise DamagedFile(f"{where}damaged or of an older version: no seal")
-    if record[SEAL] != _digest(record):
-        raise DamagedFile(f"{where}damaged: its content does not match its seal")
-    return record
