@@ -1,38 +1,11 @@
 """A serial chain out of an MJCF file (MuJoCo's model format), compiled into the chain form of
-gbmodel/urdf.py: per commanded joint a fixed 3x4 transform F_i, then a rotation about the local
-z axis by the joint's angle, and a tool point,
-
-    hand = F_0 Rz(q_0) F_1 Rz(q_1) ... F_{m-1} Rz(q_{m-1}) tool,
-
-so an MJCF body runs on the same kernels as a URDF body, bit-identically across CPUs.
-
-The file is read with the standard library's XML parser: the core needs no `mujoco` (the tests
-check the chain against MuJoCo's own mj_kinematics where it is installed). What is read, as
-MuJoCo's compiler reads it:
-
-- `<compiler>`: `angle` (degree, MuJoCo's default, or radian: of `range`, `ref`, `euler` and
-  `axisangle`), `eulerseq` (default xyz; lower case rotating axes, upper case fixed ones);
-  `coordinate="global"` is refused;
-- `<default>` classes, nested, with `class` and a body's `childclass`, for joints and sites;
-- a body's, frame's or site's `pos` and orientation (`quat`, `axisangle`, `euler`, `xyaxes`,
-  `zaxis`; a site's `fromto`), a joint's `type`, `pos`, `axis`, `ref`, `range`, `limited`;
-- `<include file=...>`, relative to the model's folder and confined to it (a subfolder is
-  fine; `..`, an absolute path elsewhere or a link out of it is refused), replaced by the
-  children of the file it names, as MuJoCo does; a model and its includes hold at most
-  urdf.MAX_BYTES in all, nested at most MAX_DEPTH elements deep;
-- numbers as C's strtod reads them (`1_0` is no number); a limited joint's range ascending;
-  a default class's name given once.
-
-The chain runs from body `root` (`world` included; its own joints move the frame the positions
-are given in, so they are not part of the chain) down to `tip`, a body (its frame, after its
-joints) or a site. Every hinge joint on the way is a joint of the chain, in document order
-within a body; a hinge turns by (qpos - ref) about its axis through its `pos`, so the commands
-are qpos values and the joint's `range` its limits. Ball, free and slide joints on the chain, a
-hinge coupled to others (a fixed tendon or a joint equality), and anything else the chain would
-need beyond this are refused with one line naming `body.mjcf.<key>`.
-
-The SHA-256 of the model (digest) is taken over every file read, the included ones too, so
-that editing any of them makes another body.
+gbmodel/urdf.py (per commanded joint a fixed 3x4 transform F_i, then a rotation about local z,
+and a tool point), so an MJCF body runs on the same kernels as a URDF body, bit-identically
+across CPUs. Read with the standard library's XML parser (the core needs no `mujoco`), as
+MuJoCo's compiler reads it: docs/bodies.md, "A body from an MJCF file", lists what is read and
+what is refused (one line naming `body.mjcf.<key>`). An `<include>` is read from the model's
+folder only; a model and its includes hold at most urdf.MAX_BYTES in all, nested at most
+MAX_DEPTH deep; the digest covers every file read.
 """
 from __future__ import annotations
 
