@@ -1,41 +1,14 @@
 """A body in the loop: a forward function that the project cannot compile (a simulator's step, a
-robot's sensors), called with a batch of postures and the body's growth, returning positions.
+robot's sensors), called with a batch of postures and the body's growth, returning positions
+(docs/bodies.md, "A body in the loop": the description's `callable` section, the protocol, what
+the cache key holds and what it does not).
 
-The body's description names a factory and its arguments instead of a chain
-(conf/body/<name>.yaml, docs/bodies.md "A body in the loop"):
-
-    callable:
-      factory: my_package.sim:make_forward   # module:attribute, importable by every worker
-      args: {model: /path/to/robot.xml}      # keyword arguments of the factory (plain data)
-      files: [/path/to/robot.xml]            # files it reads: their bytes join the cache key
-      lengths: [0.3, 0.25, 0.1]              # per segment [m], what growth patterns weigh
-      version: "1"                           # what else it depends on: change it to recompute
-
-The factory must be marked by its author with the decorator `gbmodel.body_factory` (a data file
-naming a function never makes the pipeline call it): anything else, the standard library
-included, is refused in one line before it is called (the standard library before it is even
-imported). Describing or validating a body imports nothing and calls nothing; the forward
-function is built at its first use. Its module's import and the factory's first call are first
-tried in a child process bounded by TIME_LIMIT seconds (a module that hangs, exits, calls
-os._exit or raises KeyboardInterrupt is one line naming the factory), then made in this process.
-Every position it returns must be finite and within +-MAX_MAGNITUDE m, as a URDF's numbers.
-
-`factory(**args)` is called once per process and description and returns a Forward:
-
-    forward(angles, factors) -> positions
-        angles  (N, m) float64: the joint angles [rad] of N postures (the commands, normalised
-                onto the limits and saturated as for every body)
-        factors (m,)   float64: per-segment length factors, 1 at full size (growth)
-        returns (N, 3) float64: the hand's positions [m] in the body's root frame
-
-The body then controls `outputs` of these coordinates, as every body does. Only the numpy
-reference path of a learner calls Python per batch: a callable body takes `learner.fast=false`.
-
-What the cache key holds (`callable.sha256`, added when a run is planned): the factory's name,
-the bytes of the source file of the module that defines it, and the bytes of every file in
-`files`, besides the description itself (args, lengths, version). What it does not hold: other
-modules the function imports, the simulator's version, a robot's state. When one of those
-changes, change `version` (or clear the cache), or the old trials are reused.
+Only a factory its author marked with `gbmodel.body_factory` is ever called (a data file naming a
+function never makes the pipeline call it); describing or validating a body imports nothing and
+calls nothing. The module's import and the factory's first call are tried first in a child
+process bounded by TIME_LIMIT seconds, then made in this process. `factory(**args)` returns
+`forward(angles (N, m) [rad], factors (m,)) -> (N, 3) [m]`, every position finite within
++-MAX_MAGNITUDE m.
 """
 from __future__ import annotations
 

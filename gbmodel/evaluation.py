@@ -4,15 +4,12 @@ The absolute error is the mean Euclidean distance between each evaluation point 
 at f(g(x*)) (paper eq. 10, "the average positioning error in meters"), with the body at its
 current size; the relative error divides by the size factor (eq. 11).
 
-Where the paper leaves the reading open, each reading is an option (config `evaluation`):
-- points: `grid`, the target grid at the current size (our default); `path`, the path targets
-  x*_t that eq. 10 sums over, taken in expectation: every ordered pair of distinct grid targets
-  joined by `path_steps` linear steps (eq. 9), i.e. exactly the distribution of x*_t in an
-  epoch; `centres`, the centres of the grid cells (off-grid points);
-- formula: `mean` distance (the text's "average positioning error in meters", our default),
-  `mean_squared` (eq. 10 as printed, m^2), `rms` (its square root, in metres). A learner may compute the distances itself (`distances`, e.g. in its
-compiled kernel); the error formula is applied here, with an exactly rounded sum (math.fsum), so
-that the error does not depend on the order in which a CPU's vector units add.
+Where the paper leaves the reading open, each reading is an option (config `evaluation`,
+DEFAULTS; docs/choices.md measures them): points grid (the default), path (eq. 10's path
+targets in expectation) or centres (off-grid); formula mean (the default), mean_squared or rms.
+A learner may compute the distances itself (`distances`, e.g. in its compiled kernel); the
+error formula is applied here, with an exactly rounded sum (math.fsum), so that the error does
+not depend on the order in which a CPU's vector units add.
 """
 from __future__ import annotations
 

@@ -1,38 +1,22 @@
-"""How a body grows: its size factor epoch by epoch, and which segments carry the growth.
+"""How a body grows: its size factor epoch by epoch, and which segments carry the growth
+(docs/bodies.md, "Growth of a body" and "Growth as measured data").
 
 A schedule gives the size factor S(e) of epochs e = 1 ... E (1.0 = the full body); the pattern
-turns S into per-joint length factors through one mechanism, `segment_factors`: per segment,
-whether it grows (the body's `grows`) and its lead c_i, how far its growth runs ahead of (c > 0)
-or behind (c < 0) the body's. Every pattern is data for it: proportional (every segment grows,
-no lead), non-proportional (only the body's growing segments, no lead), proximal_first (every
-segment, leads falling from base to hand) and per_segment (leads stated in the config,
-`growth.leads`: "the upper arm grows faster than the forearm" at stated rates). The target set
-scales with S (paper sec. 3.1).
+turns S into per-joint length factors through one mechanism, `segment_factors` (which segments
+grow, and each one's lead), or `rate_factors` (relative growth rates); every pattern is a row of
+PATTERN_TABLE. The target set scales with S (paper sec. 3.1).
 
 Schedules, with the growth progress u = (e - 1) / T_G clipped to [0, 1]:
 - linear: S = start + (end - start) u (the paper's);
-- infant: S = start + (end - start) (1 - exp(-k u)) / (1 - exp(-k)): fast early, then slowing,
-  as infants grow (paper sec. 1: "very rapidly in the first few months before it slows down").
-  k = INFANT_RATE is fitted to the WHO Child Growth Standards, length-for-age of boys, median:
-  49.9 cm at birth, 75.7 cm at 12 months, 87.1 cm at 24 months. Read over 0 ... 24 months, the
-  first half of that time brings f = (75.7 - 49.9) / (87.1 - 49.9) = 0.694 of the growth; the
-  normalised curve's value at u = 1/2 is 1 / (1 + exp(-k/2)), so k = 2 ln(f / (1 - f)) = 1.63.
-  It is a constant, not a field: "infant" names this one published shape, and a free rate would
-  be a parameter without a source (k -> 0 is the linear schedule).
-- table: measured sizes, `growth.table`, rows [t, size] (one size factor for the whole body) or
-  [t, f_1, ..., f_m] (one length factor per segment, base to hand). The time column is in any unit
-  (months, say) and is mapped linearly onto the epochs: the first row is epoch 1, the last epoch
-  T_G + 1; between two rows the size is interpolated linearly in time,
-  S = S_0 + (S_1 - S_0) ((t - t_0) / (t_1 - t_0)), and it is constant beyond the last row. The
-  two-row table [[0, start], [1, end]] is the linear schedule to the bit (the same formula). A
-  per-segment table's body size is the length-weighted mean of its factors (the total length
-  relative to the full one); since that mean is linear in time between rows as well, the factors
-  at body size S interpolate the rows linearly in S, which is exactly the factors at the epoch of
-  S (the body sizes of the rows must rise, or fall, strictly).
-
-Relative growth rates (`growth.rates`, pattern per_segment, instead of leads): segment i's length
-factor changes at r_i times a common rate at every epoch, so rates [2, 2, 1, 1, 1] is "the upper
-arm grows twice as fast as the forearm" over the whole growth (rate_factors).
+- infant: S = start + (end - start) (1 - exp(-k u)) / (1 - exp(-k)): fast early, then slowing
+  (paper sec. 1). k = INFANT_RATE is fitted to the WHO Child Growth Standards, length-for-age of
+  boys, median, 0 ... 24 months: the first half of that time brings f = (75.7 - 49.9) / (87.1 -
+  49.9) = 0.694 of the growth, and the curve's value at u = 1/2 is 1 / (1 + exp(-k/2)), so
+  k = 2 ln(f / (1 - f)) = 1.63: a constant of one published shape, not a free parameter;
+- table: measured sizes, `growth.table`, rows [t, size] or [t, f_1, ..., f_m], interpolated
+  linearly in time between rows (the two-row table is the linear schedule to the bit); a
+  per-segment table's rows interpolate linearly in the body size too (their length-weighted
+  mean), which is exactly the factors at that epoch.
 """
 from __future__ import annotations
 
@@ -130,14 +114,6 @@ def proximal_leads(seg, lead: float = 1.0) -> np.ndarray:
     u = (np.cumsum(seg) - 0.5 * seg) / seg.sum()
     spread = np.where(seg > 0, 1.0 - 2.0 * u, 0.0)  # segments of no length carry no weight
     return lead * spread / (np.abs(spread).max() or 1.0)
-
-
-def proximal_first_scale(body, sizes, start_size: float, end_size: float,
-                         lead: float = 1.0) -> np.ndarray:
-    """Per-joint length factors (..., m) when proximal segments grow ahead of distal ones."""
-    seg = body.segment_lengths
-    return segment_factors(seg, np.ones(body.m, bool), proximal_leads(seg, lead), sizes,
-                           start_size, end_size)
 
 
 def check_table(table, m: int) -> tuple[np.ndarray, np.ndarray]:

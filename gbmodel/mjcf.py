@@ -1,44 +1,16 @@
 """A serial chain out of an MJCF file (MuJoCo's model format), compiled into the chain form of
-gbmodel/urdf.py: per commanded joint a fixed 3x4 transform F_i, then a rotation about the local
-z axis by the joint's angle, and a tool point,
-
-    hand = F_0 Rz(q_0) F_1 Rz(q_1) ... F_{m-1} Rz(q_{m-1}) tool,
-
-so an MJCF body runs on the same kernels as a URDF body, bit-identically across CPUs.
-
-The file is read with the standard library's XML parser: the core needs no `mujoco` (the tests
-check the chain against MuJoCo's own mj_kinematics where it is installed). What is read, as
-MuJoCo's compiler reads it:
-
-- `<compiler>`: `angle` (degree, MuJoCo's default, or radian: of `range`, `ref`, `euler` and
-  `axisangle`), `eulerseq` (default xyz; lower case rotating axes, upper case fixed ones);
-  `coordinate="global"` is refused;
-- `<default>` classes, nested, with `class` and a body's `childclass`, for joints and sites;
-- a body's, frame's or site's `pos` and orientation (`quat`, `axisangle`, `euler`, `xyaxes`,
-  `zaxis`; a site's `fromto`), a joint's `type`, `pos`, `axis`, `ref`, `range`, `limited`;
-- `<include file=...>`, relative to the model's folder and confined to it (a subfolder is
-  fine; `..`, an absolute path elsewhere or a link out of it is refused), replaced by the
-  children of the file it names, as MuJoCo does; a model and its includes hold at most
-  urdf.MAX_BYTES in all, nested at most MAX_DEPTH elements deep;
-- numbers as C's strtod reads them (`1_0` is no number); a limited joint's range ascending;
-  a default class's name given once.
-
-The chain runs from body `root` (`world` included; its own joints move the frame the positions
-are given in, so they are not part of the chain) down to `tip`, a body (its frame, after its
-joints) or a site. Every hinge joint on the way is a joint of the chain, in document order
-within a body; a hinge turns by (qpos - ref) about its axis through its `pos`, so the commands
-are qpos values and the joint's `range` its limits. Ball, free and slide joints on the chain, a
-hinge coupled to others (a fixed tendon or a joint equality), and anything else the chain would
-need beyond this are refused with one line naming `body.mjcf.<key>`.
-
-The SHA-256 of the model (digest) is taken over every file read, the included ones too, so
-that editing any of them makes another body.
+gbmodel/urdf.py (per commanded joint a fixed 3x4 transform F_i, then a rotation about local z,
+and a tool point), so an MJCF body runs on the same kernels as a URDF body, bit-identically
+across CPUs. Read with the standard library's XML parser (the core needs no `mujoco`), as
+MuJoCo's compiler reads it: docs/bodies.md, "A body from an MJCF file", lists what is read and
+what is refused (one line naming `body.mjcf.<key>`). An `<include>` is read from the model's
+folder only; a model and its includes hold at most urdf.MAX_BYTES in all, nested at most
+MAX_DEPTH deep; the digest covers every file read.
 """
 from __future__ import annotations
 
 import hashlib
 import xml.etree.ElementTree as ET
-from pathlib import Path
 
 import numpy as np
 
@@ -270,18 +242,26 @@ def read_chain(file, root: str, tip: str, joints=None, hold=None, sha256=None) -
     if not tree.findall("worldbody"):
         raise _bad("file", str(file), f"{path.name} has no <worldbody>")
     compiler, classes = _compiler(tree, file), _classes(tree, file)
-    # the root and the tip
+    steps, parent = _path(tree, root, tip, path.name)
+    ops = _ops(tree, steps, parent, classes, compiler, root, file)
+    joints, hold = chosen([op[1] for op in ops if op[0] == "hinge"], joints, hold, "hinge",
+                          kind="mjcf")
+    return _compile(ops, joints, hold, compiler, file)
+
+
+def _path(tree, root, tip, name):
+    """The elements from below `root` down to `tip` (root to tip), and {child: parent}."""
     if root == "world":
         start = None
     else:
         hits = _find(tree, "body", root)
         if len(hits) != 1:
-            raise _bad("root", root, f"{len(hits)} bodies of that name in {path.name}")
+            raise _bad("root", root, f"{len(hits)} bodies of that name in {name}")
         start = hits[0]
     bodies, sites = _find(tree, "body", tip), _find(tree, "site", tip)
     if len(bodies) + len(sites) != 1:
         raise _bad("tip", tip, f"{len(bodies)} bodies and {len(sites)} sites of that name in "
-                   f"{path.name}; name one body or one site")
+                   f"{name}; name one body or one site")
     end = (bodies or sites)[0]
     parent = {c: p for wb in tree.findall("worldbody") for p in wb.iter() for c in p}
     steps, elem = [], end
@@ -297,7 +277,11 @@ def read_chain(file, root: str, tip: str, joints=None, hold=None, sha256=None) -
     steps.reverse()
     if any(e.tag == "site" for e in steps[:-1]):
         raise _bad("tip", tip, "a site inside a site")
+    return steps, parent
 
+
+def _ops(tree, steps, parent, classes, compiler, root, file) -> list:
+    """("pose", 4x4) or ("hinge", name, attributes) per step of the chain, root to tip."""
     def cls(elem):  # the class of an element without its own: the nearest childclass around it
         e = parent.get(elem)
         while e is not None:
@@ -307,7 +291,7 @@ def read_chain(file, root: str, tip: str, joints=None, hold=None, sha256=None) -
         return "main"
 
     coupled = _couplings(tree)
-    ops = []  # ("pose", 4x4) or ("hinge", name, attributes), root to tip
+    ops = []
     for elem in steps:
         attrs = _attrs(elem, "site", cls(elem), classes, file) if elem.tag == "site" \
             else elem.attrib  # bodies and frames take no defaults
@@ -328,8 +312,11 @@ def read_chain(file, root: str, tip: str, joints=None, hold=None, sha256=None) -
                 raise _bad("root", root, f"joint {j.get('name')!r} on the chain is coupled to "
                            f"others by {coupled[j.get('name')]}: its angle is not free")
             ops.append(("hinge", j.get("name"), ja))
-    movable = [op[1] for op in ops if op[0] == "hinge"]
-    joints, hold = chosen(movable, joints, hold, "hinge", kind="mjcf")
+    return ops
+
+
+def _compile(ops, joints, hold, compiler, file) -> dict:
+    """The chain form (frames, tool, rest, names, limits) of the ops, `joints` commanded."""
     angle = np.deg2rad if compiler["angle"] == "degree" else (lambda x: x)
     T, frames, limits = np.eye(4), [], []
     for op in ops:

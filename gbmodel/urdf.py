@@ -1,23 +1,13 @@
-"""A serial chain out of a URDF file, compiled into the exact form the kinematics evaluate.
-
-Walking from link `root` to link `tip`, every fixed joint's origin (and every revolute joint that
-is held at a stated angle) is folded into a running 3x4 transform; at each commanded revolute
-joint the transform gets the rotation that takes z onto the joint's axis, and its transpose is
-carried into the next one. The chain is then, per commanded joint i, a fixed transform F_i
-followed by a rotation about the local z axis by the joint's angle, and a tool point at the end:
+"""A serial chain out of a URDF file, compiled into the exact form the kinematics evaluate: per
+commanded joint i a fixed transform F_i (fixed joints and held ones folded in), then a rotation
+about local z by the joint's angle, and a tool point,
 
     hand = F_0 Rz(q_0) F_1 Rz(q_1) ... F_{m-1} Rz(q_{m-1}) tool
 
-exact for every serial chain (no DH conversion, no tolerances; ../shared/reference/bodies-urdf.md).
-Only the URDF's kinematic elements are read (joint type, parent, child, origin, axis, limit),
-with the standard library's XML parser; reading a body's description is the one file I/O gbmodel
-does. Prismatic, planar and floating joints are refused.
-
-The file is read once, after checking that it is a regular file (a FIFO would block the read, a
-device never end it) of at most MAX_BYTES; its SHA-256 (digest) belongs to the body's
-description (`sha256`), so that an edited file is another body, and a file that changed since
-that digest was taken is refused. Every number read is finite and at most MAX_MAGNITUDE (metres,
-radians), every axis non-zero, every held angle finite.
+exact for every serial chain (docs/bodies.md, "A body from a URDF"). The file is read once, a
+regular file of at most MAX_BYTES (a FIFO would block the read); its SHA-256 belongs to the
+body's description, so an edited file is another body. Every number read is finite within
+MAX_MAGNITUDE (metres, radians).
 """
 from __future__ import annotations
 

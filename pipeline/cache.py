@@ -1,31 +1,16 @@
 """The trial cache: per trial one Parquet learning curve and one JSON sidecar, checked on read;
-per figure the plan records that say which trials make it.
+per figure the plan records that say which trials make it (layout: docs/running.md, "Where
+outputs land"; besides it, trials/<kk>/<key>.state.json, a base's final state for its
+continuations, pipeline.checkpoint, and `claims`, a one-byte lock per trial being computed).
 
-Layout under paths.cache:
-    trials/<kk>/<key>.parquet     the learning curve (pipeline.io.TRIAL_CURVE); kk = key[:2]
-    trials/<kk>/<key>.json        the trial's spec, seed, code fingerprint, status, final model,
-                                  snapshots, the SHA-256 of the Parquet file, and a seal (the
-                                  SHA-256 of everything else in the sidecar)
-    trials/<kk>/<key>.state.json  a base's final state, for its continuations (pipeline.checkpoint)
-    claims                        a one-byte lock per trial being computed (Claim)
-    failed/<key>.json             the error of a trial that failed (not cached: it runs again)
-    plans/<figure>/<group>/<hash>.json   the conditions one simulate run planned for a figure
-    plans/<figure>/current.json   the group that makes the figure now
-
-A trial's key hashes its content only (spec, seed, code fingerprint: pipeline.keys.trial_key),
-never the figure or the label that asked for it: the same trial under two figures or two sweeps
-is computed once. The curve is written first and the sidecar last: the sidecar marks a finished
-trial, its curve checksum proves the curve complete and its seal (pipeline.io.seal) proves the sidecar unchanged (the
-model, the snapshots, the status). A trial that diverged is a result too (status `diverged`, no
-curve); a trial that failed with an error is not cached and runs again next time.
-
-Measured CPU time is kept apart, under paths.out/logs/times/ (write_times, read_times): one file
-per simulate run, trial key -> CPU seconds of the trials it ran (the cache's bytes do not vary
-with the machine's speed; the report's provenance sums them per figure).
-
-A figure is a *group* of plan records: one simulate run, or every job of one Hydra multirun (they
-share the sweep's folder). The group a run writes becomes the figure's current group; its
-conditions are the union of its records' (one per distinct setting).
+A trial's key hashes its content only (pipeline.keys.trial_key), never the figure or the label
+that asked for it. The curve is written first and the sidecar last: the sidecar marks a finished
+trial, its curve checksum proves the curve complete and its seal (pipeline.keys.seal) proves the
+sidecar unchanged. A trial that diverged is a result too (status `diverged`, no curve); one that
+failed with an error is not cached and runs again. Measured CPU time is kept apart, under
+paths.out/logs/times/ (the cache's bytes do not vary with the machine's speed). A figure is a
+*group* of plan records (one simulate run, or every job of one multirun); the group a run writes
+becomes the figure's current one.
 """
 from __future__ import annotations
 

@@ -1,10 +1,6 @@
-"""Every file the pipeline writes goes through here: atomic, deterministic writes, and the schema
-of the learning-curve table.
-
-A file under its final name is always complete: it is written to a temporary name beside it and
-renamed. Parquet is written with fixed settings and no timestamps, JSON with sorted keys, so the
-same content gives the same bytes.
-"""
+"""Every file the pipeline writes goes through here: atomic, deterministic writes (a temporary
+name beside the file, then a rename; Parquet with fixed settings and no timestamps, JSON with
+sorted keys: the same content gives the same bytes), and the schema of the learning-curve table."""
 from __future__ import annotations
 
 import errno
@@ -16,7 +12,7 @@ import re
 import shutil
 import socket
 import unicodedata
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
 
 import numpy as np
@@ -27,14 +23,11 @@ import pyarrow.parquet as pq
 LABELS = pa.schema([("figure", pa.string()), ("body", pa.string()), ("learner", pa.string()),
                     ("growth", pa.string()), ("growth_period", pa.int64()),
                     ("condition", pa.string()), ("trial", pa.int64())])
-CURVE = pa.schema(list(LABELS) + [("epoch", pa.int64()), ("samples", pa.int64()),
-                                  ("size", pa.float64()), ("abs_error", pa.float64()),
-                                  ("rel_error", pa.float64()),
-                                  ("heldout_abs_error", pa.float64())])  # on the held-out set
+CURVE = pa.schema(list(LABELS) + [("epoch", pa.int64()), ("samples", pa.int64())] + [
+    (k, pa.float64()) for k in ("size", "abs_error", "rel_error", "heldout_abs_error")])
 LABEL_COLUMNS = LABELS.names
 CURVE_COLUMNS = CURVE.names
-# One trial's curve as the cache keeps it: its content only (a cached trial may serve several
-# figures and conditions; aggregate adds the labels of the figure that uses it).
+# One trial's curve as the cache keeps it, without labels (aggregate adds its figure's)
 TRIAL_CURVE = pa.schema([f for f in CURVE if f.name not in LABELS.names])
 
 
@@ -43,8 +36,8 @@ class BadInput(ValueError):
 
 
 class DamagedFile(BadInput):
-    """A file the pipeline wrote is not what it should be (truncated, edited, of another
-    version): the message names it, and the stage that meets it replaces nothing."""
+    """A file the pipeline wrote is not what it should be: the message names it, and the stage
+    that meets it replaces nothing."""
 
 
 class UnsafeName(BadInput):
@@ -52,8 +45,7 @@ class UnsafeName(BadInput):
 
 
 class FileTooLarge(OSError, BadInput):
-    """EFBIG: a write beyond the file system's largest file or the process's file-size limit
-    (ulimit -f; Python ignores SIGXFSZ, so the write fails): one line, exit 2 (a BadInput)."""
+    """EFBIG: a write beyond the largest file or the file-size limit (Python ignores SIGXFSZ)."""
 
     def __str__(self):
         return (f"{self.filename}: file too large for the file system or the file-size limit "
@@ -66,11 +58,7 @@ MAX_NAME_BYTES = 200  # its UTF-8 bytes (file systems allow 255; temporary names
 
 def safe_name(key: str, value) -> str:
     """`value` if it can name one file or folder inside an output folder, else UnsafeName naming
-    `key`: no path separator, NUL or control character, not `.`, `..` or hidden (a leading dot is
-    how temporary files are named), not empty, at most MAX_NAME characters and MAX_NAME_BYTES
-    bytes, no format character (a bidirectional override shows a name other than it is). Call it on every name
-    from the config (figure, labels, posture panels) or from files on disk (plan records) before
-    it becomes part of a path, so that no write leaves paths.root."""
+    `key`: every name from the config or from files on disk, before it becomes part of a path."""
     why = None
     if not isinstance(value, str) or not value:
         why = "must be a non-empty name"
@@ -88,13 +76,6 @@ def safe_name(key: str, value) -> str:
     return value
 
 
-def inside(root, path, key: str = "paths.root") -> Path:
-    """`path` resolved, if it lies under `root` (resolved), else UnsafeName naming `key`."""
-    root, path = Path(root).resolve(), Path(path).resolve()
-    if path != root and root not in path.parents:
-        raise UnsafeName(f"{key}: {path} is outside {root}")
-    return path
-
 
 # ---- every write and delete stays under paths.root ------------------------------------------
 _ROOT: list[Path] = []  # the root a stage confines its writes to (pipeline.cli.finish)
@@ -102,9 +83,7 @@ _ALSO: set[Path] = set()  # single files outside it a stage writes on purpose (a
 
 
 def confine(root) -> None:
-    """Confine every later write and delete of this process (through this module, and
-    pipeline.cache's) to `root`: a path whose existing part resolves elsewhere (a link planted
-    inside the outputs) is UnsafeName. None: no confinement (the API's default)."""
+    """Confine every later write and delete of this process (here, pipeline.cache) to `root`."""
     _ROOT[:] = [] if root is None else [Path(root).resolve()]
 
 
@@ -121,30 +100,24 @@ def confined(root):
 
 
 def confined_root() -> Path | None:
-    """The root of confine(), None where nothing is confined."""
     return _ROOT[0] if _ROOT else None
 
 
 def allow(path) -> None:
-    """Let the confined stage write the one file `path` outside the root (the committed numbers
-    report.stamp_findings records in the source tree)."""
+    """Let the confined stage write the one file `path` outside the root."""
     _ALSO.add(Path(path).absolute())
 
 
 def check_inside(path) -> Path:
-    """`path` if the part of it that exists resolves under the confined root (confine), else
-    UnsafeName: a link inside the outputs that leads elsewhere is never followed."""
+    """`path` if the part of it that exists resolves under the confined root, else UnsafeName."""
     path = Path(path)
     if not _ROOT or path.absolute() in _ALSO:
         return path
-    full = Path(os.path.normpath(path.absolute()))
-    p = full
+    full = p = Path(os.path.normpath(path.absolute()))
     while not (p.exists() or p.is_symlink()) and p != p.parent:
         p = p.parent
     real = p.resolve()
-    # where the path leads: its existing part resolved, the rest (no links: not there) appended;
-    # a root that does not exist yet is an existing folder's part still to be made
-    led = real / full.relative_to(p)
+    led = real / full.relative_to(p)  # where it leads: its existing part resolved, the rest added
     if led != _ROOT[0] and _ROOT[0] not in led.parents:
         raise UnsafeName(f"{path}: leads outside paths.root={_ROOT[0]} (through {p} -> {real}); "
                          "remove that link")
@@ -156,48 +129,43 @@ _HOST = re.sub(r"[^A-Za-z0-9.-]", "_", socket.gethostname()) or "host"
 _serial = itertools.count()
 
 
-def _tmp_name(path: Path) -> Path:
-    """`.<name>~<host>~<pid>~<n>.tmp` beside `path`: whose it is, so that a stale one can be told
-    from another host's live one (remove_stale_tmp)."""
-    return Path(_tmp_text(os.fspath(path)))
+def _tmp_name(path):
+    """`.<name>~<host>~<pid>~<n>.tmp` beside `path`: whose it is (remove_stale_tmp)."""
+    folder, name = os.path.split(os.fspath(path))
+    return Path(folder, f".{name}~{_HOST}~{os.getpid()}~{next(_serial)}.tmp")
 
 
-def _tmp_text(path: str) -> str:
-    folder, name = os.path.split(path)
-    return os.path.join(folder, f".{name}~{_HOST}~{os.getpid()}~{next(_serial)}.tmp")
+def _mine_and_dead(name: str) -> bool:
+    """Whether the temporary `name` (`...~<host>~<pid>~<n>`) is this host's and its pid is gone."""
+    parts = name.rsplit("~", 3)
+    if len(parts) != 4 or parts[1] != _HOST or not parts[2].isdigit():
+        return False
+    try:
+        os.kill(int(parts[2]), 0)
+    except ProcessLookupError:
+        return True
+    except PermissionError:  # another user's process
+        pass
+    return False
 
 
 def _exclusive(path: str) -> tuple[str, int]:
-    """A new temporary file beside `path`, created by this call (O_EXCL: never an existing file,
-    O_NOFOLLOW: never through a symlink): (its path, an open descriptor). FileNotFoundError when
-    path's folder is not there."""
+    """(path, open descriptor) of a new temporary file beside `path` (O_EXCL, O_NOFOLLOW)."""
     while True:
-        tmp = _tmp_text(path)
+        tmp = os.fspath(_tmp_name(path))
         try:
             return tmp, os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o644)
         except FileExistsError:  # left by a dead process that had our pid: take the next name
             continue
 
 
-def _named(err: OSError, path: Path) -> OSError:
-    """The error with the final file's name (not the temporary one's), for a one-line message."""
-    err.filename = str(path)
-    return err
-
-
 @contextmanager
 def _atomic(path, checked: bool = False):
-    """Yield (temporary path, open descriptor) of a new file beside `path`; rename it onto
-    `path` if the block succeeds, else delete it. OSError (a full disk, a read-only folder)
-    names `path`. checked: the caller has checked path's folder with check_inside in this
-    process (pipeline.cache: once per trial folder), so only the name itself is looked at (a
-    link there is checked as check_inside checks it) and the folder is made only when it is not
-    there: a short trial's files written with a few system calls."""
-    path = os.fspath(path)
-    tmp = None
-    if not checked:
-        check_inside(path)
-    elif _ROOT and os.path.islink(path):
+    """Yield (temporary path, open descriptor) of a new file beside `path`, renamed onto `path`
+    on success, else deleted; OSError names `path`. checked: the caller checked path's folder
+    (pipeline.cache: once per trial folder): only a link at the name is checked."""
+    path, tmp = os.fspath(path), None
+    if not checked or (_ROOT and os.path.islink(path)):
         check_inside(path)  # UnsafeName when it leads outside
     try:
         if not checked:
@@ -215,19 +183,17 @@ def _atomic(path, checked: bool = False):
     except OSError as err:
         if err.errno == errno.EFBIG:
             raise FileTooLarge(errno.EFBIG, os.strerror(errno.EFBIG), path) from None
-        raise _named(err, Path(path)) from None
+        err.filename = str(Path(path))  # the final file's name, not the temporary one's
+        raise err from None
     finally:
         if tmp is not None:
-            try:
+            with suppress(FileNotFoundError):
                 os.unlink(tmp)
-            except FileNotFoundError:
-                pass
 
 
 @contextmanager
 def atomic_file(path):
-    """Yield a binary file object on a new temporary file beside `path`, renamed onto `path` if
-    the block succeeds (else deleted)."""
+    """Yield a binary file object on a new file beside `path`, renamed onto it on success."""
     with _atomic(path) as (_, fd), os.fdopen(fd, "wb") as fh:
         yield fh
 
@@ -237,8 +203,7 @@ _FULL = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)  # no room for what a writer w
 
 @contextmanager
 def atomic_path(path):
-    """Yield the path of a new, empty temporary file beside `path` (created exclusively) for a
-    writer that wants a file name (matplotlib); renamed onto `path` if the block succeeds."""
+    """atomic_file for a writer that wants a file name (matplotlib): yield the new file's path."""
     with _atomic(path) as (tmp, fd):
         os.close(fd)
         try:
@@ -252,18 +217,13 @@ def atomic_path(path):
 
 @contextmanager
 def new_dir(final):
-    """Yield an empty folder beside `final`; if the block succeeds, it replaces `final` as one
-    set (two renames: the old set aside, the new one in, then the old one removed). A reader, or a
-    process killed at any moment, sees the old set, the new set or none, never a mix. The folders
-    are named `.<final>.new~<host>~<pid>~<n>.tmp` (and `.old~`): what a killed run of this host
-    left is removed by the next (remove_stale_tmp), another host's never; two runs that finish
-    at once each put their set in, the later one's stays."""
+    """Yield an empty folder beside `final`; if the block succeeds, it replaces `final` (old set
+    aside, new one in): a reader, or a process killed at any moment, never sees a mix."""
     final = Path(final)
     check_inside(final)
     final.parent.mkdir(parents=True, exist_ok=True)
     remove_stale_tmp(final.parent)
-    tmp, old = _tmp_name(final.with_name(f"{final.name}.new")), _tmp_name(
-        final.with_name(f"{final.name}.old"))
+    tmp, old = (_tmp_name(final.with_name(f"{final.name}.{s}")) for s in ("new", "old"))
     tmp.mkdir()
     try:
         yield tmp
@@ -296,20 +256,20 @@ def write_text(path, text: str) -> None:
         fh.write(text.encode())
 
 
+_COMPACT = json.JSONEncoder(sort_keys=True, separators=(",", ":"), allow_nan=True)
+
+
 def dump_json(obj) -> str:
     return json.dumps(obj, sort_keys=True, indent=1) + "\n"
 
 
 def write_json(path, obj, compact: bool = False) -> None:
-    """JSON with sorted keys: indented to be read by people, or compact (one line, written by
-    json's C encoder: several times faster; for files only programs read, a trial's sidecar)."""
-    write_text(path, json.dumps(obj, sort_keys=True, separators=(",", ":")) + "\n" if compact
-               else dump_json(obj))
+    """JSON with sorted keys: indented for people, or compact (for programs: a trial's sidecar)."""
+    write_text(path, _COMPACT.encode(obj) + "\n" if compact else dump_json(obj))
 
 
 def read_json(path, need: tuple = ()) -> dict:
-    """The JSON object in `path`, with the keys `need`; DamagedFile naming the file if it is not
-    one (FileNotFoundError if it is missing)."""
+    """The JSON object in `path`, with the keys `need`, else DamagedFile naming the file."""
     try:
         raw = Path(path).read_bytes()
     except IsADirectoryError:
@@ -333,8 +293,7 @@ def parse_json(raw: bytes, path, need: tuple = ()) -> dict:
 
 
 def write_table(path, table: pa.Table) -> str:
-    """Parquet with fixed settings and no timestamps: the same table gives the same bytes.
-    Returns the SHA-256 of the bytes written (no second read to checksum them)."""
+    """Parquet with fixed settings and no timestamps; returns the SHA-256 of the bytes written."""
     with atomic_file(path) as fh:  # an error (a full disk) names `path`
         data = table_bytes(table)
         fh.write(data)
@@ -342,15 +301,13 @@ def write_table(path, table: pa.Table) -> str:
 
 
 def table_bytes(table: pa.Table) -> pa.Buffer:
-    """The bytes write_table writes for `table`."""
     sink = pa.BufferOutputStream()
     pq.write_table(table, sink, compression="zstd", compression_level=3)
     return sink.getvalue()
 
 
 def write_in_checked(path: str, data) -> None:
-    """Write `data` (bytes or a buffer) to `path` as atomic_file does, where the caller has
-    checked path's folder with check_inside in this process (_atomic's `checked`)."""
+    """Write `data` (bytes or a buffer) to `path` as atomic_file does, its folder checked."""
     with _atomic(path, checked=True) as (_, fd):
         try:
             view = memoryview(data)
@@ -361,10 +318,8 @@ def write_in_checked(path: str, data) -> None:
 
 
 def read_table(path, columns=None, schema: pa.Schema | None = None) -> pa.Table:
-    """The Parquet table in `path` (with `schema`'s columns, if given); DamagedFile naming the
-    file if it cannot be read (truncated, not Parquet, columns missing). Read as one file
-    (pq.ParquetFile): pq.read_table goes through pyarrow.dataset, whose import loads pandas
-    (about 0.4 s CPU for a stage that needs neither); the same table, schema and metadata."""
+    """The Parquet table in `path` (with `schema`'s columns), else DamagedFile naming it (read
+    by pq.ParquetFile: pq.read_table's import loads pandas, 0.4 s CPU)."""
     try:
         with pq.ParquetFile(path) as f:
             absent = sorted(set(columns or ()) - set(f.schema_arrow.names))
@@ -376,20 +331,22 @@ def read_table(path, columns=None, schema: pa.Schema | None = None) -> pa.Table:
     except (pa.ArrowException, OSError) as err:
         if isinstance(err, OSError) and err.errno is not None:
             raise  # a fault of the place (permissions), not of the file
-        raise DamagedFile(f"{path}: damaged, not a readable Parquet file "
-                          f"({str(err).splitlines()[0][:80]})") from None
+        raise _damaged(path, err) from None
     return _has_columns(table, path, schema)
 
 
 def parse_table(data: bytes, path, schema: pa.Schema | None = None, columns=None) -> pa.Table:
-    """read_table on the bytes `data` of the file `path` (named in the error); in this thread
-    (a small file costs a third of the CPU that way)."""
+    """read_table on the bytes `data` of the file `path`, in this thread (a third of the CPU)."""
     try:
         table = pq.ParquetFile(pa.BufferReader(data)).read(columns=columns, use_threads=False)
     except pa.ArrowException as err:
-        raise DamagedFile(f"{path}: damaged, not a readable Parquet file "
-                          f"({str(err).splitlines()[0][:80]})") from None
+        raise _damaged(path, err) from None
     return _has_columns(table, path, schema)
+
+
+def _damaged(path, err) -> DamagedFile:
+    return DamagedFile(f"{path}: damaged, not a readable Parquet file "
+                       f"({str(err).splitlines()[0][:80]})")
 
 
 def _has_columns(table: pa.Table, path, schema: pa.Schema | None) -> pa.Table:
@@ -413,10 +370,8 @@ _NUMPY_OF = {pa.int64(): np.dtype(np.int64), pa.float64(): np.dtype(np.float64)}
 
 
 def _column(values, type_: pa.DataType) -> pa.Array:
-    """pa.array(np.asarray(values), type=type_): a 1-D array of the column's own numpy type
-    is taken as its buffer (no nulls, the same values and bytes), which spares pyarrow's
-    import of pandas (pa.array asks pandas about every array: 0.6 s of CPU in the first call of
-    a process that needs no pandas, simulate's driver)."""
+    """pa.array(values, type=type_), an array of the column's numpy type as its buffer (the
+    same bytes; pa.array would import pandas: 0.6 s CPU)."""
     a = np.asarray(values)
     if a.ndim == 1 and a.dtype == _NUMPY_OF.get(type_):
         a = np.ascontiguousarray(a)
@@ -429,53 +384,32 @@ def sha256_file(path) -> str:
 
 
 def remove_stale_tmp(folder, recursive: bool = False) -> list[Path]:
-    """Delete the temporary files (and unfinished sets, new_set) that a killed process of this
-    host left in `folder`: its pid no longer runs. Another host's are never touched (its process
-    may be running: a shared cluster folder), nor names of another form. Returns what went."""
-    gone = []
-    folder = Path(folder)
+    """Delete (and return) the temporary files and sets a killed process of this host left."""
+    gone, folder = [], Path(folder)
     if not folder.is_dir():
         return gone
     check_inside(folder)
     for tmp in (folder.rglob if recursive else folder.glob)(".*~*~*~*.tmp"):
-        parts = tmp.name[:-len(".tmp")].rsplit("~", 3)
-        if len(parts) != 4 or not parts[2].isdigit() or parts[1] != _HOST:
+        if not _mine_and_dead(tmp.name[:-len(".tmp")]):
             continue
-        if not _alive(int(parts[2])):
-            if tmp.is_dir() and not tmp.is_symlink():
-                shutil.rmtree(tmp, ignore_errors=True)
-            else:
-                try:
-                    tmp.unlink(missing_ok=True)
-                except OSError as err:  # a read-only folder: the leftover stays, never read
-                    if err.errno not in (errno.EROFS, errno.EACCES, errno.EPERM):
-                        raise
-                    continue
-            gone.append(tmp)
+        if tmp.is_dir() and not tmp.is_symlink():
+            shutil.rmtree(tmp, ignore_errors=True)
+        else:
+            try:
+                tmp.unlink(missing_ok=True)
+            except OSError as err:  # a read-only folder: the leftover stays, never read
+                if err.errno not in (errno.EROFS, errno.EACCES, errno.EPERM):
+                    raise
+                continue
+        gone.append(tmp)
     return gone
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
 
 
 # ---- a stage's outputs replaced as one set -------------------------------------------------------
 @contextmanager
 def new_set(folder):
-    """Yield a new, empty folder to write a stage's whole output set into; on success `folder`
-    becomes a symlink to it in one rename, so that a reader sees the old set or the new one,
-    never a mix (kill -9 between writes leaves the old set in place). The sets live in
-    `.<name>.sets/` beside it; the replaced one is removed afterwards. A reader that opens several
-    files of a set resolves `folder` once (set_of) and reads them all from there.
-
-    The first time, a `folder` that is a real directory (the old layout) is moved into the sets
-    folder first: the one moment `folder` is missing, once."""
+    """Yield a new, empty folder (in `.<name>.sets/`) for a stage's whole output set; on success
+    `folder` becomes a symlink to it in one rename: a reader (set_of) never sees a mix."""
     folder = Path(folder)
     sets = folder.parent / f".{folder.name}.sets"
     check_inside(folder)
@@ -508,16 +442,13 @@ def new_set(folder):
 
 
 def remove_leaked_sets(folder) -> list[Path]:
-    """Delete the finished sets of `folder` that a killed process of this host made but never
-    switched to (`set~<host>~<pid>~<n>` in `.<name>.sets/`, its pid gone, not the current set)."""
+    """Delete the finished sets of `folder` a killed process of this host never switched to."""
     folder = Path(folder)
-    sets = folder.parent / f".{folder.name}.sets"
+    sets, gone = folder.parent / f".{folder.name}.sets", []
     current = set_of(folder) if folder.is_symlink() else None
-    gone = []
     for d in sets.glob("set~*~*~*"):
-        parts = d.name.split("~")
-        if (len(parts) == 4 and parts[1] == _HOST and parts[2].isdigit() and d.is_dir()
-                and not d.is_symlink() and d.resolve() != current and not _alive(int(parts[2]))):
+        if (d.name.count("~") == 3 and d.is_dir() and not d.is_symlink()
+                and d.resolve() != current and _mine_and_dead(d.name)):
             shutil.rmtree(d, ignore_errors=True)
             gone.append(d)
     return gone
@@ -532,14 +463,8 @@ def set_of(folder) -> Path:
 SEAL = "seal"
 
 
-def _digest(record: dict) -> str:
-    """The seal of `record`: the SHA-256 of its canonical JSON without the seal (_encoded)."""
-    return _sha_of(_encoded(record))
-
-
 def _encoded(record: dict) -> dict[str, str]:
-    """Each member of `record` but the seal as canonical JSON text, `"key":value` (sorted keys
-    within, no spaces): joined in key order between braces, json.dumps's text of the record."""
+    """Each member but the seal as `"key":value` (_joined: the record's canonical JSON)."""
     enc = _COMPACT.encode
     return {k: f"{enc(k)}:{enc(v)}" for k, v in record.items() if k != SEAL}
 
@@ -548,25 +473,20 @@ def _joined(items: dict[str, str]) -> str:
     return "{" + ",".join(items[k] for k in sorted(items)) + "}"
 
 
-def _sha_of(items: dict[str, str]) -> str:
+def _sha_of(items: dict[str, str]) -> str:  # the seal: the SHA-256 of the record without it
     return hashlib.sha256(_joined(items).encode()).hexdigest()
 
 
 def sealed_json(record: dict) -> bytes:
-    """The file write_json(path, seal(record), compact=True) writes, with each value of
-    `record` encoded once (seal and write_json encode the whole record each)."""
+    """The file write_json(path, seal(record), compact=True) writes, each value encoded once."""
     items = _encoded(record)
     items[SEAL] = f"{_COMPACT.encode(SEAL)}:{_COMPACT.encode(_sha_of(items))}"
     return (_joined(items) + "\n").encode()
 
 
-_COMPACT = json.JSONEncoder(sort_keys=True, separators=(",", ":"), allow_nan=True)
-
-
 def seal(record: dict) -> dict:
-    """`record` with `seal`: the SHA-256 of everything else in it (canonical JSON), so that an
-    edit of any field (a sidecar's model M, snapshots, status, error) is caught by check_seal."""
-    return {**record, SEAL: _digest(record)}
+    """`record` with `seal`, the SHA-256 of everything else in it: check_seal catches any edit."""
+    return {**record, SEAL: _sha_of(_encoded(record))}
 
 
 def check_seal(record: dict, path=None) -> dict:
@@ -574,6 +494,6 @@ def check_seal(record: dict, path=None) -> dict:
     where = f"{path}: " if path is not None else ""
     if SEAL not in record:
         raise DamagedFile(f"{where}damaged or of an older version: no seal")
-    if record[SEAL] != _digest(record):
+    if record[SEAL] != _sha_of(_encoded(record)):
         raise DamagedFile(f"{where}damaged: its content does not match its seal")
     return record

@@ -209,14 +209,11 @@ def draw(params: Params, body, B: int, rng: np.random.Generator) -> tuple:
     """
     n_targets, K = len(body.targets), params.targets_per_epoch
     if params.goal_selection == "progress":
-        u = rng.uniform(0.0, 1.0, size=(B, K + 1))
-        raw = _uniform(rng, (B, params.variations, body.m, body.n + 1))
-        if params.amplitude == "uniform":
-            return u, raw, rng.uniform(0.0, 1.0, size=(B, params.variations, body.m))
-        return u, raw
-    first = rng.integers(0, n_targets, size=(B, 1))
-    hops = rng.integers(1 if params.targets == "distinct" else 0, n_targets, size=(B, K))
-    idx = np.cumsum(np.concatenate([first, hops], axis=1), axis=1) % n_targets
+        idx = rng.uniform(0.0, 1.0, size=(B, K + 1))
+    else:
+        first = rng.integers(0, n_targets, size=(B, 1))
+        hops = rng.integers(1 if params.targets == "distinct" else 0, n_targets, size=(B, K))
+        idx = np.cumsum(np.concatenate([first, hops], axis=1), axis=1) % n_targets
     raw = _uniform(rng, (B, params.variations, body.m, body.n + 1))
     if params.amplitude == "uniform":
         return idx, raw, rng.uniform(0.0, 1.0, size=(B, params.variations, body.m))

@@ -13,17 +13,8 @@ compiled loops and is tested against it. One epoch:
 5. one gradient step on the weighted command error (eq. 6):
        M <- M - eta * sum_vt w (M Phi(x) - q) Phi(x)^T.
 
-Readings of the text that it leaves open are options (Params in __init__.py), the defaults above:
-- step: `plain` (as above: the text's gradient descent on eq. 6, eta = 1 / W with W the sum of
-  the weights at full-size convergence) or `normalised` (the step divided by sum_vt w, eta 1.0);
-- amplitude: `exact` (every row of [A, b] explores at exactly R) or `uniform` (row i of variation
-  v at u_vi R, u_vi ~ U(0, 1): the disturbance "never exceeds R", eq. 8);
-- updates: `batch` (one step per epoch), `steps` (update_steps steps on the epoch's samples) or
-  `online` (one step per sample, in the order the samples were reached);
-- solver: `gradient` (step 5) or `lstsq` (solve.py: M solved from the normal equations of
-  eq. 6 over the last `window` epochs' samples, instead of step 5);
-- the rate schedule (Params.rates: constant, or annealed, not the paper's) and whether successive
-  path targets must differ (Params.targets) act through draw and eta, not here.
+Readings of the text that it leaves open are options of Params (__init__.py says each: the
+step, the amplitude, the updates, the solver, the rate schedule); the defaults are the above.
 """
 from __future__ import annotations
 

@@ -20,23 +20,9 @@ feature's own scale and keeps the system well conditioned; the anchor is relativ
 weight and measured where the inverse is used, so neither depends on the body's units, its
 outputs or its sample count.
 
-Why the anchor (docs/bodies.md, "The exact solver"): the exact solve gives every direction of M
-the data of 10 epochs, also those the data barely determine: the first solves, from samples
-clustered at home, extrapolate over the targets (on a body with joint limits past them, where
-the exploration then collects no weight and the run stays stuck; the 2-DOF arm never recovers),
-and joints that barely move the hand and have no limits wander without end (Fig. 5's half-size
-arm winds them up to 3-20 rad). The anchor holds what the data do not determine at the initial
-inverse: on a body without joint limits for good, on one with limits only while its first
-solves need it (a tau / (tau + e - 1), tau = anchor_epochs), so that it costs no accuracy later.
-
-Why the limit pull: a run whose solves command joints past their limits over part of the
-targets gets no weight there (every variation saturates the same joint, the hand does not
-move), so no sample ever brings those commands back, and once the anchor has decayed nothing
-else does: Fig. 7's half-size starts stayed stuck at 27 mm in 1 of 120 trials. The limit pull
-draws the commands at the targets towards those the body executes, clipped at its limits. At
-a target whose commands are within the limits it pulls towards the current commands (a
-damping that leaves the solution of a converged run where it is); where they are past a
-limit, back to it, where the variations move the hand again.
+Why the anchor and the limit pull: docs/bodies.md, "The exact solver" (the first solves
+extrapolate from samples clustered at home; commands past a limit get no weight, so no sample
+brings them back).
 
 The fast path (lstsq.py) accumulates G_e and H_e in the kernel and solves the same p x p system
 by `cholesky_solve` below, compiled; this module states it with numpy's solver.
