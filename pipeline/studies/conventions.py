@@ -166,9 +166,11 @@ def table(aggs: dict, trials: dict, fail_factor: float, postures: dict) -> pd.Da
     condition], ...])."""
     aggs = {k: a for k, a in aggs.items() if k in figures_declared()}
     fin = finals({k: t for k, t in trials.items() if k in aggs})
-    rows = []
+    rows, named = [], {}  # named: the numbers the pages quote (the table's attrs["values"])
     sp = spread(fin) if len(fin) else None
     if sp:
+        named.update({name: -float(_g(100 * (sp["ratio"][n] - 1)))
+                      for n, name in QUOTED_SPREAD.items() if n in sp["ratio"]})
         each = ", ".join(f"{_g(r)} for n = {n} ({_g(100 * (r - 1))} %, {sp['conditions'][n]} "
                          "conditions)" for n, r in sp["ratio"].items())
         rows.append(dict(
@@ -191,6 +193,9 @@ def table(aggs: dict, trials: dict, fail_factor: float, postures: dict) -> pd.Da
     if ranks:
         cells = []
         for r in ranks:
+            if (r["where"], r["panel"]) in QUOTED_RANKS:
+                name, sign = QUOTED_RANKS[r["where"], r["panel"]]
+                named[name] = sign * float(f"{100 * (r['error'] / r['median'] - 1):+.3g}")
             pct = "" if np.isnan(r["percentile"]) else f", percentile {r['percentile']:.0f}"
             cells.append(f"{r['where']} ({r['panel']}): rank {r['rank']} of {r['n']}{pct}, "
                          f"{_g(1e3 * r['error'])} mm against the median {_g(1e3 * r['median'])} "
@@ -238,7 +243,20 @@ def table(aggs: dict, trials: dict, fail_factor: float, postures: dict) -> pd.Da
             convention="relative error (eq. 11)", ours="absolute error / size factor S",
             alternative="absolute error / (current total arm length / full arm length)",
             measured_effect=effect))
-    return pd.DataFrame(rows, columns=COLUMNS)
+    t = pd.DataFrame(rows, columns=COLUMNS)
+    t.attrs["values"] = named
+    return t
+
+
+# the numbers of the table the pages quote, named where computed: the spread's change in %
+# (negated) per trial count n, and trial 0's error over its condition's median in % per
+# (condition, panel) (negated where the sign says so)
+QUOTED_SPREAD = {20: "conventions.spread_over_trials.measured_effect.n5_neg",
+                 5: "conventions.spread_over_trials.measured_effect.n9_neg"}
+QUOTED_RANKS = {("fig4 TG1000", "fig3"): ("conventions.fig._3_6_postures.measured_effect.n14", 1),
+                ("fig5 TG1000", "fig3"):
+                    ("conventions.fig._3_6_postures.measured_effect.n20_neg", -1),
+                ("fig7 TG1000", "fig6"): ("conventions.fig._3_6_postures.measured_effect.n32", 1)}
 
 
 def markdown(t: pd.DataFrame) -> str:
