@@ -160,6 +160,24 @@ def _g(v) -> str:
     return f"{v:.3g}"
 
 
+def _postures_row(ranks: list[dict], named: dict) -> dict:
+    """The row of trial 0's ranks (trial0_rank); `named` gets the numbers the pages quote."""
+    cells = []
+    for r in ranks:
+        pct = f"{100 * (r['error'] / r['median'] - 1):+.3g}"
+        if (r["where"], r["panel"]) in QUOTED_RANKS:
+            name, sign = QUOTED_RANKS[r["where"], r["panel"]]
+            named[name] = sign * float(pct)
+        at = "" if np.isnan(r["percentile"]) else f", percentile {r['percentile']:.0f}"
+        cells.append(f"{r['where']} ({r['panel']}): rank {r['rank']} of {r['n']}{at}, "
+                     f"{_g(1e3 * r['error'])} mm against the median {_g(1e3 * r['median'])} "
+                     f"mm ({pct} %)")
+    return dict(convention="Fig. 3 / 6 postures", ours="trial 0's final model",
+                alternative="another trial (e.g. the median one)",
+                measured_effect="trial 0's final abs. error (rank 1 = smallest): "
+                                + "; ".join(cells))
+
+
 def table(aggs: dict, trials: dict, fail_factor: float, postures: dict) -> pd.DataFrame:
     """The conventions' rows from the paper's aggregates (figure -> aggregate), their per-trial
     curves (read_trials), aggregate.fail_factor and report.postures (panel -> [[figure,
@@ -191,19 +209,7 @@ def table(aggs: dict, trials: dict, fail_factor: float, postures: dict) -> pd.Da
     wanted = [(p, f, c) for p, pairs in postures.items() for f, c in pairs if f in aggs]
     ranks = trial0_rank(fin, wanted) if len(fin) else []
     if ranks:
-        cells = []
-        for r in ranks:
-            if (r["where"], r["panel"]) in QUOTED_RANKS:
-                name, sign = QUOTED_RANKS[r["where"], r["panel"]]
-                named[name] = sign * float(f"{100 * (r['error'] / r['median'] - 1):+.3g}")
-            pct = "" if np.isnan(r["percentile"]) else f", percentile {r['percentile']:.0f}"
-            cells.append(f"{r['where']} ({r['panel']}): rank {r['rank']} of {r['n']}{pct}, "
-                         f"{_g(1e3 * r['error'])} mm against the median {_g(1e3 * r['median'])} "
-                         f"mm ({100 * (r['error'] / r['median'] - 1):+.3g} %)")
-        rows.append(dict(
-            convention="Fig. 3 / 6 postures", ours="trial 0's final model",
-            alternative="another trial (e.g. the median one)",
-            measured_effect="trial 0's final abs. error (rank 1 = smallest): " + "; ".join(cells)))
+        rows.append(_postures_row(ranks, named))
     sub = [r for name, a in aggs.items()
            for r in subsampled_rise(a["curves"], a["summary"], STRIDES)]
     cells = []
