@@ -179,9 +179,9 @@ def recommended(path: Path = claims.REGISTER) -> list[dict]:
     `recommended`, written by hand from the findings): figure, reading, the claims it names as
     reproduced and why; a ValueError names a figure this study does not read, a claim that is
     not the paper's or a figure named twice."""
-    import yaml
+    from .register_schema import load
 
-    recs = yaml.safe_load(Path(path).read_text()).get("recommended") or []
+    recs = load(path).get("recommended", [])
     for r in recs:
         if r["figure"] not in reading_studies().values():
             raise ValueError(f"{path}: no readings figure {r['figure']!r}")

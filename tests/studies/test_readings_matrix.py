@@ -5,7 +5,7 @@ import pandas as pd
 import pytest
 
 from pipeline.config import REPO_ROOT
-from pipeline.studies import readings
+from pipeline.studies import claims, readings
 from pipeline.studies import scorecard as sc
 from test_claims import EPOCHS, RISING, _figure
 
@@ -96,12 +96,18 @@ def test_a_recommendation_the_verdicts_contradict_is_said_loudly(cards):
 def test_the_committed_recommendations_name_the_papers_claims(tmp_path):
     t = readings.recommended()
     assert {r["figure"] for r in t} == {"fig4", "fig5", "fig7"}
+    claims_only = claims.REGISTER.read_text().split("\nrecommended:", 1)[0]
     bad = tmp_path / "r.yaml"
-    bad.write_text("recommended:\n- {figure: fig4, reading: x, reproduces: [above_refs], why: w}\n")
+    bad.write_text(claims_only + "\nrecommended:\n- {figure: fig4, reading: x, "
+                   "reproduces: [above_refs], why: w}\n")
     with pytest.raises(ValueError, match="not a claim of the paper"):
         readings.recommended(bad)
-    bad.write_text("recommended:\n- {figure: fig9, reading: x, reproduces: [], why: w}\n")
+    bad.write_text(claims_only + "\nrecommended:\n- {figure: fig9, reading: x, reproduces: [], "
+                   "why: w}\n")
     with pytest.raises(ValueError, match="no readings figure"):
+        readings.recommended(bad)
+    bad.write_text(claims_only + "\nrecommended:\n- {figure: fig4, reading: x, reproduces: w}\n")
+    with pytest.raises(ValueError, match="recommended"):  # the register's schema: one line
         readings.recommended(bad)
 
 
