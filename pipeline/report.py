@@ -69,7 +69,7 @@ def load_aggregates(folder: Path, names=None) -> dict:
     return out
 
 
-# the columns of an aggregate's curves.parquet the report reads (pipeline.aggregate.curve_stats)
+# the columns of an aggregate's curves.parquet the report reads (pipeline.aggregate_stats.curve_stats)
 _CURVES = pa.schema([(c, pa.null()) for c in [
     *[c for c in io.LABEL_COLUMNS if c != "trial"], "epoch", "samples", "size", "n_trials",
     *[f"{e}_{s}" for e in ("abs_error", "rel_error") for s in ("mean", "std", "q25", "q75")]]])
