@@ -227,7 +227,7 @@ def _named_for(path: Path) -> str:
 
 def _check_lines(path: Path, raw: bytes) -> None:
     """An aggregate's models.json against its manifest.json: each condition's line checksum."""
-    from .aggregate import MODELS_HEAD, _checksum
+    from .aggregate_set import MODELS_HEAD, _checksum
 
     manifest = io.read_json(path.parent / "manifest.json", need=("models",))
     lines = raw.decode().split("\n")

@@ -20,8 +20,8 @@ Writes under paths.report (all bytes reproducible, no timestamps, only relative 
     explanations.csv           the decisive experiments explain_*, read from their aggregates
     choices.csv, choices.md    the open choices (experiments choices_*): each variant's effect
     conventions.csv            the reporting conventions: each alternative's effect, measured
-    values.csv                 the named values the pages quote (pipeline/studies/values.yaml;
-                               python -m pipeline.tools.render writes them into the pages)
+    values.csv                 the named values the pages quote (named by the sections where
+                               computed; python -m pipeline.tools.render writes them into pages)
     curves.parquet             the aggregated learning curves of every figure, in one table
     report.md                  the above, and the list of every file this stage writes
     report.html                report.md rendered (pipeline/html_report.py; not in its list),
@@ -69,7 +69,7 @@ def load_aggregates(folder: Path, names=None) -> dict:
     return out
 
 
-# the columns of an aggregate's curves.parquet the report reads (pipeline.aggregate.curve_stats)
+# the columns of an aggregate's curves.parquet the report reads (pipeline.aggregate_stats.curve_stats)
 _CURVES = pa.schema([(c, pa.null()) for c in [
     *[c for c in io.LABEL_COLUMNS if c != "trial"], "epoch", "samples", "size", "n_trials",
     *[f"{e}_{s}" for e in ("abs_error", "rel_error") for s in ("mean", "std", "q25", "q75")]]])
@@ -267,9 +267,13 @@ def write_report(cfg: DictConfig, aggs: dict, out: Path) -> list[Path]:
     step = Steps("report", len(ctx.groups))  # a line per study's section: minutes, not silence
     with figures.plt.rc_context(figures.RC):
         md += sections.run(ctx, step)
-    # the named values of the tables just written (values.csv), and the discussion rendered
-    # with them (the only part of report.md that references a name)
-    vals, _ = values.evaluate(out)
+    # the values the sections named as they computed them, and the coverage table the scorecard
+    # reads (values.csv), and the discussion rendered with them (the only part of report.md that
+    # references a name)
+    from .studies import coverage
+
+    ctx.value("coverage.table", coverage.markdown(coverage.read_table()))
+    vals = dict(sorted(ctx.values.items()))
     ctx.text(values.FILE, values.to_csv(vals))
     md = [values.rendered_part(part, vals) for part in md]
     files = sorted(p.relative_to(out).as_posix() for p in ctx.written) + ["report.md"]

@@ -109,7 +109,7 @@ def local_files(tmp_path_factory):
 def figure_trials(cache_dir, figure: str) -> tuple[list[dict], list[str]]:
     """(trials as (condition label, trial index, key) dicts, problems) of a figure's current
     plan, as aggregate reads it."""
-    from pipeline.aggregate import figure_conditions
+    from pipeline.aggregate_set import figure_conditions
 
     conds, _, problems = figure_conditions(cache_dir, figure)
     return [dict(condition=c["label"], trial=t["trial"], key=t["key"])

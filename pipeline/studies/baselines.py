@@ -18,11 +18,10 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from scipy.optimize import brentq
-
 from . import figures
 from ..measures import finals
 from .choices import escape
+from .scorecard import p_beats
 from .sections import Context, of_study, register
 
 GB, GB_PROGRESS = "Goal Babbling", "Goal Babbling (goals by progress)"
@@ -63,46 +62,6 @@ def interval(mean: float, std: float, n: int) -> tuple[float, float]:
         return np.nan, np.nan
     h = stats.t.ppf(0.975, n - 1) * std / np.sqrt(n)
     return float(mean - h), float(mean + h)
-
-
-def p_beats(a, b) -> tuple[float, float, float]:
-    """(P, lo, hi): the probability that a trial of learner A ends below one of learner B, P(A <
-    B), estimated over all n m pairs of their trials (ties count half: the Mann-Whitney U / (n m)),
-    with its 95 % interval by Newcombe's method 5 (Newcombe 2006, Statist. Med. 25: 559-573): the
-    score-type interval {theta : (theta - P)^2 <= z^2 V(theta)} with Hanley and McNeil's variance
-    V(theta) = theta (1 - theta) / (n m) [1 + (N - 1)(1 - theta) / (2 - theta) + (N - 1) theta
-    / (1 + theta)], N = (n + m) / 2.
-
-    Why this method at the study's 5 trials a learner: it stays inside [0, 1], it does not collapse
-    to a point when the samples do not overlap (P = 1 still has an interval, whose lower end says
-    how far 5 against 5 trials can go), it needs no random numbers, and Newcombe measured its
-    coverage near 95 % down to small samples. A bootstrap over trials collapses there (every
-    resample of two separated samples is separated: [1, 1]) and is too narrow at n = 5; a Wald
-    interval leaves [0, 1]. NaN where either learner has no finite trial."""
-    a, b = np.asarray(a, float), np.asarray(b, float)
-    a, b = a[np.isfinite(a)], b[np.isfinite(b)]
-    n, m = len(a), len(b)
-    if not n or not m:
-        return np.nan, np.nan, np.nan
-    d = a[:, None] - b[None, :]
-    p = float(((d < 0) + 0.5 * (d == 0)).mean())
-    z2, k = stats.norm.ppf(0.975) ** 2, (n + m) / 2 - 1
-
-    def w(x):  # V(x) n m / (x (1 - x))
-        return (1 + k * (1 - x) / (2 - x) + k * x / (1 + x)) / (n * m)
-
-    def far(q):  # the limit away from q in {0, 1}: (x - q)^2 = z^2 V(x), divided by |x - q|
-        return lambda x: abs(x - q) - z2 * (1 - abs(x - q)) * w(x)
-
-    if p == 1.0:
-        return p, brentq(far(1.0), 0.0, 1.0), 1.0
-    if p == 0.0:
-        return p, 0.0, brentq(far(0.0), 0.0, 1.0)
-
-    def f(x):
-        return (x - p) ** 2 - z2 * x * (1 - x) * w(x)
-
-    return p, brentq(f, 0.0, p), brentq(f, p, 1.0)
 
 
 def _beats(p: float, lo: float, hi: float, a: str, b: str) -> str:
@@ -503,9 +462,11 @@ def section(ctx: Context) -> list[str]:
         return []
     trials = per_trial(rivals)
     rival_claims = claims(rival_table, trials)
-    ctx.text("baselines_same_solver.csv",
-             same_solver(trials).to_csv(index=False, float_format="%.6g"))
+    ss = same_solver(trials)
+    ctx.text("baselines_same_solver.csv", ss.to_csv(index=False, float_format="%.6g"))
     ctx.text("baselines.csv", rival_table.to_csv(index=False, float_format="%.6g"))
+    ctx.quote(ss, ("body", "budget", "growth", "rival"), QUOTED_SAME_SOLVER)
+    ctx.quote(rival_table, ("body", "learner", "budget", "growth"), QUOTED)
     png = ctx.save(figure(rivals, "Goal Babbling and its alternatives: error against reaching "
                           "movements"), "baselines_curves")[0].name
     return ["## Beyond the paper: Goal Babbling against its alternatives under growth", "",
@@ -517,3 +478,23 @@ def section(ctx: Context) -> list[str]:
             "final inverse's largest joint-space step between neighbouring points on lines "
             "through the target box (branch switching, lookup).", "",
             f"![baselines]({png})", "", markdown(rival_table, rival_claims, trials)]
+
+
+# the numbers the pages quote (docs/baselines.md, findings.md), named where computed: name ->
+# the row's body, learner (rival), budget and growth, and its column
+QUOTED = {
+    'baselines.arm5.goal_babbling.4.24m.linear.grid_mm':
+        ('arm5', 'Goal Babbling', '4.24M', 'linear', 'grid_mm'),
+}
+QUOTED_SAME_SOLVER = {
+    'baselines_same_solver.icub.6.02m.infant.motor_babbling_over_the.p_lo':
+        ('icub', '6.02M', 'infant', 'motor babbling over the whole joint range', 'p_lo'),
+    'baselines_same_solver.arm5.1.06m.no_growth.motor_babbling.gb_median_mm':
+        ('arm5', '1.06M', 'no growth', 'motor babbling', 'gb_median_mm'),
+    'baselines_same_solver.arm5.1.06m.no_growth.motor_babbling.rival_median_mm':
+        ('arm5', '1.06M', 'no growth', 'motor babbling', 'rival_median_mm'),
+    'baselines_same_solver.icub.1.505m.no_growth.motor_babbling.gb_median_mm':
+        ('icub', '1.505M', 'no growth', 'motor babbling', 'gb_median_mm'),
+    'baselines_same_solver.icub.1.505m.no_growth.motor_babbling.rival_median_mm':
+        ('icub', '1.505M', 'no growth', 'motor babbling', 'rival_median_mm'),
+}

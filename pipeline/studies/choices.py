@@ -107,7 +107,150 @@ def section(ctx: Context) -> list[str]:
     if not len(t):
         return []
     ctx.text("choices.csv", t.to_csv(index=False, float_format="%.6g"))
+    ctx.quote(t, ("figure", "choice", "variant"), QUOTED)
     text = markdown(t, chosen)
     ctx.text("choices.md", text)
     return ["## Choices the paper leaves open: measured effect of the alternatives",
             text.split("\n", 1)[1]]
+
+
+# the numbers of choices.csv the pages quote (docs/choices.md, README.md, findings.md), named
+# here where the table is made: name -> the row's figure, choice and variant, and its column
+QUOTED = {
+    'choices.choices_arm5.gradient_step.normalised.final_abs_mm_mean':
+        ('choices_arm5', 'gradient step', 'normalised by sum w, eta = 1.0', 'final_abs_mm_mean'),
+    'choices.choices_arm5.gradient_step.plain.final_abs_mm_mean':
+        ('choices_arm5', 'gradient step', 'plain (eq. 6)', 'final_abs_mm_mean'),
+    'choices.choices_icub.gradient_step.normalised.final_abs_mm_mean':
+        ('choices_icub', 'gradient step', 'normalised by sum w, eta = 1.0', 'final_abs_mm_mean'),
+    'choices.choices_icub.gradient_step.plain.final_abs_mm_mean':
+        ('choices_icub', 'gradient step', 'plain (eq. 6)', 'final_abs_mm_mean'),
+    'choices.choices_arm5.learning_rate_growth_t_g_100.normalised.growth_rise_pct':
+        ('choices_arm5', 'learning rate, growth T_G = 100', 'T_G = 100, normalised step',
+         'growth_rise_pct'),
+    'choices.choices_arm5.learning_rate_growth_t_g_100.t_g_100_eta_1_w.growth_rise_pct':
+        ('choices_arm5', 'learning rate, growth T_G = 100', 'T_G = 100, eta = 1 / W',
+         'growth_rise_pct'),
+    'choices.choices_arm5.learning_rate_w_1142.eta_0.5_w.final_abs_mm_mean':
+        ('choices_arm5', 'learning rate (W = 1142)', 'eta = 0.5 / W', 'final_abs_mm_mean'),
+    'choices.choices_arm5.learning_rate_w_1142.eta_1_w.final_abs_mm_mean':
+        ('choices_arm5', 'learning rate (W = 1142)', 'eta = 1 / W', 'final_abs_mm_mean'),
+    'choices.choices_arm5.learning_rate_w_1142.eta_1.5_w.final_abs_mm_mean':
+        ('choices_arm5', 'learning rate (W = 1142)', 'eta = 1.5 / W', 'final_abs_mm_mean'),
+    'choices.choices_arm5.learning_rate_w_1142.eta_2_w.final_abs_mm_mean':
+        ('choices_arm5', 'learning rate (W = 1142)', 'eta = 2 / W', 'final_abs_mm_mean'),
+    'choices.choices_icub.learning_rate_w_1791.eta_0.5_w.final_abs_mm_mean':
+        ('choices_icub', 'learning rate (W = 1791)', 'eta = 0.5 / W', 'final_abs_mm_mean'),
+    'choices.choices_icub.learning_rate_w_1791.eta_1_w.final_abs_mm_mean':
+        ('choices_icub', 'learning rate (W = 1791)', 'eta = 1 / W', 'final_abs_mm_mean'),
+    'choices.choices_icub.learning_rate_w_1791.eta_1.5_w.final_abs_mm_mean':
+        ('choices_icub', 'learning rate (W = 1791)', 'eta = 1.5 / W', 'final_abs_mm_mean'),
+    'choices.choices_icub.learning_rate_w_1791.eta_2_w.final_abs_mm_mean':
+        ('choices_icub', 'learning rate (W = 1791)', 'eta = 2 / W', 'final_abs_mm_mean'),
+    'choices.choices_arm5.learning_rate_growth_t_g_100.eta_0.1_w.growth_rise_pct':
+        ('choices_arm5', 'learning rate, growth T_G = 100', 'T_G = 100, eta = 0.1 / W',
+         'growth_rise_pct'),
+    'choices.choices_arm5.learning_rate_growth_t_g_100.eta_0.3_w.growth_rise_pct':
+        ('choices_arm5', 'learning rate, growth T_G = 100', 'T_G = 100, eta = 0.3 / W',
+         'growth_rise_pct'),
+    'choices.choices_arm5.learning_rate_growth_t_g_100.eta_1_w.growth_rise_pct':
+        ('choices_arm5', 'learning rate, growth T_G = 100', 'T_G = 100, eta = 1 / W',
+         'growth_rise_pct'),
+    'choices.choices_arm5.learning_rate_growth_t_g.eta_0.1_w.growth_rise_pct':
+        ('choices_arm5', 'learning rate, growth T_G = 1000', 'T_G = 1000, eta = 0.1 / W',
+         'growth_rise_pct'),
+    'choices.choices_arm5.learning_rate_growth_t_g.eta_0.3_w.growth_rise_pct':
+        ('choices_arm5', 'learning rate, growth T_G = 1000', 'T_G = 1000, eta = 0.3 / W',
+         'growth_rise_pct'),
+    'choices.choices_arm5.learning_rate_growth_t_g.eta_1_w.growth_rise_pct':
+        ('choices_arm5', 'learning rate, growth T_G = 1000', 'T_G = 1000, eta = 1 / W',
+         'growth_rise_pct'),
+    'choices.choices_arm5.updates_per_epoch.two_batch_steps.final_abs_mm_mean':
+        ('choices_arm5', 'updates per epoch', 'two batch steps', 'final_abs_mm_mean'),
+    'choices.choices_arm5.updates_per_epoch.two_batch_steps.final_abs_mm_std':
+        ('choices_arm5', 'updates per epoch', 'two batch steps', 'final_abs_mm_std'),
+    'choices.choices_arm5.updates_per_epoch.online.final_abs_mm_mean':
+        ('choices_arm5', 'updates per epoch', 'online, one step per sample', 'final_abs_mm_mean'),
+    'choices.choices_icub.updates_per_epoch.online.final_abs_mm_mean':
+        ('choices_icub', 'updates per epoch', 'online, one step per sample', 'final_abs_mm_mean'),
+    'choices.choices_arm5.learning_rate_growth_t_g_100.online_updates.growth_rise_pct':
+        ('choices_arm5', 'learning rate, growth T_G = 100', 'T_G = 100, online updates',
+         'growth_rise_pct'),
+    'choices.choices_arm5.rate_schedule.annealed.final_abs_mm_mean':
+        ('choices_arm5', 'rate schedule', "annealed, tau = 10,000 epochs (not the paper's)",
+         'final_abs_mm_mean'),
+    'choices.choices_icub.rate_schedule.annealed.final_abs_mm_mean':
+        ('choices_icub', 'rate schedule', "annealed, tau = 10,000 epochs (not the paper's)",
+         'final_abs_mm_mean'),
+    'choices.choices_arm5.initialisation.0.0.final_abs_mm_mean':
+        ('choices_arm5', 'initialisation', '|g - home| <= 0.0', 'final_abs_mm_mean'),
+    'choices.choices_arm5.initialisation.0.1.final_abs_mm_mean':
+        ('choices_arm5', 'initialisation', '|g - home| <= 0.1', 'final_abs_mm_mean'),
+    'choices.choices_arm5.initialisation.0.3.final_abs_mm_mean':
+        ('choices_arm5', 'initialisation', '|g - home| <= 0.3', 'final_abs_mm_mean'),
+    'choices.choices_icub.initialisation.0.0.final_abs_mm_mean':
+        ('choices_icub', 'initialisation', '|g - home| <= 0.0', 'final_abs_mm_mean'),
+    'choices.choices_icub.initialisation.0.1.final_abs_mm_mean':
+        ('choices_icub', 'initialisation', '|g - home| <= 0.1', 'final_abs_mm_mean'),
+    'choices.choices_icub.initialisation.0.3.final_abs_mm_mean':
+        ('choices_icub', 'initialisation', '|g - home| <= 0.3', 'final_abs_mm_mean'),
+    'choices.choices_arm5.target_grid.wider.final_abs_mm_mean':
+        ('choices_arm5', 'target grid', 'wider: x -0.6..0.6, y 0.1..0.7 (13 x 7)',
+         'final_abs_mm_mean'),
+    'choices.choices_arm5.target_grid.coarser.final_abs_mm_mean':
+        ('choices_arm5', 'target grid', 'coarser: 6 x 3 over the same box', 'final_abs_mm_mean'),
+    'choices.choices_icub.gradient_step.plain.off_grid_mm':
+        ('choices_icub', 'gradient step', 'plain (eq. 6)', 'off_grid_mm'),
+    'choices.choices_icub.target_grid.smaller.final_abs_mm_mean':
+        ('choices_icub', 'target grid',
+         'smaller: the 4 x 4 x 4 grid shrunk to 2/3 about its centre', 'final_abs_mm_mean'),
+    'choices.choices_arm5.home_posture.0.25_rad.final_abs_mm_mean':
+        ('choices_arm5', 'home posture', 'bend 0.25 rad per joint', 'final_abs_mm_mean'),
+    'choices.choices_arm5.home_posture.0.75_rad.final_abs_mm_mean':
+        ('choices_arm5', 'home posture', 'bend 0.75 rad per joint', 'final_abs_mm_mean'),
+    'choices.choices_icub.joint_limits.final_abs_mm_mean':
+        ('choices_icub', 'joint limits', 'ignored (no saturation)', 'final_abs_mm_mean'),
+    'choices.choices_arm5.gradient_step.plain.off_grid_mm':
+        ('choices_arm5', 'gradient step', 'plain (eq. 6)', 'off_grid_mm'),
+    'choices.choices_arm5.gradient_step.plain.rms_mm':
+        ('choices_arm5', 'gradient step', 'plain (eq. 6)', 'rms_mm'),
+    'choices.choices_arm5.gradient_step.plain.mean_sq_mm2':
+        ('choices_arm5', 'gradient step', 'plain (eq. 6)', 'mean_sq_mm2'),
+    'choices.choices_arm5.non_proportional_short.proportionally.final_abs_mm_mean':
+        ('choices_arm5', 'non-proportional short reference', 'proportionally halved body (0.5 m)',
+         'final_abs_mm_mean'),
+    'choices.choices_arm5.non_proportional_short.non_proportional_start.final_abs_mm_mean':
+        ('choices_arm5', 'non-proportional short reference', 'non-proportional start body (0.5 m)',
+         'final_abs_mm_mean'),
+    'choices.choices_arm5.successive_path_targets.uniform.final_abs_mm_mean':
+        ('choices_arm5', 'successive path targets', 'uniform over all targets (repeats allowed)',
+         'final_abs_mm_mean'),
+    'choices.choices_arm5.successive_path_targets.differs.final_abs_mm_mean':
+        ('choices_arm5', 'successive path targets', 'each differs from the one before',
+         'final_abs_mm_mean'),
+    'choices.choices_arm5.growth_schedule_t_g_1000.infant.final_abs_mm_mean':
+        ('choices_arm5', 'growth schedule, T_G = 1000', 'T_G = 1000, infant (WHO fit)',
+         'final_abs_mm_mean'),
+    'choices.choices_arm5.growth_schedule_t_g_1000.infant.growth_rise_pct':
+        ('choices_arm5', 'growth schedule, T_G = 1000', 'T_G = 1000, infant (WHO fit)',
+         'growth_rise_pct'),
+    'choices.choices_arm5.growth_schedule_t_g_1000.linear.growth_rise_pct':
+        ('choices_arm5', 'growth schedule, T_G = 1000', "T_G = 1000, linear (the paper's)",
+         'growth_rise_pct'),
+    'choices.choices_arm2.100_000_epochs.final_abs_mm_mean':
+        ('choices_arm2', 'Fig. 2 duration', '100,000 epochs', 'final_abs_mm_mean'),
+    'choices.choices_arm2.10_000_epochs.final_abs_mm_mean':
+        ('choices_arm2', 'Fig. 2 duration', '10,000 epochs', 'final_abs_mm_mean'),
+    'choices.choices_arm2.100_000_epochs.worst_mm':
+        ('choices_arm2', 'Fig. 2 duration', '100,000 epochs', 'worst_mm'),
+    'choices.choices_arm2.10_000_epochs.worst_mm':
+        ('choices_arm2', 'Fig. 2 duration', '10,000 epochs', 'worst_mm'),
+    'choices.choices_arm5.root_seed.2011.final_abs_mm_mean':
+        ('choices_arm5', 'root seed', '2011', 'final_abs_mm_mean'),
+    'choices.choices_arm5.root_seed.2011.final_abs_mm_std':
+        ('choices_arm5', 'root seed', '2011', 'final_abs_mm_std'),
+    'choices.choices_arm5.root_seed.2010.final_abs_mm_mean':
+        ('choices_arm5', 'root seed', '2010', 'final_abs_mm_mean'),
+    'choices.choices_arm5.root_seed.2010.final_abs_mm_std':
+        ('choices_arm5', 'root seed', '2010', 'final_abs_mm_std'),
+}

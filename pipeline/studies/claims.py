@@ -68,6 +68,7 @@ class Claim:
     diagnostic: bool = False  # added by us: shown and marked, never counted
     min_trials: int = 2  # fewer trials: inconclusive, whatever the interval
     changelog: tuple = ()
+    our_reading: dict | None = None  # the project's reading in words: text, written_for
 
     @property
     def primary(self) -> Reading:
@@ -105,7 +106,8 @@ def load_register(path: Path = REGISTER) -> list[Claim]:
                          sentence=e.get("sentence", ""), measure=e["measure"], readings=tuple(rs),
                          diagnostic=bool(e.get("diagnostic")),
                          min_trials=int(e.get("min_trials", 2)),
-                         changelog=tuple(e.get("changelog", []))))
+                         changelog=tuple(e.get("changelog", [])),
+                         our_reading=e.get("our_reading")))
     return out
 
 
@@ -450,36 +452,20 @@ def readings_markdown() -> str:
     return "\n".join(lines) + "\n"
 
 
-READINGS = Path(__file__).parent / "our_reading.csv"
-
-
-def readings_table() -> pd.DataFrame:
-    """Our reading of each claim (our_reading.csv, written by hand from findings.md): the text,
-    and the verdicts per figure it was written for ("fig4=reproduced; fig5=...")."""
-    t = pd.read_csv(READINGS, keep_default_na=False, dtype=str)
-    unknown = sorted(set(t["claim"]) - set(BY_ID))
-    if unknown:
-        raise ValueError(f"{READINGS}: no claim {unknown[0]!r} in claims.CLAIMS")
-    return t
-
-
-def _written_for(text: str) -> dict:
-    return dict(p.strip().split("=", 1) for p in text.split(";") if p.strip())
-
-
-def our_reading(cards: pd.DataFrame, table: pd.DataFrame | None = None) -> dict:
-    """claim -> our reading, shown where every verdict it was written for is this run's verdict
-    (on the figures of both); else a note that it was written for other verdicts."""
-    t = readings_table() if table is None else table
+def our_reading(cards: pd.DataFrame, register: list[Claim] | None = None) -> dict:
+    """claim -> our reading (the register's our_reading, written by hand from findings.md),
+    shown where every verdict it was written for is this run's verdict (on the figures of both);
+    else a note that it was written for other verdicts."""
     now = {(r["claim"], r["figure"]): r["verdict"] for r in cards.to_dict("records")}
     out = {}
-    for r in t.to_dict("records"):
-        wanted = _written_for(r["written_for"])
-        off = [f"{f}: {v}, now {now[(r['claim'], f)]}" for f, v in wanted.items()
-               if (r["claim"], f) in now and now[(r["claim"], f)] != v]
-        out[r["claim"]] = (r["text"] if not off else
-                           "(our reading was written for other verdicts: " + "; ".join(off)
-                           + "; see the discussion)")
+    for c in CLAIMS if register is None else register:
+        if not c.our_reading:
+            continue
+        off = [f"{f}: {v}, now {now[(c.id, f)]}" for f, v in c.our_reading["written_for"].items()
+               if (c.id, f) in now and now[(c.id, f)] != v]
+        out[c.id] = (c.our_reading["text"] if not off else
+                     "(our reading was written for other verdicts: " + "; ".join(off)
+                     + "; see the discussion)")
     return out
 
 

@@ -160,15 +160,35 @@ def _g(v) -> str:
     return f"{v:.3g}"
 
 
+def _postures_row(ranks: list[dict], named: dict) -> dict:
+    """The row of trial 0's ranks (trial0_rank); `named` gets the numbers the pages quote."""
+    cells = []
+    for r in ranks:
+        pct = f"{100 * (r['error'] / r['median'] - 1):+.3g}"
+        if (r["where"], r["panel"]) in QUOTED_RANKS:
+            name, sign = QUOTED_RANKS[r["where"], r["panel"]]
+            named[name] = sign * float(pct)
+        at = "" if np.isnan(r["percentile"]) else f", percentile {r['percentile']:.0f}"
+        cells.append(f"{r['where']} ({r['panel']}): rank {r['rank']} of {r['n']}{at}, "
+                     f"{_g(1e3 * r['error'])} mm against the median {_g(1e3 * r['median'])} "
+                     f"mm ({pct} %)")
+    return dict(convention="Fig. 3 / 6 postures", ours="trial 0's final model",
+                alternative="another trial (e.g. the median one)",
+                measured_effect="trial 0's final abs. error (rank 1 = smallest): "
+                                + "; ".join(cells))
+
+
 def table(aggs: dict, trials: dict, fail_factor: float, postures: dict) -> pd.DataFrame:
     """The conventions' rows from the paper's aggregates (figure -> aggregate), their per-trial
     curves (read_trials), aggregate.fail_factor and report.postures (panel -> [[figure,
     condition], ...])."""
     aggs = {k: a for k, a in aggs.items() if k in figures_declared()}
     fin = finals({k: t for k, t in trials.items() if k in aggs})
-    rows = []
+    rows, named = [], {}  # named: the numbers the pages quote (the table's attrs["values"])
     sp = spread(fin) if len(fin) else None
     if sp:
+        named.update({name: -float(_g(100 * (sp["ratio"][n] - 1)))
+                      for n, name in QUOTED_SPREAD.items() if n in sp["ratio"]})
         each = ", ".join(f"{_g(r)} for n = {n} ({_g(100 * (r - 1))} %, {sp['conditions'][n]} "
                          "conditions)" for n, r in sp["ratio"].items())
         rows.append(dict(
@@ -189,16 +209,7 @@ def table(aggs: dict, trials: dict, fail_factor: float, postures: dict) -> pd.Da
     wanted = [(p, f, c) for p, pairs in postures.items() for f, c in pairs if f in aggs]
     ranks = trial0_rank(fin, wanted) if len(fin) else []
     if ranks:
-        cells = []
-        for r in ranks:
-            pct = "" if np.isnan(r["percentile"]) else f", percentile {r['percentile']:.0f}"
-            cells.append(f"{r['where']} ({r['panel']}): rank {r['rank']} of {r['n']}{pct}, "
-                         f"{_g(1e3 * r['error'])} mm against the median {_g(1e3 * r['median'])} "
-                         f"mm ({100 * (r['error'] / r['median'] - 1):+.3g} %)")
-        rows.append(dict(
-            convention="Fig. 3 / 6 postures", ours="trial 0's final model",
-            alternative="another trial (e.g. the median one)",
-            measured_effect="trial 0's final abs. error (rank 1 = smallest): " + "; ".join(cells)))
+        rows.append(_postures_row(ranks, named))
     sub = [r for name, a in aggs.items()
            for r in subsampled_rise(a["curves"], a["summary"], STRIDES)]
     cells = []
@@ -238,7 +249,20 @@ def table(aggs: dict, trials: dict, fail_factor: float, postures: dict) -> pd.Da
             convention="relative error (eq. 11)", ours="absolute error / size factor S",
             alternative="absolute error / (current total arm length / full arm length)",
             measured_effect=effect))
-    return pd.DataFrame(rows, columns=COLUMNS)
+    t = pd.DataFrame(rows, columns=COLUMNS)
+    t.attrs["values"] = named
+    return t
+
+
+# the numbers of the table the pages quote, named where computed: the spread's change in %
+# (negated) per trial count n, and trial 0's error over its condition's median in % per
+# (condition, panel) (negated where the sign says so)
+QUOTED_SPREAD = {20: "conventions.spread_over_trials.measured_effect.n5_neg",
+                 5: "conventions.spread_over_trials.measured_effect.n9_neg"}
+QUOTED_RANKS = {("fig4 TG1000", "fig3"): ("conventions.fig._3_6_postures.measured_effect.n14", 1),
+                ("fig5 TG1000", "fig3"):
+                    ("conventions.fig._3_6_postures.measured_effect.n20_neg", -1),
+                ("fig7 TG1000", "fig6"): ("conventions.fig._3_6_postures.measured_effect.n32", 1)}
 
 
 def markdown(t: pd.DataFrame) -> str:

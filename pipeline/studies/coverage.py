@@ -14,6 +14,10 @@ holds, per measure and n, the coverage of the 95 % t interval and the smallest l
 coverage is at least scorecard.MIN_COVERAGE (none: the interval is not calibrated at n, and such
 a cell says "inconclusive: interval not calibrated"). Measures are not pooled: each has its own
 row. The draws are seeded by the measure's name, so the same values give the same table.
+
+The scorecard reads the table here (calibration): a measure's t level comes from fresh samples
+of its own values (at least FIT trials) or from the table's rows of its measure at its trial
+count; the table is an input of the report, written by the tool, never by the report.
 """
 from __future__ import annotations
 
@@ -129,6 +133,92 @@ def read_table(path: Path = TABLE) -> pd.DataFrame:
 
 def to_csv(t: pd.DataFrame) -> str:
     return t.to_csv(index=False, float_format="%.4f")
+
+
+# --- the t level of a measure, from fresh samples or this table (the scorecard's) ----------
+
+_FRESH: dict = {}
+
+
+def calibration(t, n: int, table: pd.DataFrame | None = None) -> tuple[float | None, str]:
+    """(the t level to use, where its coverage comes from) for a measure on n trials, or (None,
+    why) where no level is calibrated. A measure with at least FIT trials is calibrated
+    on fresh samples of its own values; one with fewer takes the coverage table's rows of its
+    measure and condition at the largest measured n <= its own (those of its own figure
+    family, e.g. fig7_20trials for fig7, where there are any), the most demanding level of
+    them; failing that, those of its claim's measure."""
+    if t.calibrated is not None:  # measured when the report was written (measures.parquet)
+        return t.calibrated
+    measure = t.measure or t.claim
+    if n >= FIT:
+        key = (t.figure, measure, t.where, n, np.asarray(t.values, float).tobytes())
+        if key not in _FRESH:
+            _FRESH[key] = row(t.figure, measure, t.where, t.kind, t.values, n)
+        r = _FRESH[key]
+        level = r["level"] if np.isfinite(r["level"]) else None
+        return level, f"fresh samples of its {n} trials"
+    tab = current() if table is None else table
+    if not len(tab):
+        return None, "no coverage measured"
+    return _from_table(tab, n, measure, t.where, str(t.figure))
+
+
+_COVERAGE_READ: list = []  # [(the bytes of coverage.csv, the table parsed from them)]
+
+
+def current() -> pd.DataFrame:
+    """read_table() of TABLE for calibration's lookups (which only read it): parsed again only when
+    the file's bytes change (read_csv took milliseconds, thousands of times per report)."""
+    try:
+        data = (str(TABLE), Path(TABLE).read_bytes())
+    except FileNotFoundError:
+        data = (str(TABLE), None)
+    if not _COVERAGE_READ or _COVERAGE_READ[0][0] != data:
+        _COVERAGE_READ[:] = [(data, read_table(TABLE))]
+    return _COVERAGE_READ[0][1]
+
+
+_LOOKUPS: dict = {}  # id(table) -> (table, {(n, measure, where, figure): calibration})
+
+
+def _from_table(tab: pd.DataFrame, n: int, measure: str, where, figure: str):
+    """calibration's answer from the coverage table `tab`, looked up once per table and
+    (n, measure, where, figure): a report asks for the same few thousands of times (3,566 in a
+    smoke report, each masking the table four times: a tenth of its CPU)."""
+    memo = _LOOKUPS.get(id(tab))
+    if memo is None or memo[0] is not tab:  # a new table (an id is reused only once freed)
+        if len(_LOOKUPS) >= 8:
+            _LOOKUPS.clear()
+        claims = ({c: rows for c, rows in tab.groupby("claim", sort=False)}
+                  if "claim" in tab else None)  # each claim's rows, in the table's order
+        memo = _LOOKUPS[id(tab)] = (tab, {}, claims)
+    key = (n, measure, where, figure)
+    try:
+        hash(key)
+    except TypeError:  # a `where` that is not a plain value: looked up each time
+        return _lookup(tab, n, measure, where, figure)
+    if key not in memo[1]:
+        memo[1][key] = _lookup(tab, n, measure, where, figure, memo[2])
+    return memo[1][key]
+
+
+def _lookup(tab: pd.DataFrame, n: int, measure: str, where, figure: str, claims=None):
+    """claims: the rows of each claim of `tab` (groupby), else found here by masking."""
+    if "claim" not in tab:  # a table per measure type only
+        return None, "no coverage per measure"
+    tab = tab[tab["claim"] == measure] if claims is None else claims.get(measure, tab.iloc[:0])
+    tab = tab[tab["trials"] <= n]
+    for rows in (tab[tab["where"] == where], tab):
+        if not len(rows):
+            continue
+        rows = rows[rows["trials"] == rows["trials"].max()]
+        own = rows[rows["figure"].astype(str).str.startswith(figure)]
+        rows = own if len(own) else rows
+        if rows["level"].isna().any():
+            return None, f"not calibrated at {int(rows['trials'].iloc[0])} trials"
+        return float(rows["level"].max()), f"coverage table at {int(rows['trials'].iloc[0])} trials"
+    return None, "no coverage measured for this measure"
+
 
 
 def markdown(t: pd.DataFrame) -> str:

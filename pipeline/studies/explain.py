@@ -22,140 +22,11 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
-from scipy.optimize import least_squares
-
-from gbmodel.growth import factors
 
 from . import claims, scorecard
+from .capacity import _extremes, best_cubic
 from .choices import escape
-from .figures import final_body
 from .sections import Context, declared, register
-
-
-def _errors(body, size, pattern, predict, M, xs):
-    q = predict(M, xs)
-    return np.linalg.norm(body.forward(q, factors(body, size, pattern)) - xs, axis=-1)
-
-
-def best_cubic(spec: dict, M0) -> dict:
-    """The degree-3 inverse fitted directly to the targets (scipy least squares from M0), with
-    the analytic Jacobian of _jacobian where the learner's inverse is linear in M
-    (g(x) = M Phi(x)), else scipy's finite differences."""
-    body, size, pattern, predict = final_body(spec)
-    xs = body.target_set(size)
-    M0 = np.asarray(M0, float)
-    f = factors(body, size, pattern)
-
-    def residuals(flat):
-        q = predict(flat.reshape(M0.shape), xs)
-        return (body.forward(q, f) - xs).ravel()
-
-    Phi = _linear_features(predict, M0, xs)
-    jac = "2-point" if Phi is None else (lambda flat: _jacobian(body, f, Phi, flat, M0.shape))
-    fit = least_squares(residuals, M0.ravel(), jac=jac, method="trf", max_nfev=200 * M0.size)
-    d = _errors(body, size, pattern, predict, fit.x.reshape(M0.shape), xs)
-    learned = _errors(body, size, pattern, predict, M0, xs)
-    return dict(M=fit.x.reshape(M0.shape), best_mean_mm=1e3 * d.mean(), best_worst_mm=1e3 * d.max(),
-                learned_mean_mm=1e3 * learned.mean(), learned_worst_mm=1e3 * learned.max())
-
-
-def _linear_features(predict, M0, xs):
-    """Phi (N, p) with predict(M, xs) = Phi @ M.T for every M (read off the unit models), or
-    None when predict is not linear in M (checked at zero, at M0 and at a point beside it)."""
-    m, p = M0.shape
-    unit = np.zeros((m, p))
-    if np.any(predict(unit, xs) != 0):
-        return None
-    cols = []
-    for k in range(p):
-        unit[0, k] = 1.0
-        cols.append(predict(unit, xs)[:, 0])
-        unit[0, k] = 0.0
-    Phi = np.stack(cols, axis=1)
-    linear = all(np.allclose(predict(M, xs), Phi @ M.T, rtol=1e-12, atol=1e-12)
-                 for M in (M0, 0.5 * M0 + 0.25))
-    return Phi if linear else None
-
-
-JOINT_STEP = 1e-6  # the central differences of the forward kinematics, per joint command
-
-
-def _jacobian(body, f, Phi, flat, shape):
-    """d residuals / d M (N n, m p) of best_cubic at M = flat: the hand's derivative in each
-    joint command J (N, n, m) (hand_jacobian), times dq_j / dM_jk = Phi_k exactly."""
-    q = Phi @ flat.reshape(shape).T
-    J = hand_jacobian(body, f, q)
-    N, m = q.shape
-    return (J[:, :, :, None] * Phi[:, None, None, :]).reshape(N * J.shape[1], m * Phi.shape[1])
-
-
-def hand_jacobian(body, f, q) -> np.ndarray:
-    """d forward(q, f) / d q (N, n, m) for commands q (N, m): analytic for a DH chain and a
-    general (URDF) chain (the derivative carried through the kinematics' own backward pass,
-    gbmodel.kinematics, times the commands' scaling to joint angles, zero where a command is
-    clipped); a body in the loop (a Python forward function) by central differences over the
-    commands, all 2 m displaced postures in one forward call."""
-    q = np.asarray(q, float)
-    N, m = q.shape
-    if body.loop is not None:
-        step = JOINT_STEP * np.eye(m)[:, None, :]
-        moved = body.forward(np.concatenate([q[None] + step, q[None] - step]).reshape(-1, m), f)
-        moved = moved.reshape(2 * m, N, -1)
-        return np.moveaxis((moved[:m] - moved[m:]) / (2 * JOINT_STEP), 0, -1)
-    theta = body.joint_angles(q)
-    scale = np.ones_like(q)
-    if body.normalized:
-        scale = np.broadcast_to(0.5 * (body.q_max - body.q_min), q.shape).copy()
-        if body.saturates:
-            scale[np.abs(q) > 1.0] = 0.0
-    k = np.ones(m) if f is None else np.asarray(f, float)
-    D = (_chain_jacobian(theta, body.frames, body.tool, k) if body.general
-         else _dh_jacobian(theta, **body.chain(k)))
-    return D[:, list(body.outputs), :] * scale[:, None, :]
-
-
-def _dh_jacobian(theta, a, d, cos_alpha, sin_alpha, base) -> np.ndarray:
-    """d hand / d theta (N, 3, m) of gbmodel.kinematics.hand_position: its backward pass
-    p <- Rz(theta_i) (Rx(alpha_i) p + (a_i, 0, d_i)) with the derivative D (N, 3, m) carried
-    along (D <- Rz Rx D), and d/dtheta_i of the new point = (-p_y, p_x, 0)."""
-    N, m = theta.shape
-    p, D = np.zeros((N, 3)), np.zeros((N, 3, m))
-    for i in range(m - 1, -1, -1):
-        ca, sa = cos_alpha[i], sin_alpha[i]
-        u = p[:, 0] + a[i]
-        v = ca * p[:, 1] - sa * p[:, 2]
-        w = sa * p[:, 1] + ca * p[:, 2] + d[i]
-        du, dv, dw = D[:, 0], ca * D[:, 1] - sa * D[:, 2], sa * D[:, 1] + ca * D[:, 2]
-        c, s = np.cos(theta[:, i]), np.sin(theta[:, i])
-        p = np.stack([c * u - s * v, s * u + c * v, w], axis=1)
-        D = np.stack([c[:, None] * du - s[:, None] * dv, s[:, None] * du + c[:, None] * dv, dw],
-                     axis=1)
-        D[:, 0, i], D[:, 1, i] = -p[:, 1], p[:, 0]
-    return np.einsum("rc,ncm->nrm", base[:, :3], D)
-
-
-def _chain_jacobian(theta, frames, tool, k) -> np.ndarray:
-    """d hand / d theta (N, 3, m) of gbmodel.kinematics.chain_position: its backward pass
-    p <- F_i Rz(theta_i) p with the derivative carried along (D <- R_i Rz D), and d/dtheta_i
-    of the rotated point = (-y, x, 0)."""
-    N, m = theta.shape
-    p, D = np.broadcast_to(tool * k[m - 1], (N, 3)), np.zeros((N, 3, m))
-    for i in range(m - 1, -1, -1):
-        c, s = np.cos(theta[:, i]), np.sin(theta[:, i])
-        x, y = c * p[:, 0] - s * p[:, 1], s * p[:, 0] + c * p[:, 1]
-        dx = c[:, None] * D[:, 0] - s[:, None] * D[:, 1]
-        dy = s[:, None] * D[:, 0] + c[:, None] * D[:, 1]
-        dx[:, i], dy[:, i] = -y, x
-        R, t = frames[i][:, :3], frames[i][:, 3] * (k[i - 1] if i > 0 else 1.0)
-        p = np.stack([x, y, p[:, 2]], axis=1) @ R.T + t
-        D = np.einsum("rc,ncm->nrm", R, np.stack([dx, dy, D[:, 2]], axis=1))
-    return D
-
-
-def _extremes(spec, M) -> float:
-    body, size, pattern, predict = final_body(spec)
-    d = _errors(body, size, pattern, predict, np.asarray(M, float), body.target_set(size))
-    return 1e3 * float(max(d[0], d[-1]))
 
 
 def explained() -> dict[str, str]:
@@ -386,9 +257,10 @@ def rises_text(found: list[dict]) -> str:
     return text
 
 
-def rows(aggs: dict) -> list[dict]:
-    """The explanation experiments that the aggregated figures allow (reads only)."""
-    by = explained()
+def rows(aggs: dict, named: dict | None = None) -> list[dict]:
+    """The explanation experiments that the aggregated figures allow (reads only); `named`, if
+    given, gets the numbers of their text the pages quote (name -> value, as the text prints it)."""
+    by, named = explained(), {} if named is None else named
     out = []
     fig2 = aggs.get("fig2", {}).get("models", {}).get("conditions", {})
     for cond in fig2.values():
@@ -396,6 +268,7 @@ def rows(aggs: dict) -> list[dict]:
         if M is None:
             continue
         c = best_cubic(cond["spec"], M)
+        named["explanations.fig2.capacity.measured.n2"] = float(f"{c['best_worst_mm']:.1f}")
         out.append(dict(figure="fig2", experiment="capacity: the best cubic for the 21 heights",
                         measured=f"mean {c['best_mean_mm']:.1f} mm, worst {c['best_worst_mm']:.1f} mm"
                                  f" (Goal Babbling, trial 0: mean {c['learned_mean_mm']:.1f} mm, "
@@ -403,6 +276,8 @@ def rows(aggs: dict) -> list[dict]:
         break
     if by.get("boundary") in aggs:
         b = boundary(aggs[by["boundary"]])
+        named.update({name: float(f"{r['learned_mm']:.1f}") for r in b
+                      for lim, name in QUOTED_BOUNDARY.items() if r["label"].startswith(lim)})
         if b:
             out.append(dict(figure="fig2", experiment=f"boundary ({by['boundary']}): learned "
                             f"on heights +-lim (21 targets, {b[0]['trials']} trials), error at "
@@ -414,6 +289,7 @@ def rows(aggs: dict) -> list[dict]:
     if full and full["trials"]:
         models = [t["M"] for t in full["trials"].values()]
         c = best_cubic(full["spec"], models[0])
+        named["explanations.fig7.capacity.measured.n1"] = float(f"{c['best_mean_mm']:.2f}")
         out.append(dict(figure="fig7", experiment="capacity: the best cubic for the 4 x 4 x 4 grid",
                         measured=f"mean {c['best_mean_mm']:.2f} mm, worst {c['best_worst_mm']:.1f} mm"
                                  f" (Goal Babbling, const1.0 trial 0: mean "
@@ -424,12 +300,17 @@ def rows(aggs: dict) -> list[dict]:
                         measured=f"the rate step at epoch {k['epoch']:,} lies beyond this run "
                                  f"({k['epoch'] + k['later']:,} epochs): nothing to compare"))
     elif k:
+        named.update({name: float(f"{k[m]:.2f}") for name, m in (
+            ("explanations.fig7.continuation.measured.n1", "before_mm"),
+            ("explanations.fig7.continuation.measured.n2", "same_mm"),
+            ("explanations.fig7.continuation.measured.n3", "smaller_mm"))})
         out.append(dict(figure="fig7", experiment=f"continuation ({by['continuation']}): "
                         f"{k['later']:,} more epochs after epoch {k['epoch']:,}",
                         measured=f"{k['before_mm']:.2f} mm -> {k['same_mm']:.2f} mm at the same "
                                  f"rate, {k['smaller_mm']:.2f} mm at {k['factor']:g} x the rate "
                                  f"(mean over {k['trials']} trials)"))
     h = half_size(aggs[by["half_size"]]) if by.get("half_size") in aggs else []
+    named.update(_half_size_named(h))
     if h:
         out.append(dict(figure="fig4", experiment=f"half size ({by['half_size']}): the "
                         "half-size arm against the full-size one, per variant",
@@ -441,15 +322,37 @@ def rows(aggs: dict) -> list[dict]:
     return out
 
 
+QUOTED_BOUNDARY = {"+-0.9 m": "explanations.fig2.boundary.measured.n5",
+                   "+-0.8 m": "explanations.fig2.boundary.measured.n8"}  # the learned error
+
+
+def _half_size_named(found: list[dict]) -> dict:
+    """The half-size numbers the pages quote, as half_size_text prints them: the ratio at epoch
+    1,000 under the default step and under least squares, and the last epoch the doubled rate's
+    interval lies above 1."""
+    by, out = {v["kind"]: v for v in found}, {}
+    for kind, name in (("default", "explanations.fig4.half_size.measured.n9"),
+                       ("lstsq", "explanations.fig4.half_size.measured.n36")):
+        if 1_000 in by.get(kind, {}).get("at", {}):
+            out[name] = float(f"{by[kind]['at'][1_000]['value']:.2f}")
+    rate = next((v for v in found if v["kind"] == "rate"), {})
+    if rate.get("last_above"):
+        out["explanations.fig4.half_size.measured.n30"] = float(rate["last_above"])
+    return out
+
+
 @register("explain", 20)
 def section(ctx: Context) -> list[str]:
     if not ctx.cfg.report.explain:
         return []
     aggs = {**ctx.of("figures"), **ctx.of("explain"), **ctx.of("readings")}
-    found = rows(aggs)
+    named = {}
+    found = rows(aggs, named)
     if not found:
         return []
     ctx.text("explanations.csv", pd.DataFrame(found).to_csv(index=False))
+    for name, x in named.items():
+        ctx.value(name, x)
     md = (["## Decisive experiments behind the explanations", "",
            "Read from the aggregated experiments explain_* and readings_fig4 (conf/experiment/, "
            "pipeline/studies/explain.py): what a cubic can reach when fitted directly "
@@ -463,7 +366,29 @@ def section(ctx: Context) -> list[str]:
     r = rises(aggs[rise]) if rise in aggs else []
     if r:
         ctx.text("explain_rise.csv", pd.DataFrame(r).to_csv(index=False, float_format="%.6g"))
+        ctx.quote(pd.DataFrame(r), ("reading", "T_G"), QUOTED_RISE)
         md += [f"The temporary rise during growth on Fig. 4 ({rise}, explain_rise.csv; "
                "the scorecard's measure, mean over trials with its 95 % t interval):", "",
                rises_markdown(r)]
     return md
+
+
+# the rises the pages quote: name -> the row's reading and T_G, its column and scale
+QUOTED_RISE = {
+    'explain_rise.eta_0.1_w.1000.value_pct':
+        ('eta = 0.1 / W', 1000, 'value', 100),
+    'explain_rise.this_project_s_default.1000.value_pct':
+        ("this project's default (plain step, exact R, one batch step, grid)", 1000, 'value', 100),
+    'explain_rise.this_project_s_default.10000.value_pct':
+        ("this project's default (plain step, exact R, one batch step, grid)", 10000, 'value', 100),
+    'explain_rise.this_project_s_default.10000.low_pct':
+        ("this project's default (plain step, exact R, one batch step, grid)", 10000, 'low', 100),
+    'explain_rise.this_project_s_default.10000.high_pct':
+        ("this project's default (plain step, exact R, one batch step, grid)", 10000, 'high', 100),
+    'explain_rise.eta_0.1_w.10000.value_pct':
+        ('eta = 0.1 / W', 10000, 'value', 100),
+    'explain_rise.least_squares_solver_lstsq.1000.value_pct':
+        ('least squares (solver=lstsq)', 1000, 'value', 100),
+    'explain_rise.least_squares_solver_lstsq.10000.value_pct':
+        ('least squares (solver=lstsq)', 10000, 'value', 100),
+}

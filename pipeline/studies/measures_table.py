@@ -30,14 +30,14 @@ COLUMNS = ["study", "figure", "reading", "counted", "recommended", "claim", "whe
 def frame(ms: list[Measure], study: str, reading: str = "", counted: bool = False,
           recommended: bool = False) -> pd.DataFrame:
     """The rows of a list of Measures of one study (and one of its readings)."""
-    from . import scorecard
+    from . import coverage
     from .claims import Test
 
     rows = []
     for m in ms:
         level, why = np.nan, ""
         if not (m.exact or m.diverged):  # the t level the scorecard uses, stored for rescoring
-            lv, why = m.calibrated or scorecard.calibration(
+            lv, why = m.calibrated or coverage.calibration(
                 Test(m.figure, m.claim, m.where, m.values, kind=m.kind, measure=m.claim),
                 len(m.values))
             level = np.nan if lv is None else lv

@@ -15,10 +15,11 @@ import pandas as pd
 from omegaconf import OmegaConf
 
 from .. import io
-from . import claims, conventions, figures, scorecard, settings
+from . import claims, conventions, figures, scorecard, scorecard_page, settings
 from .choices import escape
 from .claims import DIVERGED, diverged_conditions
 from .sections import Context, declares_claims, register
+from .values import printed
 
 MAX_PANELS = 4  # posture panels of a figure that report.postures does not name
 
@@ -194,13 +195,16 @@ def scorecard_part(ctx: Context, p: Paper) -> list[str]:
     ctx.text("scorecard.csv", every[every["primary"]].to_csv(index=False, float_format="%.6g"))
     ctx.text("scorecard_readings.csv", every[~every["primary"]].to_csv(
         index=False, float_format="%.6g"))
+    ctx.quote(every[every["primary"]], ("figure", "claim", "where"), SCORECARD)
+    ctx.quote(every[~every["primary"]], ("figure", "claim", "where", "reading"), CONTROLLED)
+    ctx.value("headline.default", scorecard.headline_text(scorecard.headline(p.cards, counted)))
     _write_measures(ctx, p.measured, counted)
-    ctx.save(scorecard.figure(p.cards, ctx.title.split(":")[0] + ": the paper's claims, "
+    ctx.save(scorecard_page.figure(p.cards, ctx.title.split(":")[0] + ": the paper's claims, "
                               "calibrated intervals over trials"), "scorecard")
     ours = claims.our_reading(p.cards) if p.discussion == FINDINGS.read_text() else None
     return ["## Scorecard: the paper's claims, with their uncertainty", "",
             "![scorecard](scorecard.png)", "",
-            scorecard.markdown(p.cards, p.measures, counted, ours,
+            scorecard_page.markdown(p.cards, p.measures, counted, ours,
                                "" if ctx.cfg.report.scale else
                                scorecard.recommended_headline(readings_cards, recommended)),
             "Each cell: its verdict, how many of its conditions are reproduced, and its worst "
@@ -233,6 +237,7 @@ def curves_part(ctx: Context, p: Paper) -> list[str]:
     cfg, md = ctx.cfg, []
     ctx.text("summary.csv", p.summary.to_csv(index=False, float_format="%.6g"))
     ctx.text("summary.md", summary_markdown(p.summary))
+    _name_summary(ctx, p.summary)
     curves = pd.concat([a["curves"] for a in p.aggs.values()], ignore_index=True)
     io.write_table(ctx.out / "curves.parquet", io.frame_to_table(curves))
     ctx.written.append(ctx.out / "curves.parquet")
@@ -312,14 +317,136 @@ def conventions_part(ctx: Context, p: Paper) -> list[str]:
     if not len(table):
         return []
     ctx.text("conventions.csv", table.to_csv(index=False, float_format="%.6g"))
+    for name, x in table.attrs.get("values", {}).items():
+        ctx.value(name, x)
     return [conventions.markdown(table)]
+
+
+def _name_summary(ctx: Context, summary: pd.DataFrame) -> None:
+    """The summary's numbers the pages quote, and their ratios (each as summary.csv prints it)."""
+    ctx.quote(summary, ("figure", "condition"), SUMMARY)
+    row = {(r.figure, r.condition): r for r in summary.itertuples()}
+    ctx.shared["paper values"] = {k: printed(r.paper_final_abs_error) for k, r in row.items()
+                                  if np.isfinite(r.paper_final_abs_error)}  # readings' ratios
+    for name, (a, b, col) in SUMMARY_RATIOS.items():
+        x = (printed(row[a].final_abs_error_mean) / printed(getattr(row[b], col))
+             if a in row and b in row else np.nan)
+        if np.isfinite(x):
+            ctx.value(name, x)
+
+
+# the numbers of these tables the pages quote (README.md, docs/, findings.md), named here where
+# they are computed: name -> the row's figure and condition (claim, where, reading), the column
+# and its scale (pipeline/studies/values.py)
+SUMMARY = {
+    'summary.fig5.tg1000.final_abs_error_mean_mm':
+        ('fig5', 'TG1000', 'final_abs_error_mean', 1e3),
+    'summary.fig4.const1.0.final_abs_error_mean_mm':
+        ('fig4', 'const1.0', 'final_abs_error_mean', 1e3),
+    'summary.fig7_20trials.const0.5.final_abs_error_mean_mm':
+        ('fig7_20trials', 'const0.5', 'final_abs_error_mean', 1e3),
+    'summary.fig7_20trials.const1.0.final_abs_error_mean_mm':
+        ('fig7_20trials', 'const1.0', 'final_abs_error_mean', 1e3),
+    'summary.fig4.const0.5.final_abs_error_mean_mm':
+        ('fig4', 'const0.5', 'final_abs_error_mean', 1e3),
+    'summary.fig5.const0.5.final_abs_error_mean_mm':
+        ('fig5', 'const0.5', 'final_abs_error_mean', 1e3),
+    'summary.fig2.const1.0.final_abs_error_mean_mm':
+        ('fig2', 'const1.0', 'final_abs_error_mean', 1e3),
+}
+SUMMARY_RATIOS = {  # name -> (the row of the final error, the row it is divided by, its column)
+    "summary.fig4.const0.5.final_abs_error_mean.over.const1.0":
+        (("fig4", "const0.5"), ("fig4", "const1.0"), "final_abs_error_mean"),
+    "summary.fig4.const0.5.final_abs_error_mean.over.paper_final_abs_error":
+        (("fig4", "const0.5"), ("fig4", "const0.5"), "paper_final_abs_error"),
+    "summary.fig5.const0.5.final_abs_error_mean.over.paper_final_abs_error":
+        (("fig5", "const0.5"), ("fig5", "const0.5"), "paper_final_abs_error"),
+}
+SCORECARD = {
+    'scorecard.fig4.rise.tg1000.value_pct':
+        ('fig4', 'rise', 'TG1000', 'value', 100),
+    'scorecard.fig2.stages.value_mm':
+        ('fig2', 'stages', 'final error at the worse extreme', 'value', 1e3),
+    'scorecard.fig4.above_start.tg1000.value_pct':
+        ('fig4', 'above_start', 'TG1000', 'value', 100),
+    'scorecard.fig5.above_start.tg1000.value_pct':
+        ('fig5', 'above_start', 'TG1000', 'value', 100),
+    'scorecard.fig5.rise.tg1000.value_pct':
+        ('fig5', 'rise', 'TG1000', 'value', 100),
+    'scorecard.fig4.above_start.tg100.value_pct':
+        ('fig4', 'above_start', 'TG100', 'value', 100),
+    'scorecard.fig5.above_start.tg100.value_pct':
+        ('fig5', 'above_start', 'TG100', 'value', 100),
+    'scorecard.fig4.rise.tg100.value_pct':
+        ('fig4', 'rise', 'TG100', 'value', 100),
+    'scorecard.fig5.rise.tg100.value_pct':
+        ('fig5', 'rise', 'TG100', 'value', 100),
+    'scorecard.fig5.final.tg1000.value':
+        ('fig5', 'final', 'TG1000', 'value'),
+    'scorecard.fig4.final.const1.0.value':
+        ('fig4', 'final', 'const1.0', 'value'),
+    'scorecard.fig4.rise.tg10.value_pct':
+        ('fig4', 'rise', 'TG10', 'value', 100),
+    'scorecard.fig5.rise.tg10.value_pct':
+        ('fig5', 'rise', 'TG10', 'value', 100),
+    'scorecard.fig4.rise.tg1000.low_pct':
+        ('fig4', 'rise', 'TG1000', 'low', 100),
+    'scorecard.fig4.rise.tg1000.high_pct':
+        ('fig4', 'rise', 'TG1000', 'high', 100),
+    'scorecard.fig7_20trials.rise.tg10.value_pct':
+        ('fig7_20trials', 'rise', 'TG10', 'value', 100),
+    'scorecard.fig7_20trials.rise.tg100.value_pct':
+        ('fig7_20trials', 'rise', 'TG100', 'value', 100),
+    'scorecard.fig7_20trials.rise.tg1000.value_pct':
+        ('fig7_20trials', 'rise', 'TG1000', 'value', 100),
+    'scorecard.fig7_20trials.final.const0.5.value':
+        ('fig7_20trials', 'final', 'const0.5', 'value'),
+    'scorecard.fig7_20trials.after.tg10_rebound.value_pct':
+        ('fig7_20trials', 'after', 'TG10 rebound', 'value', 100),
+    'scorecard.fig7_20trials.after.tg10_rebound.low_pct':
+        ('fig7_20trials', 'after', 'TG10 rebound', 'low', 100),
+    'scorecard.fig7_20trials.after.tg10_rebound.high_pct':
+        ('fig7_20trials', 'after', 'TG10 rebound', 'high', 100),
+    'scorecard.fig7_20trials.blend.tg10.value_pct':
+        ('fig7_20trials', 'blend', 'TG10', 'value', 100),
+    'scorecard.fig7_20trials.blend.tg10.low_pct':
+        ('fig7_20trials', 'blend', 'TG10', 'low', 100),
+    'scorecard.fig7_20trials.blend.tg10.high_pct':
+        ('fig7_20trials', 'blend', 'TG10', 'high', 100),
+    'scorecard.fig2.stages_home.value':
+        ('fig2', 'stages_home', 'deviation from home after epoch 1', 'value'),
+    'scorecard.fig2.stages.low_mm':
+        ('fig2', 'stages', 'final error at the worse extreme', 'low', 1e3),
+    'scorecard.fig2.stages.high_mm':
+        ('fig2', 'stages', 'final error at the worse extreme', 'high', 1e3),
+    'scorecard.fig7_20trials.final.const1.0.value':
+        ('fig7_20trials', 'final', 'const1.0', 'value'),
+}
+CONTROLLED = {
+    'control.fig7_20trials.after.tg10_rebound.value_pct':
+        ('fig7_20trials', 'after', 'TG10 rebound', 'controlled', 'value', 100),
+    'control.fig7_20trials.after.tg10_rebound.low_pct':
+        ('fig7_20trials', 'after', 'TG10 rebound', 'controlled', 'low', 100),
+    'control.fig7_20trials.after.tg10_rebound.high_pct':
+        ('fig7_20trials', 'after', 'TG10 rebound', 'controlled', 'high', 100),
+    'control.fig7_20trials.after.tg10_rebound.control_pct':
+        ('fig7_20trials', 'after', 'TG10 rebound', 'controlled', 'control_value', 100),
+    'control.fig7_20trials.blend.tg10.value_pct':
+        ('fig7_20trials', 'blend', 'TG10', 'controlled', 'value', 100),
+    'control.fig7_20trials.blend.tg10.low_pct':
+        ('fig7_20trials', 'blend', 'TG10', 'controlled', 'low', 100),
+    'control.fig7_20trials.blend.tg10.high_pct':
+        ('fig7_20trials', 'blend', 'TG10', 'controlled', 'high', 100),
+    'control.fig7_20trials.blend.tg10.control_pct':
+        ('fig7_20trials', 'blend', 'TG10', 'controlled', 'control_value', 100),
+}
 
 
 PARTS = (scorecard_part, claims_part, findings_part, curves_part, stages_part, postures_part,
          animation_part, conventions_part)  # the section's order
 
 
-def _recommended(ctx: Context) -> tuple[pd.DataFrame, pd.DataFrame]:
+def _recommended(ctx: Context) -> tuple[pd.DataFrame, list[dict]]:
     """(the readings study's cells, the recommended readings) for the second headline."""
     from . import readings
 
@@ -337,7 +464,7 @@ def _write_measures(ctx: Context, measured: list, counted: list) -> None:
                                    counted=f in counted)
               for f in dict.fromkeys(m.figure for m in measured)]
     read = {k: a for k, a in ctx.of("readings").items() if declares_claims(a)}
-    recs = set(zip(*readings.recommended()[["figure", "reading"]].to_numpy().T))
+    recs = {(r["figure"], r["reading"]) for r in readings.recommended()}
     frames += [measures_table.frame(ms, "readings", reading=label,
                                     recommended=(fig, label) in recs)
                for (fig, label), ms in readings.shared_measures(ctx, read).items()]

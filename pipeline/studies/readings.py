@@ -6,8 +6,8 @@ numbers. This module checks the paper's claims (pipeline.studies.claims) on each
 separately and lays them out as one table (rows: readings, columns: claims) and one figure. It
 also holds the compact readings x figures matrix (`matrix`, readings_matrix.csv, also shown in
 README.md as the named value readings.table, pipeline/studies/values.py) and the reading the project
-recommends per figure (RECOMMENDED, written by hand from the findings, checked against the
-verdicts by `contradictions`).
+recommends per figure (the register's `recommended`, written by hand from the findings, checked
+against the verdicts by `contradictions`).
 """
 from __future__ import annotations
 
@@ -18,8 +18,8 @@ import pandas as pd
 from . import claims, figures, scorecard
 from .choices import escape
 from .sections import Context, declared, declares_claims, register
+from .values import printed
 
-RECOMMENDED = Path(__file__).parent / "recommended_readings.csv"
 SYMBOLS = {scorecard.REPRODUCED: "✓", scorecard.NOT: "✗", scorecard.INCONCLUSIVE: "?",
            claims.DIVERGED: "÷"}
 SHORT = {"final": "final", "rise": "rise", "blend": "blend", "after": "after",
@@ -174,31 +174,30 @@ def matrix_markdown(m: pd.DataFrame) -> str:
     return "\n".join(lines) + "\n"
 
 
-def recommended(path=RECOMMENDED) -> pd.DataFrame:
-    """The reading the project recommends per figure (recommended_readings.csv, written by hand
-    from the findings): figure, reading, the claims its reason names as reproduced
-    ("final; rise"), and the reason."""
-    t = pd.read_csv(path, dtype=str, keep_default_na=False)
-    for r in t.to_dict("records"):
+def recommended(path: Path = claims.REGISTER) -> list[dict]:
+    """The reading of this study the project recommends per figure (the register's
+    `recommended`, written by hand from the findings): figure, reading, the claims it names as
+    reproduced and why; a ValueError names a figure this study does not read, a claim that is
+    not the paper's or a figure named twice."""
+    from .register_schema import load
+
+    recs = load(path).get("recommended", [])
+    for r in recs:
         if r["figure"] not in reading_studies().values():
             raise ValueError(f"{path}: no readings figure {r['figure']!r}")
-        for c in _named(r):
+        for c in r["reproduces"]:
             if c not in claims.BY_ID or claims.BY_ID[c].diagnostic:
                 raise ValueError(f"{path}: {r['figure']}: {c!r} is not a claim of the paper")
-    if t["figure"].duplicated().any():
+    if len({r["figure"] for r in recs}) < len(recs):
         raise ValueError(f"{path}: more than one recommendation for a figure")
-    return t
+    return recs
 
 
-def _named(r: dict) -> list[str]:
-    return [c.strip() for c in r["reproduces"].split(";") if c.strip()]
-
-
-def contradictions(cards: pd.DataFrame, recs: pd.DataFrame) -> list[str]:
+def contradictions(cards: pd.DataFrame, recs: list[dict]) -> list[str]:
     """Where the verdicts contradict a recommendation (on the figures this run holds): its
     reading did not run, or a claim its reason names as reproduced is not reproduced."""
     out = []
-    for r in recs.to_dict("records"):
+    for r in recs:
         f = cards[cards["figure"] == r["figure"]]
         if not len(f):
             continue
@@ -210,24 +209,23 @@ def contradictions(cards: pd.DataFrame, recs: pd.DataFrame) -> list[str]:
         verdicts = dict(zip(mine["claim"], mine["verdict"]))
         out += [f"{r['figure']}, \"{r['reading']}\": the recommendation names \"{c}\" as "
                 f"reproduced, the data say {verdicts.get(c, 'not judged')}"
-                for c in _named(r) if verdicts.get(c) != scorecard.REPRODUCED]
+                for c in r["reproduces"] if verdicts.get(c) != scorecard.REPRODUCED]
     return out
 
 
-def recommendations_markdown(cards: pd.DataFrame, recs: pd.DataFrame) -> str:
+def recommendations_markdown(cards: pd.DataFrame, recs: list[dict]) -> str:
     """The recommendations of the figures in this run, and every contradiction, loudly."""
-    figs = set(cards["figure"])
-    shown = recs[recs["figure"].isin(figs)]
-    if not len(shown):
+    shown = [r for r in recs if r["figure"] in set(cards["figure"])]
+    if not shown:
         return ""
     lines = ["The project's default stays the plain step at 1 / W (its reasons: the paper's "
              "text and the stability rule, pipeline/tools/rate.py: weight_sum); the reading "
-             "recommended per figure (pipeline/studies/recommended_readings.csv, written from the "
+             "recommended per figure (pipeline/studies/register.yaml: recommended, written from the "
              "findings, checked against the verdicts above):", "",
              "| figure | recommended reading | reproduces (as written) | reason |",
              "|---|---|---|---|"]
-    lines += [f"| {r['figure']} | {escape(r['reading'])} | {', '.join(_named(r)) or '—'} "
-              f"| {escape(r['reason'])} |" for r in shown.to_dict("records")]
+    lines += [f"| {r['figure']} | {escape(r['reading'])} | {', '.join(r['reproduces']) or '—'} "
+              f"| {escape(r['why'])} |" for r in shown]
     lines.append("")
     lines += [f"- **recommendation contradicted by the data: {c}**"
               for c in contradictions(cards, recs)]
@@ -287,6 +285,66 @@ def figure(aggs: dict, title: str):
     return fig
 
 
+def _name_values(ctx: Context, cards: pd.DataFrame, summary: pd.DataFrame, read: dict) -> None:
+    """The numbers of this study the pages quote, named where computed (each as its table prints
+    it): final errors, their ratios to the paper's value, the rise of the readings named in
+    QUOTED_RISE (its worst condition's, in %, as the cell prints it), the matrix and the
+    recommended reading's headline."""
+    ctx.quote(summary, ("figure", "reading", "condition"), QUOTED)
+    paper = ctx.shared.get("paper values", {})  # summary.csv's, named by the figures' section
+    for name, (fig, reading, cond) in QUOTED_RATIOS.items():
+        row = summary[(summary["figure"] == fig) & (summary["reading"] == reading)
+                      & (summary["condition"] == cond)]
+        if len(row) and (fig, cond) in paper:
+            ctx.value(name, printed(row["final_abs_error_mean"].iloc[0]) / paper[fig, cond])
+    for name, (fig, reading, claim) in QUOTED_RISE.items():
+        c = cards[(cards["figure"] == fig) & (cards["reading"] == reading)
+                  & (cards["claim"] == claim)]
+        if len(c):
+            ctx.value(name, float(f"{100 * c['value'].iloc[0]:+.0f}"))
+    ctx.value("readings.table", matrix_markdown(matrix(cards)).rstrip("\n"))
+    mine = scorecard.recommended_cells(cards, recommended())
+    if len(mine):
+        ctx.value("headline.recommended", scorecard.headline_text(scorecard.headline(mine)))
+
+
+# the numbers of this study the pages quote: name -> the row's figure, reading and condition
+# in readings_summary.csv, its column and scale; the final error over the paper's value; the
+# rise of a reading's worst condition (its cell in readings.csv)
+QUOTED = {
+    'readings_summary.fig7.least_squares_solver_lstsq.const0.5.final_abs_error_mean_mm':
+        ('fig7', 'least squares (solver=lstsq)', 'const0.5', 'final_abs_error_mean', 1e3),
+    'readings_summary.fig7.eta_0.1_w.tg10.final_abs_error_mean_mm':
+        ('fig7', 'eta = 0.1 / W', 'TG10', 'final_abs_error_mean', 1e3),
+    'readings_summary.fig7.eta_0.1_w.const0.5.final_abs_error_mean_mm':
+        ('fig7', 'eta = 0.1 / W', 'const0.5', 'final_abs_error_mean', 1e3),
+    'readings_summary.fig7.eta_0.3_w.tg1000.final_abs_error_mean_mm':
+        ('fig7', 'eta = 0.3 / W', 'TG1000', 'final_abs_error_mean', 1e3),
+    'readings_summary.fig7.eta_0.3_w.const1.0.final_abs_error_mean_mm':
+        ('fig7', 'eta = 0.3 / W', 'const1.0', 'final_abs_error_mean', 1e3),
+    'readings_summary.fig7.least_squares_solver_lstsq.const1.0.final_abs_error_mean_mm':
+        ('fig7', 'least squares (solver=lstsq)', 'const1.0', 'final_abs_error_mean', 1e3),
+    'readings_summary.fig7.path_evaluation.tg1000.final_abs_error_mean_mm':
+        ('fig7', 'path evaluation', 'TG1000', 'final_abs_error_mean', 1e3),
+    'readings_summary.fig7.path_evaluation.tg100.final_abs_error_mean_mm':
+        ('fig7', 'path evaluation', 'TG100', 'final_abs_error_mean', 1e3),
+    'readings_summary.fig7.least_squares_solver_lstsq.tg1000.final_abs_error_mean_mm':
+        ('fig7', 'least squares (solver=lstsq)', 'TG1000', 'final_abs_error_mean', 1e3),
+    'readings_summary.fig7.least_squares_solver_lstsq.tg10000.final_abs_error_mean_mm':
+        ('fig7', 'least squares (solver=lstsq)', 'TG10000', 'final_abs_error_mean', 1e3),
+}
+QUOTED_RATIOS = {  # (the names are long: one per line, whole, so that a search finds them)
+    "readings_summary.fig4.eta_0.1_w.const1.0.final_abs_error_mean.over.summary.const1.0.paper_final_abs_error":
+        ("fig4", "eta = 0.1 / W", "const1.0"),
+    "readings_summary.fig4.eta_0.1_w.const0.5.final_abs_error_mean.over.summary.const0.5.paper_final_abs_error":
+        ("fig4", "eta = 0.1 / W", "const0.5"),
+    "readings_summary.fig5.eta_0.1_w.const0.5.final_abs_error_mean.over.summary.const0.5.paper_final_abs_error":
+        ("fig5", "eta = 0.1 / W", "const0.5"),
+}
+QUOTED_RISE = {"readings.fig4.eta_0.3_w.rise.measured.n3": ("fig4", "eta = 0.3 / W", "rise"),
+               "readings.fig5.eta_0.3_w.rise.measured.n3": ("fig5", "eta = 0.3 / W", "rise")}
+
+
 def shared_measures(ctx: Context, read: dict) -> dict:
     """readings_measures(read) of the report `ctx`, computed once for all its sections (`read`:
     the readings study's aggregates that declare the paper's claims)."""
@@ -310,8 +368,10 @@ def section(ctx: Context) -> list[str]:
         return []
     ctx.text("readings_scorecard.csv", cards.to_csv(index=False, float_format="%.6g"))
     ctx.text("readings.csv", reading_table.to_csv(index=False, float_format="%.6g"))
-    ctx.text("readings_summary.csv", finals(read).to_csv(index=False, float_format="%.6g"))
+    summary = finals(read)
+    ctx.text("readings_summary.csv", summary.to_csv(index=False, float_format="%.6g"))
     m = ctx.text("readings_matrix.csv", matrix(cards).to_csv(index=False))
+    _name_values(ctx, cards, summary, read)
     png = ctx.save(figure(studies, "Readings of the paper (the default, the rates, the solver): "
                           "absolute error of every condition (mean over trials)"),
                    "readings_curves")[0].name

@@ -4,8 +4,10 @@ used: a register is data, and an edited copy is what `python -m pipeline.tools.r
 
 A register is a regular file of at most MAX_BYTES (checked before it is parsed), YAML of plain
 data (`yaml.safe_load`: no tag builds an object; nesting too deep for the parser is one line):
-a mapping {claims: [claim, ...]}; each claim a mapping of CLAIM's keys, its readings mappings
-of READING's keys, its changelog mappings of CHANGELOG's; each reading's params only PARAMS'
+a mapping {claims: [claim, ...], recommended: [...]}; each claim a mapping of CLAIM's keys, its
+readings mappings of READING's keys, its changelog mappings of CHANGELOG's, its our_reading of
+OUR_READING's (written_for: figure -> verdict); each recommendation a mapping of RECOMMENDED's
+keys (reproduces: a list of claims); each reading's params only PARAMS'
 keys (and the ones NEEDED_PARAMS says its claim reads), each value of its kind and range:
 numbers finite and within their bounds (a factor of 0, -1.5, .nan or .inf is refused, so it
 never becomes a verdict). Every fault is one ValueError naming the file and the key.
@@ -21,13 +23,17 @@ import yaml
 
 MAX_BYTES = 2**20  # the committed register is 19 kB
 TEXT, FLAG, CHILDREN = "text", "true or false", "a list of mappings"
+TEXTS, MAPPING = "a list of texts", "a mapping"
 CLAIM = dict(id=TEXT, words=TEXT, figures=TEXT, sentence=TEXT, measure=TEXT, diagnostic=FLAG,
-             min_trials=(1, 1000), readings=CHILDREN, changelog=CHILDREN)
+             min_trials=(1, 1000), readings=CHILDREN, changelog=CHILDREN, our_reading=MAPPING)
+OUR_READING = dict(text=TEXT, written_for=MAPPING)
+RECOMMENDED = dict(figure=TEXT, reading=TEXT, reproduces=TEXTS, why=TEXT)
 READING = dict(id=TEXT, label=TEXT, criterion=TEXT, why=TEXT, fixed_at=TEXT, primary=FLAG,
                diagnostic=FLAG, always_shown=FLAG, params="a mapping")
 CHANGELOG = dict(date=TEXT, commit=TEXT, reason=TEXT, before=TEXT, after=TEXT, hash=TEXT)
 NEEDED = dict(claim=("id", "words", "figures", "measure", "readings"),
-              reading=("id", "criterion"), changelog=())
+              reading=("id", "criterion"), changelog=(), our_reading=("text", "written_for"),
+              recommendation=("figure", "reading", "reproduces", "why"))
 # a reading's params (claims._bounds and claims.judge read exactly these): a choice, or a
 # number's closed range [lo, hi]
 SIDES = ("two-sided", "at-most")
@@ -70,7 +76,7 @@ def load(path) -> dict:
     except (yaml.YAMLError, RecursionError) as err:  # RecursionError: nested too deeply
         why = " ".join(str(err).split()) or "nested too deeply"
         raise ValueError(f"{path}: not a register ({type(err).__name__}: {why[:200]})") from None
-    if not isinstance(data, dict) or set(data) != {"claims"}:
+    if not isinstance(data, dict) or not {"claims"} <= set(data) <= {"claims", "recommended"}:
         raise _fail(path, "top level", sorted(data) if isinstance(data, dict) else
                     type(data).__name__, "a register is a mapping {claims: [...]}")
     if not isinstance(data["claims"], list) or not data["claims"]:
@@ -83,6 +89,14 @@ def load(path) -> dict:
                     claim["id"])
         for j, c in enumerate(claim.get("changelog") or ()):
             _entry(path, f"claims[{i}].changelog[{j}]", c, CHANGELOG, "changelog")
+        if "our_reading" in claim:
+            _entry(path, f"claims[{i}].our_reading", claim["our_reading"], OUR_READING,
+                   "our_reading")
+            for f, v in claim["our_reading"]["written_for"].items():
+                _value(path, f"claims[{i}].our_reading.written_for.{f}", v, TEXT)
+    _value(path, "recommended", data.get("recommended", []), CHILDREN)
+    for i, r in enumerate(data.get("recommended", [])):
+        _entry(path, f"recommended[{i}]", r, RECOMMENDED, "recommendation")
     return data
 
 
@@ -120,8 +134,9 @@ def _value(path, where, value, want) -> None:
                                         and isinstance(value, (int, datetime.date)))
     elif want == FLAG:
         ok = isinstance(value, bool)
-    elif want == CHILDREN:
-        ok = isinstance(value, list) and all(isinstance(v, dict) for v in value)
+    elif want in (CHILDREN, TEXTS):
+        ok = isinstance(value, list) and all(isinstance(v, dict if want == CHILDREN else str)
+                                             for v in value)
     elif isinstance(want, str):
         ok = isinstance(value, dict)
     elif isinstance(want[0], str):

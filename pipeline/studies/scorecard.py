@@ -31,12 +31,11 @@ as 1 / sqrt(n)) would no longer reach the bound.
 from __future__ import annotations
 
 import math
-import textwrap
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 from scipy import stats
+from scipy.optimize import brentq
 
 from . import coverage
 from .claims import BY_ID, CLAIMS, DIVERGED, Test, judge, stage_measures, title
@@ -46,7 +45,6 @@ LEVEL = 0.95  # the nominal level where the coverage allows it (coverage.LEVELS[
 LEVELS, MIN_COVERAGE = coverage.LEVELS, coverage.MIN_COVERAGE
 MIN_VERDICT = min(coverage.COUNTS)  # fewer trials: "not a verdict" (no coverage measured)
 MAX_DECIDE = 1000  # "trials to decide" beyond this is no estimate: not shown
-COVERAGE = coverage.TABLE  # written by pipeline.tools.coverage
 TITLES = {c.id: title(c.id) for c in CLAIMS}
 REPRODUCED, NOT, INCONCLUSIVE = "reproduced", "not reproduced", "inconclusive"
 NOT_A_VERDICT = "not a verdict"
@@ -114,95 +112,6 @@ def trials_to_decide(point: float, low: float, high: float, lo: float, hi: float
     return need if need <= MAX_DECIDE else None
 
 
-def coverage_table() -> pd.DataFrame:
-    """The measured coverage per measure and trial count (coverage.csv; empty when never
-    measured)."""
-    return coverage.read_table(COVERAGE)
-
-
-_FRESH: dict = {}
-
-
-def calibration(t: Test, n: int, table: pd.DataFrame | None = None) -> tuple[float | None, str]:
-    """(the t level to use, where its coverage comes from) for a measure on n trials, or (None,
-    why) where no level is calibrated. A measure with at least coverage.FIT trials is calibrated
-    on fresh samples of its own values; one with fewer takes the coverage table's rows of its
-    measure and condition at the largest measured n <= its own (those of its own figure
-    family, e.g. fig7_20trials for fig7, where there are any), the most demanding level of
-    them; failing that, those of its claim's measure."""
-    if t.calibrated is not None:  # measured when the report was written (measures.parquet)
-        return t.calibrated
-    measure = t.measure or t.claim
-    if n >= coverage.FIT:
-        key = (t.figure, measure, t.where, n, np.asarray(t.values, float).tobytes())
-        if key not in _FRESH:
-            _FRESH[key] = coverage.row(t.figure, measure, t.where, t.kind, t.values, n)
-        r = _FRESH[key]
-        level = r["level"] if np.isfinite(r["level"]) else None
-        return level, f"fresh samples of its {n} trials"
-    tab = _coverage_now() if table is None else table
-    if not len(tab):
-        return None, "no coverage measured"
-    return _from_table(tab, n, measure, t.where, str(t.figure))
-
-
-_COVERAGE_READ: list = []  # [(the bytes of coverage.csv, the table parsed from them)]
-
-
-def _coverage_now() -> pd.DataFrame:
-    """coverage_table() for calibration's lookups (which only read it): parsed again only when
-    the file's bytes change (read_csv took milliseconds, thousands of times per report)."""
-    try:
-        data = (str(COVERAGE), Path(COVERAGE).read_bytes())
-    except FileNotFoundError:
-        data = (str(COVERAGE), None)
-    if not _COVERAGE_READ or _COVERAGE_READ[0][0] != data:
-        _COVERAGE_READ[:] = [(data, coverage_table())]
-    return _COVERAGE_READ[0][1]
-
-
-_LOOKUPS: dict = {}  # id(table) -> (table, {(n, measure, where, figure): calibration})
-
-
-def _from_table(tab: pd.DataFrame, n: int, measure: str, where, figure: str):
-    """calibration's answer from the coverage table `tab`, looked up once per table and
-    (n, measure, where, figure): a report asks for the same few thousands of times (3,566 in a
-    smoke report, each masking the table four times: a tenth of its CPU)."""
-    memo = _LOOKUPS.get(id(tab))
-    if memo is None or memo[0] is not tab:  # a new table (an id is reused only once freed)
-        if len(_LOOKUPS) >= 8:
-            _LOOKUPS.clear()
-        claims = ({c: rows for c, rows in tab.groupby("claim", sort=False)}
-                  if "claim" in tab else None)  # each claim's rows, in the table's order
-        memo = _LOOKUPS[id(tab)] = (tab, {}, claims)
-    key = (n, measure, where, figure)
-    try:
-        hash(key)
-    except TypeError:  # a `where` that is not a plain value: looked up each time
-        return _lookup(tab, n, measure, where, figure)
-    if key not in memo[1]:
-        memo[1][key] = _lookup(tab, n, measure, where, figure, memo[2])
-    return memo[1][key]
-
-
-def _lookup(tab: pd.DataFrame, n: int, measure: str, where, figure: str, claims=None):
-    """claims: the rows of each claim of `tab` (groupby), else found here by masking."""
-    if "claim" not in tab:  # a table per measure type only
-        return None, "no coverage per measure"
-    tab = tab[tab["claim"] == measure] if claims is None else claims.get(measure, tab.iloc[:0])
-    tab = tab[tab["trials"] <= n]
-    for rows in (tab[tab["where"] == where], tab):
-        if not len(rows):
-            continue
-        rows = rows[rows["trials"] == rows["trials"].max()]
-        own = rows[rows["figure"].astype(str).str.startswith(figure)]
-        rows = own if len(own) else rows
-        if rows["level"].isna().any():
-            return None, f"not calibrated at {int(rows['trials'].iloc[0])} trials"
-        return float(rows["level"].max()), f"coverage table at {int(rows['trials'].iloc[0])} trials"
-    return None, "no coverage measured for this measure"
-
-
 def run_test(t: Test, table: pd.DataFrame | None = None) -> dict:
     """Measure a test and judge it; stores and returns its result."""
     base = dict(figure=t.figure, claim=t.claim, diagnostic=_diagnostic(t), where=t.where,
@@ -222,7 +131,7 @@ def run_test(t: Test, table: pd.DataFrame | None = None) -> dict:
         v, need, per_trial = (REPRODUCED if k == 0 else NOT), None, ""
     else:
         n = len(t.values)
-        lv, why = calibration(t, n, table)
+        lv, why = coverage.calibration(t, n, table)
         level = LEVEL if lv is None else lv
         if t.control is not None and len(t.control):
             point, low, high = difference(t.values, t.control, level)
@@ -243,6 +152,46 @@ def run_test(t: Test, table: pd.DataFrame | None = None) -> dict:
                     note=note, control_value=control_value, trials_to_decide=need,
                     per_trial=per_trial)
     return t.result
+
+
+def p_beats(a, b) -> tuple[float, float, float]:
+    """(P, lo, hi): the probability that a trial of learner A ends below one of learner B, P(A <
+    B), estimated over all n m pairs of their trials (ties count half: the Mann-Whitney U / (n m)),
+    with its 95 % interval by Newcombe's method 5 (Newcombe 2006, Statist. Med. 25: 559-573): the
+    score-type interval {theta : (theta - P)^2 <= z^2 V(theta)} with Hanley and McNeil's variance
+    V(theta) = theta (1 - theta) / (n m) [1 + (N - 1)(1 - theta) / (2 - theta) + (N - 1) theta
+    / (1 + theta)], N = (n + m) / 2.
+
+    Why this method at the study's 5 trials a learner: it stays inside [0, 1], it does not collapse
+    to a point when the samples do not overlap (P = 1 still has an interval, whose lower end says
+    how far 5 against 5 trials can go), it needs no random numbers, and Newcombe measured its
+    coverage near 95 % down to small samples. A bootstrap over trials collapses there (every
+    resample of two separated samples is separated: [1, 1]) and is too narrow at n = 5; a Wald
+    interval leaves [0, 1]. NaN where either learner has no finite trial."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    a, b = a[np.isfinite(a)], b[np.isfinite(b)]
+    n, m = len(a), len(b)
+    if not n or not m:
+        return np.nan, np.nan, np.nan
+    d = a[:, None] - b[None, :]
+    p = float(((d < 0) + 0.5 * (d == 0)).mean())
+    z2, k = stats.norm.ppf(0.975) ** 2, (n + m) / 2 - 1
+
+    def w(x):  # V(x) n m / (x (1 - x))
+        return (1 + k * (1 - x) / (2 - x) + k * x / (1 + x)) / (n * m)
+
+    def far(q):  # the limit away from q in {0, 1}: (x - q)^2 = z^2 V(x), divided by |x - q|
+        return lambda x: abs(x - q) - z2 * (1 - abs(x - q)) * w(x)
+
+    if p == 1.0:
+        return p, brentq(far(1.0), 0.0, 1.0), 1.0
+    if p == 0.0:
+        return p, 0.0, brentq(far(0.0), 0.0, 1.0)
+
+    def f(x):
+        return (x - p) ** 2 - z2 * x * (1 - x) * w(x)
+
+    return p, brentq(f, 0.0, p), brentq(f, p, 1.0)
 
 
 def reduced_scale(scale: str) -> str:
@@ -410,12 +359,6 @@ def cell_text(c, newline: str = " ") -> str:
     return text
 
 
-def _order(cards: pd.DataFrame) -> tuple[list, list]:
-    claims = [c.id for c in CLAIMS if c.id in set(cards["claim"])]
-    figs = sorted(set(cards["figure"]))
-    return claims, figs
-
-
 def headline(cards: pd.DataFrame, counted=None) -> dict:
     """Cells per verdict over the paper's claims (no diagnostics) on the counted figures (None:
     every figure): each claim of the paper once per figure it is judged on."""
@@ -453,118 +396,6 @@ def claims_table(cards: pd.DataFrame, register=None) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def markdown(cards: pd.DataFrame, results: list[dict], counted=None, readings=None,
-             recommended: str = "") -> str:
-    """The scorecard (claims x figures) and, below it, every measure with its interval.
-    counted: the figures the headline counts; readings: claim -> our reading (written text),
-    the column shown only where given (the committed run's discussion); recommended: the
-    headline of the recommended reading, shown beside the default's."""
-    from .choices import escape
-
-    claims, figs = _order(cards)
-    n = headline(cards, counted)
-    where = "" if counted is None else f" on {', '.join(sorted(counted))}"
-    lines = [f"The paper's claims{where}, this project's default reading: **{headline_text(n)}** "
-             "(t intervals of the mean over trials of a per-trial measure, at a level whose "
-             "coverage is measured; each claim under its primary reading of the paper, "
-             "pipeline/studies/register.yaml; diagnostics, marked, are shown and not counted)."]
-    if recommended:
-        lines += ["", recommended]
-    if n[NOT_A_VERDICT]:
-        lines += ["", f"**Not a verdict**: a cell on fewer than {MIN_VERDICT} trials per "
-                  "condition (no coverage is measured below that), or of a run at a reduced "
-                  "scale (report.scale), shows its value and interval and decides nothing."]
-    own = readings is not None
-    lines += ["", "| claim of the paper | " + " | ".join(figs) + (" | our reading |" if own
-                                                                  else " |"),
-              "|---|" + "---|" * (len(figs) + own)]
-    for claim in claims:
-        row = cards[cards["claim"] == claim]
-        by = {r["figure"]: escape(cell_text(r, "<br>")) for r in row.to_dict("records")}
-        lines.append(f"| {escape(TITLES[claim])} | " + " | ".join(by.get(f, "—") for f in figs)
-                     + (f" | {escape((readings or {}).get(claim, ''))} |" if own else " |"))
-    lines += ["", "<details><summary>every measure under every reading, its interval and "
-              "criterion</summary>", "",
-              "| figure | claim | reading | measure | value | interval | criterion | trials "
-              "| verdict | trials to decide |", "|---|---|---|---|---|---|---|---|---|---|"]
-    for r in results:
-        lines.append(f"| {r['figure']} | {escape(TITLES[r['claim']])} "
-                     f"| {escape(r.get('reading') or 'primary')} | {escape(r['where'])} "
-                     f"| {fmt(r['value'], r['unit'])} | {fmt_interval(r)} "
-                     f"| {criterion(r)} | {r['trials']} | {r['verdict']}"
-                     + (f" ({escape(r['note'])})" if r.get("note") else "") + f" | {_need(r) or ''} |")
-    lines += ["", "</details>", ""]
-    return "\n".join(lines)
-
-
-COLOURS = {REPRODUCED: "#b7e1b0", NOT: "#f4b6b0", INCONCLUSIVE: "#fbe3a0", DIVERGED: "#c9c3e6",
-           NOT_A_VERDICT: "#e4e4e4"}
-
-
-def _trials_strip(ax, x0: float, y: float, c: dict) -> None:
-    """Each trial's value of the cell's worst measure as a dot on a strip across the cell, the
-    criterion's bounds as ticks and the 95 % interval as a bar: the spread the verdict judges."""
-    values = np.array([float(v) for v in str(c.get("per_trial") or "").split()])
-    if len(values) < 2 or c["unit"] == "rate":
-        return
-    bounds = [b for b in (c.get("lo"), c.get("hi")) if b is not None and np.isfinite(b)]
-    span = np.concatenate([values, bounds, [c["low"], c["high"]]])
-    span = span[np.isfinite(span)]
-    lo, hi = float(span.min()), float(span.max())
-    pad = 0.05 * (hi - lo or 1.0)
-    lo, hi = lo - pad, hi + pad
-    def at(v):
-        return x0 + 0.08 + 0.84 * (np.asarray(v, float) - lo) / (hi - lo)
-    ax.plot([x0 + 0.08, x0 + 0.92], [y, y], color="0.55", lw=0.5)
-    for b in bounds:
-        ax.plot([at(b)] * 2, [y - 0.06, y + 0.06], color="black", lw=0.8)
-    if np.isfinite(c["low"]) and np.isfinite(c["high"]):
-        ax.plot([at(c["low"]), at(c["high"])], [y, y], color="black", lw=2.2, alpha=0.35,
-                solid_capstyle="butt")
-    ax.scatter(at(values), np.full(len(values), y), s=5, color="black", zorder=3, lw=0)
-
-
-def figure(cards: pd.DataFrame, title: str):
-    """scorecard.png: claims (rows) x figures (columns), cells coloured by verdict."""
-    from .figures import plt, tight_layout
-
-    claims, figs = _order(cards)
-    fig, ax = plt.subplots(figsize=(2.9 * len(figs) + 2.6, 0.7 * len(claims) + 1.2))
-    ax.set(xlim=(0, len(figs)), ylim=(len(claims), 0))
-    ax.set_xticks(np.arange(len(figs)) + 0.5, figs)
-    ax.set_yticks(np.arange(len(claims)) + 0.5, [textwrap.fill(TITLES[c], 34) for c in claims])
-    ax.xaxis.tick_top()
-    ax.tick_params(length=0)
-    ax.grid(False)
-    for i, claim in enumerate(claims):
-        for j, f in enumerate(figs):
-            hit = cards[(cards["claim"] == claim) & (cards["figure"] == f)]
-            if not len(hit):
-                ax.add_patch(plt.Rectangle((j, i), 1, 1, fc="#eeeeee", ec="white", lw=2))
-                continue
-            c = hit.iloc[0].to_dict()
-            ax.add_patch(plt.Rectangle((j, i), 1, 1, fc=COLOURS[c["verdict"]], ec="white", lw=2))
-            text = (f"{c['reproduced']} of {c['measures']} reproduced; " if c["measures"] > 1
-                    else "") + f"worst: {c['where']}: {fmt(c['value'], c['unit'])} {fmt_interval(c)}"
-            if c["verdict"] == INCONCLUSIVE and _need(c):
-                text += f"; ~{_need(c)} trials would decide"
-            label = c["verdict"] + (": not calibrated" if UNCALIBRATED in str(c.get("note"))
-                                    else "")
-            ax.text(j + 0.5, i + 0.2, label, ha="center", va="center", fontsize=8,
-                    fontweight="bold")
-            ax.text(j + 0.5, i + 0.5, textwrap.fill(text, 46), ha="center", va="center",
-                    fontsize=6.5, linespacing=1.1)
-            _trials_strip(ax, j, i + 0.84, c)
-    for s in ax.spines.values():
-        s.set_visible(False)
-    handles = [plt.Rectangle((0, 0), 1, 1, fc=col) for col in COLOURS.values()]
-    ax.legend(handles, list(COLOURS), loc="upper center", bbox_to_anchor=(0.5, -0.02), ncol=len(COLOURS),
-              frameon=False, fontsize=8)
-    fig.suptitle(title, fontsize=10)
-    tight_layout(fig)
-    return fig
-
-
 def figure_measures(aggs: dict, stages: dict | None = None) -> list:
     """Every measure (claims.Measure) of every figure that declares the paper's claims (aggs:
     figure -> aggregate with its trials), and of Fig. 2's stages (`stages`: figure, spec,
@@ -581,17 +412,18 @@ def figure_measures(aggs: dict, stages: dict | None = None) -> list:
 def calibrate(ms: list, table: pd.DataFrame | None = None) -> list:
     """Each measure's t level (m.calibrated), found once for all its readings (the coverage of a
     t interval is the same for a measure and its multiples, as a reading per unit size is)."""
-    table = _coverage_now() if table is None else table
+    table = coverage.current() if table is None else table
     for m in ms:
         if m.calibrated is None and not (m.exact or m.diverged):
-            m.calibrated = calibration(Test(m.figure, m.claim, m.where, m.values, kind=m.kind,
-                                            measure=m.claim), len(m.values), table)
+            m.calibrated = coverage.calibration(Test(m.figure, m.claim, m.where, m.values,
+                                                     kind=m.kind, measure=m.claim),
+                                                len(m.values), table)
     return ms
 
 
 def judged(ms: list, table: pd.DataFrame | None = None, register=None) -> list[dict]:
     """Every measure judged under every reading of `register` (default: this one's)."""
-    table = _coverage_now() if table is None else table  # one table: its look-ups are kept
+    table = coverage.current() if table is None else table  # one table: its look-ups are kept
     return [run_test(t, table) for t in judge(calibrate(ms, table), register)]
 
 
@@ -600,17 +432,25 @@ def results(aggs: dict, stages: dict | None = None, table: pd.DataFrame | None =
     return judged(figure_measures(aggs, stages), table)
 
 
-def recommended_headline(cards: pd.DataFrame, recs: pd.DataFrame) -> str:
-    """The headline of the recommended reading (recommended_readings.csv) over the readings
+def recommended_cells(cards: pd.DataFrame, recs: list[dict]) -> pd.DataFrame:
+    """The readings study's cells (one per figure, reading and claim) of the recommended reading
+    of each figure (`recs`: the register's `recommended`), in its order."""
+    keep = [cards[(cards["figure"] == x["figure"]) & (cards["reading"] == x["reading"])]
+            for x in recs if len(cards)]
+    keep = [k for k in keep if len(k)]
+    return pd.concat(keep) if keep else pd.DataFrame()
+
+
+def recommended_headline(cards: pd.DataFrame, recs: list[dict]) -> str:
+    """The headline of the recommended reading (the register's `recommended`) over the readings
     study's cells (cards: one per figure, reading and claim), beside the default's: "" when the
     run has none of its readings."""
-    keep = [(f, r) for f, r in zip(recs["figure"], recs["reading"])
-            if len(cards) and ((cards["figure"] == f) & (cards["reading"] == r)).any()]
-    if not keep:
+    mine = recommended_cells(cards, recs)
+    if not len(mine):
         return ""
-    mine = pd.concat([cards[(cards["figure"] == f) & (cards["reading"] == r)] for f, r in keep])
-    readings = "; ".join(f"{r} on {f}" for f, r in keep)
+    readings = "; ".join(f"{r} on {f}" for f, r in dict.fromkeys(zip(mine["figure"],
+                                                                     mine["reading"])))
     n = int(mine[mine["claim"] != "bootstrap"]["trials"].max())
     return (f"The recommended reading ({readings}; the readings study, {n} trials per "
-            f"condition, pipeline/studies/recommended_readings.csv): "
+            f"condition, pipeline/studies/register.yaml: recommended): "
             f"**{headline_text(headline(mine))}**.")

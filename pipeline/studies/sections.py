@@ -10,6 +10,7 @@ module a distribution declares as an entry point of `gbgrowth.studies`), and its
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -89,6 +90,7 @@ class Context:
     groups: dict  # study -> {figure: aggregate}
     written: list = field(default_factory=list)
     shared: dict = field(default_factory=dict)  # what several sections read, made once (once)
+    values: dict = field(default_factory=dict)  # name -> value: values.csv (value, quote)
 
     def of(self, study: str) -> dict:
         return self.groups.get(study, {})
@@ -101,6 +103,37 @@ class Context:
         if key not in self.shared:
             self.shared[key] = make()
         return self.shared[key]
+
+    def value(self, name: str, x) -> None:
+        """Name a number of this report where it is computed (or a generated table's text),
+        for the pages that quote it (pipeline/studies/values.py); a name is given once. A number
+        that is not finite (a run of one trial has no interval) names nothing."""
+        from .values import name_ok
+
+        name_ok(name)
+        x = x if isinstance(x, str) else float(x)
+        if not isinstance(x, str) and not math.isfinite(x):
+            return
+        if name in self.values:
+            raise ValueError(f"value {name}: named twice")
+        self.values[name] = x
+
+    def quote(self, frame, keys: tuple, quoted: dict) -> None:
+        """Name the numbers of `frame` (a table this section computed) that the pages quote:
+        quoted maps a name to its row's values of `keys`, its column and optionally a scale;
+        each is named as the table prints it (values.printed), times the scale. A row this
+        report does not hold (a run of fewer studies) names nothing."""
+        from .values import printed
+
+        for name, (*want, column, scale) in ((n, q if len(q) > len(keys) + 1 else (*q, 1.0))
+                                             for n, q in quoted.items()):
+            rows = frame
+            for k, w in zip(keys, want):
+                rows = rows[rows[k] == w]
+            if len(rows) > 1:
+                raise ValueError(f"value {name}: {len(rows)} rows of its table, not one")
+            if len(rows):
+                self.value(name, printed(rows[column].iloc[0]) * scale)
 
     def text(self, name: str, text: str) -> Path:
         from .. import io

@@ -2,17 +2,16 @@
 
     python -m pipeline.tools.render            # write every page that differs (make docs)
     python -m pipeline.tools.render --check    # exit 1, one line per page that differs
-    python -m pipeline.tools.render --values-from-tables   # values.csv from the report's tables
-                                               # first (a name added since the report ran)
 
 A page with numbers of the report (README.md, docs/*.md) has its template under docs/templates/ at
 the same path (docs/templates/docs/results.md -> docs/results.md): its text with a reference
 `{{ name:.1f }}` where each number of the report stands, `{{ name }}` where a generated table
 does (pipeline/studies/values.py: the names, the formats). The values are the committed report's,
-outputs/report/values.csv (written by the report stage from pipeline/studies/values.yaml). Edit
-the template, never the page; numbers that are not the report's are plain text, except the
-first-hour times (set-up, make smoke, make test: `{{ first_hour.smoke.cpu_min:.1f }}`), which are
-outputs/bench/first_hour.json's (`make first-hour`, pipeline/tools/firsthour.py).
+outputs/report/values.csv (written by the report stage: each section names the numbers it
+computes). Edit the template, never the page; numbers that are not the report's are plain text,
+except the first-hour times (set-up, make smoke, make test: `{{ first_hour.smoke.cpu_min:.1f }}`),
+which are outputs/bench/first_hour.json's (`make first-hour`, pipeline/tools/firsthour.py); a page
+that quotes none is plain Markdown with no template.
 
 Exit status: 0 every page equals its rendering (or is written); 1 (--check) one line per page
 that differs; 2 a bad reference, a missing values table, or a template or page reached through
@@ -70,17 +69,6 @@ def unlinked(root: Path, rel: Path) -> Path:
     return p
 
 
-def write_values(path: Path) -> None:
-    """values.csv evaluated from the tables beside it; BadValue naming the first name they lack."""
-    from .. import io
-
-    got, missing = named.evaluate(path.parent)
-    if missing:
-        name = sorted(missing)[0]
-        raise named.BadValue(f"{path.parent}: no value for {name}: {missing[name]}")
-    io.write_text(path, named.to_csv(got))
-
-
 def differing(root: Path, pages: dict[Path, str]) -> list[Path]:
     """The pages whose committed text is not their rendering."""
     return [rel for rel, text in pages.items()
@@ -94,14 +82,9 @@ def main(argv=None, root: Path | None = None) -> int:
                     help="write nothing; exit 1 naming each page that differs from its rendering")
     ap.add_argument("--values", type=Path, default=None,
                     help=f"the named values (default: {VALUES})")
-    ap.add_argument("--values-from-tables", action="store_true",
-                    help="first write the values table from its report folder's tables, as the "
-                         "report stage does (values.yaml evaluated; no trial, no other file)")
     args = ap.parse_args(argv)
     root = REPO_ROOT if root is None else root
     try:
-        if args.values_from_tables:
-            write_values(args.values or root / VALUES)
         pages = rendered(root, args.values)
     except (named.BadValue, OSError) as e:
         print(f"error: {e}", file=sys.stderr)

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from pipeline import aggregate, cache, io, simulate
+from pipeline import aggregate, aggregate_set, aggregate_stats, cache, io, simulate
 from conftest import files_of
 
 
@@ -143,8 +143,8 @@ def test_one_changed_trial_rewrites_the_model_line_of_its_condition_only(
     assert aggregate.aggregate(sweep) == []
     before = model_lines(sweep)
     assert len(before) == 2
-    encoded, real = [], aggregate._compact
-    monkeypatch.setattr(aggregate, "_compact", lambda obj: encoded.append(obj) or real(obj))
+    encoded, real = [], aggregate_set._compact
+    monkeypatch.setattr(aggregate_set, "_compact", lambda obj: encoded.append(obj) or real(obj))
     scale.change_one_trial(Path(sweep.paths.cache))
     assert aggregate.aggregate(sweep) == []
     after = model_lines(sweep)
@@ -198,8 +198,8 @@ def test_each_model_line_is_checksummed_once(sweep, tmp_path, monkeypatch):
     from pipeline.tools import scale
 
     assert aggregate.aggregate(sweep) == []
-    hashed, real = [], aggregate._checksum
-    monkeypatch.setattr(aggregate, "_checksum", lambda text: hashed.append(text) or real(text))
+    hashed, real = [], aggregate_set._checksum
+    monkeypatch.setattr(aggregate_set, "_checksum", lambda text: hashed.append(text) or real(text))
     scale.change_one_trial(Path(sweep.paths.cache))
     assert aggregate.aggregate(sweep) == []
     assert len(hashed) == 3 and len(set(hashed)) == 3  # two previous lines checked, one new
@@ -258,8 +258,8 @@ def test_one_changed_trial_computes_the_statistics_of_its_condition_only(
     from pipeline.tools import scale
 
     assert aggregate.aggregate(sweep) == []
-    seen, real = [], aggregate.curve_stats
-    monkeypatch.setattr(aggregate, "curve_stats",
+    seen, real = [], aggregate_stats.curve_stats
+    monkeypatch.setattr(aggregate_stats, "curve_stats",
                         lambda t: seen.append(sorted(set(t["condition"]))) or real(t))
     scale.change_one_trial(Path(sweep.paths.cache))
     assert aggregate.aggregate(sweep) == []

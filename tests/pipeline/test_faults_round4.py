@@ -32,31 +32,6 @@ def _render_main(root, template: bytes | str, capsys, *flags):
     return rc, capsys.readouterr().err.strip()
 
 
-@pytest.mark.parametrize("cell, says", [
-    ("summary.csv =x v", "'=x' is no filter"),
-    ("summary.csv figure=fig4 condition=a v*1e999", "not a finite number"),
-    ("summary.csv figure=fig4 condition=a v / summary.csv figure=fig4 condition=a tiny",
-     "the ratio is inf"),
-    ("summary.csv figure=fig4 condition=a v*1e-400 / summary.csv figure=fig4 condition=b v",
-     None),  # a scale that underflows to 0: a number, 0.0 (no error)
-    ("/etc/passwd.csv x", "a file name of the report folder"),
-    ("../outside.csv x", "a file name of the report folder"),
-    ("link.csv figure=fig4 condition=a v", "leads outside the report folder"),
-    ("garbage.csv x", "not a readable table"),
-])
-def test_r7_a_bad_cell_is_one_line_and_no_value(qroot, cell, says):
-    report = qroot / "outputs" / "report"
-    outside = qroot.parent / "outside.csv"
-    outside.write_text(SUMMARY)
-    os.symlink(outside, report / "link.csv")
-    (report / "garbage.csv").write_bytes(b"\xff\xfe\x00\x00" * 10)
-    got, missing = values.evaluate(report, {"x": cell})
-    if says is None:
-        assert got["x"] == 0.0 and "x" not in missing
-        return
-    assert "x" not in got and says in missing["x"] and "\n" not in missing["x"], missing
-
-
 @pytest.mark.parametrize("template, says", [
     ("a {{ a.mm:.30f }} m\n", "at most 15 decimals"),
     ("a {{ a.mm:.1f }} m\n{{ nosuch:.1f }}\n", "docs/templates/page.md:2: no value named"),

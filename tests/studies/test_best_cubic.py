@@ -1,5 +1,5 @@
-"""explain.best_cubic: the capacity of a cubic inverse, fitted with the analytic Jacobian
-(exact in M, the kinematics' derivative carried through the chain: explain.hand_jacobian, checked
+"""capacity.best_cubic: the capacity of a cubic inverse, fitted with the analytic Jacobian
+(exact in M, the kinematics' derivative carried through the chain: capacity.hand_jacobian, checked
 here against central differences), gives the fit of scipy's finite differences over M (what it
 used before), with the forward kinematics called only for the residuals. The learned models are
 the committed report's."""
@@ -16,7 +16,7 @@ from scipy.optimize import least_squares
 from gbmodel.bodies import Body, make_body
 from gbmodel.growth import factors
 from pipeline.config import REPO_ROOT
-from pipeline.studies import explain
+from pipeline.studies import capacity
 from pipeline.studies.figures import final_body
 
 MODELS = REPO_ROOT / "outputs" / "report" / "models"
@@ -54,7 +54,7 @@ def test_the_arm2_fit_is_that_of_finite_differences_over_m(trial, monkeypatch):
     calls = _counted(monkeypatch)
     mean, worst = _difference_fit(spec, M)
     before = len(calls)
-    c = explain.best_cubic(spec, M)
+    c = capacity.best_cubic(spec, M)
     assert abs(c["best_mean_mm"] - mean) < TOLERANCE_MM
     assert abs(c["best_worst_mm"] - worst) < TOLERANCE_MM
     assert len(calls) - before < 0.8 * before, (before, len(calls) - before)
@@ -67,7 +67,7 @@ def test_the_icub_fit_is_that_of_finite_differences_over_m_calling_forward_for_r
     forward calls, 6 to 24 s CPU; test_the_icub_fit_against_finite_differences runs it."""
     spec, M = _model("fig7", "const1.0", "0")
     calls = _counted(monkeypatch)
-    c = explain.best_cubic(spec, M)
+    c = capacity.best_cubic(spec, M)
     assert abs(c["best_mean_mm"] - 0.499082) < TOLERANCE_MM
     assert abs(c["best_worst_mm"] - 2.056121) < TOLERANCE_MM
     assert len(calls) < 8264 / 40  # residuals only: no forward call for the Jacobian
@@ -94,7 +94,7 @@ def test_the_hand_jacobian_is_that_of_central_differences(name, saturate):
     q = np.random.default_rng(3).uniform(-1.3, 1.3, (40, body.m))
     q[np.abs(np.abs(q) - 1) < 1e-4] = 0.5  # no difference across the clip's kink
     f = np.linspace(0.6, 1.0, body.m)
-    J = explain.hand_jacobian(body, f, q)
+    J = capacity.hand_jacobian(body, f, q)
     assert J.shape == (40, body.n, body.m)
     np.testing.assert_allclose(J, _differences(body, f, q), rtol=0, atol=1e-8)
     clipped = (np.abs(q) > 1) & (body.normalized and saturate)
@@ -112,9 +112,9 @@ def test_a_body_in_the_loop_is_differenced_in_one_forward_call():
                            forward=lambda q, f=None: calls.append(q.shape) or arm.forward(q, f))
     q = np.random.default_rng(4).uniform(-1, 1, (25, arm.m))
     f = np.linspace(0.7, 1.0, arm.m)
-    J = explain.hand_jacobian(loop, f, q)
+    J = capacity.hand_jacobian(loop, f, q)
     assert calls == [(2 * arm.m * 25, arm.m)]
-    np.testing.assert_allclose(J, explain.hand_jacobian(arm, f, q), rtol=0, atol=1e-8)
+    np.testing.assert_allclose(J, capacity.hand_jacobian(arm, f, q), rtol=0, atol=1e-8)
 
 
 @pytest.mark.slow
@@ -122,16 +122,16 @@ def test_a_body_in_the_loop_is_differenced_in_one_forward_call():
 def test_the_icub_fit_against_finite_differences(trial):
     spec, M = _model("fig7", "const1.0", trial)
     mean, worst = _difference_fit(spec, M)
-    c = explain.best_cubic(spec, M)
+    c = capacity.best_cubic(spec, M)
     assert abs(c["best_mean_mm"] - mean) < TOLERANCE_MM
     assert abs(c["best_worst_mm"] - worst) < TOLERANCE_MM
 
 
 def test_a_learner_whose_inverse_is_not_linear_in_m_falls_back_to_differences():
     xs = np.linspace(-1, 1, 7)[:, None]
-    assert explain._linear_features(lambda M, x: np.tanh(x @ M.T), np.ones((2, 1)), xs) is None
-    assert explain._linear_features(lambda M, x: x @ M.T + 1, np.ones((2, 1)), xs) is None
-    Phi = explain._linear_features(lambda M, x: np.hstack([x, x ** 2]) @ M.T, np.ones((2, 2)), xs)
+    assert capacity._linear_features(lambda M, x: np.tanh(x @ M.T), np.ones((2, 1)), xs) is None
+    assert capacity._linear_features(lambda M, x: x @ M.T + 1, np.ones((2, 1)), xs) is None
+    Phi = capacity._linear_features(lambda M, x: np.hstack([x, x ** 2]) @ M.T, np.ones((2, 2)), xs)
     assert np.array_equal(Phi, np.hstack([xs, xs ** 2]))
 
 

@@ -1,5 +1,7 @@
 """The table of claims and their per-trial measures, on synthetic trial curves with known
 answers; the discussion's stamp."""
+import dataclasses
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -8,6 +10,7 @@ from pipeline.studies import paper
 from pipeline.measures import growth_peak
 from pipeline.studies import claims
 from pipeline.studies import scorecard as sc
+from pipeline.studies import scorecard_page as page
 from tests.studies.coverage_tables import covered
 
 EPOCHS = np.array([1, 2, 5, 10, 11, 20, 50, 100])
@@ -134,7 +137,7 @@ def test_two_trials_are_not_a_verdict():
     judged = cards[cards["claim"] != "bootstrap"]
     assert set(judged["verdict"]) == {sc.NOT_A_VERDICT}
     assert judged["trials_to_decide"].isna().all()
-    md = sc.markdown(cards, res, counted=["figX"])
+    md = page.markdown(cards, res, counted=["figX"])
     assert "our reading" not in md and "would decide" not in md
     assert "**Not a verdict**" in md
 
@@ -146,7 +149,7 @@ def test_diagnostics_are_shown_and_never_counted():
     n = sc.headline(cards)
     assert sum(n.values()) == int((~cards["diagnostic"]).sum())
     assert sum(sc.headline(cards, counted=["figY"]).values()) == 0
-    md = sc.markdown(cards, [], counted=["figX"])
+    md = page.markdown(cards, [], counted=["figX"])
     assert "(diagnostic)" in md and f"**{n['reproduced']} reproduced" in md
 
 
@@ -178,18 +181,19 @@ def test_every_claim_has_words_a_criterion_and_a_measure():
 def test_our_reading_is_shown_only_beside_the_verdicts_it_was_written_for():
     cards = pd.DataFrame([dict(claim="rise", figure="fig4", verdict=sc.REPRODUCED),
                           dict(claim="rise", figure="fig5", verdict=sc.NOT)])
-    table = pd.DataFrame([dict(claim="rise", written_for="fig4=reproduced; fig5=not reproduced",
-                               text="rises at T_G <= 100")])
-    assert claims.our_reading(cards, table) == {"rise": "rises at T_G <= 100"}
+    register = [dataclasses.replace(claims.BY_ID["rise"], our_reading=dict(
+        written_for={"fig4": "reproduced", "fig5": "not reproduced"}, text="rises at T_G <= 100"))]
+    assert claims.our_reading(cards, register) == {"rise": "rises at T_G <= 100"}
     cards.loc[1, "verdict"] = sc.INCONCLUSIVE
     assert "written for other verdicts: fig5: not reproduced, now inconclusive" \
-        in claims.our_reading(cards, table)["rise"]
+        in claims.our_reading(cards, register)["rise"]
 
 
 def test_the_committed_readings_name_known_claims():
-    t = claims.readings_table()
-    assert set(t["claim"]) <= set(claims.BY_ID)
-    assert (t["text"].str.len() > 0).all()
+    ours = {c.id: c.our_reading for c in claims.CLAIMS if c.our_reading}
+    assert set(ours) >= {"final", "rise", "stages"}
+    for o in ours.values():
+        assert o["text"] and set(o["written_for"]) <= {"fig2", "fig4", "fig5", "fig7"}
 
 
 def test_the_discussion_is_shown_only_beside_the_numbers_it_was_written_for(tmp_path,

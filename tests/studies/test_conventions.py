@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 
 import gbmodel
-from pipeline import aggregate
+from pipeline import aggregate_stats
 from pipeline.studies import conventions
 
 
@@ -25,7 +25,7 @@ def _curves(figure, condition, finals, growth="none", period=0, epochs=(1, 2, 3,
 
 
 def _summary(trials, fail_factor=3.0):
-    """aggregate.summarize on the synthetic trials (the numbers the report prints)."""
+    """aggregate_stats.summarize on the synthetic trials (the numbers the report prints)."""
     conds = {}
     for (c, g, p), _ in trials.groupby(["condition", "growth", "growth_period"], sort=False):
         labels = dict(figure="fig4", body="arm5", learner="goal_babbling", growth=g,
@@ -33,8 +33,8 @@ def _summary(trials, fail_factor=3.0):
         conds[c] = dict(labels=labels, variant=None, trials={}, diverged={}, missing=[],
                         spec=dict(epochs=int(trials["epoch"].max()), body=dict(name="arm5"),
                                   growth=dict(start_size=1.0, end_size=1.0)))
-    curves = aggregate.curve_stats(trials)
-    return aggregate.summarize(trials, curves, conds, {}, fail_factor), curves
+    curves = aggregate_stats.curve_stats(trials)
+    return aggregate_stats.summarize(trials, curves, conds, {}, fail_factor), curves
 
 
 def test_spread_ratio_is_measured_and_equals_sqrt_n_minus_1_over_n():

@@ -18,7 +18,7 @@ def test_the_scorecard_decides_exactly_where_the_measured_coverage_allows():
     for r in t[t["trials"] < coverage.FIT].iloc[::23].itertuples():
         test = Test(r.figure, r.claim if r.claim in scorecard.BY_ID else "final", r.where,
                     np.linspace(1, 2, int(r.trials)), measure=r.claim)
-        level, _ = scorecard.calibration(test, int(r.trials), t)
+        level, _ = coverage.calibration(test, int(r.trials), t)
         rows = t[(t["claim"] == r.claim) & (t["where"] == r.where) & (t["trials"] == r.trials)
                  & t["figure"].str.startswith(r.figure)]
         want = None if rows["level"].isna().any() else float(rows["level"].max())

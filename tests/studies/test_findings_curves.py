@@ -1,5 +1,5 @@
 """The numbers findings.md reads from the committed report's mean curves (curves.parquet, which
-no named value reads yet: values.yaml names cells of CSV tables): the T_G = 10,000 paragraph, each
+no named value reads yet: a section names the numbers of its tables): the T_G = 10,000 paragraph, each
 checked here."""
 import pandas as pd
 import pytest

@@ -5,7 +5,7 @@ import pandas as pd
 import pytest
 
 from pipeline.config import REPO_ROOT
-from pipeline.studies import readings
+from pipeline.studies import claims, readings
 from pipeline.studies import scorecard as sc
 from test_claims import EPOCHS, RISING, _figure
 
@@ -78,31 +78,36 @@ def test_the_readings_page_shows_the_committed_matrix_as_its_named_value():
 
 
 def test_a_recommendation_the_verdicts_contradict_is_said_loudly(cards):
-    recs = pd.DataFrame([dict(figure="fig4", reading="eta = 0.1 / W", reproduces="rise; final",
-                              reason="r")])
+    recs = [dict(figure="fig4", reading="eta = 0.1 / W", reproduces=["rise", "final"], why="r")]
     found = readings.contradictions(cards, recs)
     assert len(found) >= 1 and "\"rise\" as reproduced" in found[0]
     md = readings.recommendations_markdown(cards, recs)
     assert "recommendation contradicted by the data: fig4, \"eta = 0.1 / W\"" in md
     # the same text for the reading that does reproduce the rise: no contradiction on it
-    ok = recs.assign(reading=DEFAULT, reproduces="rise")
+    ok = [dict(recs[0], reading=DEFAULT, reproduces=["rise"])]
     assert readings.contradictions(cards, ok) == []
     assert "contradicted" not in readings.recommendations_markdown(cards, ok)
-    gone = recs.assign(reading="no such reading")
+    gone = [dict(recs[0], reading="no such reading")]
     assert "is not in this run" in readings.contradictions(cards, gone)[0]
     # a figure not in this run is neither shown nor checked
-    assert readings.contradictions(cards, recs.assign(figure="fig7")) == []
+    assert readings.contradictions(cards, [dict(recs[0], figure="fig7")]) == []
 
 
 def test_the_committed_recommendations_name_the_papers_claims(tmp_path):
     t = readings.recommended()
-    assert set(t["figure"]) == {"fig4", "fig5", "fig7"}
-    bad = tmp_path / "r.csv"
-    bad.write_text("figure,reading,reproduces,reason\nfig4,x,above_refs,why\n")
+    assert {r["figure"] for r in t} == {"fig4", "fig5", "fig7"}
+    claims_only = claims.REGISTER.read_text().split("\nrecommended:", 1)[0]
+    bad = tmp_path / "r.yaml"
+    bad.write_text(claims_only + "\nrecommended:\n- {figure: fig4, reading: x, "
+                   "reproduces: [above_refs], why: w}\n")
     with pytest.raises(ValueError, match="not a claim of the paper"):
         readings.recommended(bad)
-    bad.write_text("figure,reading,reproduces,reason\nfig9,x,,why\n")
+    bad.write_text(claims_only + "\nrecommended:\n- {figure: fig9, reading: x, reproduces: [], "
+                   "why: w}\n")
     with pytest.raises(ValueError, match="no readings figure"):
+        readings.recommended(bad)
+    bad.write_text(claims_only + "\nrecommended:\n- {figure: fig4, reading: x, reproduces: w}\n")
+    with pytest.raises(ValueError, match="recommended"):  # the register's schema: one line
         readings.recommended(bad)
 
 

@@ -4,6 +4,7 @@ import pandas as pd
 import pytest
 
 from pipeline.studies import scorecard as sc
+from pipeline.studies import scorecard_page as page
 from tests.studies.coverage_tables import covered
 
 
@@ -99,9 +100,9 @@ def test_growth_claims_on_trial_curves():
     # const0.5 ends at 10 mm on a half-size body: 20 mm per full size, the paper's value
     assert cards.loc["final", "verdict"] == sc.REPRODUCED
     assert cards.loc["bootstrap", "verdict"] == sc.REPRODUCED
-    md = sc.markdown(sc.cells(res), res)
+    md = page.markdown(sc.cells(res), res)
     assert "| claim of the paper | figX |" in md and "our reading" not in md
-    md = sc.markdown(sc.cells(res), res, readings={"rise": "it rises"})
+    md = page.markdown(sc.cells(res), res, readings={"rise": "it rises"})
     assert "| claim of the paper | figX | our reading |" in md and "it rises" in md
     for r in res:  # no measure's point lies outside its interval
         assert r["claim"] == "bootstrap" or r["low"] <= r["value"] <= r["high"]
@@ -113,7 +114,7 @@ def test_growth_claims_on_trial_curves():
 def test_the_scorecard_figure_draws_every_cell(tmp_path):
     cards = sc.cells(sc.results({"figX": _figure(4, 0.05), "figY": _figure(4, 0.3)},
                                 table=COVERED))
-    fig = sc.figure(cards, "scorecard")
+    fig = page.figure(cards, "scorecard")
     assert len(fig.axes[0].patches) == len(cards["claim"].unique()) * 2
     # every trial of a judged spread is a dot: 4 per cell, but the exact failure count's
     dots = sum(len(c.get_offsets()) for c in fig.axes[0].collections)
@@ -151,6 +152,6 @@ def test_a_reduced_scale_run_decides_nothing():
     res = sc.no_verdicts(sc.results({"figX": _figure(20, 0.01)}, table=COVERED), "a smoke run")
     cards = sc.cells(res)
     assert set(cards["verdict"]) == {sc.NOT_A_VERDICT}
-    md = sc.markdown(cards, res, counted=["figX"])
+    md = page.markdown(cards, res, counted=["figX"])
     assert "**no verdict" in md and "would decide" not in md and "our reading" not in md
     assert "**reproduced**" not in md and "**not reproduced**" not in md

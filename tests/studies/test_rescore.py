@@ -92,7 +92,7 @@ def test_rescoring_draws_no_fresh_samples(tmp_path, monkeypatch):
     def fail(*a, **k):
         raise AssertionError("fresh samples drawn while rescoring")
     monkeypatch.setattr(coverage, "row", fail)
-    sc._FRESH.clear()
+    coverage._FRESH.clear()
     assert rescore.rescore(tmp_path, claims.REGISTER)["changed"] == []
 
 

@@ -1,27 +1,19 @@
-"""Named values: every number the pages quote from the report is a named value of values.csv, and
-every committed page is its template rendered with them (pipeline/studies/values.py,
-pipeline/tools/render.py)."""
+"""Named values: every number the pages quote from the report is a value a report section named
+where it computed it (values.csv), and every committed page is its template rendered with them
+(pipeline/studies/values.py, pipeline/tools/render.py)."""
 import re
+from pathlib import Path
 
+import pandas as pd
 import pytest
 
 from pipeline.config import REPO_ROOT
-from pipeline.studies import values
+from pipeline.studies import sections, values
 from pipeline.tools import firsthour, render
 
-SUMMARY = ("figure,condition,final_abs_error_mean,measured\n"
-           "fig4,const0.5,0.0123951,\"mean 4.9 mm, worst +16.5 mm, 10,000 epochs\"\n"
-           "fig4,const1.0,0.0179,\"\"\n"
-           "fig5,const1.0,0.0179,\"\"\n")
-Q = "summary.csv figure=fig4 condition=const0.5"
 REPORT = REPO_ROOT / "outputs" / "report"
 PAGES = [REPO_ROOT / "README.md", *sorted((REPO_ROOT / "docs").glob("*.md"))]
-
-
-@pytest.fixture
-def report(tmp_path):
-    (tmp_path / "summary.csv").write_text(SUMMARY)
-    return tmp_path
+NAMES = set(values.read(REPORT / values.FILE))  # the committed report's
 
 
 # ---- the repository's pages --------------------------------------------------------------------
@@ -32,24 +24,21 @@ def test_every_committed_page_equals_its_rendering():
         "edit docs/templates/, then run python -m pipeline.tools.render (make docs)"
 
 
-def test_the_committed_values_are_the_registry_evaluated_over_the_committed_report():
-    """values.csv is what the report stage writes: every name of values.yaml and every generated
-    table, each the value its cell holds in the committed tables (the coverage table: the
-    committed pipeline/studies/coverage.csv, the readings table: readings_matrix.csv)."""
-    got, missing = values.evaluate(REPORT)
-    assert missing == {}
-    assert values.read(REPORT / values.FILE) == got
-    assert set(got) == set(values.registry()) | set(values.TABLES)
+def test_every_committed_value_is_named_by_the_code_that_computes_it():
+    """values.csv's names are the literal names the sections (and the report stage) give, so a
+    regenerated report holds the same names: each appears in their code as a string."""
+    code = "".join(p.read_text() for p in [*(REPO_ROOT / "pipeline" / "studies").glob("*.py"),
+                                           REPO_ROOT / "pipeline" / "report.py"])
+    assert {n for n in NAMES if f'"{n}"' not in code and f"'{n}'" not in code} == set()
 
 
 def test_every_reference_is_a_name_and_every_name_is_referenced():
     sources = [*(REPO_ROOT / render.TEMPLATES).rglob("*.md"),
                REPO_ROOT / "pipeline" / "studies" / "findings.md"]
     used = set().union(*(values.references(p.read_text()) for p in sources))
-    names = set(values.registry()) | set(values.TABLES)
     measured = set(firsthour.values(REPO_ROOT / firsthour.OUT))  # make first-hour's times
-    assert measured and used - names - measured == set()
-    assert names - used == set(), "a name no page quotes: remove it from values.yaml"
+    assert measured and used - NAMES - measured == set()
+    assert NAMES - used == set(), "a name no page quotes: stop naming it in its section"
 
 
 def test_no_page_holds_a_quote_marker_or_an_unrendered_reference():
@@ -57,7 +46,7 @@ def test_no_page_holds_a_quote_marker_or_an_unrendered_reference():
     for p in PAGES + [REPO_ROOT / "pipeline" / "studies" / "findings.md",
                       *(REPO_ROOT / render.TEMPLATES).rglob("*.md")]:
         assert not marker.search(p.read_text()), p
-    names = set(values.registry()) | set(values.TABLES)
+    names = NAMES
     plain = [p for p in PAGES if not (REPO_ROOT / render.TEMPLATES / p.relative_to(REPO_ROOT))
              .exists()]  # a page without a template may show the syntax, never quote a value so
     assert REPO_ROOT / "docs" / "core.md" in plain
@@ -103,36 +92,45 @@ def test_the_reports_discussion_is_left_out_when_it_quotes_a_value_the_report_la
     assert values.rendered_part("no reference", {}) == "no reference"
 
 
-# ---- the cells ---------------------------------------------------------------------------------
-def test_a_cell_is_read_with_its_filters_position_scale_and_ratio(report):
-    assert values.value(f"{Q} final_abs_error_mean*1e3", report) == pytest.approx(12.3951)
-    assert [values.value(f"{Q} measured#{k}", report) for k in (1, 2, 3)] == [4.9, 16.5, 10000]
-    assert values.value("summary.csv measured~\"worst +16\" final_abs_error_mean",
-                        report) == 0.0123951
-    assert values.value(f"{Q} final_abs_error_mean / summary.csv figure=fig4 condition=const1.0 "
-                        "final_abs_error_mean", report) == pytest.approx(0.0123951 / 0.0179)
+# ---- naming -----------------------------------------------------------------------------------
+def _ctx(tmp_path):
+    return sections.Context(cfg=None, out=Path(tmp_path), title="t", groups={})
 
 
-@pytest.mark.parametrize("cell, why", [
-    ("summary.csv figure=fig9 final_abs_error_mean", "selects 0 rows"),
-    ("summary.csv condition=const1.0 final_abs_error_mean", "selects 2 rows"),
-    (f"{Q} nosuch", "no column 'nosuch'"),
-    (f"{Q} measured", "is not a number"),
-    (f"{Q} measured#7", "holds 3 numbers, not #7"),
-    ("nosuch.csv figure=fig4 x", "no such table"),
-    ("figure=fig4 final_abs_error_mean", "starts with its table"),
-])
-def test_a_cell_that_names_no_single_number_is_an_error(report, cell, why):
-    with pytest.raises(values.BadValue, match=why):
-        values.value(cell, report)
+def test_a_section_names_a_tables_number_as_the_table_prints_it(tmp_path):
+    ctx = _ctx(tmp_path)
+    t = pd.DataFrame(dict(figure=["fig4", "fig4"], condition=["const0.5", "const1.0"],
+                          final=[0.012395123, 0.0179]))
+    ctx.quote(t, ("figure", "condition"), {"a.mm": ("fig4", "const0.5", "final", 1e3),
+                                           "b": ("fig4", "const1.0", "final"),
+                                           "c": ("fig5", "const1.0", "final")})
+    assert ctx.values == {"a.mm": float("0.0123951") * 1e3, "b": 0.0179}  # no fig5: no c
+    ctx.value("t", "| x |")
+    assert values.read(_written(tmp_path, ctx.values)) == ctx.values
 
 
-def test_a_report_of_fewer_tables_holds_fewer_names(report):
-    got, missing = values.evaluate(report, {"a": f"{Q} final_abs_error_mean*1e3",
-                                            "b": "choices.csv figure=x v"})
-    assert got["a"] == pytest.approx(12.3951) and "b" not in got
-    assert "no such table" in missing["b"] and "readings.table" in missing
-    assert values.read(_written(report, got)) == got
+@pytest.mark.parametrize("name, says", [("a.mm", "named twice"), ("a b", "a name is")])
+def test_a_bad_name_is_an_error(tmp_path, name, says):
+    ctx = _ctx(tmp_path)
+    ctx.value("a.mm", 2.0)
+    with pytest.raises(ValueError, match=says):
+        ctx.value(name, 1.0)
+
+
+def test_a_number_that_is_not_finite_names_nothing(tmp_path):
+    """A run of one trial has no interval: its bounds are not named (the pages need the
+    report of the full runs)."""
+    ctx = _ctx(tmp_path)
+    ctx.value("n", float("nan"))
+    ctx.quote(pd.DataFrame(dict(figure=["fig4"], low=[float("nan")])), ("figure",),
+              {"low": ("fig4", "low", 100)})
+    assert ctx.values == {}
+
+
+def test_a_quoted_row_that_is_not_one_row_is_an_error(tmp_path):
+    t = pd.DataFrame(dict(figure=["fig4", "fig4"], v=[1.0, 2.0]))
+    with pytest.raises(ValueError, match="2 rows"):
+        _ctx(tmp_path).quote(t, ("figure",), {"x": ("fig4", "v")})
 
 
 def _written(folder, vals):
@@ -171,24 +169,17 @@ def test_the_command_writes_nothing_on_a_bad_reference(tmp_path, capsys):
     assert not (root / "docs" / "p.md").exists()
 
 
-def test_values_from_tables_refuses_a_report_that_lacks_a_name(tmp_path, capsys):
-    root = _repo(tmp_path, "ends at {{ a.mm:.1f }} mm\n", "ends at 10.0 mm\n")
-    before = (root / "outputs" / "report" / values.FILE).read_text()
-    assert render.main(["--values-from-tables"], root=root) == 2
-    err = capsys.readouterr().err
-    assert err.startswith("error: ") and "no value for " in err and err.count("\n") == 1
-    assert (root / "outputs" / "report" / values.FILE).read_text() == before
-    assert (root / "docs" / "p.md").read_text() == "ends at 10.0 mm\n"
-
-
 def test_the_headlines_are_the_reports_own():
     """headline.default and headline.recommended (README's two headlines) are the words of the
-    committed report's scorecard, computed again from its claims.csv, readings.csv and
-    measures.parquet."""
-    report = REPO_ROOT / "outputs" / "report"
-    text = (report / "report.md").read_text()
-    vals = values.read(report / values.FILE)
+    committed report's scorecard, judged again from its measures.parquet by the same code
+    (pipeline.tools.rescore)."""
+    from pipeline.studies import scorecard
+    from pipeline.tools import rescore
+
+    text = (REPORT / "report.md").read_text()
+    vals = values.read(REPORT / values.FILE)
     assert f"this project's default reading: **{vals['headline.default']}**" in text
     assert f": **{vals['headline.recommended']}**." in text
-    for name in ("headline.default", "headline.recommended"):
-        assert values.TABLES[name](report) == vals[name]
+    again = rescore.rescore(REPORT, rescore.claims.REGISTER)
+    assert scorecard.headline_text(again["default"]) == vals["headline.default"]
+    assert scorecard.headline_text(again["recommended"]) == vals["headline.recommended"]

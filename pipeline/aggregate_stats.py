@@ -1,0 +1,218 @@
+"""The statistics of an aggregate: per condition and epoch the curves over trials
+(curve_stats), per condition the summary (summarize: final errors, the peak during growth,
+failures, the body's reach), each condition's rows kept from the previous set where its inputs
+did not change (statistics)."""
+from __future__ import annotations
+
+import hashlib
+import json
+from functools import lru_cache
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pyarrow as pa
+
+from . import io
+from .aggregate_set import Previous, _compact
+from .measures import finals, growth_peak
+
+if TYPE_CHECKING:  # pandas is imported where a figure is rebuilt (summarize): not when cached
+    import pandas as pd
+
+GROUP = [c for c in io.LABEL_COLUMNS if c != "trial"]
+ERRORS = ("abs_error", "rel_error", "heldout_abs_error")
+
+
+def curve_stats(trials: pd.DataFrame) -> pd.DataFrame:
+    """Mean, std and quartiles over trials per condition and epoch (condition order kept)."""
+    g = trials.groupby(GROUP + ["epoch"], sort=False)
+    out = g[["samples", "size"]].mean()
+    out["samples"] = out["samples"].astype("int64")
+    for col in ERRORS:
+        out[f"{col}_mean"] = g[col].mean()
+        out[f"{col}_std"] = g[col].std(ddof=1)
+        out[f"{col}_q25"] = g[col].quantile(0.25)
+        out[f"{col}_q75"] = g[col].quantile(0.75)
+    out["n_trials"] = g["trial"].count().astype("int64")
+    return out.reset_index()
+
+
+def _by_condition(frame: pd.DataFrame) -> dict:
+    """condition -> its rows of `frame`, in their order."""
+    return {name: rows for name, rows in frame.groupby("condition", sort=False, observed=True)}
+
+
+def summarize(trials: pd.DataFrame, curves: pd.DataFrame, conds: dict, paper: dict,
+              fail_factor: float) -> pd.DataFrame:
+    """One row per condition: final errors (mean, std over trials), the temporary increase of the
+    mean absolute error during growth (epochs 1 ... T_G + 1; growth_peak), trials that diverged
+    or are missing, trials that failed to bootstrap, and the paper's stated final accuracy."""
+    paper_abs = paper.get("final_abs_error")
+    rows, last = [], finals(trials)
+    final_of, curve_of = _by_condition(last), _by_condition(curves)  # one pass, not one per condition
+    for name, c in conds.items():
+        final = final_of.get(name, last.iloc[:0])
+        v = c["variant"] or {}
+        row = {k: c["labels"][k] for k in GROUP}
+        row.update(variant=v.get("label", ""), choice=v.get("choice", ""),
+                   chosen=bool(v.get("chosen", False)),
+                   start_size=c["spec"]["growth"]["start_size"],
+                   end_size=c["spec"]["growth"]["end_size"], epochs=c["spec"]["epochs"],
+                   n_trials=int(len(final)), n_diverged=len(c["diverged"]),
+                   n_run_failures=len(c["missing"]),
+                   diverged_epochs=",".join(str(e) for e in c["diverged"].values()))
+        for col in ERRORS:
+            row[f"final_{col}_mean"] = float(final[col].mean()) if len(final) else np.nan
+            row[f"final_{col}_std"] = float(final[col].std(ddof=1)) if len(final) > 1 else np.nan
+        cu = curve_of.get(name, curves.iloc[:0])
+        cu = cu[cu["epoch"] <= c["labels"]["growth_period"] + 1]
+        peak = growth_peak(cu) if c["labels"]["growth"] != "none" and len(cu) else None
+        row["peak_abs_error_growth"] = peak[1] if peak else np.nan
+        row["rise_abs_error_growth"] = peak[2] if peak else np.nan
+        row["peak_epoch_growth"] = peak[0] if peak else -1
+        median = final["rel_error"].median() if len(final) else np.nan
+        row["n_bootstrap_failures"] = int((final["rel_error"] > fail_factor * median).sum())
+        jumps = [t["largest_jump"] for t in c["trials"].values()]
+        row["largest_jump_mean"] = float(np.mean(jumps)) if jumps else np.nan
+        row["final_samples"] = int(final["samples"].max()) if len(final) else 0
+        row["paper_final_abs_error"] = np.nan if paper_abs is None else float(paper_abs)
+        row["reach"] = reach_of(c["spec"])  # the final body's; the held-out error in % of it:
+        row["final_heldout_abs_error_pct_reach"] = (  # comparable across robots of any size
+            100 * row["final_heldout_abs_error_mean"] / row["reach"] if row["reach"] > 0
+            else np.nan)
+        rows.append(row)
+    import pandas as pd
+
+    return pd.DataFrame(rows)
+
+
+def stats_digest(name: str, c: dict, paper, fail_factor: float) -> str:
+    """What a condition's rows of curves.parquet and summary.parquet are made of: its name,
+    labels, id (spec and seed), variant, trials and their seals, the diverged and missing ones,
+    the paper block, the failure factor, and the versions of the libraries that compute them
+    (the code is the manifest's). The same digest, the same rows."""
+    import pandas as pd
+
+    body = [name, c["labels"], c["id"], c["variant"], sorted(c["trials"]), c["seals"],
+            c["diverged"], c["missing"], paper, fail_factor, pd.__version__, np.__version__,
+            pa.__version__]
+    return hashlib.sha256(_compact(body).encode()).hexdigest()[:20]
+
+
+def statistics(table: pa.Table, conds: dict, paper: dict, fail_factor: float,
+               previous: Previous) -> tuple[pa.Table, pa.Table, dict]:
+    """(curves, summary, stats) of the figure: curve_stats and summarize as tables, and per
+    condition [stats_digest, first row in curves, rows, row in summary] for the manifest. A
+    condition whose digest is that of the previous set keeps its rows from there (checked
+    files); only the others are computed (one changed trial of 10,000: one condition of ten).
+    The tables are those of computing every condition: where the computed rows' schema is not
+    the previous files' (another pandas), or the previous set is unreadable, all are computed.
+    `table`: every condition's trial curves (curves_table), converted to pandas where used."""
+    digests = {k: stats_digest(k, c, paper, fail_factor) for k, c in conds.items()}
+    kept = {k for k, d in digests.items() if previous.stats.get(k, (None,))[0] == d}
+    if kept and len(kept) < len(conds):
+        try:
+            return _statistics_of(table, conds, paper, fail_factor, previous, digests, kept)
+        except (OSError, ValueError, KeyError, IndexError, TypeError, pa.ArrowException):
+            pass
+    trials = table.to_pandas()
+    curves = curve_stats(trials)
+    curves_t = io.frame_to_table(curves)
+    summary_t = io.frame_to_table(summarize(trials, curves, conds, paper, fail_factor))
+    return curves_t, summary_t, _stats_record(curves_t, conds, digests)
+
+
+def _statistics_of(table, conds, paper, fail_factor, previous, digests, kept):
+    """statistics() with the conditions `kept` taken from the previous set."""
+    computed = {k: c for k, c in conds.items() if k not in kept}
+    parts = [table.slice(min(e["row"] for e in c["trials"].values()),
+                         sum(e["rows"] for e in c["trials"].values()))
+             for c in computed.values() if c["trials"]]  # a condition's rows are consecutive
+    rows = pa.concat_tables(parts or [table.slice(0, 0)]).to_pandas()
+    if set(rows["condition"]) != {k for k, c in computed.items() if c["trials"]}:
+        raise ValueError("the computed conditions' rows are not theirs")
+    curves = curve_stats(rows)
+    new_curves = io.frame_to_table(curves)
+    new_summary = io.frame_to_table(summarize(rows, curves, computed, paper, fail_factor))
+    old_curves, old_summary = (previous.checked_table("curves.parquet"),
+                               previous.checked_table("summary.parquet"))
+    if not (new_curves.schema.equals(old_curves.schema, check_metadata=True)
+            and new_summary.schema.equals(old_summary.schema, check_metadata=True)):
+        raise ValueError("the computed rows' schema is not the previous files'")
+    at = _stats_record(new_curves, computed, digests)
+    c_parts, s_parts = [], []
+    for k in conds:
+        if k in kept:
+            _, first, n, i = previous.stats[k]
+            c_parts.append(old_curves.slice(first, n))
+            s_parts.append(old_summary.slice(i, 1))
+        else:
+            _, first, n, i = at[k]
+            c_parts.append(new_curves.slice(first, n))
+            s_parts.append(new_summary.slice(i, 1))
+    curves_t = pa.concat_tables(c_parts).combine_chunks()
+    summary_t = pa.concat_tables(s_parts).combine_chunks()
+    if summary_t.column("condition").to_pylist() != list(conds):
+        raise ValueError("summary.parquet: the conditions are not the figure's")
+    return curves_t, summary_t, _stats_record(curves_t, conds, digests)
+
+
+def trials_file_table(table: pa.Table) -> pa.Table:
+    """trials.parquet's table: what pa.Table.from_pandas(table.to_pandas(), schema=io.CURVE,
+    preserve_index=False) makes of `table` (one chunk, pandas' metadata, a float NaN stored as
+    null), without converting 110,000 rows twice: a table with no null and no NaN is its own
+    values in one chunk, under the metadata of its first row's conversion (the metadata names
+    the columns and types, not the rows); any other table is converted."""
+    floats = [f.name for f in io.CURVE if pa.types.is_floating(f.type)]
+    if table.num_rows and not any(table.column(n).null_count for n in table.column_names) and \
+            not any(np.isnan(table.column(n).to_numpy()).any() for n in floats):
+        meta = pa.Table.from_pandas(table.slice(0, 1).to_pandas(), schema=io.CURVE,
+                                    preserve_index=False).schema.metadata
+        return table.combine_chunks().replace_schema_metadata(meta)
+    return pa.Table.from_pandas(table.to_pandas(), schema=io.CURVE, preserve_index=False)
+
+
+def _stats_record(curves: pa.Table, conds: dict, digests: dict) -> dict:
+    """condition -> [its stats digest, first row in `curves`, rows, row in the summary] (the
+    rows of a condition are consecutive, in the order of `conds`, one summary row each)."""
+    names = curves.column("condition").to_pylist()
+    first, out = 0, {}
+    for i, k in enumerate(conds):
+        n = 0
+        while first + n < len(names) and names[first + n] == k:
+            n += 1
+        out[k] = [digests[k], first, n, i]
+        first += n
+    if first != len(names):
+        raise ValueError("curves: rows of no condition of the figure")
+    return out
+
+
+def reach_of(spec: dict) -> float:
+    """The reach [m] of a condition's body at its final size (gbmodel.workspace.reach: half the
+    largest distance between two hand positions within the limits)."""
+    return _reach(json.dumps(spec["body"], sort_keys=True),
+                  json.dumps(spec["growth"], sort_keys=True))
+
+
+@lru_cache(maxsize=256)
+def _reach(body_json: str, growth_json: str) -> float:
+    import gbmodel
+
+    body, g = gbmodel.make_body(json.loads(body_json)), json.loads(growth_json)
+    try:  # the end body of its growth pattern (non-proportional: its own segments' sizes)
+        k = gbmodel.Growth(**g).scales(body, g["end_size"])
+    except (TypeError, ValueError, KeyError):
+        k = np.full(body.m, float(g.get("end_size", 1.0)))
+    return _reach_at(body_json, tuple(np.asarray(k, dtype=np.float64).tolist()))
+
+
+@lru_cache(maxsize=256)
+def _reach_at(body_json: str, factors: tuple) -> float:
+    """workspace.reach of the body at per-segment `factors`: conditions that differ in their
+    growth's period only end at the same body, whose workspace is sampled once (20,000
+    postures: 20 ms each time)."""
+    import gbmodel
+    from gbmodel import workspace
+
+    return workspace.reach(gbmodel.make_body(json.loads(body_json)), np.array(factors))
