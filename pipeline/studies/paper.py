@@ -15,7 +15,7 @@ import pandas as pd
 from omegaconf import OmegaConf
 
 from .. import io
-from . import claims, conventions, figures, scorecard, scorecard_page, settings
+from . import claims, conventions, discussion, figures, scorecard, scorecard_page, settings
 from .choices import escape
 from .claims import DIVERGED, diverged_conditions
 from .sections import Context, declares_claims, register
@@ -164,13 +164,13 @@ class Paper:
             measures = scorecard.no_verdicts(measures, scorecard.reduced_scale(cfg.report.scale))
         cards = scorecard.cells(measures) if measures else None
         claim_rows = scorecard.claims_table(cards).to_dict("records") if measures else []
-        discussion = ""
+        text = ""
         if claim_rows:
             if cfg.report.stamp_findings:
-                stamp_findings(summary, claim_rows)
-            discussion = findings(summary, claim_rows)  # of the committed run, if it is
+                discussion.stamp_findings(summary, claim_rows)
+            text = discussion.findings(summary, claim_rows)  # of the committed run, if it is
         return cls(aggs, declared, js, stages, summary, measured, measures, cards, claim_rows,
-                   discussion)
+                   text)
 
 
 @register("figures", 10)
@@ -201,7 +201,7 @@ def scorecard_part(ctx: Context, p: Paper) -> list[str]:
     _write_measures(ctx, p.measured, counted)
     ctx.save(scorecard_page.figure(p.cards, ctx.title.split(":")[0] + ": the paper's claims, "
                               "calibrated intervals over trials"), "scorecard")
-    ours = claims.our_reading(p.cards) if p.discussion == FINDINGS.read_text() else None
+    ours = claims.our_reading(p.cards) if p.discussion == discussion.FINDINGS.read_text() else None
     return ["## Scorecard: the paper's claims, with their uncertainty", "",
             "![scorecard](scorecard.png)", "",
             scorecard_page.markdown(p.cards, p.measures, counted, ours,
@@ -471,44 +471,3 @@ def _write_measures(ctx: Context, measured: list, counted: list) -> None:
     frames += measures_table.study_frames(ctx.of("baselines"), ctx.of("choices"))
     ctx.written.append(measures_table.write(ctx.out / measures_table.NAME, frames,
                                             ctx.cfg.report.scale))
-
-
-FINDINGS = Path(__file__).parent / "findings.md"
-FINDINGS_NUMBERS = Path(__file__).parent / "findings_numbers.csv"
-TOLERANCE = 1e-6  # relative: the discussion holds for numbers this close to its run's
-
-
-FINDINGS_COLUMNS = ["final_abs_error_mean", "final_rel_error_mean", "peak_abs_error_growth"]
-
-
-def findings_numbers(summary: pd.DataFrame, claim_rows: list[dict]) -> pd.DataFrame:
-    """What the discussion was written against: every final and peak error, and every verdict."""
-    rows = [dict(what=f"{r.figure} {r.condition} {c}", value=float(getattr(r, c)), verdict="")
-            for r in summary.itertuples() for c in FINDINGS_COLUMNS]
-    rows += [dict(what=f"{r['figure']} {r['claim']}", value=float("nan"), verdict=r["verdict"])
-             for r in claim_rows]
-    return pd.DataFrame(rows)
-
-
-def findings(summary: pd.DataFrame, claim_rows: list[dict]) -> str:
-    """pipeline/studies/findings.md, hand-written about one run, if these are that run's numbers (every
-    verdict the same, every number within TOLERANCE); else a note that it is left out."""
-    now = findings_numbers(summary, claim_rows)
-    if FINDINGS_NUMBERS.exists():
-        ref = pd.read_csv(FINDINGS_NUMBERS, keep_default_na=False,
-                          dtype={"what": str, "verdict": str}, converters={"value": float})
-        if (len(ref) == len(now) and (ref["what"] == now["what"]).all()
-                and (ref["verdict"] == now["verdict"]).all()
-                and np.allclose(now["value"], ref["value"], rtol=TOLERANCE, atol=0,
-                                equal_nan=True)):
-            return FINDINGS.read_text()
-    return ("## Discussion\n\n`pipeline/studies/findings.md` discusses the committed full-scale run; "
-            "these numbers come from another run, so it is left out.\n")
-
-
-def stamp_findings(summary: pd.DataFrame, claim_rows: list[dict]) -> None:
-    """Record the numbers findings.md was written against (after rereading it against them)."""
-    io.write_text(FINDINGS_NUMBERS, findings_numbers(summary, claim_rows)
-                  .to_csv(index=False, float_format="%.17g", na_rep="nan"))
-
-

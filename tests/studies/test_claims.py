@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipeline.studies import paper
+from pipeline.studies import discussion, paper
 from pipeline.measures import growth_peak
 from pipeline.studies import claims
 from pipeline.studies import scorecard as sc
@@ -199,27 +199,27 @@ def test_the_committed_readings_name_known_claims():
 def test_the_discussion_is_shown_only_beside_the_numbers_it_was_written_for(tmp_path,
                                                                             monkeypatch):
     """findings.md is included when findings_numbers.csv matches the run (the same rows and
-    verdicts, numbers within paper.TOLERANCE), and left out otherwise, or when nothing was
+    verdicts, numbers within discussion.TOLERANCE), and left out otherwise, or when nothing was
     stamped."""
     text = "## Why\n\nBecause 17.5 mm.\n"
     (tmp_path / "findings.md").write_text(text)
-    monkeypatch.setattr(paper, "FINDINGS", tmp_path / "findings.md")
-    monkeypatch.setattr(paper, "FINDINGS_NUMBERS", tmp_path / "findings_numbers.csv")
+    monkeypatch.setattr(discussion, "FINDINGS", tmp_path / "findings.md")
+    monkeypatch.setattr(discussion, "FINDINGS_NUMBERS", tmp_path / "findings_numbers.csv")
     trials, summary = _figure(RISING)
     summary["figure"] = "figX"
-    for col in paper.FINDINGS_COLUMNS:
+    for col in discussion.FINDINGS_COLUMNS:
         summary[col] = 0.01
     rows = sc.claims_table(sc.cells(sc.results({"figX": dict(trials=trials, summary=summary)},
                                                table=_covered()))).to_dict("records")
-    assert "left out" in paper.findings(summary, rows)  # nothing stamped yet
-    paper.stamp_findings(summary, rows)
-    assert paper.findings(summary, rows) == text
+    assert "left out" in discussion.findings(summary, rows)  # nothing stamped yet
+    discussion.stamp_findings(summary, rows)
+    assert discussion.findings(summary, rows) == text
     other = summary.copy()
     other.loc[0, "final_abs_error_mean"] *= 1 + 1e-4  # another run
-    assert "left out" in paper.findings(other, rows)
-    assert "left out" in paper.findings(summary.iloc[:2], rows)  # a condition fewer
+    assert "left out" in discussion.findings(other, rows)
+    assert "left out" in discussion.findings(summary.iloc[:2], rows)  # a condition fewer
     flipped = [dict(r, verdict="not reproduced") for r in rows]
-    assert flipped != rows and "left out" in paper.findings(summary, flipped)
+    assert flipped != rows and "left out" in discussion.findings(summary, flipped)
 
 
 def _stages(spread):

@@ -5,7 +5,7 @@ import pandas as pd
 import pytest
 
 from pipeline.config import REPO_ROOT
-from pipeline.studies import paper
+from pipeline.studies import discussion, paper
 
 CURVES = REPO_ROOT / "outputs" / "report" / "curves.parquet"
 
@@ -20,7 +20,7 @@ def test_the_t_g_10000_paragraph_is_the_mean_curves():
         return float(f[(f["condition"] == cond) & (f["epoch"] == epoch)][col].iloc[0])
     grown = f[(f["condition"] == "TG10000") & (f["epoch"] <= 10001)]
     low = grown.loc[grown["abs_error_mean"].idxmin()]
-    text = " ".join(paper.FINDINGS.read_text().split())
+    text = " ".join(discussion.FINDINGS.read_text().split())
     para = text[text.index("why T_G = 10,000 rises at 1 / W"):]
     para = para[:para.index("**The half-size reference")]
     assert (f"from {1e3 * at('const1.0', 10000):.1f} mm there to "

@@ -3,7 +3,7 @@ agree within the stated tolerance (and every verdict is the same), and left out 
 import numpy as np
 import pandas as pd
 
-from pipeline.studies import paper
+from pipeline.studies import discussion, paper
 
 
 def _run():
@@ -16,20 +16,20 @@ def _run():
 
 
 def test_discussion_survives_a_1e7_perturbation_but_not_a_changed_number(tmp_path, monkeypatch):
-    monkeypatch.setattr(paper, "FINDINGS_NUMBERS", tmp_path / "numbers.csv")
-    monkeypatch.setattr(paper, "FINDINGS", tmp_path / "findings.md")
+    monkeypatch.setattr(discussion, "FINDINGS_NUMBERS", tmp_path / "numbers.csv")
+    monkeypatch.setattr(discussion, "FINDINGS", tmp_path / "findings.md")
     (tmp_path / "findings.md").write_text("## Why\n\nthe discussion\n")
     summary, claim_rows = _run()
-    paper.stamp_findings(summary, claim_rows)
-    assert "the discussion" in paper.findings(summary, claim_rows)
+    discussion.stamp_findings(summary, claim_rows)
+    assert "the discussion" in discussion.findings(summary, claim_rows)
 
     nudged = summary.copy()
     cols = ["final_abs_error_mean", "final_rel_error_mean", "peak_abs_error_growth"]
     nudged[cols] = nudged[cols] * (1 + 1e-7)
-    assert "the discussion" in paper.findings(nudged, claim_rows)
+    assert "the discussion" in discussion.findings(nudged, claim_rows)
 
     changed = summary.copy()
     changed.loc[0, "final_abs_error_mean"] *= 1.001
-    assert "left out" in paper.findings(changed, claim_rows)
+    assert "left out" in discussion.findings(changed, claim_rows)
     other_verdict = [dict(claim_rows[0], verdict="not reproduced: TG10")]
-    assert "left out" in paper.findings(summary, other_verdict)
+    assert "left out" in discussion.findings(summary, other_verdict)
