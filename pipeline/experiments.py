@@ -19,6 +19,7 @@ an experiment's own (not inherited through its defaults list).
 from __future__ import annotations
 
 import dataclasses
+import sys
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -77,10 +78,11 @@ def config_folders() -> tuple[Path, ...]:
     import importlib.util
 
     from gbmodel.bodies import CONF_DIR
-    from hydra.core.hydra_config import HydraConfig
 
     folders = [Path(CONF_DIR)]
-    for s in HydraConfig.get().runtime.config_sources if HydraConfig.initialized() else ():
+    hydra = sys.modules.get("hydra.core.hydra_config")  # not imported: no stage runs (a tool)
+    running = hydra is not None and hydra.HydraConfig.initialized()
+    for s in hydra.HydraConfig.get().runtime.config_sources if running else ():
         if s.schema == "file":
             folders.append(Path(s.path))
         elif s.schema == "pkg" and s.provider.startswith("gbgrowth:"):  # a declared package

@@ -11,18 +11,8 @@ GROUP...: the experiments of these groups (paper, choices, explain, studies), in
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
-from ..experiments import GROUPS, declared, listed
-
-
-def config_folders() -> tuple[Path, ...]:
-    """pipeline.config.config_folders outside a stage: conf/ alone (the checkout's, or the
-    installed package's). Read from gbmodel, not the config module: every make runs this tool,
-    and the config (Hydra, the schemas) would cost it twice the CPU."""
-    from gbmodel.bodies import CONF_DIR
-
-    return (Path(CONF_DIR).resolve(),)
+from ..experiments import GROUPS, config_folders, declared, listed
 
 
 def main(argv=None) -> int:

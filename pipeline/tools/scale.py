@@ -380,7 +380,7 @@ def report_pairs(trees: dict, roots: dict, exps: list[str], profile: str, rounds
 
 def report_main(argv: list[str]) -> int:
     from ..experiments import listed
-    from .experiments import config_folders
+    from ..experiments import config_folders
 
     ap = argparse.ArgumentParser(prog="python -m pipeline.tools.scale report")
     ap.add_argument("--baseline", type=Path, required=True, help="another checkout")
@@ -415,7 +415,7 @@ def report_main(argv: list[str]) -> int:
 
 def stages_main(argv: list[str]) -> int:
     from ..experiments import listed
-    from .experiments import config_folders
+    from ..experiments import config_folders
 
     ap = argparse.ArgumentParser(prog="python -m pipeline.tools.scale stages")
     ap.add_argument("--profile", default="smoke", choices=("smoke", "full"))
