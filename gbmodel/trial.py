@@ -108,6 +108,8 @@ class TrialResult:
     samples_per_epoch: int = 0  # forward-kinematics evaluations per epoch
     largest_jump: float = float("nan")  # the final inverse's redundancy measure (evaluation)
     heldout_abs_error: np.ndarray | None = None  # (E,) abs_error on the held-out set (evaluation)
+    uniform_abs_error: np.ndarray | None = None  # (E,) on its uniform points alone
+    path_abs_error: np.ndarray | None = None  # (E,) on the sampled path targets (path_targets)
     state: Any = None  # the learner's final state and the generator's (bit_generator.state),
     rng: dict | None = None  # what a Checkpoint of this trial holds
 
@@ -154,8 +156,8 @@ class _Setup:
     learner: Any
     params: Any
     ev: dict
-    ev_heldout: dict  # ev with points=heldout
     unit_heldout: np.ndarray  # the held-out set at size 1 (scaled at each evaluation)
+    unit_path: np.ndarray  # the sampled path targets at size 1, L the learner's (else path_steps)
     evals: np.ndarray
     at: tuple  # evals as ints
     cuts: frozenset
@@ -191,9 +193,10 @@ def _setup_of(spec: TrialSpec) -> _Setup:
     evals = evaluation.eval_epochs(spec.epochs, spec.evals_per_decade)
     sizes = growth.sizes(np.arange(1, min(DRAW_BLOCK, spec.epochs) + 1), body)
     ev = {**evaluation.DEFAULTS, **spec.evaluation}
+    steps = getattr(params, "steps", ev["path_steps"])  # eq. 9's L of a learner that has one
     setup = _Setup(body=body, growth=growth, learner=learner, params=params, ev=ev,
-                   ev_heldout={**ev, "points": "heldout"},
-                   unit_heldout=evaluation.heldout_points(body), evals=evals,
+                   unit_heldout=evaluation.heldout_points(body),
+                   unit_path=evaluation.path_targets(body, steps), evals=evals,
                    at=tuple(evals.tolist()),
                    cuts=frozenset(evals.tolist()) | frozenset(spec.snapshots),
                    size_one=growth.sizes(np.array([1]), body)[0], sizes=sizes,
@@ -214,7 +217,7 @@ def run_trial(spec: TrialSpec, rng: np.random.Generator,
     body, growth, learner, params = setup.body, setup.growth, setup.learner, setup.params
     ev, unit_heldout, cuts = setup.ev, setup.unit_heldout, setup.cuts
     evals, at = setup.evals.copy(), setup.at  # the result's own; the epochs as ints
-    abs_error, heldout, size = (np.empty(len(evals)) for _ in range(3))
+    abs_error, heldout, uniform, path, size = (np.empty(len(evals)) for _ in range(5))
     k, snapshots, first = 0, {}, 0
     if resume is None:
         state = learner.init(params, body, setup.size_one, rng)
@@ -222,6 +225,7 @@ def run_trial(spec: TrialSpec, rng: np.random.Generator,
         k, rows, snapshots = _resume(spec, resume, evals, rng)
         state, first, done = resume.state, resume.epoch, resume.result
         for to, part in ((abs_error, done.abs_error), (heldout, done.heldout_abs_error),
+                         (uniform, done.uniform_abs_error), (path, done.path_abs_error),
                          (size, done.size)):
             to[:k] = np.asarray(part)[rows]
     # Sizes and scales are built per block of DRAW_BLOCK epochs, never for every epoch at once,
@@ -248,13 +252,19 @@ def run_trial(spec: TrialSpec, rng: np.random.Generator,
                 if not math.isfinite(err):
                     raise Diverged(hi, err)
                 abs_error[k], size[k] = err, now
-                heldout[k] = evaluation.evaluate(learner, state, params, body, now, scale,
-                                                 **setup.ev_heldout, xs=unit_heldout)
+                # the held-out set and its uniform part from one set of distances
+                d = evaluation.point_distances(learner, state, params, body, scale,
+                                               unit_heldout * now)
+                heldout[k] = evaluation.error(d, ev["formula"])
+                uniform[k] = evaluation.error(d[-evaluation.HELDOUT_UNIFORM:], ev["formula"])
+                path[k] = evaluation.error(evaluation.point_distances(
+                    learner, state, params, body, scale, setup.unit_path * now), ev["formula"])
                 k += 1
     jump = evaluation.largest_jump(lambda x: learner.predict(state, params, body, x), body,
                                    sizes[-1])
     return TrialResult(epoch=evals, size=size, abs_error=abs_error, rel_error=abs_error / size,
                        M=learner.model(state), snapshots=snapshots,
                        samples_per_epoch=learner.samples_per_epoch(params, body),
-                       largest_jump=jump, heldout_abs_error=heldout, state=state,
+                       largest_jump=jump, heldout_abs_error=heldout,
+                       uniform_abs_error=uniform, path_abs_error=path, state=state,
                        rng=rng.bit_generator.state)

@@ -20,7 +20,7 @@ if TYPE_CHECKING:  # pandas is imported where a figure is rebuilt (summarize): n
     import pandas as pd
 
 GROUP = [c for c in io.LABEL_COLUMNS if c != "trial"]
-ERRORS = ("abs_error", "rel_error", "heldout_abs_error")
+ERRORS = ("abs_error", "rel_error", "heldout_abs_error", "uniform_abs_error", "path_abs_error")
 
 
 def curve_stats(trials: pd.DataFrame) -> pd.DataFrame:

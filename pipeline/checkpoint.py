@@ -22,6 +22,9 @@ from pathlib import Path
 import numpy as np
 
 SUFFIX = ".state.json"
+# the curve columns a continuation takes from its base trial (gbmodel.TrialResult's curves)
+CURVE = ("epoch", "size", "abs_error", "rel_error", "heldout_abs_error", "uniform_abs_error",
+         "path_abs_error")
 
 
 def encode(x):
@@ -118,8 +121,7 @@ def load(cache_dir, base: dict) -> tuple[dict | None, str | None]:
         return None, f"its base trial {base['key']} kept no state"
     except (OSError, ValueError) as err:
         return None, str(err)
-    curve = {c: table.column(c).to_pylist() for c in
-             ("epoch", "size", "abs_error", "rel_error", "heldout_abs_error")}
+    curve = {c: table.column(c).to_pylist() for c in CURVE}
     return dict(epoch=saved["epoch"], rng=saved["rng"], state=saved["state"], curve=curve,
                 snapshots=side["snapshots"]), None
 
@@ -130,8 +132,6 @@ def checkpoint(data: dict):
 
     c = data["curve"]
     result = gbmodel.TrialResult(
-        epoch=np.asarray(c["epoch"], np.int64), size=np.asarray(c["size"]),
-        abs_error=np.asarray(c["abs_error"]), rel_error=np.asarray(c["rel_error"]), M=None,
-        heldout_abs_error=np.asarray(c["heldout_abs_error"]),
+        **{k: np.asarray(c[k], np.int64 if k == "epoch" else np.float64) for k in CURVE}, M=None,
         snapshots={int(e): np.asarray(m) for e, m in data["snapshots"].items()})
     return gbmodel.Checkpoint(data["epoch"], decode(data["state"]), decode(data["rng"]), result)

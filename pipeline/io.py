@@ -24,7 +24,8 @@ LABELS = pa.schema([("figure", pa.string()), ("body", pa.string()), ("learner", 
                     ("growth", pa.string()), ("growth_period", pa.int64()),
                     ("condition", pa.string()), ("trial", pa.int64())])
 CURVE = pa.schema(list(LABELS) + [("epoch", pa.int64()), ("samples", pa.int64())] + [
-    (k, pa.float64()) for k in ("size", "abs_error", "rel_error", "heldout_abs_error")])
+    (k, pa.float64()) for k in ("size", "abs_error", "rel_error", "heldout_abs_error",
+                                "uniform_abs_error", "path_abs_error")])
 LABEL_COLUMNS = LABELS.names
 CURVE_COLUMNS = CURVE.names
 # One trial's curve as the cache keeps it, without labels (aggregate adds its figure's)

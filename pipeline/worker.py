@@ -48,6 +48,7 @@ def run_one(trial: dict) -> dict:
         out = dict(status="ok", epoch=res.epoch, samples=res.epoch * res.samples_per_epoch,
                    size=res.size, abs_error=res.abs_error, rel_error=res.rel_error, M=res.M,
                    heldout_abs_error=res.heldout_abs_error,
+                   uniform_abs_error=res.uniform_abs_error, path_abs_error=res.path_abs_error,
                    snapshots=res.snapshots, largest_jump=res.largest_jump,
                    final=checkpoint.final_state(res) if trial.get("keep_state") else None)
     except gbmodel.Diverged as err:

@@ -34,8 +34,7 @@ def _run(epochs, resume=None, **learner):
 def _through_json(res):
     """A base's checkpoint as the cache keeps it (JSON) and a worker gets it back."""
     final = json.loads(json.dumps(checkpoint.final_state(res)))
-    curve = {c: getattr(res, c).tolist() for c in
-             ("epoch", "size", "abs_error", "rel_error", "heldout_abs_error")}
+    curve = {c: getattr(res, c).tolist() for c in checkpoint.CURVE}
     snaps = {str(e): m.tolist() for e, m in res.snapshots.items()}
     return checkpoint.checkpoint(dict(final, curve=curve, snapshots=snaps))
 
