@@ -21,7 +21,7 @@ from scipy import stats
 from . import figures
 from ..measures import finals
 from .choices import escape
-from .scorecard import p_beats
+from .beats import p_beats
 from .sections import Context, of_study, register
 
 GB, GB_PROGRESS = "Goal Babbling", "Goal Babbling (goals by progress)"

@@ -23,25 +23,27 @@ A study adds a claim by adding it to the register and its measure in `measures` 
 """
 from __future__ import annotations
 
-import hashlib
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import yaml
 
 from gbmodel.growth import factors
 
 from .. import measures as curve_measures
 from . import register_schema
+from .register_schema import criterion_hash
 from .figures import final_body
 
 SMOOTH = 5  # rebounds and blending: each trial's curve averaged over this many evaluation points
+# Where the absolute error is measured (a reading's params.points; every trial scores all three at
+# every evaluation, gbmodel.evaluation): the target grid, the path targets eq. 10 sums over, the
+# uniform points of the held-out set. The final error and the rise are measured on each.
+POINTS = {"grid": "abs_error", "path": "path_abs_error", "uniform": "uniform_abs_error"}
+LAST_DECADE = "last decade"  # a final error's span: the mean over the evaluations of the last
+# decade of epochs (epoch >= the last / 10: 20 of them), not where the last epoch falls
 REGISTER = Path(__file__).parent / "register.yaml"
-HASHED = ("id", "diagnostic", "min_trials", "readings")  # what a changelog entry must cover
-HASHED_READING = ("id", "primary", "diagnostic", "params")
 
 
 @dataclass(frozen=True)
@@ -55,6 +57,7 @@ class Reading:
     primary: bool = False
     diagnostic: bool = False  # a reading shown and marked, never counted
     always_shown: bool = False  # shown beside the primary's verdict even where it agrees
+    first: bool = False  # the claim's criterion as first fixed, before the first run's data
 
 
 @dataclass(frozen=True)
@@ -79,15 +82,6 @@ class Claim:
         return self.primary.criterion
 
 
-def criterion_hash(entry: dict) -> str:
-    """The hash of a claim's criterion as the register holds it (its id, diagnostic flag,
-    min_trials and every reading's id, primary and diagnostic flags and params): what its latest
-    changelog entry must record."""
-    keep = {k: entry.get(k) for k in HASHED}
-    keep["readings"] = [{k: r.get(k) for k in HASHED_READING} for r in entry.get("readings", [])]
-    return hashlib.sha256(json.dumps(keep, sort_keys=True).encode()).hexdigest()[:12]
-
-
 def load_register(path: Path = REGISTER) -> list[Claim]:
     """The claims of a register file, each reading's primary first; a ValueError names what is
     wrong (its schema, register_schema; not exactly one primary)."""
@@ -98,7 +92,8 @@ def load_register(path: Path = REGISTER) -> list[Claim]:
                       why=r.get("why", ""), params=dict(r.get("params") or {}),
                       fixed_at=str(r.get("fixed_at", "")), primary=bool(r.get("primary")),
                       diagnostic=bool(r.get("diagnostic")),
-                      always_shown=bool(r.get("always_shown"))) for r in e.get("readings", [])]
+                      always_shown=bool(r.get("always_shown")), first=bool(r.get("first")))
+              for r in e.get("readings", [])]
         if sum(r.primary for r in rs) != 1:
             raise ValueError(f"{path}: claim {e['id']!r} needs exactly one primary reading")
         rs.sort(key=lambda r: not r.primary)
@@ -152,6 +147,8 @@ class Measure:
     exact: bool = False
     diverged: bool = False
     calibrated: tuple | None = None  # (t level or None, why) once known (measures.parquet)
+    points: str = "grid"  # where the error is measured (POINTS): a reading's params.points
+    span: str = "end"  # the final error: at the last evaluation, or its mean over the last decade
 
 
 @dataclass
@@ -285,13 +282,19 @@ def measures(figure: str, trials: pd.DataFrame, summary: pd.DataFrame) -> list[M
     refs = summary[summary["growth"] == "none"].sort_values("end_size")
     if len(refs) != n_refs:
         refs = refs.iloc[:0]  # the comparisons with the references need both of them
-    abs_ = {c: per_trial(trials, c, "abs_error") for c in summary["condition"]}
+    at_points = {p: {c: per_trial(trials, c, col) for c in summary["condition"]}
+                 for p, col in POINTS.items() if col in trials}
+    abs_ = at_points["grid"]
     rel = {c: per_trial(trials, c, "rel_error") for c in summary["condition"]}
     full = float(every["end_size"].max()) if len(every) else 1.0
     if np.isfinite(paper):
-        for r in summary.itertuples():
-            out.append(Measure(figure, "final", r.condition, abs_[r.condition][1][:, -1] / paper,
-                               unit="x", kind="final", size=float(r.end_size) / full))
+        for p, curves in at_points.items():
+            for r in summary.itertuples():
+                ep, v = curves[r.condition]
+                for span, x in (("end", v[:, -1]), (LAST_DECADE, v[:, ep >= ep[-1] / 10].mean(1))):
+                    out.append(Measure(figure, "final", r.condition, x / paper, unit="x",
+                                       kind="final", size=float(r.end_size) / full, points=p,
+                                       span=span))
     two_refs = len(refs) == 2
     if two_refs:
         short, long_ = refs["condition"]
@@ -310,8 +313,10 @@ def measures(figure: str, trials: pd.DataFrame, summary: pd.DataFrame) -> list[M
             if not np.array_equal(cep[keep], ep):
                 return None
             return fn(cv[:, keep])
-        out.append(Measure(figure, "rise", c, rise(g[:, during]), kind="rebound", period=period,
-                           control=ctrl(lambda v: rise(v[:, during]), abs_)))
+        for p, curves in at_points.items():  # the rise wherever the error is measured
+            out.append(Measure(figure, "rise", c, rise(curves[c][1][:, during]), kind="rebound",
+                               period=period, points=p,
+                               control=ctrl(lambda v: rise(v[:, during]), curves)))
         if two_refs:
             s_, l_ = at(ep[during], abs_[short]), at(ep[during], abs_[long_])
             out.append(Measure(figure, "above_start", c, excess(g[:, during], s_),
@@ -381,6 +386,8 @@ def judge(ms: list[Measure], claims: list[Claim] | None = None) -> list[Test]:
                 continue
             for r in c.readings:
                 p = r.params
+                if (m.points, m.span) != (p.get("points", "grid"), p.get("span", "end")):
+                    continue  # measured elsewhere than where this reading measures
                 b = _bounds(claim, m, p) if not m.exact else (-np.inf, np.inf)
                 if b is None:
                     continue
@@ -470,18 +477,5 @@ def our_reading(cards: pd.DataFrame, register: list[Claim] | None = None) -> dic
 
 
 def unlogged(path: Path = REGISTER) -> list[str]:
-    """The claims of a register whose criterion changed without a changelog entry (the latest
-    entry's hash is not the criterion's), and entries that lack a field: what the register's
-    test reports."""
-    data = yaml.safe_load(Path(path).read_text())
-    out = []
-    for e in data["claims"]:
-        log = e.get("changelog") or []
-        if not log or log[-1].get("hash") != criterion_hash(e):
-            out.append(f"{e['id']}: criterion {criterion_hash(e)} has no changelog entry "
-                       "(add one: date, commit, reason, before, after, hash)")
-        out += [f"{e['id']}: changelog entry {i} lacks {k!r}" for i, x in enumerate(log)
-                for k in ("date", "commit", "reason", "before", "after") if not x.get(k)]
-        out += [f"{e['id']}: reading {r.get('id')!r} lacks {k!r}" for r in e.get("readings", [])
-                for k in ("criterion", "why", "fixed_at") if not r.get(k)]
-    return out
+    """register_schema.unlogged of a register file (this one's by default)."""
+    return register_schema.unlogged(path)

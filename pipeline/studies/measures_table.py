@@ -24,7 +24,8 @@ from .claims import Measure
 NAME = "measures.parquet"
 COLUMNS = ["study", "figure", "reading", "counted", "recommended", "claim", "where", "unit",
            "kind", "size", "period", "exact", "diverged", "level", "calibration", "role",
-           "trial", "value", "scale"]
+           "trial", "value", "scale", "points", "span"]
+WHERE_MEASURED = dict(points="grid", span="end")  # a table written before these columns: as then
 
 
 def frame(ms: list[Measure], study: str, reading: str = "", counted: bool = False,
@@ -45,7 +46,7 @@ def frame(ms: list[Measure], study: str, reading: str = "", counted: bool = Fals
                     recommended=recommended, claim=m.claim, where=m.where, unit=m.unit,
                     kind=m.kind, size=float(m.size), period=int(m.period),
                     exact=bool(m.exact), diverged=bool(m.diverged), level=level,
-                    calibration=why)
+                    calibration=why, points=m.points, span=m.span)
         if m.diverged:
             rows.append(dict(meta, role="value", trial=-1, value=np.nan))
             continue
@@ -71,6 +72,9 @@ def write(path: Path, frames: list[pd.DataFrame], scale: str = "") -> Path:
 
 def read(path: Path) -> pd.DataFrame:
     t = pd.read_parquet(path)
+    for column, value in WHERE_MEASURED.items():
+        if column not in t:
+            t[column] = value
     missing = [c for c in COLUMNS if c not in t]
     if missing:
         raise ValueError(f"{path}: not a measures table (no column {missing[0]!r})")
@@ -82,7 +86,8 @@ def read(path: Path) -> pd.DataFrame:
 def measures(t: pd.DataFrame) -> dict:
     """(study, reading, figure) -> [Measure], in the table's order."""
     out: dict = {}
-    for key, g in t.groupby(["study", "reading", "figure", "claim", "where"], sort=False):
+    for key, g in t.groupby(["study", "reading", "figure", "claim", "where", "points", "span"],
+                            sort=False):
         r = g.iloc[0]
         vals = g[g["role"] == "value"].sort_values("trial")["value"].to_numpy()
         ctrl = g[g["role"] == "control"].sort_values("trial")["value"].to_numpy()
@@ -93,7 +98,8 @@ def measures(t: pd.DataFrame) -> dict:
                     period=int(r["period"]), control=ctrl if len(ctrl) else None,
                     exact=bool(r["exact"]), diverged=bool(r["diverged"]),
                     calibrated=None if r["exact"] or r["diverged"] else
-                    (None if pd.isna(r["level"]) else float(r["level"]), r["calibration"]))
+                    (None if pd.isna(r["level"]) else float(r["level"]), r["calibration"]),
+                    points=r["points"], span=r["span"])
         out.setdefault(key[:3], []).append(m)
     return out
 
@@ -108,7 +114,8 @@ def values_frame(study: str, figure: str, where: str, claim: str, unit: str, val
                               recommended=False, claim=claim, where=where, unit=unit, kind="",
                               size=1.0, period=0, exact=False, diverged=False, level=np.nan,
                               calibration="not judged", role="value",
-                              trial=int(t), value=float(v)) for t, v in zip(trials, values)],
+                              trial=int(t), value=float(v), **WHERE_MEASURED)
+                         for t, v in zip(trials, values)],
                         columns=COLUMNS)
 
 

@@ -198,6 +198,9 @@ def scorecard_part(ctx: Context, p: Paper) -> list[str]:
     ctx.quote(every[every["primary"]], ("figure", "claim", "where"), SCORECARD)
     ctx.quote(every[~every["primary"]], ("figure", "claim", "where", "reading"), CONTROLLED)
     ctx.value("headline.default", scorecard.headline_text(scorecard.headline(p.cards, counted)))
+    first, _ = scorecard.first_cells(p.measures)
+    ctx.value("headline.first", scorecard.headline_text(scorecard.headline(first, counted))
+              if len(first) else "")
     _write_measures(ctx, p.measured, counted)
     ctx.save(scorecard_page.figure(p.cards, ctx.title.split(":")[0] + ": the paper's claims, "
                               "calibrated intervals over trials"), "scorecard")
@@ -205,8 +208,9 @@ def scorecard_part(ctx: Context, p: Paper) -> list[str]:
     return ["## Scorecard: the paper's claims, with their uncertainty", "",
             "![scorecard](scorecard.png)", "",
             scorecard_page.markdown(p.cards, p.measures, counted, ours,
-                               "" if ctx.cfg.report.scale else
-                               scorecard.recommended_headline(readings_cards, recommended)),
+                                    "" if ctx.cfg.report.scale else
+                                    scorecard.recommended_headline(readings_cards, recommended),
+                                    scorecard_page.first_headline(p.measures, counted)),
             "Each cell: its verdict, how many of its conditions are reproduced, and its worst "
             "condition: the mean over trials of the measure and its interval "
             "(`scorecard.csv` holds every measure, `scorecard_readings.csv` the same under "

@@ -15,9 +15,12 @@ never becomes a verdict). Every fault is one ValueError naming the file and the 
 from __future__ import annotations
 
 import datetime
+import hashlib
+import json
 import math
 import os
 import stat
+from pathlib import Path
 
 import yaml
 
@@ -29,7 +32,7 @@ CLAIM = dict(id=TEXT, words=TEXT, figures=TEXT, sentence=TEXT, measure=TEXT, dia
 OUR_READING = dict(text=TEXT, written_for=MAPPING)
 RECOMMENDED = dict(figure=TEXT, reading=TEXT, reproduces=TEXTS, why=TEXT)
 READING = dict(id=TEXT, label=TEXT, criterion=TEXT, why=TEXT, fixed_at=TEXT, primary=FLAG,
-               diagnostic=FLAG, always_shown=FLAG, params="a mapping")
+               diagnostic=FLAG, always_shown=FLAG, first=FLAG, params="a mapping")
 CHANGELOG = dict(date=TEXT, commit=TEXT, reason=TEXT, before=TEXT, after=TEXT, hash=TEXT)
 NEEDED = dict(claim=("id", "words", "figures", "measure", "readings"),
               reading=("id", "criterion"), changelog=(), our_reading=("text", "written_for"),
@@ -40,7 +43,9 @@ SIDES = ("two-sided", "at-most")
 PARAMS = dict(scale=("metres", "size"), full=SIDES, smaller=SIDES, control=FLAG,
               factor=(1.0, 1e3), above=(0.0, 1e6), below=(0.0, 1e6), rebound_below=(0.0, 1e6),
               end_over_start_below=(0.0, 1e6), within_m=(0.0, 1e3), within_rad=(0.0, 1e3),
-              grows_by_rad=(0.0, 1e3), **{"from": (0, 2**63 - 1), "up_to": (0, 2**63 - 1)})
+              grows_by_rad=(0.0, 1e3), points=("grid", "path", "uniform"),
+              span=("end", "last decade"),
+              **{"from": (0, 2**63 - 1), "up_to": (0, 2**63 - 1)})
 NEEDED_PARAMS = dict(final=("factor", "full", "smaller"),
                      after=("rebound_below", "end_over_start_below"))
 
@@ -159,3 +164,33 @@ def _within(value, lo, hi) -> bool:
     except OverflowError:  # an integer of hundreds of digits
         return False
 
+
+HASHED = ("id", "diagnostic", "min_trials", "readings")  # what a changelog entry must cover
+HASHED_READING = ("id", "primary", "diagnostic", "params")
+
+
+def criterion_hash(entry: dict) -> str:
+    """The hash of a claim's criterion as the register holds it (its id, diagnostic flag,
+    min_trials and every reading's id, primary and diagnostic flags and params): what its latest
+    changelog entry must record."""
+    keep = {k: entry.get(k) for k in HASHED}
+    keep["readings"] = [{k: r.get(k) for k in HASHED_READING} for r in entry.get("readings", [])]
+    return hashlib.sha256(json.dumps(keep, sort_keys=True).encode()).hexdigest()[:12]
+
+
+def unlogged(path) -> list[str]:
+    """The claims of a register whose criterion changed without a changelog entry (the latest
+    entry's hash is not the criterion's), and entries that lack a field: what the register's
+    test reports."""
+    data = yaml.safe_load(Path(path).read_text())
+    out = []
+    for e in data["claims"]:
+        log = e.get("changelog") or []
+        if not log or log[-1].get("hash") != criterion_hash(e):
+            out.append(f"{e['id']}: criterion {criterion_hash(e)} has no changelog entry "
+                       "(add one: date, commit, reason, before, after, hash)")
+        out += [f"{e['id']}: changelog entry {i} lacks {k!r}" for i, x in enumerate(log)
+                for k in ("date", "commit", "reason", "before", "after") if not x.get(k)]
+        out += [f"{e['id']}: reading {r.get('id')!r} lacks {k!r}" for r in e.get("readings", [])
+                for k in ("criterion", "why", "fixed_at") if not r.get(k)]
+    return out

@@ -92,6 +92,26 @@ def verdict(low: float, high: float, lo: float, hi: float) -> str:
     return INCONCLUSIVE
 
 
+def flip(low: float, high: float, lo: float, hi: float, v: str) -> tuple[float, float]:
+    """The margin of a verdict: (bound, where it flips): the criterion's bound nearest to changing
+    the verdict and the value it would have to move to for the verdict to change (reproduced:
+    onto the interval's nearer end; not reproduced: onto the end facing it; inconclusive: past
+    the interval's end nearer to it, deciding it). (NaN, NaN) without an interval."""
+    if v not in (REPRODUCED, NOT, INCONCLUSIVE) or not (np.isfinite(low) and np.isfinite(high)):
+        return np.nan, np.nan
+    moves = []
+    for b, end in ((lo, low), (hi, high)):
+        if not np.isfinite(b):
+            continue
+        if v == REPRODUCED:
+            moves.append((b, end))
+        elif v == NOT and (high < b if b == lo else low > b):
+            moves.append((b, high if b == lo else low))
+        elif v == INCONCLUSIVE and low <= b <= high:
+            moves.append((b, min((low, high), key=lambda e: abs(e - b))))
+    return min(moves, key=lambda m: abs(m[1] - m[0])) if moves else (np.nan, np.nan)
+
+
 def trials_to_decide(point: float, low: float, high: float, lo: float, hi: float,
                      n: int) -> int | None:
     """Trials per condition at which an interval of the observed spread would clear the bound it
@@ -120,7 +140,7 @@ def run_test(t: Test, table: pd.DataFrame | None = None) -> dict:
     if t.diverged:  # nothing to measure: the cell says so
         t.result = dict(base, value=np.nan, low=np.nan, high=np.nan, trials=0, verdict=DIVERGED,
                         level=np.nan, note="", control_value=np.nan, trials_to_decide=None,
-                        per_trial="")
+                        per_trial="", bound=np.nan, flips_at=np.nan)
         return t.result
     note, level, control_value = "", np.nan, np.nan
     if t.exact:  # a count: the verdict is exact, the interval is the failure rate's
@@ -148,50 +168,11 @@ def run_test(t: Test, table: pd.DataFrame | None = None) -> dict:
         need = (trials_to_decide(point, low, high, t.lo, t.hi, n)
                 if v == INCONCLUSIVE and not note else None)
         per_trial = " ".join(f"{x:.6g}" for x in t.values)
+    bound, flips_at = flip(low, high, t.lo, t.hi, v) if not t.exact else (np.nan, np.nan)
     t.result = dict(base, value=point, low=low, high=high, trials=n, verdict=v, level=level,
                     note=note, control_value=control_value, trials_to_decide=need,
-                    per_trial=per_trial)
+                    per_trial=per_trial, bound=bound, flips_at=flips_at)
     return t.result
-
-
-def p_beats(a, b) -> tuple[float, float, float]:
-    """(P, lo, hi): the probability that a trial of learner A ends below one of learner B, P(A <
-    B), estimated over all n m pairs of their trials (ties count half: the Mann-Whitney U / (n m)),
-    with its 95 % interval by Newcombe's method 5 (Newcombe 2006, Statist. Med. 25: 559-573): the
-    score-type interval {theta : (theta - P)^2 <= z^2 V(theta)} with Hanley and McNeil's variance
-    V(theta) = theta (1 - theta) / (n m) [1 + (N - 1)(1 - theta) / (2 - theta) + (N - 1) theta
-    / (1 + theta)], N = (n + m) / 2.
-
-    Why this method at the study's 5 trials a learner: it stays inside [0, 1], it does not collapse
-    to a point when the samples do not overlap (P = 1 still has an interval, whose lower end says
-    how far 5 against 5 trials can go), it needs no random numbers, and Newcombe measured its
-    coverage near 95 % down to small samples. A bootstrap over trials collapses there (every
-    resample of two separated samples is separated: [1, 1]) and is too narrow at n = 5; a Wald
-    interval leaves [0, 1]. NaN where either learner has no finite trial."""
-    a, b = np.asarray(a, float), np.asarray(b, float)
-    a, b = a[np.isfinite(a)], b[np.isfinite(b)]
-    n, m = len(a), len(b)
-    if not n or not m:
-        return np.nan, np.nan, np.nan
-    d = a[:, None] - b[None, :]
-    p = float(((d < 0) + 0.5 * (d == 0)).mean())
-    z2, k = stats.norm.ppf(0.975) ** 2, (n + m) / 2 - 1
-
-    def w(x):  # V(x) n m / (x (1 - x))
-        return (1 + k * (1 - x) / (2 - x) + k * x / (1 + x)) / (n * m)
-
-    def far(q):  # the limit away from q in {0, 1}: (x - q)^2 = z^2 V(x), divided by |x - q|
-        return lambda x: abs(x - q) - z2 * (1 - abs(x - q)) * w(x)
-
-    if p == 1.0:
-        return p, brentq(far(1.0), 0.0, 1.0), 1.0
-    if p == 0.0:
-        return p, 0.0, brentq(far(0.0), 0.0, 1.0)
-
-    def f(x):
-        return (x - p) ** 2 - z2 * x * (1 - x) * w(x)
-
-    return p, brentq(f, 0.0, p), brentq(f, p, 1.0)
 
 
 def reduced_scale(scale: str) -> str:
@@ -290,7 +271,8 @@ def _cell(claim: str, figure: str, reading: str, df: pd.DataFrame, rows: list,
                 reproduced=vs.count(REPRODUCED), measures=len(rows),
                 per_trial=pick.get("per_trial", ""), lo=pick["lo"], hi=pick["hi"],
                 level=pick.get("level", LEVEL), note=pick.get("note", "") or "",
-                control_value=pick.get("control_value", np.nan))
+                control_value=pick.get("control_value", np.nan),
+                bound=pick.get("bound", np.nan), flips_at=pick.get("flips_at", np.nan))
 
 
 def all_cells(results: list[dict]) -> pd.DataFrame:
@@ -354,9 +336,33 @@ def cell_text(c, newline: str = " ") -> str:
         text += f" ({note})"
     if r["verdict"] == INCONCLUSIVE and _need(r):
         text += f"{newline}~{_need(r)} trials would decide"
+    if np.isfinite(r.get("flips_at", np.nan)):
+        text += f"{newline}margin: {margin_text(r)}"
     if r.get("others"):
         text += f"{newline}other readings: {r['others']}"
     return text
+
+
+def margin_text(r: dict) -> str:
+    """How far the shown measure's criterion would have to move to change the cell's verdict."""
+    b, to, unit = r["bound"], r["flips_at"], r["unit"]
+    by = f"{100 * (to - b):+.1f} points" if unit == "%" else (
+        f"{to - b:+.2f}x" if unit == "x" else fmt(to - b, unit))
+    return f"its bound {fmt(b, unit)} at {fmt(to, unit)} ({by}) would change it"
+
+
+def first_cells(results: list[dict], register=None) -> tuple[pd.DataFrame, list[str]]:
+    """The cells under each claim's criterion as first fixed, before the first run's data (its
+    reading marked `first` in the register), and the claims that have none (first fixed after
+    some data: not in that count)."""
+    claims = CLAIMS if register is None else register
+    first = {c.id: ("" if r.primary else r.id) for c in claims for r in c.readings if r.first}
+    every = all_cells(results)
+    if not len(every):
+        return every, []
+    keep = [first.get(c) == rd for c, rd in zip(every["claim"], every["reading"])]
+    none = [c.id for c in claims if c.id not in first and not c.diagnostic]
+    return every[keep].reset_index(drop=True), none
 
 
 def headline(cards: pd.DataFrame, counted=None) -> dict:
@@ -452,5 +458,6 @@ def recommended_headline(cards: pd.DataFrame, recs: list[dict]) -> str:
                                                                      mine["reading"])))
     n = int(mine[mine["claim"] != "bootstrap"]["trials"].max())
     return (f"The recommended reading ({readings}; the readings study, {n} trials per "
-            f"condition, pipeline/studies/register.yaml: recommended): "
+            f"condition, pipeline/studies/register.yaml: recommended), **selected after the "
+            f"data** as the reading under which the most claims hold: "
             f"**{headline_text(headline(mine))}**.")

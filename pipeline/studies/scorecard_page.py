@@ -10,7 +10,7 @@ import pandas as pd
 
 from .claims import CLAIMS, DIVERGED
 from .scorecard import (INCONCLUSIVE, MIN_VERDICT, NOT, NOT_A_VERDICT, REPRODUCED, TITLES,
-                        UNCALIBRATED, _need, cell_text, criterion, fmt, fmt_interval,
+                        UNCALIBRATED, _need, cell_text, criterion, first_cells, fmt, fmt_interval,
                         headline, headline_text)
 
 
@@ -21,22 +21,25 @@ def _order(cards: pd.DataFrame) -> tuple[list, list]:
 
 
 def markdown(cards: pd.DataFrame, results: list[dict], counted=None, readings=None,
-             recommended: str = "") -> str:
+             recommended: str = "", first: str = "") -> str:
     """The scorecard (claims x figures) and, below it, every measure with its interval.
     counted: the figures the headline counts; readings: claim -> our reading (written text),
     the column shown only where given (the committed run's discussion); recommended: the
-    headline of the recommended reading, shown beside the default's."""
+    headline of the recommended reading, first: the count under the criteria as first fixed
+    (first_headline), both shown beside the primary's."""
     from .choices import escape
 
     claims, figs = _order(cards)
     n = headline(cards, counted)
     where = "" if counted is None else f" on {', '.join(sorted(counted))}"
-    lines = [f"The paper's claims{where}, this project's default reading: **{headline_text(n)}** "
-             "(t intervals of the mean over trials of a per-trial measure, at a level whose "
-             "coverage is measured; each claim under its primary reading of the paper, "
-             "pipeline/studies/register.yaml; diagnostics, marked, are shown and not counted)."]
-    if recommended:
-        lines += ["", recommended]
+    lines = [f"The paper's claims{where}, each under its primary reading: **{headline_text(n)}** "
+             "(t intervals of the mean over trials of a per-trial measure; each claim under its "
+             "primary reading of the paper, pipeline/studies/register.yaml, some of them made "
+             "primary after the data, as its changelog says; diagnostics, marked, are shown and "
+             "not counted; each cell's margin says how far its criterion would have to move to "
+             "change it)."]
+    lines += ["", first] if first else []
+    lines += ["", recommended] if recommended else []
     if n[NOT_A_VERDICT]:
         lines += ["", f"**Not a verdict**: a cell on fewer than {MIN_VERDICT} trials per "
                   "condition (no coverage is measured below that), or of a run at a reduced "
@@ -62,6 +65,18 @@ def markdown(cards: pd.DataFrame, results: list[dict], counted=None, readings=No
                      + (f" ({escape(r['note'])})" if r.get("note") else "") + f" | {_need(r) or ''} |")
     lines += ["", "</details>", ""]
     return "\n".join(lines)
+
+
+def first_headline(results: list[dict], counted=None) -> str:
+    """The count under each claim's criterion as first fixed, before the first run's data."""
+    cards, none = first_cells(results)
+    if not len(cards):
+        return ""
+    n = headline(cards, counted)
+    return ("The criteria as first fixed, before the first run's data (the readings marked "
+            f"`first` in register.yaml, on the measures as they are now): **{headline_text(n)}**"
+            + (f"; {', '.join(none)} had no criterion before the data and are not in this count"
+               if none else "") + ".")
 
 
 COLOURS = {REPRODUCED: "#b7e1b0", NOT: "#f4b6b0", INCONCLUSIVE: "#fbe3a0", DIVERGED: "#c9c3e6",

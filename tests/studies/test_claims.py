@@ -40,7 +40,8 @@ def _figure(grown, periods=(10,), n=4, noise=0.01, seed=3, paper=0.02):
     for name, err, size, growth, period in conds:
         for t in range(n):
             e = err * (1 + noise * rng.standard_normal(len(EPOCHS)))
-            rows += [dict(condition=name, trial=t, epoch=ep, abs_error=a, rel_error=a / size)
+            rows += [dict(condition=name, trial=t, epoch=ep, abs_error=a, rel_error=a / size,
+                          path_abs_error=a, uniform_abs_error=a)
                      for ep, a in zip(EPOCHS, e)]
         summ.append(dict(condition=name, growth=growth, growth_period=period, end_size=size,
                          **base))
@@ -96,8 +97,9 @@ def test_the_cell_shows_the_worst_condition_and_k_of_n():
     # T_G = 10 rises, T_G = 100 does not: 1 of 2 reproduced, the worst is TG100
     trials, summary = _figure(RISING, periods=(10, 100))
     flat = trials["condition"] == "TG100"
-    trials.loc[flat, "abs_error"] = trials.loc[flat, "epoch"].map(
-        dict(zip(EPOCHS, np.linspace(0.2, 0.02, len(EPOCHS)))))
+    for column in ("abs_error", "path_abs_error", "uniform_abs_error"):
+        trials.loc[flat, column] = trials.loc[flat, "epoch"].map(
+            dict(zip(EPOCHS, np.linspace(0.2, 0.02, len(EPOCHS)))))
     c = sc.cells(sc.results({"figX": dict(trials=trials, summary=summary)},
                            table=_covered())).set_index("claim")
     assert c.loc["rise", "verdict"] == sc.NOT and c.loc["rise", "where"] == "TG100"

@@ -81,7 +81,8 @@ def _figure(n_trials, noise):
                             ("const1.0", long_, 1.0)]:
         for t in range(n_trials):
             e = err * (1 + noise * rng.standard_normal(len(epochs)))
-            rows += [dict(condition=name, trial=t, epoch=ep, abs_error=a, rel_error=a / size)
+            rows += [dict(condition=name, trial=t, epoch=ep, abs_error=a, rel_error=a / size,
+                          path_abs_error=a, uniform_abs_error=a)
                      for ep, a in zip(epochs, e)]
     base = dict(paper_final_abs_error=0.02, n_bootstrap_failures=0, n_run_failures=0,
                 n_diverged=0, n_trials=n_trials)
