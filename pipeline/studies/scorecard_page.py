@@ -32,14 +32,15 @@ def markdown(cards: pd.DataFrame, results: list[dict], counted=None, readings=No
     n = headline(cards, counted)
     where = "" if counted is None else f" on {', '.join(sorted(counted))}"
     lines = [f"The paper's claims{where}, this project's default reading: **{headline_text(n)}** "
-             "(t intervals of the mean over trials of a per-trial measure, at a level whose "
-             "coverage is measured; each claim under its primary reading of the paper, "
+             "(t intervals of the mean over trials of a per-trial measure, at a level a "
+             "resampling skew diagnostic sets, calibrated against an independent replicate "
+             "set below; each claim under its primary reading of the paper, "
              "pipeline/studies/register.yaml; diagnostics, marked, are shown and not counted)."]
     if recommended:
         lines += ["", recommended]
     if n[NOT_A_VERDICT]:
         lines += ["", f"**Not a verdict**: a cell on fewer than {MIN_VERDICT} trials per "
-                  "condition (no coverage is measured below that), or of a run at a reduced "
+                  "condition (no skew diagnostic below that), or of a run at a reduced "
                   "scale (report.scale), shows its value and interval and decides nothing."]
     own = readings is not None
     lines += ["", "| claim of the paper | " + " | ".join(figs) + (" | our reading |" if own
