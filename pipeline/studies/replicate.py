@@ -87,7 +87,9 @@ def rows(figure: str, first: list, second: list, scale: str = "",
             if not r["primary"] or r["diagnostic"] or t1.control is not None:
                 continue
             mean, low, high = prediction(t1.values, len(t2.values), r["level"])
-            rep = float(np.mean(t2.values)) if len(t2.values) else np.nan
+            if not np.isfinite(low):  # one trial (or none in the replicate): no interval
+                continue
+            rep = float(np.mean(t2.values))
             out.append(dict(figure=figure, claim=t1.claim, where=t1.where,
                             deciding=(t1.claim, t1.where) in deciding, n1=len(t1.values),
                             n2=len(t2.values), level=r["level"], mean=mean, low=low, high=high,
@@ -176,7 +178,10 @@ def markdown(s: pd.DataFrame) -> str:
 def section(ctx: Context) -> list[str]:
     table = calibrate(ctx)
     if not len(table):
-        return []
+        alone = [f"{r} (of {f})" for r, f in replicated().items() if r in ctx.of(STUDY)]
+        return ["## Calibration: no replicate set with its figure", "", "The replicate sets "
+                f"{', '.join(alone)} run without the figure they replicate: nothing to "
+                "calibrate.", ""] if alone else []
     ctx.text("calibration.csv", table.to_csv(index=False, float_format="%.6g"))
     s, scale = summary(table), ctx.cfg.report.scale
     for r in s.itertuples():

@@ -98,13 +98,12 @@ def test_only_counted_primary_measures_paired_by_their_key_are_judged():
 def test_a_smoke_run_of_fig4_and_its_replicate_writes_the_calibration(tmp_path):
     """fig4 and replicate_fig4 at smoke scale (~50 s): calibration.csv, the section saying it is
     no verdict, and the replicate's measures in measures.parquet."""
-    from pipeline import aggregate, report, simulate
-    from pipeline.config import compose
+    from conftest import run_cli
 
-    over = ["experiments=[fig4,replicate_fig4]", "profile=smoke", f"paths.root={tmp_path}"]
-    simulate.simulate(compose(over))
-    aggregate.aggregate(compose(over))
-    report.report(compose(over))
+    for stage in ("simulate", "aggregate", "report"):  # as make smoke runs them
+        r = run_cli(f"pipeline.{stage}", "experiments=[fig4,replicate_fig4]", "profile=smoke",
+                    f"paths.root={tmp_path}", timeout=600)
+        assert r.returncode == 0, r.stderr[-2000:]
     out = tmp_path / "outputs" / "smoke" / "latest"
     cal = pd.read_csv(out / "calibration.csv")
     assert set(cal["figure"]) == {"fig4"} and (cal["n2"] == 2).all() and len(cal) > 10
@@ -115,3 +114,21 @@ def test_a_smoke_run_of_fig4_and_its_replicate_writes_the_calibration(tmp_path):
     rep = t[t["study"] == "replicate"]
     assert len(rep) and set(rep["figure"]) == {"fig4"}
     assert len(rep) == len(t[t["study"] == "figures"])  # the same conditions, trials, measures
+
+
+def _ctx(tmp_path, groups: dict):
+    from types import SimpleNamespace
+
+    from pipeline.studies.sections import Context
+
+    return Context(SimpleNamespace(report=SimpleNamespace(scale="")), tmp_path, "t", groups)
+
+
+def test_a_report_without_a_replicate_set_has_no_section_and_one_without_its_figure_says_so(
+        tmp_path):
+    fig4 = {"summary": pd.DataFrame(), "models": {}}
+    assert replicate.section(_ctx(tmp_path, {"figures": {"fig4": fig4}})) == []
+    assert replicate.frames(_ctx(tmp_path, {"figures": {"fig4": fig4}})) == []
+    alone = replicate.section(_ctx(tmp_path, {"replicate": {"replicate_fig4": fig4}}))
+    assert "replicate_fig4 (of fig4)" in "\n".join(alone) and "nothing to calibrate" in alone[2]
+    assert not (tmp_path / "calibration.csv").exists()
