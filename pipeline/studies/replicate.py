@@ -98,7 +98,7 @@ def rows(figure: str, first: list, second: list, scale: str = "",
 
 
 def expected_range(levels) -> tuple[int, int]:
-    """(lo, hi): the two-sided exact RANGE range of the number of intervals covering if each
+    """(lo, hi): the two-sided exact 95 % (RANGE) range of the number covering if each interval
     covers with its level (independently): the binomial's where the levels are equal."""
     pmf = np.ones(1)
     for p in levels:
