@@ -18,6 +18,7 @@ Writes under paths.report (all bytes reproducible, no timestamps, only relative 
     readings.csv, readings_scorecard.csv, readings_matrix.csv, readings_summary.csv,
     readings_curves.png        the readings x claims study (and each reading's final errors)
     explanations.csv           the decisive experiments explain_*, read from their aggregates
+    calibration.csv            the scorecard's intervals against a replicate set (replicate_*)
     choices.csv, choices.md    the open choices (experiments choices_*): each variant's effect
     conventions.csv            the reporting conventions: each alternative's effect, measured
     values.csv                 the named values the pages quote (named by the sections where

@@ -1,5 +1,9 @@
-"""The coverage of the scorecard's intervals on fresh samples, per measure and trial count (the
-command that writes coverage.csv: pipeline.tools.coverage).
+"""A skew diagnostic: the coverage of the scorecard's intervals on samples resampled from a
+measure's own values, per measure and trial count (the command that writes coverage.csv:
+pipeline.tools.coverage). It resamples the same 20 values and asks whether t intervals cover
+their own mean: it shows skew (an outlier that a t interval misses), not the variation between
+independent runs. The calibration of the intervals is the replicate set's
+(pipeline/studies/replicate.py); this table only sets the t level a skewed measure needs.
 
 For every measure with at least FIT trials in a report (its per-trial values: measures.parquet,
 or scorecard.csv's per_trial column in a report written before it), a model of its distribution

@@ -9,7 +9,8 @@ calibrated) and where its coverage came from, so that rescoring draws no fresh s
 count (the bootstrap claim) is two rows, trial 0 the failed trials and
 trial 1 the total. `scale` is the run's reduced scale (report.scale; "" at the paper's).
 `counted` marks the figures the headline counts, and `recommended` the
-readings-study rows of the reading recommended for their figure.
+readings-study rows of the reading recommended for their figure. Study "replicate": a replicate
+set's measures, under the figure it replicates (pipeline/studies/replicate.py).
 `python -m pipeline.tools.rescore` rebuilds the Measures from it and judges them under a register.
 """
 from __future__ import annotations

@@ -203,7 +203,7 @@ def scorecard_part(ctx: Context, p: Paper) -> list[str]:
               if len(first) else "")
     _write_measures(ctx, p.measured, counted)
     ctx.save(scorecard_page.figure(p.cards, ctx.title.split(":")[0] + ": the paper's claims, "
-                              "calibrated intervals over trials"), "scorecard")
+                              "t intervals over trials"), "scorecard")
     ours = claims.our_reading(p.cards) if p.discussion == discussion.FINDINGS.read_text() else None
     return ["## Scorecard: the paper's claims, with their uncertainty", "",
             "![scorecard](scorecard.png)", "",
@@ -461,8 +461,8 @@ def _recommended(ctx: Context) -> tuple[pd.DataFrame, list[dict]]:
 
 def _write_measures(ctx: Context, measured: list, counted: list) -> None:
     """measures.parquet: every per-trial measure of the figures, the readings study, the
-    baselines and the choices."""
-    from . import measures_table, readings
+    replicate sets, the baselines and the choices."""
+    from . import measures_table, readings, replicate
 
     frames = [measures_table.frame([m for m in measured if m.figure == f], "figures",
                                    counted=f in counted)
@@ -472,6 +472,7 @@ def _write_measures(ctx: Context, measured: list, counted: list) -> None:
     frames += [measures_table.frame(ms, "readings", reading=label,
                                     recommended=(fig, label) in recs)
                for (fig, label), ms in readings.shared_measures(ctx, read).items()]
+    frames += replicate.frames(ctx)
     frames += measures_table.study_frames(ctx.of("baselines"), ctx.of("choices"))
     ctx.written.append(measures_table.write(ctx.out / measures_table.NAME, frames,
                                             ctx.cfg.report.scale))

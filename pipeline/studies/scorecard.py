@@ -1,15 +1,17 @@
-"""The scorecard: every claim of the paper on every figure, with a calibrated interval over
-trials.
+"""The scorecard: every claim of the paper on every figure, with its interval over trials.
 
 Each claim's measure (pipeline/studies/claims.py) is a value per trial; a cell's value is its
-mean over the trials, and the interval is Student's t interval of that mean at a level whose
-coverage is measured, not assumed:
+mean over the trials, and the interval is Student's t interval of that mean at a level set by a
+skew diagnostic:
 
     mean +- t((1 + level) / 2, n - 1) * s / sqrt(n)
 
-The coverage of each measure at its trial count is estimated on fresh samples
-(pipeline/studies/coverage.py: a smoothed bootstrap of the measure's 20-trial values); the level
-is the smallest of LEVELS whose coverage of the model's mean is at least MIN_COVERAGE. A
+The skew diagnostic (pipeline/studies/coverage.py) resamples the measure's own 20-trial values
+(a plain and a smoothed bootstrap) and asks how often a t interval covers their mean; the level
+is the smallest of LEVELS at which that share is at least MIN_COVERAGE. It resamples the same
+values, so it shows skew, not the variation between independent runs: the calibration is the
+replicate set's (pipeline/studies/replicate.py: does the interval of one set of trials predict
+the mean of an independent set?). A
 controlled reading (a difference from the constant full-size reference) uses Welch's interval
 of the difference at the measure's level.
 
@@ -43,7 +45,7 @@ from .claims import measures as claims_measures
 
 LEVEL = 0.95  # the nominal level where the coverage allows it (coverage.LEVELS[0])
 LEVELS, MIN_COVERAGE = coverage.LEVELS, coverage.MIN_COVERAGE
-MIN_VERDICT = min(coverage.COUNTS)  # fewer trials: "not a verdict" (no coverage measured)
+MIN_VERDICT = min(coverage.COUNTS)  # fewer trials: "not a verdict" (no skew diagnostic)
 MAX_DECIDE = 1000  # "trials to decide" beyond this is no estimate: not shown
 TITLES = {c.id: title(c.id) for c in CLAIMS}
 REPRODUCED, NOT, INCONCLUSIVE = "reproduced", "not reproduced", "inconclusive"

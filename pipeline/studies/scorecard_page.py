@@ -33,16 +33,17 @@ def markdown(cards: pd.DataFrame, results: list[dict], counted=None, readings=No
     n = headline(cards, counted)
     where = "" if counted is None else f" on {', '.join(sorted(counted))}"
     lines = [f"The paper's claims{where}, each under its primary reading: **{headline_text(n)}** "
-             "(t intervals of the mean over trials of a per-trial measure; each claim under its "
-             "primary reading of the paper, pipeline/studies/register.yaml, some of them made "
-             "primary after the data, as its changelog says; diagnostics, marked, are shown and "
-             "not counted; each cell's margin says how far its criterion would have to move to "
-             "change it)."]
+             "(t intervals of the mean over trials of a per-trial measure, at a level a "
+             "resampling skew diagnostic sets, calibrated against an independent replicate set "
+             "below; each claim under its primary reading of the paper, "
+             "pipeline/studies/register.yaml, some made primary after the data, as its "
+             "changelog says; diagnostics, marked, are shown and not counted; each cell's "
+             "margin says how far its criterion would have to move to change it)."]
     lines += ["", first] if first else []
     lines += ["", recommended] if recommended else []
     if n[NOT_A_VERDICT]:
         lines += ["", f"**Not a verdict**: a cell on fewer than {MIN_VERDICT} trials per "
-                  "condition (no coverage is measured below that), or of a run at a reduced "
+                  "condition (no skew diagnostic below that), or of a run at a reduced "
                   "scale (report.scale), shows its value and interval and decides nothing."]
     own = readings is not None
     lines += ["", "| claim of the paper | " + " | ".join(figs) + (" | our reading |" if own

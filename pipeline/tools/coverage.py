@@ -1,5 +1,7 @@
-"""The coverage of the scorecard's intervals on fresh samples (pipeline.studies.coverage), written
-to pipeline/studies/coverage.csv, which the scorecard reads; its per-measure table is printed.
+"""The skew diagnostic of the scorecard's intervals: their coverage on samples resampled from each
+measure's own values (pipeline.studies.coverage; not the calibration, which is the replicate
+set's), written to pipeline/studies/coverage.csv, which the scorecard reads; its table is
+printed.
 
     python -m pipeline.tools.coverage REPORT_DIR [--trials 3 5 10 20] [--draws 4000]
         [--out pipeline/studies/coverage.csv]

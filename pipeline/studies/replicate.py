@@ -1,0 +1,205 @@
+"""Calibration from a replicate set: do the scorecard's intervals cover an independent run?
+
+The replicate experiments (conf/experiment/replicate_*.yaml, paper.study: replicate) rerun a
+figure's conditions with its trial count from another root seed. For every counted measure of
+the figure (a claim of the paper, not a diagnostic; not an exact count; its primary reading,
+which is never a controlled one: a difference from a control is out of scope here), the first
+set's n1 per-trial values give the PREDICTION INTERVAL of the replicate's mean of n2 trials, at
+the level the scorecard used for the measure's interval:
+
+    mean1 +- t((1 + level) / 2, n1 - 1) * s1 * sqrt(1 / n1 + 1 / n2)
+
+Why a prediction interval and not Welch's interval of the difference of the two means: it is a
+function of the first set alone, the very interval the scorecard publishes widened by
+sqrt(1 + n1 / n2) for the replicate's own noise, so the share of them that covers the
+replicate's mean tests exactly the intervals the scorecard reports; under a correct level and an
+equal spread in both sets it covers with probability `level`. (The plain t interval of the first
+set would cover a replicate mean of 20 trials only ~83 % of the time at 95 %: it ignores the
+replicate's noise.) The shares are pooled per claim over the figures and compared with the
+two-sided exact 95 % range of the number covered if every level is right (a binomial; a
+Poisson binomial where the levels differ). The resampling table (coverage.py) resamples the
+first set's own values: it shows skew, not between-run variation; this is the calibration.
+
+calibration.csv: one row per (figure, claim, where). `failing` names the scorecard cells whose
+claim fails the pooled check or whose own deciding condition is not covered. The replicate's
+per-trial measures go into measures.parquet (study "replicate", figure: the figure it
+replicates), through `frames`.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+from . import claims, coverage, scorecard
+from .choices import escape
+from .sections import Context, declared, register
+
+STUDY = "replicate"
+RANGE = 0.95  # the two-sided probability of the expected range of a pooled share
+COLUMNS = ["figure", "claim", "where", "deciding", "n1", "n2", "level", "mean", "low", "high",
+           "replicate_mean", "covered"]
+
+
+def replicated() -> dict[str, str]:
+    """replicate experiment -> the figure it replicates (declares.reads), in declared order."""
+    return {n: e.declares.reads for n, e in declared().items()
+            if e.study == STUDY and e.declares.reads}
+
+
+def prediction(values, n2: int, level: float) -> tuple[float, float, float]:
+    """(mean, low, high): the prediction interval at `level` of the mean of n2 new trials from
+    the first set's values (NaN bounds for fewer than 2 values)."""
+    v = np.asarray(values, float)
+    mean = float(v.mean()) if len(v) else np.nan
+    if len(v) < 2 or n2 < 1:
+        return mean, np.nan, np.nan
+    half = float(stats.t.ppf(0.5 + level / 2, len(v) - 1) * v.std(ddof=1)
+                 * math.sqrt(1 / len(v) + 1 / n2))
+    return mean, mean - half, mean + half
+
+
+def _key(m: claims.Measure) -> tuple:
+    return (m.claim, m.where, getattr(m, "points", "grid"), getattr(m, "span", "end"))
+
+
+def rows(figure: str, first: list, second: list, scale: str = "",
+         table: pd.DataFrame | None = None) -> list[dict]:
+    """calibration.csv's rows of one figure: first, second: its measures (claims.measures) and
+    the replicate's, paired by (claim, where, points, span); judged as the scorecard judges the
+    first (scale: the run's reduced scale, report.scale, under which the cells' deciding
+    conditions are those the scorecard shows there)."""
+    table = coverage.current() if table is None else table
+    results = scorecard.judged(first, table)  # calibrates `first`: its Tests below reuse it
+    res = scorecard.no_verdicts(results, scorecard.reduced_scale(scale)) if scale else results
+    cards = scorecard.cells(res) if res else pd.DataFrame(columns=["claim", "where"])
+    deciding = set(zip(cards["claim"], cards["where"]))
+    other = {_key(m): m for m in second if not (m.exact or m.diverged)}
+    out = []
+    for m1 in first:
+        m2 = other.get(_key(m1))
+        if m2 is None or m1.exact or m1.diverged:
+            continue
+        for t1, t2 in zip(claims.judge([m1]), claims.judge([m2])):
+            r = scorecard.run_test(t1, table)
+            if not r["primary"] or r["diagnostic"] or t1.control is not None:
+                continue
+            mean, low, high = prediction(t1.values, len(t2.values), r["level"])
+            if not np.isfinite(low):  # one trial (or none in the replicate): no interval
+                continue
+            rep = float(np.mean(t2.values))
+            out.append(dict(figure=figure, claim=t1.claim, where=t1.where,
+                            deciding=(t1.claim, t1.where) in deciding, n1=len(t1.values),
+                            n2=len(t2.values), level=r["level"], mean=mean, low=low, high=high,
+                            replicate_mean=rep, covered=bool(low <= rep <= high)))
+    return out
+
+
+def expected_range(levels) -> tuple[int, int]:
+    """(lo, hi): the two-sided exact 95 % (RANGE) range of the number covering if each interval
+    covers with its level (independently): the binomial's where the levels are equal."""
+    pmf = np.ones(1)
+    for p in levels:
+        pmf = np.convolve(pmf, [1 - p, p])
+    cdf = np.cumsum(pmf)
+    tail = (1 - RANGE) / 2
+    return (int(np.searchsorted(cdf, tail - 1e-12)),
+            int(np.searchsorted(cdf, 1 - tail - 1e-12)))
+
+
+def summary(table: pd.DataFrame) -> pd.DataFrame:
+    """Per claim, pooled over the figures: intervals, covered, share, the expected range of the
+    share (expected_range over n) and `fails`: the share below it."""
+    out = []
+    for claim, g in table.groupby("claim", sort=False):
+        n, k = len(g), int(g["covered"].sum())
+        lo, hi = expected_range(g["level"].to_numpy(float))
+        out.append(dict(claim=claim, figures=", ".join(dict.fromkeys(g["figure"])),
+                        intervals=n, covered=k, share=k / n, expected_low=lo / n,
+                        expected_high=hi / n, fails=k < lo))
+    return pd.DataFrame(out, columns=["claim", "figures", "intervals", "covered", "share",
+                                      "expected_low", "expected_high", "fails"])
+
+
+def failing(table: pd.DataFrame, scale: str = "") -> set[tuple[str, str]]:
+    """The (figure, claim) cells of the scorecard whose calibration fails: their claim's pooled
+    share lies below its expected range, or their own deciding condition (the cell's worst
+    measure) is not covered. table: calibration.csv's rows (`calibrate`); none at a reduced
+    scale (no verdict there)."""
+    if scale or not len(table):
+        return set()
+    bad = set(summary(table).query("fails")["claim"])
+    hit = table[table["claim"].isin(bad) | (table["deciding"].astype(bool)
+                                            & ~table["covered"].astype(bool))]
+    return set(zip(hit["figure"], hit["claim"]))
+
+
+def _pairs(ctx: Context) -> dict:
+    """(replicate, figure) -> (figure's measures, replicate's measures), for each replicate
+    experiment whose figure this report holds (both with their trials); made once."""
+    def make():
+        figs, reps, out = ctx.of("figures"), ctx.of(STUDY), {}
+        for r, f in replicated().items():
+            if r in reps and f in figs and "trials" in reps[r] and "trials" in figs[f]:
+                out[(r, f)] = tuple(claims.measures(f, a["trials"], a["summary"])
+                                    for a in (figs[f], reps[r]))
+        return out
+    return ctx.once("replicate measures", make)
+
+
+def calibrate(ctx: Context) -> pd.DataFrame:
+    """calibration.csv of the report `ctx` (empty without replicate experiments), made once:
+    what the scorecard's cells read through `failing`."""
+    scale = ctx.cfg.report.scale or ""
+    return ctx.once("replicate calibration", lambda: pd.DataFrame(
+        [x for (_, f), (a, b) in _pairs(ctx).items() for x in rows(f, a, b, scale)],
+        columns=COLUMNS))
+
+
+def frames(ctx: Context) -> list[pd.DataFrame]:
+    """measures.parquet's rows of the replicate sets (study "replicate", figure: the one read)."""
+    from . import measures_table
+
+    return [measures_table.frame(b, STUDY) for (_, f), (_, b) in _pairs(ctx).items()]
+
+
+def markdown(s: pd.DataFrame) -> str:
+    lines = ["| claim | figures | intervals | covering the replicate | share | expected "
+             f"({100 * RANGE:g} % range) |", "|---|---|--:|--:|--:|---|"]
+    lines += [f"| {escape(scorecard.TITLES[r.claim])} | {r.figures} | {r.intervals} | {r.covered} "
+              f"| {100 * r.share:.0f} % | {100 * r.expected_low:.0f}-{100 * r.expected_high:.0f} %"
+              + (" **below**" if r.fails else "") + " |" for r in s.itertuples()]
+    return "\n".join(lines) + "\n"
+
+
+@register(STUDY, 15)
+def section(ctx: Context) -> list[str]:
+    table = calibrate(ctx)
+    if not len(table):
+        alone = [f"{r} (of {f})" for r, f in replicated().items() if r in ctx.of(STUDY)]
+        return ["## Calibration: no replicate set with its figure", "", "The replicate sets "
+                f"{', '.join(alone)} run without the figure they replicate: nothing to "
+                "calibrate.", ""] if alone else []
+    ctx.text("calibration.csv", table.to_csv(index=False, float_format="%.6g"))
+    s, scale = summary(table), ctx.cfg.report.scale
+    for r in s.itertuples():
+        ctx.value(f"calibration.{r.claim}.share", r.share)
+    bad = sorted(failing(table))
+    verdict = (f"A {scale} run ({int(table['n1'].max())} trials): measured, not a verdict at "
+               "that scale." if scale else
+               "Cells that fail it (the claim's share below its range, or the cell's deciding "
+               "condition not covered): " + (", ".join(f"{c} on {f}" for f, c in bad) or "none")
+               + ".")
+    pairs = ", ".join(f"{r} (of {f})" for r, f in _pairs(ctx))
+    return ["## Calibration: the scorecard's intervals against a replicate set", "",
+            f"The replicate sets ({pairs}) rerun each figure's conditions from another root "
+            "seed. For each counted measure (primary reading; controlled readings are out of "
+            "scope) the first set gives the prediction interval of the replicate's mean at the "
+            "level the scorecard used, mean1 +- t((1 + level) / 2, n1 - 1) s1 sqrt(1/n1 + "
+            "1/n2): the scorecard's own interval widened for the replicate's noise, so the "
+            "share covering tests exactly the published intervals (it covers with probability "
+            "`level` if they are right). The resampling table of docs/scorecard.md resamples the "
+            "same values and shows skew only; this is the calibration (calibration.csv, "
+            "pipeline/studies/replicate.py).", "", markdown(s), verdict, ""]
