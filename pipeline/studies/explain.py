@@ -16,14 +16,16 @@ which trains nothing), so the report stage starts no trial:
   full-size one's at a few epochs, under the plain step at 1 / W and 2 / W and the least-squares
   solve: whether the half-size arm's slower learning is the step's size dependence;
 - rise (Fig. 4, readings_fig4): the temporary rise during growth (claims.rise, the scorecard's
-  measure) for every T_G under the rate and solver readings.
+  measure) for every T_G under the rate and solver readings;
+- extent (Fig. 7 and 4, explain_extent_*; explain_extent.py): the final error per target-set
+  extent and its exponent, beside the paper's absolute error.
 """
 from __future__ import annotations
 
 import numpy as np
 import pandas as pd
 
-from . import claims, scorecard
+from . import claims, explain_extent, scorecard
 from .capacity import _extremes, best_cubic
 from .choices import escape
 from .sections import Context, declared, register
@@ -319,7 +321,19 @@ def rows(aggs: dict, named: dict | None = None) -> list[dict]:
     if r:
         out.append(dict(figure="fig4", experiment=f"rise ({by['rise']}): the temporary rise "
                         "during growth per T_G, rate and solver", measured=rises_text(r)))
+    for explains, name, e in _extents(aggs):
+        named.update(explain_extent.named(explains, e))
+        out.append(explain_extent.row(explains, name, e))
     return out
+
+
+def _extents(aggs: dict):
+    """(explanation, experiment, explain_extent.extent) for each extent experiment aggregated."""
+    by = explained()
+    for explains in explain_extent.FIGURE:
+        e = explain_extent.extent(aggs[by[explains]]) if by.get(explains) in aggs else None
+        if e:
+            yield explains, by[explains], e
 
 
 QUOTED_BOUNDARY = {"+-0.9 m": "explanations.fig2.boundary.measured.n5",
@@ -358,10 +372,13 @@ def section(ctx: Context) -> list[str]:
            "pipeline/studies/explain.py): what a cubic can reach when fitted directly "
            "(the capacity bound), the 2-DOF arm learned with its extremes away from the "
            "stretched arm, the iCub continued at a smaller learning rate, the half-size arm "
-           "under steps that take the size out, and the rise during growth per rate.", "",
+           "under steps that take the size out, the rise during growth per rate, and the final "
+           "error per target-set extent.", "",
            "| figure | experiment | measured |", "|---|---|---|"]
           + [f"| {r['figure']} | {escape(r['experiment'])} | {escape(r['measured'])} |"
              for r in found] + [""])
+    md += [explain_extent.claim(name, explain_extent.FIGURE[x], e) + "\n"
+           for x, name, e in _extents(aggs)]
     rise = explained().get("rise")
     r = rises(aggs[rise]) if rise in aggs else []
     if r:

@@ -1,0 +1,122 @@
+"""The target set's extent (issue 58; explain_extent_icub, explain_extent_arm5), read by explain.py.
+
+The paper never gives the iCub's target set, and an absolute error scales with its extent. The
+variants learn the body's grid (x1) and grids of the same centre and points at other extents
+(label x0.5, x1.25, x1.5), with common random numbers. Per variant: the final error on the grid,
+on the path targets (eq. 10) and on uniform points, mean over trials with its 95 % t interval,
+and its ratio to x1 per trial on the same seeds; per evaluation point set, the exponent k of
+error ~ extent^k (least squares on log-log over the variants' means).
+"""
+from __future__ import annotations
+
+import re
+
+import numpy as np
+
+from .. import measures
+from . import scorecard
+
+FIGURE = {"extent": "fig7", "extent_arm5": "fig4"}  # explanation (declares.explains) -> figure
+POINTS = {"grid": "abs_error", "path targets": "path_abs_error",
+          "uniform points": "uniform_abs_error"}  # where the error is averaged -> its column
+TOLERANCE = 0.2  # k within this of 1: "in proportion"; of 0: "does not change"
+
+
+def factor(label: str) -> float:
+    """The extent factor a variant's label starts with: "x0.5" -> 0.5, "x1 (conf/...)" -> 1."""
+    m = re.match(r"x(\d+(?:\.\d+)?)(?!\S)", str(label).strip())
+    if not m:
+        raise ValueError(f"extent variant {label!r}: its label must start with x<factor> (x0.5)")
+    return float(m.group(1))
+
+
+def _ci(values) -> dict:
+    point, low, high = scorecard.interval(np.asarray(values, float))
+    return dict(value=point, low=low, high=high)
+
+
+def extent(agg: dict) -> dict | None:
+    """Per variant (by factor, ascending) the final errors in mm and their ratios to x1 per
+    trial, and k per point set; None without an x1 variant and another with trials."""
+    fin = measures.finals(agg["trials"])
+    per = {factor(r.variant or r.condition): fin[fin["condition"] == r.condition]
+           .set_index("trial").sort_index() for r in agg["summary"].itertuples()}
+    per = {f: t for f, t in sorted(per.items()) if len(t)}
+    if 1.0 not in per or len(per) < 2:
+        return None
+    base, variants = per[1.0], []
+    for f, t in per.items():
+        same = t.index.intersection(base.index)
+        variants.append(dict(factor=f, trials=len(t), epoch=int(t["epoch"].max()), **{
+            name: dict(_ci(1e3 * t[col].dropna()),
+                       ratio=_ci((t.loc[same, col] / base.loc[same, col]).dropna()))
+            for name, col in POINTS.items()}))
+    k = {}
+    for name in POINTS:
+        fx = np.array([(v["factor"], v[name]["value"]) for v in variants if v[name]["value"] > 0])
+        k[name] = float(np.polyfit(*np.log(fx).T, 1)[0]) if len(fx) >= 2 else np.nan
+    paper = agg["models"].get("paper", {}).get("final_abs_error")
+    return dict(variants=variants, k=k, paper_mm=1e3 * paper if paper else np.nan)
+
+
+def scaling(k: float) -> str:
+    """How the final error follows the extent, as k says."""
+    if not np.isfinite(k):
+        return "has no exponent (fewer than two extents measured)"
+    k = round(k, 2) + 0.0  # as printed, never -0.00
+    if abs(k - 1) <= TOLERANCE:
+        return f"scales about in proportion with the extent (k = {k:.2f})"
+    if abs(k) <= TOLERANCE:
+        return f"does not change with the extent (k = {k:.2f})"
+    return (f"scales as the extent to the power k = {k:.2f}" if k > 0
+            else f"falls as the extent grows (k = {k:.2f})")
+
+
+def _iv(r: dict, f: str = ".2f") -> str:
+    return f"{r['value']:{f}} [{r['low']:{f}}, {r['high']:{f}}]"
+
+
+def spread(e: dict, name: str) -> float:
+    """The final error at the largest extent over that at the smallest (means over trials)."""
+    return e["variants"][-1][name]["value"] / e["variants"][0][name]["value"]
+
+
+def measured(e: dict) -> str:
+    """The row's `measured`: the numbers per point set and what k says of them."""
+    v0 = e["variants"][0]
+    parts = [f"{name}: " + ", ".join(
+        f"x{v['factor']:g} {_iv(v[name])}" + ("" if v["factor"] == 1 else
+                                              f" ({_iv(v[name]['ratio'])} of x1)")
+        for v in e["variants"]) + f"; the final error {scaling(e['k'][name])}" for name in POINTS]
+    return (f"final error at epoch {v0['epoch']:,} in mm (mean over {v0['trials']} trials, 95 % "
+            "t interval; the ratio to x1 per trial on the same seeds): " + "; ".join(parts) + ".")
+
+
+def row(explains: str, experiment: str, e: dict) -> dict:
+    return dict(figure=FIGURE[explains], experiment=f"target-set extent ({experiment}): the "
+                "body's grid at " + ", ".join(f"x{v['factor']:g}" for v in e["variants"])
+                + " of its extent (same centre and points, same seeds)", measured=measured(e))
+
+
+def named(explains: str, e: dict) -> dict:
+    """The numbers the pages may quote, as the texts print them: per point set, k, the spread
+    (largest over smallest extent) and the ratio to x1 at the smallest extent."""
+    out, v0 = {}, e["variants"][0]
+    for name in POINTS:
+        at = f"explanations.{FIGURE[explains]}.extent.{name.split()[0]}"
+        out.update({f"{at}.k": e["k"][name], f"{at}.spread": spread(e, name),
+                    f"{at}.ratio_x{v0['factor']:g}": v0[name]["ratio"]["value"]})
+    return {n: float(f"{x:.2f}") for n, x in out.items() if np.isfinite(x)}
+
+
+def claim(experiment: str, figure: str, e: dict) -> str:
+    """The report's sentence next to the paper's absolute error: how far the extent moves it."""
+    lo, hi, mm = e["variants"][0]["factor"], e["variants"][-1]["factor"], e["paper_mm"]
+    paper = ("its absolute error" if not np.isfinite(mm) else f"{mm / 10:g} cm" if mm % 10 == 0
+             else f"{mm:g} mm")
+    by = ", ".join(f"{spread(e, name):.2f} x on the {name}" for name in POINTS)
+    return (f"Fig. {figure[3:]}'s {paper} is an absolute error, and the extent of the target set "
+            f"it is averaged over moves it: from x{lo:g} to x{hi:g} of this project's extent the "
+            f"final error changes by {by} ({experiment}). Where the paper does not state the "
+            f"target set, an absolute error is comparable to its {paper} only to within that "
+            "factor.")
