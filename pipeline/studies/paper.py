@@ -15,7 +15,8 @@ import pandas as pd
 from omegaconf import OmegaConf
 
 from .. import io
-from . import claims, conventions, discussion, figures, scorecard, scorecard_page, settings
+from . import (claims, conventions, discussion, figures, replicate, scorecard, scorecard_page,
+               settings)
 from .choices import escape
 from .claims import DIVERGED, diverged_conditions
 from .sections import Context, declares_claims, register
@@ -198,6 +199,8 @@ def scorecard_part(ctx: Context, p: Paper) -> list[str]:
     ctx.quote(every[every["primary"]], ("figure", "claim", "where"), SCORECARD)
     ctx.quote(every[~every["primary"]], ("figure", "claim", "where", "reading"), CONTROLLED)
     ctx.value("headline.default", scorecard.headline_text(scorecard.headline(p.cards, counted)))
+    bad = replicate.failing(replicate.calibrate(ctx), ctx.cfg.report.scale or "")
+    p.cards["replicate"] = [(f, c) in bad for f, c in zip(p.cards["figure"], p.cards["claim"])]
     first, _ = scorecard.first_cells(p.measures)
     ctx.value("headline.first", scorecard.headline_text(scorecard.headline(first, counted))
               if len(first) else "")

@@ -342,6 +342,8 @@ def cell_text(c, newline: str = " ") -> str:
         text += f"{newline}margin: {margin_text(r)}"
     if r.get("others"):
         text += f"{newline}other readings: {r['others']}"
+    if r.get("replicate") is True:
+        text += f"{newline}calibration fails against the replicate set (calibration.csv)"
     return text
 
 
