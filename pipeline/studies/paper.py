@@ -340,6 +340,14 @@ def _name_summary(ctx: Context, summary: pd.DataFrame) -> None:
              if a in row and b in row else np.nan)
         if np.isfinite(x):
             ctx.value(name, x)
+    for (fig, col), g in summary.groupby("figure").agg({c: ["min", "max"] for c in RANGED if c in
+                                                        summary}).stack(0).iterrows():
+        for end in ("min", "max"):  # a figure's range over its conditions, wherever measured
+            if np.isfinite(g[end]):
+                ctx.value(f"summary.{fig}.{col}_mm.{end}", printed(g[end]) * 1e3)
+
+
+RANGED = ("final_abs_error_mean", "final_path_abs_error_mean", "final_uniform_abs_error_mean")
 
 
 # the numbers of these tables the pages quote (README.md, docs/, findings.md), named here where

@@ -303,12 +303,14 @@ def test_a_trials_curve_is_written_without_pandas():
     code = ("import sys, numpy as np; from pipeline import io; "
             "r = dict(epoch=np.arange(1, 4), samples=np.arange(3) * 7, size=np.ones(3), "
             "abs_error=np.array([0.1, np.nan, 2.0]), rel_error=np.ones(3), "
-            "heldout_abs_error=np.zeros(3)); t = io.trial_curve_table(r); "
+            "heldout_abs_error=np.zeros(3), uniform_abs_error=np.zeros(3), "
+            "path_abs_error=np.zeros(3)); t = io.trial_curve_table(r); "
             "assert t.column('abs_error').null_count == 0; io.table_bytes(t); "
             "print('pandas' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], env=ENV, capture_output=True, text=True)
     assert out.stdout.strip() == "False", out.stderr
     r = dict(epoch=[1, 2], samples=[3, 4], size=[0.5, 1.0], abs_error=[0.1, float("nan")],
-             rel_error=[1.0, 2.0], heldout_abs_error=[0.0, 1.0])  # lists: pa.array as before
+             rel_error=[1.0, 2.0], heldout_abs_error=[0.0, 1.0], uniform_abs_error=[0.0, 1.0],
+             path_abs_error=[0.0, 1.0])  # lists: pa.array as before
     assert io.table_bytes(io.trial_curve_table(r)) == io.table_bytes(pa.Table.from_arrays(
         [pa.array(r[f.name], type=f.type) for f in io.TRIAL_CURVE], schema=io.TRIAL_CURVE))
