@@ -28,7 +28,7 @@ def curve_stats(trials: pd.DataFrame) -> pd.DataFrame:
     g = trials.groupby(GROUP + ["epoch"], sort=False)
     out = g[["samples", "size"]].mean()
     out["samples"] = out["samples"].astype("int64")
-    for col in ERRORS:
+    for col in (c for c in ERRORS if c in trials):
         out[f"{col}_mean"] = g[col].mean()
         out[f"{col}_std"] = g[col].std(ddof=1)
         out[f"{col}_q25"] = g[col].quantile(0.25)
@@ -61,7 +61,7 @@ def summarize(trials: pd.DataFrame, curves: pd.DataFrame, conds: dict, paper: di
                    n_trials=int(len(final)), n_diverged=len(c["diverged"]),
                    n_run_failures=len(c["missing"]),
                    diverged_epochs=",".join(str(e) for e in c["diverged"].values()))
-        for col in ERRORS:
+        for col in (c for c in ERRORS if c in final):
             row[f"final_{col}_mean"] = float(final[col].mean()) if len(final) else np.nan
             row[f"final_{col}_std"] = float(final[col].std(ddof=1)) if len(final) > 1 else np.nan
         cu = curve_of.get(name, curves.iloc[:0])

@@ -264,9 +264,18 @@ def _diverged_measures(figure: str, summary: pd.DataFrame, dead: list, n_refs: i
         touched += ["blend"] if n_refs == 2 else []  # a growing one's, or a reference's
         out += [Measure(figure, claim, r.condition, np.array([]), diverged=True,
                         period=int(r.growth_period) if r.growth != "none" else 0,
-                        size=float(r.end_size) / float(summary["end_size"].max()))
-                for claim in touched]
+                        size=float(r.end_size) / float(summary["end_size"].max()),
+                        points=p, span=s)
+                for claim in touched for p, s in _places(claim)]
     return out
+
+
+def _places(claim: str) -> list[tuple[str, str]]:
+    """(points, span) of every measure `measures` makes of a claim (the final error and the
+    rise wherever the error is measured, the rest on the grid)."""
+    spans = ("end", LAST_DECADE) if claim == "final" else ("end",)
+    return [(p, s) for p in POINTS for s in spans] if claim in ("final", "rise") else \
+        [("grid", "end")]
 
 
 def measures(figure: str, trials: pd.DataFrame, summary: pd.DataFrame) -> list[Measure]:
