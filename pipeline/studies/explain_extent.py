@@ -99,10 +99,11 @@ def row(explains: str, experiment: str, e: dict) -> dict:
 
 
 def named(explains: str, e: dict) -> dict:
-    """The numbers the pages may quote, as the texts print them: per point set, k, the spread
-    (largest over smallest extent) and the ratio to x1 at the smallest extent."""
+    """The numbers the pages quote, as the texts print them: on the path targets (the primary
+    reading's points), k, the spread (largest over smallest extent) and the ratio to x1 at the
+    smallest extent."""
     out, v0 = {}, e["variants"][0]
-    for name in POINTS:
+    for name in (n for n in POINTS if n.startswith("path")):
         at = f"explanations.{FIGURE[explains]}.extent.{name.split()[0]}"
         out.update({f"{at}.k": e["k"][name], f"{at}.spread": spread(e, name),
                     f"{at}.ratio_x{v0['factor']:g}": v0[name]["ratio"]["value"]})
