@@ -59,8 +59,18 @@ def extent(agg: dict) -> dict | None:
     return dict(variants=variants, k=k, paper_mm=1e3 * paper if paper else np.nan)
 
 
-def scaling(k: float) -> str:
-    """How the final error follows the extent, as k says."""
+def lowest(e: dict, name: str) -> float | None:
+    """The extent at which the mean final error is lowest where that is between the smallest and
+    the largest (no power of the extent describes such means); None otherwise."""
+    i = int(np.argmin([x[name]["value"] for x in e["variants"]]))
+    return e["variants"][i]["factor"] if 0 < i < len(e["variants"]) - 1 else None
+
+
+def scaling(k: float, low: float | None = None) -> str:
+    """How the final error follows the extent, as k says (low: lowest(), where it does not rise
+    with the extent)."""
+    if low is not None:
+        return f"does not rise with the extent: it is lowest at x{low:g}"
     if not np.isfinite(k):
         return "has no exponent (fewer than two extents measured)"
     k = round(k, 2) + 0.0  # as printed, never -0.00
@@ -87,7 +97,8 @@ def measured(e: dict) -> str:
     parts = [f"{name}: " + ", ".join(
         f"x{v['factor']:g} {_iv(v[name])}" + ("" if v["factor"] == 1 else
                                               f" ({_iv(v[name]['ratio'])} of x1)")
-        for v in e["variants"]) + f"; the final error {scaling(e['k'][name])}" for name in POINTS]
+        for v in e["variants"]) + f"; the final error {scaling(e['k'][name], lowest(e, name))}"
+        for name in POINTS]
     return (f"final error at epoch {v0['epoch']:,} in mm (mean over {v0['trials']} trials, 95 % "
             "t interval; the ratio to x1 per trial on the same seeds): " + "; ".join(parts) + ".")
 
@@ -115,6 +126,14 @@ def claim(experiment: str, figure: str, e: dict) -> str:
     lo, hi, mm = e["variants"][0]["factor"], e["variants"][-1]["factor"], e["paper_mm"]
     paper = ("its absolute error" if not np.isfinite(mm) else f"{mm / 10:g} cm" if mm % 10 == 0
              else f"{mm:g} mm")
+    low = lowest(e, "path targets")
+    if low is not None:
+        at = ", ".join(f"x{v['factor']:g} {v['path targets']['value']:.1f} mm"
+                       for v in e["variants"])
+        return (f"Fig. {figure[3:]}'s {paper} depends on the target set it is averaged over, but "
+                f"not as a scale: on the path targets the final error is {at} ({experiment}), "
+                f"lowest at x{low:g}. Where the paper does not state the target set, an "
+                f"absolute error is comparable to its {paper} only for a set like the one used.")
     by = ", ".join(f"{spread(e, name):.2f} x on the {name}" for name in POINTS)
     return (f"Fig. {figure[3:]}'s {paper} is an absolute error, and the extent of the target set "
             f"it is averaged over moves it: from x{lo:g} to x{hi:g} of this project's extent the "

@@ -51,9 +51,15 @@ def test_the_texts_follow_the_exponent():
     named = {}
     assert explain.rows({"explain_extent_arm5": _agg(0.0, (1.0, 0.5, 1.25), paper=0.02)},
                         named)[0]["figure"] == "fig4"
-    assert named["explanations.fig4.extent.uniform.k"] == 0.0
-    assert named["explanations.fig4.extent.grid.ratio_x0.5"] == 1.0
+    assert named["explanations.fig4.extent.path.k"] == 0.0
+    assert named["explanations.fig4.extent.path.ratio_x0.5"] == 1.0
     assert explain_extent.claim("x", "fig4", flat).startswith("Fig. 4's 2 cm")
+    # lowest between the smallest and the largest extent: no exponent, the sentence says so
+    bowl = explain_extent.extent(_agg(0.0, factors=(1.0, 0.5, 1.25), paper=0.02))
+    for v, y in zip(bowl["variants"], (20.0, 11.0, 21.0)):
+        v["path targets"]["value"] = y
+    assert explain_extent.lowest(bowl, "path targets") == 1.0
+    assert "not as a scale" in explain_extent.claim("x", "fig4", bowl)
 
 
 def test_a_run_without_them_or_without_x1_has_no_row_and_a_bad_label_is_one_line():
