@@ -435,10 +435,33 @@ SCORECARD = {
         ('fig2', 'stages', 'final error at the worse extreme', 'low', 1e3),
     'scorecard.fig2.stages.high_mm':
         ('fig2', 'stages', 'final error at the worse extreme', 'high', 1e3),
+    'scorecard.fig7_20trials.final.const1.0.high':
+        ('fig7_20trials', 'final', 'const1.0', 'high', 1),
+    'scorecard.fig4.final.tg100.value':
+        ('fig4', 'final', 'TG100', 'value', 1),
     'scorecard.fig7_20trials.final.const1.0.value':
         ('fig7_20trials', 'final', 'const1.0', 'value'),
 }
 CONTROLLED = {
+    # the readings beside the primary that the pages quote: the grid (the final error's and the
+    # rise's first place of measurement) and uniform points
+    'grid.fig5.final.tg1000.value': ('fig5', 'final', 'TG1000', 'metres, full size two-sided',
+                                     'value', 1),
+    'grid.fig4.final.const1.0.value': ('fig4', 'final', 'const1.0',
+                                       'metres, full size two-sided', 'value', 1),
+    'grid.fig4.rise.tg1000.value_pct': ('fig4', 'rise', 'TG1000', 'per trial', 'value', 100),
+    'grid.fig4.rise.tg1000.low_pct': ('fig4', 'rise', 'TG1000', 'per trial', 'low', 100),
+    'grid.fig4.rise.tg1000.high_pct': ('fig4', 'rise', 'TG1000', 'per trial', 'high', 100),
+    'uniform.fig5.final.tg1000.value': ('fig5', 'final', 'TG1000',
+                                        'uniform points, full size two-sided', 'value', 1),
+    'uniform.fig7_20trials.final.const1.0.value': ('fig7_20trials', 'final', 'const1.0',
+                                                   'uniform points, full size two-sided',
+                                                   'value', 1),
+    'uniform.fig7_20trials.final.const1.0.high': ('fig7_20trials', 'final', 'const1.0',
+                                                  'uniform points, full size two-sided',
+                                                  'high', 1),
+    'decade.fig7_20trials.final.tg10000.value': ('fig7_20trials', 'final', 'TG10000',
+                                                 'last decade, path targets', 'value', 1),
     'control.fig7_20trials.after.tg10_rebound.value_pct':
         ('fig7_20trials', 'after', 'TG10 rebound', 'controlled', 'value', 100),
     'control.fig7_20trials.after.tg10_rebound.low_pct':
