@@ -20,6 +20,7 @@ from . import (claims, conventions, discussion, figures, replicate, scorecard, s
 from .choices import escape
 from .claims import DIVERGED, diverged_conditions
 from .sections import Context, declares_claims, register
+from .quoted import CONTROLLED, RANGED, SCORECARD, SUMMARY, SUMMARY_RATIOS
 from .values import printed
 
 MAX_PANELS = 4  # posture panels of a figure that report.postures does not name
@@ -348,137 +349,6 @@ def _name_summary(ctx: Context, summary: pd.DataFrame) -> None:
                 ctx.value(f"summary.{fig}.{col}_mm.{end}", printed(g[end]) * 1e3)
 
 
-RANGED = ("final_abs_error_mean", "final_path_abs_error_mean", "final_uniform_abs_error_mean")
-
-
-# the numbers of these tables the pages quote (README.md, docs/, findings.md), named here where
-# they are computed: name -> the row's figure and condition (claim, where, reading), the column
-# and its scale (pipeline/studies/values.py)
-SUMMARY = {
-    'summary.fig5.tg1000.final_abs_error_mean_mm':
-        ('fig5', 'TG1000', 'final_abs_error_mean', 1e3),
-    'summary.fig4.const1.0.final_abs_error_mean_mm':
-        ('fig4', 'const1.0', 'final_abs_error_mean', 1e3),
-    'summary.fig7_20trials.const0.5.final_abs_error_mean_mm':
-        ('fig7_20trials', 'const0.5', 'final_abs_error_mean', 1e3),
-    'summary.fig7_20trials.const1.0.final_abs_error_mean_mm':
-        ('fig7_20trials', 'const1.0', 'final_abs_error_mean', 1e3),
-    'summary.fig4.const0.5.final_abs_error_mean_mm':
-        ('fig4', 'const0.5', 'final_abs_error_mean', 1e3),
-    'summary.fig5.const0.5.final_abs_error_mean_mm':
-        ('fig5', 'const0.5', 'final_abs_error_mean', 1e3),
-    'summary.fig2.const1.0.final_abs_error_mean_mm':
-        ('fig2', 'const1.0', 'final_abs_error_mean', 1e3),
-}
-SUMMARY_RATIOS = {  # name -> (the row of the final error, the row it is divided by, its column)
-    "summary.fig4.const0.5.final_abs_error_mean.over.const1.0":
-        (("fig4", "const0.5"), ("fig4", "const1.0"), "final_abs_error_mean"),
-    "summary.fig4.const0.5.final_abs_error_mean.over.paper_final_abs_error":
-        (("fig4", "const0.5"), ("fig4", "const0.5"), "paper_final_abs_error"),
-    "summary.fig5.const0.5.final_abs_error_mean.over.paper_final_abs_error":
-        (("fig5", "const0.5"), ("fig5", "const0.5"), "paper_final_abs_error"),
-}
-SCORECARD = {
-    'scorecard.fig4.rise.tg1000.value_pct':
-        ('fig4', 'rise', 'TG1000', 'value', 100),
-    'scorecard.fig2.stages.value_mm':
-        ('fig2', 'stages', 'final error at the worse extreme', 'value', 1e3),
-    'scorecard.fig4.above_start.tg1000.value_pct':
-        ('fig4', 'above_start', 'TG1000', 'value', 100),
-    'scorecard.fig5.above_start.tg1000.value_pct':
-        ('fig5', 'above_start', 'TG1000', 'value', 100),
-    'scorecard.fig5.rise.tg1000.value_pct':
-        ('fig5', 'rise', 'TG1000', 'value', 100),
-    'scorecard.fig4.above_start.tg100.value_pct':
-        ('fig4', 'above_start', 'TG100', 'value', 100),
-    'scorecard.fig5.above_start.tg100.value_pct':
-        ('fig5', 'above_start', 'TG100', 'value', 100),
-    'scorecard.fig4.rise.tg100.value_pct':
-        ('fig4', 'rise', 'TG100', 'value', 100),
-    'scorecard.fig5.rise.tg100.value_pct':
-        ('fig5', 'rise', 'TG100', 'value', 100),
-    'scorecard.fig5.final.tg1000.value':
-        ('fig5', 'final', 'TG1000', 'value'),
-    'scorecard.fig4.final.const1.0.value':
-        ('fig4', 'final', 'const1.0', 'value'),
-    'scorecard.fig4.rise.tg10.value_pct':
-        ('fig4', 'rise', 'TG10', 'value', 100),
-    'scorecard.fig5.rise.tg10.value_pct':
-        ('fig5', 'rise', 'TG10', 'value', 100),
-    'scorecard.fig4.rise.tg1000.low_pct':
-        ('fig4', 'rise', 'TG1000', 'low', 100),
-    'scorecard.fig4.rise.tg1000.high_pct':
-        ('fig4', 'rise', 'TG1000', 'high', 100),
-    'scorecard.fig7_20trials.rise.tg10.value_pct':
-        ('fig7_20trials', 'rise', 'TG10', 'value', 100),
-    'scorecard.fig7_20trials.rise.tg100.value_pct':
-        ('fig7_20trials', 'rise', 'TG100', 'value', 100),
-    'scorecard.fig7_20trials.rise.tg1000.value_pct':
-        ('fig7_20trials', 'rise', 'TG1000', 'value', 100),
-    'scorecard.fig7_20trials.final.const0.5.value':
-        ('fig7_20trials', 'final', 'const0.5', 'value'),
-    'scorecard.fig7_20trials.after.tg10_rebound.value_pct':
-        ('fig7_20trials', 'after', 'TG10 rebound', 'value', 100),
-    'scorecard.fig7_20trials.after.tg10_rebound.low_pct':
-        ('fig7_20trials', 'after', 'TG10 rebound', 'low', 100),
-    'scorecard.fig7_20trials.after.tg10_rebound.high_pct':
-        ('fig7_20trials', 'after', 'TG10 rebound', 'high', 100),
-    'scorecard.fig7_20trials.blend.tg10.value_pct':
-        ('fig7_20trials', 'blend', 'TG10', 'value', 100),
-    'scorecard.fig7_20trials.blend.tg10.low_pct':
-        ('fig7_20trials', 'blend', 'TG10', 'low', 100),
-    'scorecard.fig7_20trials.blend.tg10.high_pct':
-        ('fig7_20trials', 'blend', 'TG10', 'high', 100),
-    'scorecard.fig2.stages_home.value':
-        ('fig2', 'stages_home', 'deviation from home after epoch 1', 'value'),
-    'scorecard.fig2.stages.low_mm':
-        ('fig2', 'stages', 'final error at the worse extreme', 'low', 1e3),
-    'scorecard.fig2.stages.high_mm':
-        ('fig2', 'stages', 'final error at the worse extreme', 'high', 1e3),
-    'scorecard.fig7_20trials.final.const1.0.high':
-        ('fig7_20trials', 'final', 'const1.0', 'high', 1),
-    'scorecard.fig4.final.tg100.value':
-        ('fig4', 'final', 'TG100', 'value', 1),
-    'scorecard.fig7_20trials.final.const1.0.value':
-        ('fig7_20trials', 'final', 'const1.0', 'value'),
-}
-CONTROLLED = {
-    # the readings beside the primary that the pages quote: the grid (the final error's and the
-    # rise's first place of measurement) and uniform points
-    'grid.fig5.final.tg1000.value': ('fig5', 'final', 'TG1000', 'metres, full size two-sided',
-                                     'value', 1),
-    'grid.fig4.final.const1.0.value': ('fig4', 'final', 'const1.0',
-                                       'metres, full size two-sided', 'value', 1),
-    'grid.fig4.rise.tg1000.value_pct': ('fig4', 'rise', 'TG1000', 'per trial', 'value', 100),
-    'grid.fig4.rise.tg1000.low_pct': ('fig4', 'rise', 'TG1000', 'per trial', 'low', 100),
-    'grid.fig4.rise.tg1000.high_pct': ('fig4', 'rise', 'TG1000', 'per trial', 'high', 100),
-    'uniform.fig5.final.tg1000.value': ('fig5', 'final', 'TG1000',
-                                        'uniform points, full size two-sided', 'value', 1),
-    'uniform.fig7_20trials.final.const1.0.value': ('fig7_20trials', 'final', 'const1.0',
-                                                   'uniform points, full size two-sided',
-                                                   'value', 1),
-    'uniform.fig7_20trials.final.const1.0.high': ('fig7_20trials', 'final', 'const1.0',
-                                                  'uniform points, full size two-sided',
-                                                  'high', 1),
-    'decade.fig7_20trials.final.tg10000.value': ('fig7_20trials', 'final', 'TG10000',
-                                                 'last decade, path targets', 'value', 1),
-    'control.fig7_20trials.after.tg10_rebound.value_pct':
-        ('fig7_20trials', 'after', 'TG10 rebound', 'controlled', 'value', 100),
-    'control.fig7_20trials.after.tg10_rebound.low_pct':
-        ('fig7_20trials', 'after', 'TG10 rebound', 'controlled', 'low', 100),
-    'control.fig7_20trials.after.tg10_rebound.high_pct':
-        ('fig7_20trials', 'after', 'TG10 rebound', 'controlled', 'high', 100),
-    'control.fig7_20trials.after.tg10_rebound.control_pct':
-        ('fig7_20trials', 'after', 'TG10 rebound', 'controlled', 'control_value', 100),
-    'control.fig7_20trials.blend.tg10.value_pct':
-        ('fig7_20trials', 'blend', 'TG10', 'controlled', 'value', 100),
-    'control.fig7_20trials.blend.tg10.low_pct':
-        ('fig7_20trials', 'blend', 'TG10', 'controlled', 'low', 100),
-    'control.fig7_20trials.blend.tg10.high_pct':
-        ('fig7_20trials', 'blend', 'TG10', 'controlled', 'high', 100),
-    'control.fig7_20trials.blend.tg10.control_pct':
-        ('fig7_20trials', 'blend', 'TG10', 'controlled', 'control_value', 100),
-}
 
 
 PARTS = (scorecard_part, claims_part, findings_part, curves_part, stages_part, postures_part,
