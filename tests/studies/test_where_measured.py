@@ -136,3 +136,22 @@ def test_measures_keep_where_they_were_measured_through_the_table(tmp_path):
     old = pd.read_parquet(path).drop(columns=["points", "span"])  # a table from before
     old.to_parquet(tmp_path / "old.parquet")
     assert set(measures_table.read(tmp_path / "old.parquet")["points"]) == {"grid"}
+
+
+def test_the_committed_models_give_the_committed_path_target_errors():
+    """Rescoring the committed Fig. 7 models (20 trials) on the path targets and the uniform
+    points, with no retraining, gives the report's own final errors there (summary.csv)."""
+    from gbmodel import evaluation
+    from pipeline import models
+    from pipeline.config import REPO_ROOT
+
+    report = REPO_ROOT / "outputs" / "report"
+    summary = pd.read_csv(report / "summary.csv").set_index(["figure", "condition"])
+    m = models.load(report / "models" / "fig7_20trials.json")["const1.0"]
+    body, size = m.body, m.size
+    sets = dict(path=evaluation.path_targets(body, m.spec.learner["steps"], size),
+                uniform=evaluation.heldout_points(body, size)[-evaluation.HELDOUT_UNIFORM:])
+    for name, xs in sets.items():
+        again = np.mean([np.linalg.norm(m.reach(xs, t) - xs, axis=-1).mean() for t in m.M])
+        want = summary.loc[("fig7_20trials", "const1.0"), f"final_{name}_abs_error_mean"]
+        assert again == pytest.approx(want, rel=1e-5), name
