@@ -13,8 +13,9 @@ report again under an edited register without running a trial.
 Why per trial: a maximum over epochs of a mean curve (a rise, a rebound, an excess) grows as
 the number of trials averaged falls, so it has no fixed value to estimate and no interval over
 resampled trials covers it; the mean of a per-trial maximum has one, and a t interval covers it
-(the skew diagnostic and the replicate calibration in docs/scorecard.md). A rebound and the blending are measured on each
-trial's curve smoothed over SMOOTH evaluation points: unsmoothed, a single trial's jitter at a
+(the skew diagnostic and the replicate calibration in docs/scorecard.md). A rebound and the
+blending are measured on each trial's curve smoothed over SMOOTH evaluation points:
+unsmoothed, a single trial's jitter at a
 constant rate reads as a rebound of ~30 % where the mean curve of 20 trials rebounds 3-6 %; a
 rise during growth is not smoothed, as at T_G = 10 it lasts a few evaluation points. The
 references enter a growing body's measure as their mean curves.
