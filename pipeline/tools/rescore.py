@@ -40,8 +40,18 @@ def rescore(report: Path, register) -> dict:
             else res
     res = judged(fig_ms)
     cards = scorecard.cells(res, reg) if res else pd.DataFrame()
+    # a reading measured where the report has no measure (a report made before its points were
+    # scored) judges nothing: named, not dropped without a word
+    served = {c: m for m, cs in claims.SERVES.items() for c in cs}  # rise_none: rise's measure
+    places = {(m.claim, m.points, m.span) for m in fig_ms}
+    have = {c for c, _, _ in places}
+    unmeasured = [f"{c.id}: {r.id}" for c in reg for r in c.readings
+                  if served.get(c.id, c.id) in have
+                  and (served.get(c.id, c.id), r.params.get("points", "grid"),
+                       r.params.get("span", "end")) not in places]
     out = dict(default=scorecard.headline(cards, counted) if len(cards) else None,
-               counted=counted, cells=cards, recommended=None, recommended_on=[])
+               counted=counted, cells=cards, recommended=None, recommended_on=[],
+               unmeasured=unmeasured)
     rec = [(fig, reading) for (study, reading, fig) in groups
            if study == "readings" and t.loc[(t["study"] == "readings") & (t["figure"] == fig)
                                             & (t["reading"] == reading), "recommended"].any()]
@@ -89,6 +99,9 @@ def main(argv=None) -> int:
     if out["recommended"] is not None:
         on = "; ".join(f"{r} on {f}" for f, r in out["recommended_on"])
         print(f"recommended reading ({on}): {scorecard.headline_text(out['recommended'])}")
+    if out["unmeasured"]:
+        print(f"note: {a.report} has no measures where these readings measure the error, so "
+              f"they judge nothing (regenerate the report): {'; '.join(out['unmeasured'])}")
     for c in out["changed"]:
         print(f"changed: {c['figure']} {c['claim']}: {c['before']} -> {c['after']}")
     if not out["changed"]:

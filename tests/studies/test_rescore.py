@@ -112,3 +112,19 @@ def test_the_edited_registers_readings_are_the_ones_shown(tmp_path):
     cell = out["cells"].set_index("claim").loc["final"]
     assert len(ids) > 2
     assert all(f"{i}: " in cell["others"] for i in ids), cell["others"]
+
+
+def test_a_report_without_the_new_points_names_the_readings_that_judge_nothing(tmp_path, capsys):
+    """A report made before the path targets and uniform points were scored: the readings that
+    measure there judge nothing, and rescore says which instead of dropping them silently."""
+    _report(tmp_path)
+    assert rescore.rescore(tmp_path, claims.REGISTER)["unmeasured"] == []
+    t = pd.read_parquet(tmp_path / measures_table.NAME)
+    old = t[(t["points"] == "grid") & (t["span"] == "end")].drop(columns=["points", "span"])
+    old.to_parquet(tmp_path / measures_table.NAME)
+    out = rescore.rescore(tmp_path, claims.REGISTER)
+    assert "final: path targets, full size two-sided" in out["unmeasured"]
+    assert "rise_none: uniform points" in out["unmeasured"]
+    assert not any(u.startswith(("blend", "after")) for u in out["unmeasured"])
+    assert rescore.main([str(tmp_path)]) == 0
+    assert "judge nothing (regenerate the report): final: path targets" in capsys.readouterr().out
