@@ -48,10 +48,6 @@ SCORECARD = {
         ('fig4', 'rise', 'TG100', 'value', 100),
     'scorecard.fig5.rise.tg100.value_pct':
         ('fig5', 'rise', 'TG100', 'value', 100),
-    'scorecard.fig5.final.tg1000.value':
-        ('fig5', 'final', 'TG1000', 'value', 1),
-    'scorecard.fig4.final.const1.0.value':
-        ('fig4', 'final', 'const1.0', 'value', 1),
     'scorecard.fig4.rise.tg10.value_pct':
         ('fig4', 'rise', 'TG10', 'value', 100),
     'scorecard.fig5.rise.tg10.value_pct':

@@ -61,7 +61,9 @@ def test_the_expected_range_is_the_exact_binomials_and_a_low_share_fails():
 
 
 def _final(where: str, values) -> Measure:
-    return Measure("figX", "final", where, np.asarray(values, float), unit="x", kind="final")
+    """A final-error measure where the primary reading measures it (the path targets)."""
+    return Measure("figX", "final", where, np.asarray(values, float), unit="x", kind="final",
+                   points="path")
 
 
 def test_a_shifted_replicate_is_not_covered_and_its_cell_fails():
@@ -88,7 +90,7 @@ def test_only_counted_primary_measures_paired_by_their_key_are_judged():
               Measure("figX", "bootstrap", "0 of 40 trials failed", np.array([0, 40]),
                       unit="rate", exact=True)]
     other = _final("a", rng.normal(5, 0.1, 20))
-    other.points = "path"  # another evaluation point: another key, not paired with "a"
+    other.points = "grid"  # another evaluation point: another key, not paired with "a"
     got = replicate.rows("figX", first, second + [other], table=EMPTY)
     assert [(r["claim"], r["where"]) for r in got] == [("final", "a")]  # one primary reading
     assert got[0]["covered"]

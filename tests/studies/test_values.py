@@ -178,7 +178,7 @@ def test_the_headlines_are_the_reports_own():
 
     text = (REPORT / "report.md").read_text()
     vals = values.read(REPORT / values.FILE)
-    assert f"this project's default reading: **{vals['headline.default']}**" in text
+    assert f"each under its primary reading: **{vals['headline.default']}**" in text
     assert f": **{vals['headline.recommended']}**." in text
     again = rescore.rescore(REPORT, rescore.claims.REGISTER)
     assert scorecard.headline_text(again["default"]) == vals["headline.default"]
