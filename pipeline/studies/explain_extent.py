@@ -109,15 +109,21 @@ def row(explains: str, experiment: str, e: dict) -> dict:
                 + " of its extent (same centre and points, same seeds)", measured=measured(e))
 
 
+NAMED = {"fig7": ("explanations.fig7.extent.path.k", "explanations.fig7.extent.path.spread",
+                  "explanations.fig7.extent.path.ratio_x0.5"),
+         "fig4": ("explanations.fig4.extent.path.k", "explanations.fig4.extent.path.spread",
+                  "explanations.fig4.extent.path.ratio_x0.5")}
+
+
 def named(explains: str, e: dict) -> dict:
     """The numbers the pages quote, as the texts print them: on the path targets (the primary
     reading's points), k, the spread (largest over smallest extent) and the ratio to x1 at the
     smallest extent."""
-    out, v0 = {}, e["variants"][0]
-    for name in (n for n in POINTS if n.startswith("path")):
-        at = f"explanations.{FIGURE[explains]}.extent.{name.split()[0]}"
-        out.update({f"{at}.k": e["k"][name], f"{at}.spread": spread(e, name),
-                    f"{at}.ratio_x{v0['factor']:g}": v0[name]["ratio"]["value"]})
+    k, spread_, ratio = NAMED[FIGURE[explains]]
+    v0, name = e["variants"][0], "path targets"
+    out = {k: e["k"][name], spread_: spread(e, name)}
+    if v0["factor"] == 0.5:  # the name says the extent it is at
+        out[ratio] = v0[name]["ratio"]["value"]
     return {n: float(f"{x:.2f}") for n, x in out.items() if np.isfinite(x)}
 
 

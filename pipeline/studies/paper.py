@@ -342,11 +342,10 @@ def _name_summary(ctx: Context, summary: pd.DataFrame) -> None:
         if np.isfinite(x):
             ctx.value(name, x)
     iCub = summary[summary["figure"] == "fig7_20trials"]  # the range the pages quote
-    for (fig, col), g in iCub.groupby("figure").agg({c: ["min", "max"] for c in RANGED if c in
-                                                     iCub}).stack(0).iterrows():
-        for end in ("min", "max"):  # the iCub's range over its conditions, wherever measured
-            if np.isfinite(g[end]):
-                ctx.value(f"summary.{fig}.{col}_mm.{end}", printed(g[end]) * 1e3)
+    for col, names in RANGED.items():  # the iCub's range over its conditions, wherever measured
+        for name, x in zip(names, (iCub[col].min(), iCub[col].max()) if col in iCub else ()):
+            if np.isfinite(x):
+                ctx.value(name, printed(x) * 1e3)
 
 
 

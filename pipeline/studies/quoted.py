@@ -3,7 +3,13 @@ findings.md), named here: name -> the row's figure and condition (claim, where, 
 column and scale (pipeline/studies/values.py; paper.py names them with ctx.quote)."""
 
 # the iCub's final error (fig7_20trials), its range over the conditions, named wherever measured
-RANGED = ("final_abs_error_mean", "final_path_abs_error_mean", "final_uniform_abs_error_mean")
+RANGED = {  # column -> the names of its (min, max) over the conditions
+    "final_abs_error_mean": ("summary.fig7_20trials.final_abs_error_mean_mm.min",
+                             "summary.fig7_20trials.final_abs_error_mean_mm.max"),
+    "final_path_abs_error_mean": ("summary.fig7_20trials.final_path_abs_error_mean_mm.min",
+                                  "summary.fig7_20trials.final_path_abs_error_mean_mm.max"),
+    "final_uniform_abs_error_mean": ("summary.fig7_20trials.final_uniform_abs_error_mean_mm.min",
+                                     "summary.fig7_20trials.final_uniform_abs_error_mean_mm.max")}
 
 SUMMARY = {
     'summary.fig5.tg1000.final_abs_error_mean_mm':
@@ -52,6 +58,14 @@ SCORECARD = {
         ('fig4', 'rise', 'TG10', 'value', 100),
     'scorecard.fig5.rise.tg10.value_pct':
         ('fig5', 'rise', 'TG10', 'value', 100),
+    'scorecard.fig4.rise_none.tg10000.value_pct':
+        ('fig4', 'rise_none', 'TG10000', 'value', 100),
+    'scorecard.fig4.rise_none.tg10000.high_pct':
+        ('fig4', 'rise_none', 'TG10000', 'high', 100),
+    'scorecard.fig5.rise_none.tg10000.value_pct':
+        ('fig5', 'rise_none', 'TG10000', 'value', 100),
+    'scorecard.fig5.rise_none.tg10000.high_pct':
+        ('fig5', 'rise_none', 'TG10000', 'high', 100),
     'scorecard.fig4.rise.tg1000.low_pct':
         ('fig4', 'rise', 'TG1000', 'low', 100),
     'scorecard.fig4.rise.tg1000.high_pct':

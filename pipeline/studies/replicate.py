@@ -38,6 +38,9 @@ from .choices import escape
 from .sections import Context, declared, register
 
 STUDY = "replicate"
+SHARE = {"final": "calibration.final.share", "rise": "calibration.rise.share",  # quoted names
+         "rise_none": "calibration.rise_none.share", "blend": "calibration.blend.share",
+         "after": "calibration.after.share"}
 RANGE = 0.95  # the two-sided probability of the expected range of a pooled share
 COLUMNS = ["figure", "claim", "where", "deciding", "n1", "n2", "level", "mean", "low", "high",
            "replicate_mean", "covered"]
@@ -185,7 +188,8 @@ def section(ctx: Context) -> list[str]:
     ctx.text("calibration.csv", table.to_csv(index=False, float_format="%.6g"))
     s, scale = summary(table), ctx.cfg.report.scale
     for r in s.itertuples():
-        ctx.value(f"calibration.{r.claim}.share", r.share)
+        if r.claim in SHARE:
+            ctx.value(SHARE[r.claim], r.share)
     bad = sorted(failing(table))
     verdict = (f"A {scale} run ({int(table['n1'].max())} trials): measured, not a verdict at "
                "that scale." if scale else
