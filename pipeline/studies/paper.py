@@ -1,10 +1,6 @@
-"""The paper's figures as a report section: their curves, postures, summary, the scorecard of
-the paper's claims, the discussion of the committed run, and the reporting conventions.
-
-Every experiment that declares no other study (paper.study) is reported here: the paper's own
-(paper.claims: true) with the scorecard, one's own by its curves, summary and the settings that
-made it (studies/settings.py).
-"""
+"""The section of every experiment that declares no other study (paper.study): the paper's own
+(paper.claims: true) with the scorecard, claims, discussion and conventions, and for each its
+curves, summary, stages, postures and animations (one's own: the settings that made it)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -27,8 +23,8 @@ MAX_PANELS = 4  # posture panels of a figure that report.postures does not name
 
 
 def counted_figures(declared: dict) -> list[str]:
-    """The figures whose cells the headline counts: every one that declares the paper's claims,
-    except one judged on another that is there (paper.judged_on: Fig. 7 on fig7_20trials)."""
+    """The figures the headline counts: those declaring the claims, less one judged on another
+    that is there (paper.judged_on: Fig. 7 on fig7_20trials)."""
     return [k for k, a in declared.items()
             if a["models"].get("paper", {}).get("judged_on") not in declared]
 
@@ -38,9 +34,8 @@ def _mm(v) -> str:
 
 
 def _pm(mean, std) -> str:
-    if not np.isfinite(mean):
-        return ""
-    return _mm(mean) + (f" ± {_mm(std)}" if np.isfinite(std) else "")
+    return "" if not np.isfinite(mean) else _mm(mean) + (f" ± {_mm(std)}" if np.isfinite(std)
+                                                         else "")
 
 
 def _heldout(r) -> str:
@@ -52,7 +47,7 @@ def _heldout(r) -> str:
 
 
 def summary_markdown(summary: pd.DataFrame) -> str:
-    """The summary as a Markdown table, errors in mm (relative errors: mm per unit body size)."""
+    """The summary as a Markdown table, errors in mm (relative: mm per unit size)."""
     head = ("| figure | condition | body | growth | T_G | trials | final abs. error [mm] "
             "| held-out error [mm] (% of reach) | final rel. error [mm/size] | peak abs. error during growth [mm] (rise, epoch) "
             "| run failures | diverged | failed to bootstrap | paper: final abs. error [mm] |")
@@ -75,9 +70,8 @@ def summary_markdown(summary: pd.DataFrame) -> str:
 
 
 def figure_options(cfg) -> dict:
-    """The learning curves' options for a paper: report.title (the title line; "" keeps the
-    figure's), report.error_unit (m or mm), report.log_error_axis and report.log_epoch_axis (log
-    or linear axes). A key the config lacks keeps its default."""
+    """learning_curves' options from report.title ("": the figure's), report.error_unit,
+    report.log_error_axis and report.log_epoch_axis; a key the config lacks keeps its default."""
     from ..config import ConfigError
 
     get = lambda key, default: OmegaConf.select(cfg, f"report.{key}", default=default)  # noqa: E731
@@ -92,31 +86,30 @@ def _title(figure: str, agg: dict) -> str:
     return agg["models"].get("paper", {}).get("title") or f"{figure}"
 
 
+def _stages(cond: dict, trial: dict) -> list[tuple[str, list]]:
+    """(label, M) of a trial's snapshots, then its final M unless the last snapshot is it."""
+    out = [(f"after epoch {e}", M) for e, M in
+           sorted(trial["snapshots"].items(), key=lambda kv: int(kv[0]))]
+    if str(cond["spec"]["epochs"]) not in trial["snapshots"]:
+        out.append((f"final, epoch {cond['spec']['epochs']}", trial["M"]))
+    return out
+
+
 def _stages_figure(agg: dict) -> tuple | None:
-    """(spec, [(label, M)]) of trial 0 of the first condition: its snapshots, then the final M."""
+    """(spec, [(label, M)]) of trial 0 of the first condition that has one."""
     for cond in agg["models"]["conditions"].values():
-        trial = cond["trials"].get("0")
-        if trial is None:
-            continue
-        stages = [(f"after epoch {e}", M) for e, M in
-                  sorted(trial["snapshots"].items(), key=lambda kv: int(kv[0]))]
-        if str(cond["spec"]["epochs"]) not in trial["snapshots"]:
-            stages.append((f"final, epoch {cond['spec']['epochs']}", trial["M"]))
-        stages = [(f"({chr(97 + i)}) {label}", M) for i, (label, M) in enumerate(stages)]
-        return cond["spec"], stages
+        if "0" in cond["trials"]:
+            return cond["spec"], [(f"({chr(97 + i)}) {label}", M) for i, (label, M) in
+                                  enumerate(_stages(cond, cond["trials"]["0"]))]
     return None
 
 
 def _trial_stages(agg: dict) -> list[list]:
-    """Each trial's M at every stage of _stages_figure (snapshots, then the final M), for the
-    scorecard's interval over Fig. 2's trials."""
+    """Each trial's M at every stage of the first condition with trials (the scorecard's
+    interval over Fig. 2's trials)."""
     for cond in agg["models"]["conditions"].values():
-        out = []
-        for _, trial in sorted(cond["trials"].items(), key=lambda kv: int(kv[0])):
-            ms = [M for _, M in sorted(trial["snapshots"].items(), key=lambda kv: int(kv[0]))]
-            if str(cond["spec"]["epochs"]) not in trial["snapshots"]:
-                ms.append(trial["M"])
-            out.append(ms)
+        out = [[M for _, M in _stages(cond, t)]
+               for _, t in sorted(cond["trials"].items(), key=lambda kv: int(kv[0]))]
         if out:
             return out
     return []
