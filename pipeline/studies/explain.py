@@ -72,6 +72,13 @@ def _learner(agg: dict, condition: str) -> dict:
     return agg["models"]["conditions"][condition]["spec"]["learner"]
 
 
+def _rate0(agg: dict) -> float | None:
+    """The chosen (default) condition's learning rate, if the summary marks one."""
+    s = agg["summary"]
+    default = s[s["chosen"].astype(bool)] if "chosen" in s else s.iloc[:0]
+    return _learner(agg, default["condition"].iloc[0])["learning_rate"] if len(default) else None
+
+
 def _ci(values) -> dict:
     point, low, high = scorecard.interval(values)
     return dict(value=point, low=low, high=high, trials=len(values))
@@ -80,9 +87,7 @@ def _ci(values) -> dict:
 def half_size(agg: dict) -> list[dict]:
     """Per variant: half-size over full-size relative error, trials paired by index, at
     HALF_EPOCHS (t interval), and the last epoch the half-size mean curve lies above."""
-    s, out = agg["summary"], []
-    default = s[s["chosen"].astype(bool)] if "chosen" in s else s.iloc[:0]
-    rate0 = _learner(agg, default["condition"].iloc[0])["learning_rate"] if len(default) else None
+    s, out, rate0 = agg["summary"], [], _rate0(agg)
     for label, g in s.groupby("variant", sort=False):
         refs = g[g["growth"] == "none"].sort_values("end_size")
         if len(refs) != 2 or refs["n_trials"].min() == 0:
@@ -168,12 +173,9 @@ def half_size_text(found: list[dict]) -> str:
 def rises(agg: dict) -> list[dict]:
     """Per T_G under the default, rate and solver readings: the rise during growth (claims.rise,
     t interval) and the reading's rate as a multiple of the default's."""
-    s = agg["summary"]
+    s, out, rate0 = agg["summary"], [], _rate0(agg)
     if "choice" not in s:
         return []
-    default = s[s["chosen"].astype(bool)]
-    rate0 = _learner(agg, default["condition"].iloc[0])["learning_rate"] if len(default) else None
-    out = []
     for r in s[(s["growth"] != "none") & (s["n_trials"] > 0)].itertuples():
         if not (r.chosen or str(r.choice).startswith(("learning rate", "solver"))):
             continue
