@@ -52,13 +52,6 @@ def interval(mean: float, std: float, n: int) -> tuple[float, float]:
     return float(mean - h), float(mean + h)
 
 
-def _beats(p: float, lo: float, hi: float, a: str, b: str) -> str:
-    """Which learner the interval of P(a < b) says ends lower, if any."""
-    if not np.isfinite(p):
-        return "not measured"
-    return f"{a} lower" if lo > 0.5 else f"{b} lower" if hi < 0.5 else "no difference measured"
-
-
 def per_trial(aggs: dict) -> pd.DataFrame:
     """One row per finished trial: its final held-out error [mm] and largest jump (NaN: none)."""
     rows = []
@@ -103,7 +96,9 @@ def same_solver(pt: pd.DataFrame) -> pd.DataFrame:
             rows.append(dict(body=body, budget=budget, growth=growth, rival=rival,
                              gb_median_mm=float(np.median(a)), rival_median_mm=float(np.median(b)),
                              gb_trials=len(a), rival_trials=len(b), p=p, p_lo=lo, p_hi=hi,
-                             verdict=_beats(p, lo, hi, GB_LSTSQ, rival)))
+                             verdict="not measured" if not np.isfinite(p) else
+                             f"{GB_LSTSQ} lower" if lo > 0.5 else f"{rival} lower" if hi < 0.5
+                             else "no difference measured"))
     cols = ["body", "budget", "growth", "rival", "gb_median_mm", "rival_median_mm", "gb_trials",
             "rival_trials", "p", "p_lo", "p_hi", "verdict"]
     return pd.DataFrame(rows, columns=cols)

@@ -118,15 +118,12 @@ def _slower(v: dict) -> bool:
     return any(r["low"] > 1 for r in v["at"].values())
 
 
-def _ratio_text(r: dict) -> str:
-    return f"{r['value']:.2f} [{r['low']:.2f}, {r['high']:.2f}]"
-
-
 def half_size_text(found: list[dict]) -> str:
     parts = []
     for v in found:
         name = "least squares" if v["kind"] == "lstsq" else f"plain step at {v['rate']:.2g} / W"
-        at = (", ".join(f"epoch {e:,} {_ratio_text(r)}" for e, r in v["at"].items())
+        at = (", ".join(f"epoch {e:,} {r['value']:.2f} [{r['low']:.2f}, {r['high']:.2f}]"
+                        for e, r in v["at"].items())
               or f"the run ends before epoch {HALF_EPOCHS[0]:,}")
         last = (f"still above at the last epoch ({v['end']:,})" if v["last_above"] == v["end"]
                 else f"above until epoch {v['last_above']:,}" if v["last_above"]

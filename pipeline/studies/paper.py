@@ -4,6 +4,7 @@ curves, summary, stages, postures and animations (one's own: the settings that m
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -11,8 +12,7 @@ import pandas as pd
 from omegaconf import OmegaConf
 
 from .. import io
-from . import (claims, conventions, discussion, figures, replicate, scorecard, scorecard_page,
-               settings)
+from . import claims, conventions, discussion, figures, replicate, scorecard, scorecard_page
 from .choices import escape
 from .claims import DIVERGED, diverged_conditions
 from .sections import Context, declares_claims, register
@@ -80,10 +80,6 @@ def figure_options(cfg) -> dict:
         raise ConfigError(f"report.error_unit={unit}: one of {', '.join(figures.UNITS)}")
     return dict(log_y=bool(get("log_error_axis", True)), log_x=bool(get("log_epoch_axis", True)),
                 unit=unit, suptitle=get("title", "") or None)
-
-
-def _title(figure: str, agg: dict) -> str:
-    return agg["models"].get("paper", {}).get("title") or f"{figure}"
 
 
 def _stages(cond: dict, trial: dict) -> list[tuple[str, list]]:
@@ -243,7 +239,7 @@ def curves_part(ctx: Context, p: Paper) -> list[str]:
     io.write_table(ctx.out / "curves.parquet", io.frame_to_table(curves))
     ctx.written.append(ctx.out / "curves.parquet")
     for name, agg in p.aggs.items():
-        title, summ = _title(name, agg), agg["summary"]
+        title, summ = agg["models"].get("paper", {}).get("title") or name, agg["summary"]
         fig = figures.learning_curves(
             agg["curves"], summ, title, paper_abs=agg["models"].get("paper", {}).get("final_abs_error"),
             **figure_options(cfg))
@@ -255,9 +251,53 @@ def curves_part(ctx: Context, p: Paper) -> list[str]:
                    f"{int(summ['n_trials'].max())} trials per condition.", ""]
         if name not in p.declared:  # one's own experiment: what made it
             md += ["Settings of each condition that differ from the defaults:", "",
-                   settings.markdown(agg)]
+                   settings_markdown(agg)]
         md += [f"![{name}]({image})", "", summary_markdown(summ)]
     return md
+
+
+SKIP = ("body.",)  # the body's geometry: named by the body, its file (urdf) shown on its own
+
+
+def flatten(d: dict, prefix: str = "") -> dict:
+    out = {}
+    for k, v in d.items():
+        out.update(flatten(v, f"{prefix}{k}.") if isinstance(v, dict) else {f"{prefix}{k}": v})
+    return out
+
+
+@lru_cache(maxsize=None)
+def _default_spec(body: str) -> tuple:
+    """The default configuration's trial spec for `body`, flattened; the plain default's for a
+    body that does not compose by name (a body file of one's own)."""
+    from ..config import compose
+    from ..plan import plan
+
+    for overrides in ([f"body={body}"], []):
+        try:
+            return tuple(flatten(plan(compose(overrides))[0]["spec"]).items())
+        except Exception:  # a body that is not a config group: the plain default
+            continue
+    return ()
+
+
+def differences(spec: dict) -> dict:
+    """The settings of one condition's spec that differ from the defaults for its body."""
+    base = dict(_default_spec(spec.get("body", {}).get("name", "")))
+    return {k: v for k, v in flatten(spec).items()
+            if not (k.startswith(SKIP) and k not in ("body.name", "body.urdf"))
+            and base.get(k, object()) != v}
+
+
+def settings_markdown(agg: dict) -> str:
+    """What made a figure of one's own: a row per condition, its settings that differ from the
+    spec the default configuration gives for the same body, as `key=value`."""
+    lines = ["| condition | settings that differ from the defaults |", "|---|---|"]
+    lines += [f"| {escape(name)} | "
+              + escape("; ".join(f"{k}={v}" for k, v in differences(c["spec"]).items())
+                       or "the defaults") + " |"
+              for name, c in agg["models"]["conditions"].items()]
+    return "\n".join(lines) + "\n"
 
 
 def _drawing(title: str, paths: list[Path]) -> list[str]:

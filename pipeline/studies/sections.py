@@ -33,10 +33,6 @@ def of_study(study: str) -> list[str]:
     return [n for n, e in declared().items() if e.study == study]
 
 
-def study_of(agg: dict) -> str:
-    return agg["models"].get("paper", {}).get("study") or DEFAULT
-
-
 def _load() -> None:
     """Import every module of this package and every entry point `gbgrowth.studies`: each
     registers its section."""
@@ -61,7 +57,7 @@ def group(aggs: dict) -> dict:
     _load()
     out = {}
     for name, agg in aggs.items():
-        s = study_of(agg)
+        s = agg["models"].get("paper", {}).get("study") or DEFAULT
         if s not in SECTIONS and s in _BROKEN:
             raise ConfigError(f"{name}: paper.study={s!r}: its module did not import "
                               f"({_BROKEN[s]})")
