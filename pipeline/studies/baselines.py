@@ -445,6 +445,12 @@ QUOTED = {'baselines.arm5.goal_babbling.4.24m.linear.grid_mm':
 QUOTED_SAME_SOLVER = {
     'baselines_same_solver.icub.6.02m.infant.motor_babbling_over_the.p_lo':
         ('icub', '6.02M', 'infant', 'motor babbling over the whole joint range', 'p_lo'),
-    **{f'baselines_same_solver.{body}.{budget.lower()}.no_growth.motor_babbling.{col}':
-       (body, budget, 'no growth', 'motor babbling', col) for body, budget in (
-           ('arm5', '1.06M'), ('icub', '1.505M')) for col in ('gb_median_mm', 'rival_median_mm')}}
+    'baselines_same_solver.arm5.1.06m.no_growth.motor_babbling.gb_median_mm':
+        ('arm5', '1.06M', 'no growth', 'motor babbling', 'gb_median_mm'),
+    'baselines_same_solver.arm5.1.06m.no_growth.motor_babbling.rival_median_mm':
+        ('arm5', '1.06M', 'no growth', 'motor babbling', 'rival_median_mm'),
+    'baselines_same_solver.icub.1.505m.no_growth.motor_babbling.gb_median_mm':
+        ('icub', '1.505M', 'no growth', 'motor babbling', 'gb_median_mm'),
+    'baselines_same_solver.icub.1.505m.no_growth.motor_babbling.rival_median_mm':
+        ('icub', '1.505M', 'no growth', 'motor babbling', 'rival_median_mm'),
+}

@@ -100,78 +100,112 @@ def section(ctx: Context) -> list[str]:
             text.split("\n", 1)[1]]
 
 
-MEAN, RISE = "final_abs_mm_mean", "growth_rise_pct"
-# the numbers of choices.csv the pages quote (docs/choices.md, README.md, findings.md): a row's
-# figure (after "choices_"), choice, variant, its name's part and columns; each is named
-# choices.<figure>.<part>.<column>
-QUOTED = {f"choices.choices_{fig}.{part}.{col}": (f"choices_{fig}", choice, variant, col)
-          for fig, choice, variant, part, *cols in (
-    ('arm5', 'gradient step', 'normalised by sum w, eta = 1.0', 'gradient_step.normalised', MEAN),
-    ('arm5', 'gradient step', 'plain (eq. 6)',
-     'gradient_step.plain', MEAN, 'off_grid_mm', 'rms_mm', 'mean_sq_mm2'),
-    ('icub', 'gradient step', 'normalised by sum w, eta = 1.0', 'gradient_step.normalised', MEAN),
-    ('icub', 'gradient step', 'plain (eq. 6)', 'gradient_step.plain', MEAN, 'off_grid_mm'),
-    ('arm5', 'learning rate, growth T_G = 100', 'T_G = 100, normalised step',
-     'learning_rate_growth_t_g_100.normalised', RISE),
-    ('arm5', 'learning rate, growth T_G = 100', 'T_G = 100, eta = 1 / W',
-     'learning_rate_growth_t_g_100.t_g_100_eta_1_w', RISE),
-    ('arm5', 'learning rate (W = 1142)', 'eta = 0.5 / W', 'learning_rate_w_1142.eta_0.5_w', MEAN),
-    ('arm5', 'learning rate (W = 1142)', 'eta = 1 / W', 'learning_rate_w_1142.eta_1_w', MEAN),
-    ('arm5', 'learning rate (W = 1142)', 'eta = 1.5 / W', 'learning_rate_w_1142.eta_1.5_w', MEAN),
-    ('arm5', 'learning rate (W = 1142)', 'eta = 2 / W', 'learning_rate_w_1142.eta_2_w', MEAN),
-    ('icub', 'learning rate (W = 1791)', 'eta = 0.5 / W', 'learning_rate_w_1791.eta_0.5_w', MEAN),
-    ('icub', 'learning rate (W = 1791)', 'eta = 1 / W', 'learning_rate_w_1791.eta_1_w', MEAN),
-    ('icub', 'learning rate (W = 1791)', 'eta = 1.5 / W', 'learning_rate_w_1791.eta_1.5_w', MEAN),
-    ('icub', 'learning rate (W = 1791)', 'eta = 2 / W', 'learning_rate_w_1791.eta_2_w', MEAN),
-    ('arm5', 'learning rate, growth T_G = 100', 'T_G = 100, eta = 0.1 / W',
-     'learning_rate_growth_t_g_100.eta_0.1_w', RISE),
-    ('arm5', 'learning rate, growth T_G = 100', 'T_G = 100, eta = 0.3 / W',
-     'learning_rate_growth_t_g_100.eta_0.3_w', RISE),
-    ('arm5', 'learning rate, growth T_G = 100', 'T_G = 100, eta = 1 / W',
-     'learning_rate_growth_t_g_100.eta_1_w', RISE),
-    ('arm5', 'learning rate, growth T_G = 1000', 'T_G = 1000, eta = 0.1 / W',
-     'learning_rate_growth_t_g.eta_0.1_w', RISE),
-    ('arm5', 'learning rate, growth T_G = 1000', 'T_G = 1000, eta = 0.3 / W',
-     'learning_rate_growth_t_g.eta_0.3_w', RISE),
-    ('arm5', 'learning rate, growth T_G = 1000', 'T_G = 1000, eta = 1 / W',
-     'learning_rate_growth_t_g.eta_1_w', RISE),
-    ('arm5', 'updates per epoch', 'two batch steps',
-     'updates_per_epoch.two_batch_steps', MEAN, 'final_abs_mm_std'),
-    ('arm5', 'updates per epoch', 'online, one step per sample', 'updates_per_epoch.online', MEAN),
-    ('icub', 'updates per epoch', 'online, one step per sample', 'updates_per_epoch.online', MEAN),
-    ('arm5', 'learning rate, growth T_G = 100', 'T_G = 100, online updates',
-     'learning_rate_growth_t_g_100.online_updates', RISE),
-    ('arm5', 'rate schedule', "annealed, tau = 10,000 epochs (not the paper's)",
-     'rate_schedule.annealed', MEAN),
-    ('icub', 'rate schedule', "annealed, tau = 10,000 epochs (not the paper's)",
-     'rate_schedule.annealed', MEAN),
-    ('arm5', 'initialisation', '|g - home| <= 0.0', 'initialisation.0.0', MEAN),
-    ('arm5', 'initialisation', '|g - home| <= 0.1', 'initialisation.0.1', MEAN),
-    ('arm5', 'initialisation', '|g - home| <= 0.3', 'initialisation.0.3', MEAN),
-    ('icub', 'initialisation', '|g - home| <= 0.0', 'initialisation.0.0', MEAN),
-    ('icub', 'initialisation', '|g - home| <= 0.1', 'initialisation.0.1', MEAN),
-    ('icub', 'initialisation', '|g - home| <= 0.3', 'initialisation.0.3', MEAN),
-    ('arm5', 'target grid', 'wider: x -0.6..0.6, y 0.1..0.7 (13 x 7)', 'target_grid.wider', MEAN),
-    ('arm5', 'target grid', 'coarser: 6 x 3 over the same box', 'target_grid.coarser', MEAN),
-    ('icub', 'target grid', 'smaller: the 4 x 4 x 4 grid shrunk to 2/3 about its centre',
-     'target_grid.smaller', MEAN),
-    ('arm5', 'home posture', 'bend 0.25 rad per joint', 'home_posture.0.25_rad', MEAN),
-    ('arm5', 'home posture', 'bend 0.75 rad per joint', 'home_posture.0.75_rad', MEAN),
-    ('icub', 'joint limits', 'ignored (no saturation)', 'joint_limits', MEAN),
-    ('arm5', 'non-proportional short reference', 'proportionally halved body (0.5 m)',
-     'non_proportional_short.proportionally', MEAN),
-    ('arm5', 'non-proportional short reference', 'non-proportional start body (0.5 m)',
-     'non_proportional_short.non_proportional_start', MEAN),
-    ('arm5', 'successive path targets', 'uniform over all targets (repeats allowed)',
-     'successive_path_targets.uniform', MEAN),
-    ('arm5', 'successive path targets', 'each differs from the one before',
-     'successive_path_targets.differs', MEAN),
-    ('arm5', 'growth schedule, T_G = 1000', 'T_G = 1000, infant (WHO fit)',
-     'growth_schedule_t_g_1000.infant', MEAN, RISE),
-    ('arm5', 'growth schedule, T_G = 1000', "T_G = 1000, linear (the paper's)",
-     'growth_schedule_t_g_1000.linear', RISE),
-    ('arm2', 'Fig. 2 duration', '100,000 epochs', '100_000_epochs', MEAN, 'worst_mm'),
-    ('arm2', 'Fig. 2 duration', '10,000 epochs', '10_000_epochs', MEAN, 'worst_mm'),
-    ('arm5', 'root seed', '2011', 'root_seed.2011', MEAN, 'final_abs_mm_std'),
-    ('arm5', 'root seed', '2010', 'root_seed.2010', MEAN, 'final_abs_mm_std'),
-) for col in cols}
+# the numbers of choices.csv the pages quote (docs/choices.md, README.md, findings.md), named
+# here where the table is made: name -> the row's figure (the name's second part), choice and
+# variant, and its column (the name's last part)
+QUOTED = {name: (name.split(".")[1], *row, name.rsplit(".", 1)[1]) for name, row in {
+    'choices.choices_arm5.gradient_step.normalised.final_abs_mm_mean':
+        ('gradient step', 'normalised by sum w, eta = 1.0'),
+    'choices.choices_arm5.gradient_step.plain.final_abs_mm_mean':
+        ('gradient step', 'plain (eq. 6)'),
+    'choices.choices_icub.gradient_step.normalised.final_abs_mm_mean':
+        ('gradient step', 'normalised by sum w, eta = 1.0'),
+    'choices.choices_icub.gradient_step.plain.final_abs_mm_mean':
+        ('gradient step', 'plain (eq. 6)'),
+    'choices.choices_arm5.learning_rate_growth_t_g_100.normalised.growth_rise_pct':
+        ('learning rate, growth T_G = 100', 'T_G = 100, normalised step'),
+    'choices.choices_arm5.learning_rate_growth_t_g_100.t_g_100_eta_1_w.growth_rise_pct':
+        ('learning rate, growth T_G = 100', 'T_G = 100, eta = 1 / W'),
+    'choices.choices_arm5.learning_rate_w_1142.eta_0.5_w.final_abs_mm_mean':
+        ('learning rate (W = 1142)', 'eta = 0.5 / W'),
+    'choices.choices_arm5.learning_rate_w_1142.eta_1_w.final_abs_mm_mean':
+        ('learning rate (W = 1142)', 'eta = 1 / W'),
+    'choices.choices_arm5.learning_rate_w_1142.eta_1.5_w.final_abs_mm_mean':
+        ('learning rate (W = 1142)', 'eta = 1.5 / W'),
+    'choices.choices_arm5.learning_rate_w_1142.eta_2_w.final_abs_mm_mean':
+        ('learning rate (W = 1142)', 'eta = 2 / W'),
+    'choices.choices_icub.learning_rate_w_1791.eta_0.5_w.final_abs_mm_mean':
+        ('learning rate (W = 1791)', 'eta = 0.5 / W'),
+    'choices.choices_icub.learning_rate_w_1791.eta_1_w.final_abs_mm_mean':
+        ('learning rate (W = 1791)', 'eta = 1 / W'),
+    'choices.choices_icub.learning_rate_w_1791.eta_1.5_w.final_abs_mm_mean':
+        ('learning rate (W = 1791)', 'eta = 1.5 / W'),
+    'choices.choices_icub.learning_rate_w_1791.eta_2_w.final_abs_mm_mean':
+        ('learning rate (W = 1791)', 'eta = 2 / W'),
+    'choices.choices_arm5.learning_rate_growth_t_g_100.eta_0.1_w.growth_rise_pct':
+        ('learning rate, growth T_G = 100', 'T_G = 100, eta = 0.1 / W'),
+    'choices.choices_arm5.learning_rate_growth_t_g_100.eta_0.3_w.growth_rise_pct':
+        ('learning rate, growth T_G = 100', 'T_G = 100, eta = 0.3 / W'),
+    'choices.choices_arm5.learning_rate_growth_t_g_100.eta_1_w.growth_rise_pct':
+        ('learning rate, growth T_G = 100', 'T_G = 100, eta = 1 / W'),
+    'choices.choices_arm5.learning_rate_growth_t_g.eta_0.1_w.growth_rise_pct':
+        ('learning rate, growth T_G = 1000', 'T_G = 1000, eta = 0.1 / W'),
+    'choices.choices_arm5.learning_rate_growth_t_g.eta_0.3_w.growth_rise_pct':
+        ('learning rate, growth T_G = 1000', 'T_G = 1000, eta = 0.3 / W'),
+    'choices.choices_arm5.learning_rate_growth_t_g.eta_1_w.growth_rise_pct':
+        ('learning rate, growth T_G = 1000', 'T_G = 1000, eta = 1 / W'),
+    'choices.choices_arm5.updates_per_epoch.two_batch_steps.final_abs_mm_mean':
+        ('updates per epoch', 'two batch steps'),
+    'choices.choices_arm5.updates_per_epoch.two_batch_steps.final_abs_mm_std':
+        ('updates per epoch', 'two batch steps'),
+    'choices.choices_arm5.updates_per_epoch.online.final_abs_mm_mean':
+        ('updates per epoch', 'online, one step per sample'),
+    'choices.choices_icub.updates_per_epoch.online.final_abs_mm_mean':
+        ('updates per epoch', 'online, one step per sample'),
+    'choices.choices_arm5.learning_rate_growth_t_g_100.online_updates.growth_rise_pct':
+        ('learning rate, growth T_G = 100', 'T_G = 100, online updates'),
+    'choices.choices_arm5.rate_schedule.annealed.final_abs_mm_mean':
+        ('rate schedule', "annealed, tau = 10,000 epochs (not the paper's)"),
+    'choices.choices_icub.rate_schedule.annealed.final_abs_mm_mean':
+        ('rate schedule', "annealed, tau = 10,000 epochs (not the paper's)"),
+    'choices.choices_arm5.initialisation.0.0.final_abs_mm_mean':
+        ('initialisation', '|g - home| <= 0.0'),
+    'choices.choices_arm5.initialisation.0.1.final_abs_mm_mean':
+        ('initialisation', '|g - home| <= 0.1'),
+    'choices.choices_arm5.initialisation.0.3.final_abs_mm_mean':
+        ('initialisation', '|g - home| <= 0.3'),
+    'choices.choices_icub.initialisation.0.0.final_abs_mm_mean':
+        ('initialisation', '|g - home| <= 0.0'),
+    'choices.choices_icub.initialisation.0.1.final_abs_mm_mean':
+        ('initialisation', '|g - home| <= 0.1'),
+    'choices.choices_icub.initialisation.0.3.final_abs_mm_mean':
+        ('initialisation', '|g - home| <= 0.3'),
+    'choices.choices_arm5.target_grid.wider.final_abs_mm_mean':
+        ('target grid', 'wider: x -0.6..0.6, y 0.1..0.7 (13 x 7)'),
+    'choices.choices_arm5.target_grid.coarser.final_abs_mm_mean':
+        ('target grid', 'coarser: 6 x 3 over the same box'),
+    'choices.choices_icub.gradient_step.plain.off_grid_mm': ('gradient step', 'plain (eq. 6)'),
+    'choices.choices_icub.target_grid.smaller.final_abs_mm_mean':
+        ('target grid', 'smaller: the 4 x 4 x 4 grid shrunk to 2/3 about its centre'),
+    'choices.choices_arm5.home_posture.0.25_rad.final_abs_mm_mean':
+        ('home posture', 'bend 0.25 rad per joint'),
+    'choices.choices_arm5.home_posture.0.75_rad.final_abs_mm_mean':
+        ('home posture', 'bend 0.75 rad per joint'),
+    'choices.choices_icub.joint_limits.final_abs_mm_mean':
+        ('joint limits', 'ignored (no saturation)'),
+    'choices.choices_arm5.gradient_step.plain.off_grid_mm': ('gradient step', 'plain (eq. 6)'),
+    'choices.choices_arm5.gradient_step.plain.rms_mm': ('gradient step', 'plain (eq. 6)'),
+    'choices.choices_arm5.gradient_step.plain.mean_sq_mm2': ('gradient step', 'plain (eq. 6)'),
+    'choices.choices_arm5.non_proportional_short.proportionally.final_abs_mm_mean':
+        ('non-proportional short reference', 'proportionally halved body (0.5 m)'),
+    'choices.choices_arm5.non_proportional_short.non_proportional_start.final_abs_mm_mean':
+        ('non-proportional short reference', 'non-proportional start body (0.5 m)'),
+    'choices.choices_arm5.successive_path_targets.uniform.final_abs_mm_mean':
+        ('successive path targets', 'uniform over all targets (repeats allowed)'),
+    'choices.choices_arm5.successive_path_targets.differs.final_abs_mm_mean':
+        ('successive path targets', 'each differs from the one before'),
+    'choices.choices_arm5.growth_schedule_t_g_1000.infant.final_abs_mm_mean':
+        ('growth schedule, T_G = 1000', 'T_G = 1000, infant (WHO fit)'),
+    'choices.choices_arm5.growth_schedule_t_g_1000.infant.growth_rise_pct':
+        ('growth schedule, T_G = 1000', 'T_G = 1000, infant (WHO fit)'),
+    'choices.choices_arm5.growth_schedule_t_g_1000.linear.growth_rise_pct':
+        ('growth schedule, T_G = 1000', "T_G = 1000, linear (the paper's)"),
+    'choices.choices_arm2.100_000_epochs.final_abs_mm_mean': ('Fig. 2 duration', '100,000 epochs'),
+    'choices.choices_arm2.10_000_epochs.final_abs_mm_mean': ('Fig. 2 duration', '10,000 epochs'),
+    'choices.choices_arm2.100_000_epochs.worst_mm': ('Fig. 2 duration', '100,000 epochs'),
+    'choices.choices_arm2.10_000_epochs.worst_mm': ('Fig. 2 duration', '10,000 epochs'),
+    'choices.choices_arm5.root_seed.2011.final_abs_mm_mean': ('root seed', '2011'),
+    'choices.choices_arm5.root_seed.2011.final_abs_mm_std': ('root seed', '2011'),
+    'choices.choices_arm5.root_seed.2010.final_abs_mm_mean': ('root seed', '2010'),
+    'choices.choices_arm5.root_seed.2010.final_abs_mm_std': ('root seed', '2010'),
+}.items()}

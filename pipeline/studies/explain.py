@@ -240,7 +240,8 @@ def rows(aggs: dict, named: dict | None = None) -> list[dict]:
     M, cond = next(((c["trials"]["0"]["M"], c) for c in fig2.values()
                     if c["trials"].get("0", {}).get("M") is not None), (None, None))
     if M is not None:
-        out.append(_capacity(named, "fig2", "the 21 heights", cond["spec"], M, "", ".1f"))
+        out.append(_capacity(named, "fig2", "the 21 heights", cond["spec"], M, "", ".1f",
+                             "explanations.fig2.capacity.measured.n2", "best_worst_mm"))
     if by.get("boundary") in aggs:
         b = boundary(aggs[by["boundary"]])
         named.update({name: float(f"{r['learned_mm']:.1f}") for r in b
@@ -254,7 +255,8 @@ def rows(aggs: dict, named: dict | None = None) -> list[dict]:
     full = aggs.get("fig7", {}).get("models", {}).get("conditions", {}).get("const1.0")
     if full and full["trials"]:
         out.append(_capacity(named, "fig7", "the 4 x 4 x 4 grid", full["spec"],
-                             next(iter(full["trials"].values()))["M"], "const1.0 ", ".2f"))
+                             next(iter(full["trials"].values()))["M"], "const1.0 ", ".2f",
+                             "explanations.fig7.capacity.measured.n1", "best_mean_mm"))
     k = continuation(aggs[by["continuation"]]) if by.get("continuation") in aggs else None
     if k and k["later"] <= 0:
         out.append(dict(figure="fig7", experiment=f"continuation ({by['continuation']})",
@@ -286,11 +288,12 @@ def rows(aggs: dict, named: dict | None = None) -> list[dict]:
     return out
 
 
-def _capacity(named: dict, figure: str, grid: str, spec: dict, M, which: str, f: str) -> dict:
-    """The capacity row: the best cubic for the figure's grid against Goal Babbling's M."""
+def _capacity(named: dict, figure: str, grid: str, spec: dict, M, which: str, f: str,
+              name: str, key: str) -> dict:
+    """The capacity row: the best cubic for the figure's grid against Goal Babbling's M; `named`
+    gets its `key` as `name`."""
     c = best_cubic(spec, M)
-    n, key = ("n2", "best_worst_mm") if figure == "fig2" else ("n1", "best_mean_mm")
-    named[f"explanations.{figure}.capacity.measured.{n}"] = float(f"{c[key]:{f}}")
+    named[name] = float(f"{c[key]:{f}}")
     return dict(figure=figure, experiment=f"capacity: the best cubic for {grid}",
                 measured=f"mean {c['best_mean_mm']:{f}} mm, worst {c['best_worst_mm']:.1f} mm"
                          f" (Goal Babbling, {which}trial 0: mean {c['learned_mean_mm']:.1f} mm, "
@@ -359,10 +362,15 @@ def section(ctx: Context) -> list[str]:
 
 DEFAULT = "this project's default (plain step, exact R, one batch step, grid)"
 # the rises the pages quote: name -> the row's reading and T_G, its column and scale
-QUOTED_RISE = {f"explain_rise.{name}.{tg}.{col}_pct": (reading, tg, col, 100)
-               for name, reading, tg, col in (
-    ("eta_0.1_w", "eta = 0.1 / W", 1000, "value"), ("eta_0.1_w", "eta = 0.1 / W", 10000, "value"),
-    *(("this_project_s_default", DEFAULT, tg, col) for tg, col in (
-        (1000, "value"), (10000, "value"), (10000, "low"), (10000, "high"))),
-    *(("least_squares_solver_lstsq", "least squares (solver=lstsq)", tg, "value")
-      for tg in (1000, 10000)))}
+QUOTED_RISE = {
+    'explain_rise.eta_0.1_w.1000.value_pct': ('eta = 0.1 / W', 1000, 'value', 100),
+    'explain_rise.this_project_s_default.1000.value_pct': (DEFAULT, 1000, 'value', 100),
+    'explain_rise.this_project_s_default.10000.value_pct': (DEFAULT, 10000, 'value', 100),
+    'explain_rise.this_project_s_default.10000.low_pct': (DEFAULT, 10000, 'low', 100),
+    'explain_rise.this_project_s_default.10000.high_pct': (DEFAULT, 10000, 'high', 100),
+    'explain_rise.eta_0.1_w.10000.value_pct': ('eta = 0.1 / W', 10000, 'value', 100),
+    'explain_rise.least_squares_solver_lstsq.1000.value_pct':
+        ('least squares (solver=lstsq)', 1000, 'value', 100),
+    'explain_rise.least_squares_solver_lstsq.10000.value_pct':
+        ('least squares (solver=lstsq)', 10000, 'value', 100),
+}
