@@ -1,8 +1,6 @@
-"""The capacity bound behind the report's explanations: the best degree-3 inverse for a body's
-target grid, fitted directly to the forward kinematics (least squares on the reaching errors,
-started from a learned M, with the hand's analytic Jacobian where the inverse is linear in M):
-the error a cubic *can* reach, against what Goal Babbling reaches (pipeline/studies/explain.py
-reads it)."""
+"""The capacity bound (explain.py): the best degree-3 inverse for a body's target grid, fitted
+directly to the forward kinematics (least squares on the reaching errors from a learned M, with
+the hand's analytic Jacobian where the inverse is linear in M)."""
 from __future__ import annotations
 
 import numpy as np
@@ -19,9 +17,8 @@ def _errors(body, size, pattern, predict, M, xs):
 
 
 def best_cubic(spec: dict, M0) -> dict:
-    """The degree-3 inverse fitted directly to the targets (scipy least squares from M0), with
-    the analytic Jacobian of _jacobian where the learner's inverse is linear in M
-    (g(x) = M Phi(x)), else scipy's finite differences."""
+    """The inverse fitted directly to the targets (scipy least squares from M0), with _jacobian
+    where it is linear in M (g(x) = M Phi(x)), else finite differences."""
     body, size, pattern, predict = final_body(spec)
     xs = body.target_set(size)
     M0 = np.asarray(M0, float)
@@ -41,8 +38,8 @@ def best_cubic(spec: dict, M0) -> dict:
 
 
 def _linear_features(predict, M0, xs):
-    """Phi (N, p) with predict(M, xs) = Phi @ M.T for every M (read off the unit models), or
-    None when predict is not linear in M (checked at zero, at M0 and at a point beside it)."""
+    """Phi (N, p) with predict(M, xs) = Phi @ M.T (read off unit models), None where predict is
+    not linear in M (checked at 0, M0 and beside it)."""
     m, p = M0.shape
     unit = np.zeros((m, p))
     if np.any(predict(unit, xs) != 0):
@@ -62,8 +59,7 @@ JOINT_STEP = 1e-6  # the central differences of the forward kinematics, per join
 
 
 def _jacobian(body, f, Phi, flat, shape):
-    """d residuals / d M (N n, m p) of best_cubic at M = flat: the hand's derivative in each
-    joint command J (N, n, m) (hand_jacobian), times dq_j / dM_jk = Phi_k exactly."""
+    """d residuals / d M (N n, m p) at M = flat: hand_jacobian times dq_j / dM_jk = Phi_k."""
     q = Phi @ flat.reshape(shape).T
     J = hand_jacobian(body, f, q)
     N, m = q.shape
@@ -71,11 +67,8 @@ def _jacobian(body, f, Phi, flat, shape):
 
 
 def hand_jacobian(body, f, q) -> np.ndarray:
-    """d forward(q, f) / d q (N, n, m) for commands q (N, m): analytic for a DH chain and a
-    general (URDF) chain (the derivative carried through the kinematics' own backward pass,
-    gbmodel.kinematics, times the commands' scaling to joint angles, zero where a command is
-    clipped); a body in the loop (a Python forward function) by central differences over the
-    commands, all 2 m displaced postures in one forward call."""
+    """d forward(q, f) / d q (N, n, m): analytic for a DH or general (URDF) chain, times the
+    commands' scaling (zero where clipped); a body in the loop by central differences."""
     q = np.asarray(q, float)
     N, m = q.shape
     if body.loop is not None:

@@ -1,12 +1,7 @@
-"""The choices the paper leaves open: the table of what each alternative changes, measured.
-
-The runs are ordinary experiments (conf/experiment/choices_*.yaml: one variant per alternative,
-each a few dotted overrides of the paper's settings, all with common random numbers), simulated,
-cached and aggregated like the paper's figures. This module turns their aggregates into
-choices.csv / choices.md: per variant the final error, and the same final models scored in other
-ways (RMS, the mean squared distance printed in eq. 10, the worst target, off-grid points), and
-the rise of the error during growth where the variant grows.
-"""
+"""The choices the paper leaves open (conf/experiment/choices_*.yaml, one variant per alternative,
+common random numbers): choices.csv / choices.md, per variant the final error, the same final
+models scored otherwise (RMS, eq. 10's mean squared distance, worst target, off-grid points) and
+the rise during growth."""
 from __future__ import annotations
 
 import numpy as np
@@ -22,28 +17,25 @@ from .sections import Context, register
 def scores(spec: dict, M) -> dict:
     """The final model M of a trial scored over the grid and off it, with the body at its end."""
     s = gbmodel.TrialSpec.from_dict(spec)
-    body, learner_params = s.make_body(), s.make_learner()
-    learner, params = learner_params
-    g = s.make_growth()
-    size = g.end_size
-    scale = g.scales(body, size)
+    body, (learner, params), g = s.make_body(), s.make_learner(), s.make_growth()
+    scale = g.scales(body, g.end_size)
 
     def dist(xs):
         return evaluation.distances(lambda x: learner.predict(np.asarray(M), params, body, x),
                                     body, scale, xs)
 
-    d = dist(body.target_set(size))
+    d = dist(body.target_set(g.end_size))
     return dict(rms_m=float(np.sqrt(np.mean(d ** 2))), mean_sq_m2=float(np.mean(d ** 2)),
-                worst_m=float(d.max()), off_grid_m=float(dist(cell_centres(body.targets) * size).mean()))
+                worst_m=float(d.max()),
+                off_grid_m=float(dist(cell_centres(body.targets) * g.end_size).mean()))
 
 
 def table(aggs: dict) -> pd.DataFrame:
     """One row per variant of every choices experiment in `aggs` (figure -> aggregate)."""
     rows = []
     for figure, agg in aggs.items():
-        conds = agg["models"]["conditions"]
         for r in agg["summary"].itertuples():
-            c = conds[r.condition]
+            c = agg["models"]["conditions"][r.condition]
             per_trial = [scores(c["spec"], t["M"]) for t in c["trials"].values()
                          if t["M"] is not None]
             mean = {k: float(np.mean([p[k] for p in per_trial])) if per_trial else np.nan
@@ -61,33 +53,27 @@ def table(aggs: dict) -> pd.DataFrame:
 
 
 def escape(text) -> str:
-    """A Markdown table cell's text: its pipes escaped (labels such as |g - home| or a sweep's
-    `R=0.1 | TG1000`) and line breaks folded, so the row keeps its header's cells."""
+    """A Markdown table cell: pipes escaped (|g - home|, `R=0.1 | TG1000`), line breaks folded."""
     return " ".join(str(text).splitlines()).replace("|", "\\|")
 
 
 def markdown(t: pd.DataFrame, aggs: dict) -> str:
-    setups = []
-    for figure, agg in aggs.items():
-        s = agg["summary"]
-        setups.append(f"`{figure}`: {int(s['n_trials'].max())} trials x "
-                      f"{int(s['epochs'].min()):,}-{int(s['epochs'].max()):,} epochs")
+    setups = "; ".join(f"`{f}`: {int(a['summary']['n_trials'].max())} trials x "
+                       f"{int(a['summary']['epochs'].min()):,}-"
+                       f"{int(a['summary']['epochs'].max()):,} epochs" for f, a in aggs.items())
     lines = [
-        "# Open choices: measured effect of the alternatives",
-        "",
+        "# Open choices: measured effect of the alternatives", "",
         "Each row: one variant of the paper's settings, at full size without growth unless it "
         "says otherwise, with common random numbers across variants (conf/experiment/"
-        f"choices_*.yaml; {'; '.join(setups)}). Final error = mean Euclidean distance over the "
+        f"choices_*.yaml; {setups}). Final error = mean Euclidean distance over the "
         "target grid (the chosen formula); the next columns score the same final estimates as "
         "the RMS distance, as the mean squared distance printed in eq. 10 (mm^2), by the worst "
         "target, and over off-grid points (the centres of the grid cells). Rows with growth "
         "(0.5 -> 1.0 over T_G epochs) give the temporary rise of the mean absolute error during "
-        "growth. * = chosen.",
-        "",
+        "growth. * = chosen.", "",
         "| body | choice | variant | final error [mm] | RMS [mm] | mean squared [mm^2] "
         "| worst target [mm] | off-grid [mm] | rise during growth |",
-        "|---|---|---|---|---|---|---|---|---|",
-    ]
+        "|---|---|---|---|---|---|---|---|---|"]
     for r in t.itertuples():
         final = (f"{r.final_abs_mm_mean:.1f} ± {r.final_abs_mm_std:.1f}"
                  if np.isfinite(r.final_abs_mm_std) else f"{r.final_abs_mm_mean:.1f}")
@@ -115,142 +101,111 @@ def section(ctx: Context) -> list[str]:
 
 
 # the numbers of choices.csv the pages quote (docs/choices.md, README.md, findings.md), named
-# here where the table is made: name -> the row's figure, choice and variant, and its column
-QUOTED = {
+# here where the table is made: name -> the row's figure (the name's second part), choice and
+# variant, and its column (the name's last part)
+QUOTED = {name: (name.split(".")[1], *row, name.rsplit(".", 1)[1]) for name, row in {
     'choices.choices_arm5.gradient_step.normalised.final_abs_mm_mean':
-        ('choices_arm5', 'gradient step', 'normalised by sum w, eta = 1.0', 'final_abs_mm_mean'),
+        ('gradient step', 'normalised by sum w, eta = 1.0'),
     'choices.choices_arm5.gradient_step.plain.final_abs_mm_mean':
-        ('choices_arm5', 'gradient step', 'plain (eq. 6)', 'final_abs_mm_mean'),
+        ('gradient step', 'plain (eq. 6)'),
     'choices.choices_icub.gradient_step.normalised.final_abs_mm_mean':
-        ('choices_icub', 'gradient step', 'normalised by sum w, eta = 1.0', 'final_abs_mm_mean'),
+        ('gradient step', 'normalised by sum w, eta = 1.0'),
     'choices.choices_icub.gradient_step.plain.final_abs_mm_mean':
-        ('choices_icub', 'gradient step', 'plain (eq. 6)', 'final_abs_mm_mean'),
+        ('gradient step', 'plain (eq. 6)'),
     'choices.choices_arm5.learning_rate_growth_t_g_100.normalised.growth_rise_pct':
-        ('choices_arm5', 'learning rate, growth T_G = 100', 'T_G = 100, normalised step',
-         'growth_rise_pct'),
+        ('learning rate, growth T_G = 100', 'T_G = 100, normalised step'),
     'choices.choices_arm5.learning_rate_growth_t_g_100.t_g_100_eta_1_w.growth_rise_pct':
-        ('choices_arm5', 'learning rate, growth T_G = 100', 'T_G = 100, eta = 1 / W',
-         'growth_rise_pct'),
+        ('learning rate, growth T_G = 100', 'T_G = 100, eta = 1 / W'),
     'choices.choices_arm5.learning_rate_w_1142.eta_0.5_w.final_abs_mm_mean':
-        ('choices_arm5', 'learning rate (W = 1142)', 'eta = 0.5 / W', 'final_abs_mm_mean'),
+        ('learning rate (W = 1142)', 'eta = 0.5 / W'),
     'choices.choices_arm5.learning_rate_w_1142.eta_1_w.final_abs_mm_mean':
-        ('choices_arm5', 'learning rate (W = 1142)', 'eta = 1 / W', 'final_abs_mm_mean'),
+        ('learning rate (W = 1142)', 'eta = 1 / W'),
     'choices.choices_arm5.learning_rate_w_1142.eta_1.5_w.final_abs_mm_mean':
-        ('choices_arm5', 'learning rate (W = 1142)', 'eta = 1.5 / W', 'final_abs_mm_mean'),
+        ('learning rate (W = 1142)', 'eta = 1.5 / W'),
     'choices.choices_arm5.learning_rate_w_1142.eta_2_w.final_abs_mm_mean':
-        ('choices_arm5', 'learning rate (W = 1142)', 'eta = 2 / W', 'final_abs_mm_mean'),
+        ('learning rate (W = 1142)', 'eta = 2 / W'),
     'choices.choices_icub.learning_rate_w_1791.eta_0.5_w.final_abs_mm_mean':
-        ('choices_icub', 'learning rate (W = 1791)', 'eta = 0.5 / W', 'final_abs_mm_mean'),
+        ('learning rate (W = 1791)', 'eta = 0.5 / W'),
     'choices.choices_icub.learning_rate_w_1791.eta_1_w.final_abs_mm_mean':
-        ('choices_icub', 'learning rate (W = 1791)', 'eta = 1 / W', 'final_abs_mm_mean'),
+        ('learning rate (W = 1791)', 'eta = 1 / W'),
     'choices.choices_icub.learning_rate_w_1791.eta_1.5_w.final_abs_mm_mean':
-        ('choices_icub', 'learning rate (W = 1791)', 'eta = 1.5 / W', 'final_abs_mm_mean'),
+        ('learning rate (W = 1791)', 'eta = 1.5 / W'),
     'choices.choices_icub.learning_rate_w_1791.eta_2_w.final_abs_mm_mean':
-        ('choices_icub', 'learning rate (W = 1791)', 'eta = 2 / W', 'final_abs_mm_mean'),
+        ('learning rate (W = 1791)', 'eta = 2 / W'),
     'choices.choices_arm5.learning_rate_growth_t_g_100.eta_0.1_w.growth_rise_pct':
-        ('choices_arm5', 'learning rate, growth T_G = 100', 'T_G = 100, eta = 0.1 / W',
-         'growth_rise_pct'),
+        ('learning rate, growth T_G = 100', 'T_G = 100, eta = 0.1 / W'),
     'choices.choices_arm5.learning_rate_growth_t_g_100.eta_0.3_w.growth_rise_pct':
-        ('choices_arm5', 'learning rate, growth T_G = 100', 'T_G = 100, eta = 0.3 / W',
-         'growth_rise_pct'),
+        ('learning rate, growth T_G = 100', 'T_G = 100, eta = 0.3 / W'),
     'choices.choices_arm5.learning_rate_growth_t_g_100.eta_1_w.growth_rise_pct':
-        ('choices_arm5', 'learning rate, growth T_G = 100', 'T_G = 100, eta = 1 / W',
-         'growth_rise_pct'),
+        ('learning rate, growth T_G = 100', 'T_G = 100, eta = 1 / W'),
     'choices.choices_arm5.learning_rate_growth_t_g.eta_0.1_w.growth_rise_pct':
-        ('choices_arm5', 'learning rate, growth T_G = 1000', 'T_G = 1000, eta = 0.1 / W',
-         'growth_rise_pct'),
+        ('learning rate, growth T_G = 1000', 'T_G = 1000, eta = 0.1 / W'),
     'choices.choices_arm5.learning_rate_growth_t_g.eta_0.3_w.growth_rise_pct':
-        ('choices_arm5', 'learning rate, growth T_G = 1000', 'T_G = 1000, eta = 0.3 / W',
-         'growth_rise_pct'),
+        ('learning rate, growth T_G = 1000', 'T_G = 1000, eta = 0.3 / W'),
     'choices.choices_arm5.learning_rate_growth_t_g.eta_1_w.growth_rise_pct':
-        ('choices_arm5', 'learning rate, growth T_G = 1000', 'T_G = 1000, eta = 1 / W',
-         'growth_rise_pct'),
+        ('learning rate, growth T_G = 1000', 'T_G = 1000, eta = 1 / W'),
     'choices.choices_arm5.updates_per_epoch.two_batch_steps.final_abs_mm_mean':
-        ('choices_arm5', 'updates per epoch', 'two batch steps', 'final_abs_mm_mean'),
+        ('updates per epoch', 'two batch steps'),
     'choices.choices_arm5.updates_per_epoch.two_batch_steps.final_abs_mm_std':
-        ('choices_arm5', 'updates per epoch', 'two batch steps', 'final_abs_mm_std'),
+        ('updates per epoch', 'two batch steps'),
     'choices.choices_arm5.updates_per_epoch.online.final_abs_mm_mean':
-        ('choices_arm5', 'updates per epoch', 'online, one step per sample', 'final_abs_mm_mean'),
+        ('updates per epoch', 'online, one step per sample'),
     'choices.choices_icub.updates_per_epoch.online.final_abs_mm_mean':
-        ('choices_icub', 'updates per epoch', 'online, one step per sample', 'final_abs_mm_mean'),
+        ('updates per epoch', 'online, one step per sample'),
     'choices.choices_arm5.learning_rate_growth_t_g_100.online_updates.growth_rise_pct':
-        ('choices_arm5', 'learning rate, growth T_G = 100', 'T_G = 100, online updates',
-         'growth_rise_pct'),
+        ('learning rate, growth T_G = 100', 'T_G = 100, online updates'),
     'choices.choices_arm5.rate_schedule.annealed.final_abs_mm_mean':
-        ('choices_arm5', 'rate schedule', "annealed, tau = 10,000 epochs (not the paper's)",
-         'final_abs_mm_mean'),
+        ('rate schedule', "annealed, tau = 10,000 epochs (not the paper's)"),
     'choices.choices_icub.rate_schedule.annealed.final_abs_mm_mean':
-        ('choices_icub', 'rate schedule', "annealed, tau = 10,000 epochs (not the paper's)",
-         'final_abs_mm_mean'),
+        ('rate schedule', "annealed, tau = 10,000 epochs (not the paper's)"),
     'choices.choices_arm5.initialisation.0.0.final_abs_mm_mean':
-        ('choices_arm5', 'initialisation', '|g - home| <= 0.0', 'final_abs_mm_mean'),
+        ('initialisation', '|g - home| <= 0.0'),
     'choices.choices_arm5.initialisation.0.1.final_abs_mm_mean':
-        ('choices_arm5', 'initialisation', '|g - home| <= 0.1', 'final_abs_mm_mean'),
+        ('initialisation', '|g - home| <= 0.1'),
     'choices.choices_arm5.initialisation.0.3.final_abs_mm_mean':
-        ('choices_arm5', 'initialisation', '|g - home| <= 0.3', 'final_abs_mm_mean'),
+        ('initialisation', '|g - home| <= 0.3'),
     'choices.choices_icub.initialisation.0.0.final_abs_mm_mean':
-        ('choices_icub', 'initialisation', '|g - home| <= 0.0', 'final_abs_mm_mean'),
+        ('initialisation', '|g - home| <= 0.0'),
     'choices.choices_icub.initialisation.0.1.final_abs_mm_mean':
-        ('choices_icub', 'initialisation', '|g - home| <= 0.1', 'final_abs_mm_mean'),
+        ('initialisation', '|g - home| <= 0.1'),
     'choices.choices_icub.initialisation.0.3.final_abs_mm_mean':
-        ('choices_icub', 'initialisation', '|g - home| <= 0.3', 'final_abs_mm_mean'),
+        ('initialisation', '|g - home| <= 0.3'),
     'choices.choices_arm5.target_grid.wider.final_abs_mm_mean':
-        ('choices_arm5', 'target grid', 'wider: x -0.6..0.6, y 0.1..0.7 (13 x 7)',
-         'final_abs_mm_mean'),
+        ('target grid', 'wider: x -0.6..0.6, y 0.1..0.7 (13 x 7)'),
     'choices.choices_arm5.target_grid.coarser.final_abs_mm_mean':
-        ('choices_arm5', 'target grid', 'coarser: 6 x 3 over the same box', 'final_abs_mm_mean'),
-    'choices.choices_icub.gradient_step.plain.off_grid_mm':
-        ('choices_icub', 'gradient step', 'plain (eq. 6)', 'off_grid_mm'),
+        ('target grid', 'coarser: 6 x 3 over the same box'),
+    'choices.choices_icub.gradient_step.plain.off_grid_mm': ('gradient step', 'plain (eq. 6)'),
     'choices.choices_icub.target_grid.smaller.final_abs_mm_mean':
-        ('choices_icub', 'target grid',
-         'smaller: the 4 x 4 x 4 grid shrunk to 2/3 about its centre', 'final_abs_mm_mean'),
+        ('target grid', 'smaller: the 4 x 4 x 4 grid shrunk to 2/3 about its centre'),
     'choices.choices_arm5.home_posture.0.25_rad.final_abs_mm_mean':
-        ('choices_arm5', 'home posture', 'bend 0.25 rad per joint', 'final_abs_mm_mean'),
+        ('home posture', 'bend 0.25 rad per joint'),
     'choices.choices_arm5.home_posture.0.75_rad.final_abs_mm_mean':
-        ('choices_arm5', 'home posture', 'bend 0.75 rad per joint', 'final_abs_mm_mean'),
+        ('home posture', 'bend 0.75 rad per joint'),
     'choices.choices_icub.joint_limits.final_abs_mm_mean':
-        ('choices_icub', 'joint limits', 'ignored (no saturation)', 'final_abs_mm_mean'),
-    'choices.choices_arm5.gradient_step.plain.off_grid_mm':
-        ('choices_arm5', 'gradient step', 'plain (eq. 6)', 'off_grid_mm'),
-    'choices.choices_arm5.gradient_step.plain.rms_mm':
-        ('choices_arm5', 'gradient step', 'plain (eq. 6)', 'rms_mm'),
-    'choices.choices_arm5.gradient_step.plain.mean_sq_mm2':
-        ('choices_arm5', 'gradient step', 'plain (eq. 6)', 'mean_sq_mm2'),
+        ('joint limits', 'ignored (no saturation)'),
+    'choices.choices_arm5.gradient_step.plain.off_grid_mm': ('gradient step', 'plain (eq. 6)'),
+    'choices.choices_arm5.gradient_step.plain.rms_mm': ('gradient step', 'plain (eq. 6)'),
+    'choices.choices_arm5.gradient_step.plain.mean_sq_mm2': ('gradient step', 'plain (eq. 6)'),
     'choices.choices_arm5.non_proportional_short.proportionally.final_abs_mm_mean':
-        ('choices_arm5', 'non-proportional short reference', 'proportionally halved body (0.5 m)',
-         'final_abs_mm_mean'),
+        ('non-proportional short reference', 'proportionally halved body (0.5 m)'),
     'choices.choices_arm5.non_proportional_short.non_proportional_start.final_abs_mm_mean':
-        ('choices_arm5', 'non-proportional short reference', 'non-proportional start body (0.5 m)',
-         'final_abs_mm_mean'),
+        ('non-proportional short reference', 'non-proportional start body (0.5 m)'),
     'choices.choices_arm5.successive_path_targets.uniform.final_abs_mm_mean':
-        ('choices_arm5', 'successive path targets', 'uniform over all targets (repeats allowed)',
-         'final_abs_mm_mean'),
+        ('successive path targets', 'uniform over all targets (repeats allowed)'),
     'choices.choices_arm5.successive_path_targets.differs.final_abs_mm_mean':
-        ('choices_arm5', 'successive path targets', 'each differs from the one before',
-         'final_abs_mm_mean'),
+        ('successive path targets', 'each differs from the one before'),
     'choices.choices_arm5.growth_schedule_t_g_1000.infant.final_abs_mm_mean':
-        ('choices_arm5', 'growth schedule, T_G = 1000', 'T_G = 1000, infant (WHO fit)',
-         'final_abs_mm_mean'),
+        ('growth schedule, T_G = 1000', 'T_G = 1000, infant (WHO fit)'),
     'choices.choices_arm5.growth_schedule_t_g_1000.infant.growth_rise_pct':
-        ('choices_arm5', 'growth schedule, T_G = 1000', 'T_G = 1000, infant (WHO fit)',
-         'growth_rise_pct'),
+        ('growth schedule, T_G = 1000', 'T_G = 1000, infant (WHO fit)'),
     'choices.choices_arm5.growth_schedule_t_g_1000.linear.growth_rise_pct':
-        ('choices_arm5', 'growth schedule, T_G = 1000', "T_G = 1000, linear (the paper's)",
-         'growth_rise_pct'),
-    'choices.choices_arm2.100_000_epochs.final_abs_mm_mean':
-        ('choices_arm2', 'Fig. 2 duration', '100,000 epochs', 'final_abs_mm_mean'),
-    'choices.choices_arm2.10_000_epochs.final_abs_mm_mean':
-        ('choices_arm2', 'Fig. 2 duration', '10,000 epochs', 'final_abs_mm_mean'),
-    'choices.choices_arm2.100_000_epochs.worst_mm':
-        ('choices_arm2', 'Fig. 2 duration', '100,000 epochs', 'worst_mm'),
-    'choices.choices_arm2.10_000_epochs.worst_mm':
-        ('choices_arm2', 'Fig. 2 duration', '10,000 epochs', 'worst_mm'),
-    'choices.choices_arm5.root_seed.2011.final_abs_mm_mean':
-        ('choices_arm5', 'root seed', '2011', 'final_abs_mm_mean'),
-    'choices.choices_arm5.root_seed.2011.final_abs_mm_std':
-        ('choices_arm5', 'root seed', '2011', 'final_abs_mm_std'),
-    'choices.choices_arm5.root_seed.2010.final_abs_mm_mean':
-        ('choices_arm5', 'root seed', '2010', 'final_abs_mm_mean'),
-    'choices.choices_arm5.root_seed.2010.final_abs_mm_std':
-        ('choices_arm5', 'root seed', '2010', 'final_abs_mm_std'),
-}
+        ('growth schedule, T_G = 1000', "T_G = 1000, linear (the paper's)"),
+    'choices.choices_arm2.100_000_epochs.final_abs_mm_mean': ('Fig. 2 duration', '100,000 epochs'),
+    'choices.choices_arm2.10_000_epochs.final_abs_mm_mean': ('Fig. 2 duration', '10,000 epochs'),
+    'choices.choices_arm2.100_000_epochs.worst_mm': ('Fig. 2 duration', '100,000 epochs'),
+    'choices.choices_arm2.10_000_epochs.worst_mm': ('Fig. 2 duration', '10,000 epochs'),
+    'choices.choices_arm5.root_seed.2011.final_abs_mm_mean': ('root seed', '2011'),
+    'choices.choices_arm5.root_seed.2011.final_abs_mm_std': ('root seed', '2011'),
+    'choices.choices_arm5.root_seed.2010.final_abs_mm_mean': ('root seed', '2010'),
+    'choices.choices_arm5.root_seed.2010.final_abs_mm_std': ('root seed', '2010'),
+}.items()}

@@ -1,19 +1,7 @@
-"""Reporting conventions: the measured effect of each alternative, from the aggregated data alone.
-
-Some rows of the README's table of choices are conventions of the report, not of the learner;
-their alternatives need no new simulation. This module measures them on the paper's figures
-(figures_declared(): declares.conventions, those aggregated) and returns conventions.csv / the report's section:
-- spread over trials: the standard deviation of the final errors with ddof 0 against ddof 1,
-  computed from the per-trial finals (and checked against sqrt((n - 1) / n));
-- failed to bootstrap: the trials flagged at other factors than aggregate.fail_factor, and the
-  largest final / median ratio of any condition;
-- Fig. 3 / 6 postures: where trial 0, whose final model is drawn, ranks in its condition;
-- learning-curve sampling: the rise of the error during growth (measures.growth_peak) read from
-  the stored mean curves subsampled to every 2nd and every 4th evaluation point;
-- relative error (eq. 11): the size factor S against the current total length of the arm's
-  segments over the full one, at every evaluation epoch of each condition's spec.
-A row whose data is absent is left out. Only read_trials touches files.
-"""
+"""Reporting conventions (conventions.csv): the measured effect of each alternative on the
+paper's figures (those declaring `conventions: true`), from their aggregates alone: the spread's
+ddof, the failed-to-bootstrap factor, trial 0's rank in the postures, the curves' sampling, the
+relative error's normalisation. A row whose data is absent is left out."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -29,10 +17,8 @@ from .choices import escape
 from .sections import declared
 
 
-
 def figures_declared() -> tuple[str, ...]:
-    """The paper's figures the conventions are measured on: the experiments whose file declares
-    `conventions: true` (fig2, fig4, fig5, fig7), in declared order."""
+    """The experiments whose file declares `conventions: true`, in declared order."""
     return tuple(n for n, e in declared().items() if e.declares.conventions)
 
 
@@ -42,15 +28,13 @@ COLUMNS = ["convention", "ours", "alternative", "measured_effect"]
 
 
 def read_trials(folder, figures) -> dict:
-    """figure -> its per-trial learning curves (aggregate's trials.parquet) for the declared
-    among `figures` whose file is present."""
-    paper_figures = figures_declared()
-    paths = {f: Path(folder) / f / "trials.parquet" for f in figures if f in paper_figures}
+    """figure -> its trials.parquet, for the declared among `figures` that have one."""
+    paths = {f: Path(folder) / f / "trials.parquet" for f in figures if f in figures_declared()}
     return {f: pd.read_parquet(p) for f, p in paths.items() if p.exists()}
 
 
 def finals(trials: dict) -> pd.DataFrame:
-    """Each trial's final row, of every figure (measures.finals, as the aggregate stage takes them)."""
+    """Each trial's final row (measures.finals), of every figure."""
     frames = [trial_finals(t) for t in trials.values()]
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
 
@@ -60,8 +44,8 @@ def _where(figure, condition) -> str:
 
 
 def spread(fin: pd.DataFrame) -> dict | None:
-    """ddof 0 / ddof 1 of the final errors per trial count n, measured, and its largest deviation
-    from sqrt((n - 1) / n) over conditions and both errors (None without 2 trials anywhere)."""
+    """ddof 0 / ddof 1 of the final errors per trial count n, and the largest deviation from
+    sqrt((n - 1) / n) (None without 2 trials anywhere)."""
     per_n, count, dev = {}, {}, 0.0
     for _, g in fin.groupby(["figure", "condition"], sort=False):
         n = len(g)
@@ -78,8 +62,8 @@ def spread(fin: pd.DataFrame) -> dict | None:
 
 
 def flagged(fin: pd.DataFrame, factors) -> dict:
-    """Trials whose final relative error exceeds factor x their condition's median, per factor;
-    the trial count and the largest final / median ratio (value, where)."""
+    """Per factor the trials whose final relative error exceeds factor x their condition's
+    median; the trial count and the largest final / median ratio and where."""
     median = fin.groupby(["figure", "condition"], sort=False)["rel_error"].transform("median")
     ratio = fin["rel_error"] / median
     i = int(np.argmax(ratio.to_numpy()))
@@ -90,8 +74,8 @@ def flagged(fin: pd.DataFrame, factors) -> dict:
 
 
 def trial0_rank(fin: pd.DataFrame, wanted) -> list[dict]:
-    """For each (panel, figure, condition): trial 0's final error, its rank (1 = smallest) among
-    the condition's trials, its percentile (0 best, 100 worst), and the condition's median."""
+    """Per (panel, figure, condition): trial 0's final error, rank (1 = smallest), percentile
+    (0 best) and the condition's median."""
     out = []
     for panel, figure, condition in wanted:
         g = fin[(fin["figure"] == figure) & (fin["condition"] == condition)]
@@ -107,35 +91,28 @@ def trial0_rank(fin: pd.DataFrame, wanted) -> list[dict]:
 
 
 def rise_pct(curve: pd.DataFrame) -> float:
-    """The rise of the mean absolute error during growth (measures.growth_peak) in % of the
-    lowest error before it."""
+    """The rise during growth (measures.growth_peak) in % of the lowest error before it."""
     _, peak, rise = growth_peak(curve)
     before = peak - rise
     return 100 * rise / before if before > 0 else np.nan
 
 
 def subsampled_rise(curves: pd.DataFrame, summary: pd.DataFrame, strides) -> list[dict]:
-    """Per growing condition: the rise (% of the error before it) from the stored mean curve, and
-    from the curve keeping every k-th evaluation point (the first kept), for k in strides."""
+    """Per growing condition: rise_pct of the mean curve, and of every k-th point of it."""
     out = []
     for r in summary.itertuples():
         if r.growth == "none":
             continue
         c = curves[curves["condition"] == r.condition].sort_values("epoch")
-        if not len(c):
-            continue
-        row = dict(where=_where(r.figure, r.condition), full=rise_pct(
-            c[c["epoch"] <= r.growth_period + 1]))
-        for k in strides:
-            sub = c.iloc[::k]
-            row[k] = rise_pct(sub[sub["epoch"] <= r.growth_period + 1])
-        out.append(row)
+        if len(c):  # k = 1: the stored curve
+            rise = {k: rise_pct(c.iloc[::k][c.iloc[::k]["epoch"] <= r.growth_period + 1])
+                    for k in (1, *strides)}
+            out.append({"where": _where(r.figure, r.condition), "full": rise.pop(1), **rise})
     return out
 
 
 def length_ratio(body, scales) -> np.ndarray:
-    """Total length of the chain's segments at per-joint length factors `scales` (..., m) over
-    the full-size total."""
+    """The chain's total segment length at per-joint length factors `scales` over the full one."""
     def total(k):
         ch = body.chain(k)
         return np.hypot(ch["a"], ch["d"]).sum(axis=-1)
@@ -144,9 +121,8 @@ def length_ratio(body, scales) -> np.ndarray:
 
 
 def normalisations(spec: dict) -> dict:
-    """eq. 11's S against total length / full length over the spec's evaluation epochs: the
-    largest |S / (L / L_full) - 1| (the relative difference of the two relative errors), and the
-    range of the per-joint length factors over S (1 = every segment at S)."""
+    """eq. 11's S against L / L_full over the spec's evaluation epochs: the largest
+    |S / (L / L_full) - 1|, and the range of the per-joint length factors over S."""
     s = gbmodel.TrialSpec.from_dict(spec)
     body, growth = s.make_body(), s.make_growth()
     sizes = growth.sizes(evaluation.eval_epochs(s.epochs, s.evals_per_decade))
@@ -160,8 +136,8 @@ def _g(v) -> str:
     return f"{v:.3g}"
 
 
-def _postures_row(ranks: list[dict], named: dict) -> dict:
-    """The row of trial 0's ranks (trial0_rank); `named` gets the numbers the pages quote."""
+def _postures_row(ranks: list[dict], named: dict) -> tuple:
+    """The row of trial0_rank's ranks; `named` gets the numbers the pages quote."""
     cells = []
     for r in ranks:
         pct = f"{100 * (r['error'] / r['median'] - 1):+.3g}"
@@ -172,46 +148,12 @@ def _postures_row(ranks: list[dict], named: dict) -> dict:
         cells.append(f"{r['where']} ({r['panel']}): rank {r['rank']} of {r['n']}{at}, "
                      f"{_g(1e3 * r['error'])} mm against the median {_g(1e3 * r['median'])} "
                      f"mm ({pct} %)")
-    return dict(convention="Fig. 3 / 6 postures", ours="trial 0's final model",
-                alternative="another trial (e.g. the median one)",
-                measured_effect="trial 0's final abs. error (rank 1 = smallest): "
-                                + "; ".join(cells))
+    return ("Fig. 3 / 6 postures", "trial 0's final model", "another trial (e.g. the median one)",
+            "trial 0's final abs. error (rank 1 = smallest): " + "; ".join(cells))
 
 
-def table(aggs: dict, trials: dict, fail_factor: float, postures: dict) -> pd.DataFrame:
-    """The conventions' rows from the paper's aggregates (figure -> aggregate), their per-trial
-    curves (read_trials), aggregate.fail_factor and report.postures (panel -> [[figure,
-    condition], ...])."""
-    aggs = {k: a for k, a in aggs.items() if k in figures_declared()}
-    fin = finals({k: t for k, t in trials.items() if k in aggs})
-    rows, named = [], {}  # named: the numbers the pages quote (the table's attrs["values"])
-    sp = spread(fin) if len(fin) else None
-    if sp:
-        named.update({name: -float(_g(100 * (sp["ratio"][n] - 1)))
-                      for n, name in QUOTED_SPREAD.items() if n in sp["ratio"]})
-        each = ", ".join(f"{_g(r)} for n = {n} ({_g(100 * (r - 1))} %, {sp['conditions'][n]} "
-                         "conditions)" for n, r in sp["ratio"].items())
-        rows.append(dict(
-            convention="spread over trials", ours="standard deviation with ddof = 1",
-            alternative="ddof = 0",
-            measured_effect=f"std(ddof 0) / std(ddof 1) of the final errors: {each}; equal to "
-                            f"sqrt((n - 1) / n) within {sp['deviation']:.1g}"))
-    if len(fin):
-        fl = flagged(fin, sorted({*FACTORS, fail_factor}))
-        counts = ", ".join(f"{f:g} x{' (ours)' if f == fail_factor else ''}: {c}"
-                           for f, c in fl["counts"].items())
-        rows.append(dict(
-            convention="failed to bootstrap",
-            ours=f"final relative error > {fail_factor:g} x the condition's median",
-            alternative=", ".join(f"{f:g} x" for f in FACTORS if f != fail_factor),
-            measured_effect=f"trials flagged of {fl['trials']}: {counts}; largest final / "
-                            f"median ratio {_g(fl['largest'])} ({fl['where']})"))
-    wanted = [(p, f, c) for p, pairs in postures.items() for f, c in pairs if f in aggs]
-    ranks = trial0_rank(fin, wanted) if len(fin) else []
-    if ranks:
-        rows.append(_postures_row(ranks, named))
-    sub = [r for name, a in aggs.items()
-           for r in subsampled_rise(a["curves"], a["summary"], STRIDES)]
+def _sampling_row(aggs: dict) -> tuple | None:
+    sub = [r for a in aggs.values() for r in subsampled_rise(a["curves"], a["summary"], STRIDES)]
     cells = []
     for k in STRIDES:
         d = [(r[k] - r["full"], r) for r in sub if np.isfinite(r[k]) and np.isfinite(r["full"])]
@@ -225,30 +167,59 @@ def table(aggs: dict, trials: dict, fail_factor: float, postures: dict) -> pd.Da
             _, q = min(rel, key=lambda x: x[0])
             cell += f", relatively most {q['where']} (+{_g(q['full'])} % -> +{_g(q[k])} %)"
         cells.append(cell)
-    if cells:
-        rows.append(dict(
-            convention="learning-curve sampling",
-            ours="about 20 log-spaced evaluations per decade; the growth peak read from them",
-            alternative="every 2nd / every 4th evaluation point",
-            measured_effect=f"rise of the mean abs. error during growth (% of the lowest error "
-                            f"before it), over {len(sub)} growing conditions: "
-                            + "; ".join(cells)))
+    return ("learning-curve sampling",
+            "about 20 log-spaced evaluations per decade; the growth peak read from them",
+            "every 2nd / every 4th evaluation point", "rise of the mean abs. error during growth "
+            f"(% of the lowest error before it), over {len(sub)} growing conditions: "
+            + "; ".join(cells)) if cells else None
+
+
+def _normalisation_row(aggs: dict) -> tuple | None:
     norms = [(name, cond, normalisations(c["spec"])) for name, a in aggs.items()
              for cond, c in a["models"]["conditions"].items()]
-    if norms:
-        diff, name, cond = max((x[2]["difference"], x[0], x[1]) for x in norms)
-        uneven = [x[2]["spread"] for x in norms if not np.allclose(x[2]["spread"], 1.0)]
-        effect = (f"0 within rounding ({diff:.1g})" if diff < 1e-12 else
-                  f"up to {_g(100 * diff)} % ({_where(name, cond)})")
-        effect += f", largest over {len(norms)} conditions and their evaluation epochs"
-        if uneven:
-            effect += (f"; in the {len(uneven)} with unequal segments (per-joint length factors "
-                       f"{_g(min(u[0] for u in uneven))}-{_g(max(u[1] for u in uneven))} x S) "
-                       "the total length is still S x the full one")
-        rows.append(dict(
-            convention="relative error (eq. 11)", ours="absolute error / size factor S",
-            alternative="absolute error / (current total arm length / full arm length)",
-            measured_effect=effect))
+    if not norms:
+        return None
+    diff, name, cond = max((x[2]["difference"], x[0], x[1]) for x in norms)
+    uneven = [x[2]["spread"] for x in norms if not np.allclose(x[2]["spread"], 1.0)]
+    effect = (f"0 within rounding ({diff:.1g})" if diff < 1e-12 else
+              f"up to {_g(100 * diff)} % ({_where(name, cond)})")
+    effect += f", largest over {len(norms)} conditions and their evaluation epochs"
+    if uneven:
+        effect += (f"; in the {len(uneven)} with unequal segments (per-joint length factors "
+                   f"{_g(min(u[0] for u in uneven))}-{_g(max(u[1] for u in uneven))} x S) "
+                   "the total length is still S x the full one")
+    return ("relative error (eq. 11)", "absolute error / size factor S",
+            "absolute error / (current total arm length / full arm length)", effect)
+
+
+def table(aggs: dict, trials: dict, fail_factor: float, postures: dict) -> pd.DataFrame:
+    """The conventions' rows from the aggregates, their read_trials, aggregate.fail_factor and
+    report.postures (panel -> [[figure, condition], ...])."""
+    aggs = {k: a for k, a in aggs.items() if k in figures_declared()}
+    fin = finals({k: t for k, t in trials.items() if k in aggs})
+    rows, named = [], {}  # named: the numbers the pages quote (the table's attrs["values"])
+    sp = spread(fin) if len(fin) else None
+    if sp:
+        named.update({name: -float(_g(100 * (sp["ratio"][n] - 1)))
+                      for n, name in QUOTED_SPREAD.items() if n in sp["ratio"]})
+        each = ", ".join(f"{_g(r)} for n = {n} ({_g(100 * (r - 1))} %, {sp['conditions'][n]} "
+                         "conditions)" for n, r in sp["ratio"].items())
+        rows.append(("spread over trials", "standard deviation with ddof = 1", "ddof = 0",
+                     f"std(ddof 0) / std(ddof 1) of the final errors: {each}; equal to "
+                     f"sqrt((n - 1) / n) within {sp['deviation']:.1g}"))
+    if len(fin):
+        fl = flagged(fin, sorted({*FACTORS, fail_factor}))
+        counts = ", ".join(f"{f:g} x{' (ours)' if f == fail_factor else ''}: {c}"
+                           for f, c in fl["counts"].items())
+        rows.append(("failed to bootstrap",
+                     f"final relative error > {fail_factor:g} x the condition's median",
+                     ", ".join(f"{f:g} x" for f in FACTORS if f != fail_factor),
+                     f"trials flagged of {fl['trials']}: {counts}; largest final / median ratio "
+                     f"{_g(fl['largest'])} ({fl['where']})"))
+    wanted = [(p, f, c) for p, pairs in postures.items() for f, c in pairs if f in aggs]
+    ranks = trial0_rank(fin, wanted) if len(fin) else []
+    rows += [_postures_row(ranks, named)] if ranks else []
+    rows += [r for r in (_sampling_row(aggs), _normalisation_row(aggs)) if r]
     t = pd.DataFrame(rows, columns=COLUMNS)
     t.attrs["values"] = named
     return t
@@ -266,7 +237,6 @@ QUOTED_RANKS = {("fig4 TG1000", "fig3"): ("conventions.fig._3_6_postures.measure
 
 
 def markdown(t: pd.DataFrame) -> str:
-    """The section of report.md: the table of conventions."""
     lines = ["## Reporting conventions: measured effect of the alternative", "",
              "Measured on the paper's figures (" + ", ".join(figures_declared())
              + ", those aggregated) "

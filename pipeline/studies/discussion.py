@@ -12,8 +12,6 @@ from .. import io
 FINDINGS = Path(__file__).parent / "findings.md"
 FINDINGS_NUMBERS = Path(__file__).parent / "findings_numbers.csv"
 TOLERANCE = 1e-6  # relative: the discussion holds for numbers this close to its run's
-
-
 FINDINGS_COLUMNS = ["final_abs_error_mean", "final_rel_error_mean", "peak_abs_error_growth"]
 
 
@@ -27,8 +25,8 @@ def findings_numbers(summary: pd.DataFrame, claim_rows: list[dict]) -> pd.DataFr
 
 
 def findings(summary: pd.DataFrame, claim_rows: list[dict]) -> str:
-    """pipeline/studies/findings.md, hand-written about one run, if these are that run's numbers (every
-    verdict the same, every number within TOLERANCE); else a note that it is left out."""
+    """findings.md if these are its run's numbers (every verdict the same, every number within
+    TOLERANCE); else a note that it is left out."""
     now = findings_numbers(summary, claim_rows)
     if FINDINGS_NUMBERS.exists():
         ref = pd.read_csv(FINDINGS_NUMBERS, keep_default_na=False,
@@ -43,7 +41,7 @@ def findings(summary: pd.DataFrame, claim_rows: list[dict]) -> str:
 
 
 def stamp_findings(summary: pd.DataFrame, claim_rows: list[dict]) -> None:
-    """Record the numbers findings.md was written against (after rereading it against them)."""
+    """Record the numbers findings.md was written against (after rereading it)."""
     io.write_text(FINDINGS_NUMBERS, findings_numbers(summary, claim_rows)
                   .to_csv(index=False, float_format="%.17g", na_rep="nan"))
 

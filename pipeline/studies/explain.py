@@ -1,25 +1,7 @@
-"""Decisive experiments behind the report's explanations, read from their aggregates.
-
-The experiments are experiments of the plan (conf/experiment/explain_*.yaml), simulated and
-cached like any other; this module only reads their final models and curves (and fits a cubic,
-which trains nothing), so the report stage starts no trial:
-- capacity: the best degree-3 polynomial inverse for a body's target grid, fitted directly to
-  the forward kinematics (least squares on the reaching errors, started from a learned M): the
-  error a cubic *can* reach, against what Goal Babbling reaches;
-- boundary (Fig. 2, explain_fig2_boundary): the 2-DOF arm learned on heights +-1 m (the
-  stretched arm, where w_eff -> 0 and disturbed examples only land inside) against the same arm
-  learned on +-0.9 and +-0.8 m;
-- continuation (iCub, explain_fig7_continuation): 100,000 epochs at the rate, then 1,000 more at
-  the rate and at a tenth of it: a model still improving at a smaller rate is limited by the
-  rate's noise;
-- half size (Fig. 4, explain_fig4_half_size): the half-size arm's error per unit size over the
-  full-size one's at a few epochs, under the plain step at 1 / W and 2 / W and the least-squares
-  solve: whether the half-size arm's slower learning is the step's size dependence;
-- rise (Fig. 4, readings_fig4): the temporary rise during growth (claims.rise, the scorecard's
-  measure) for every T_G under the rate and solver readings;
-- extent (Fig. 7 and 4, explain_extent_*; explain_extent.py): the final error per target-set
-  extent and its exponent, beside the paper's absolute error.
-"""
+"""The experiments behind the report's explanations (explain_*, readings_fig4), read from their
+aggregates (no trial is run): the capacity bound (capacity.py), Fig. 2's boundary, the iCub's
+continuation at a smaller rate, the half-size arm under steps that take the size out, the rise
+during growth per rate and solver, and the target set's extent (explain_extent.py)."""
 from __future__ import annotations
 
 import numpy as np
@@ -32,13 +14,12 @@ from .sections import Context, declared, register
 
 
 def explained() -> dict[str, str]:
-    """explanation -> the experiment that feeds it (declares.explains in its file: boundary,
-    continuation, half_size, rise)."""
+    """explanation -> the experiment whose file declares it (declares.explains)."""
     return {e.declares.explains: n for n, e in declared().items() if e.declares.explains}
 
 
 def _variants(agg: dict):
-    """(variant label, condition's models entry, its curve) for each condition of an aggregate."""
+    """(variant label, models entry, curve) per condition."""
     conds = agg["models"]["conditions"]
     for r in agg["summary"].itertuples():
         cu = agg["curves"][agg["curves"]["condition"] == r.condition].sort_values("epoch")
@@ -46,8 +27,7 @@ def _variants(agg: dict):
 
 
 def boundary(agg: dict) -> list[dict]:
-    """explain_fig2_boundary: for each target range, the error at the two extreme targets of
-    Goal Babbling and of the best cubic for that range, mean over the trials."""
+    """Per target range: the error at the extreme targets, learned and best cubic (trial mean)."""
     out = []
     for label, cond, _ in _variants(agg):
         spec = cond["spec"]
@@ -62,8 +42,7 @@ def boundary(agg: dict) -> list[dict]:
 
 
 def continuation(agg: dict) -> dict | None:
-    """explain_fig7_continuation: the mean absolute error over trials before the rate step (the
-    last evaluation at or before it) and at the end, at the same rate and at the smaller one."""
+    """The mean error before the rate step and at the end, at the same rate and the smaller."""
     parts = {label: (cond, cu) for label, cond, cu in _variants(agg)}
     step = next(((c["spec"]["learner"], cu) for c, cu in parts.values()
                  if c["spec"]["learner"].get("rate_schedule") == "step"), None)
@@ -93,19 +72,22 @@ def _learner(agg: dict, condition: str) -> dict:
     return agg["models"]["conditions"][condition]["spec"]["learner"]
 
 
+def _rate0(agg: dict) -> float | None:
+    """The chosen (default) condition's learning rate, if the summary marks one."""
+    s = agg["summary"]
+    default = s[s["chosen"].astype(bool)] if "chosen" in s else s.iloc[:0]
+    return _learner(agg, default["condition"].iloc[0])["learning_rate"] if len(default) else None
+
+
 def _ci(values) -> dict:
     point, low, high = scorecard.interval(values)
     return dict(value=point, low=low, high=high, trials=len(values))
 
 
 def half_size(agg: dict) -> list[dict]:
-    """explain_fig4_half_size, per variant: the half-size arm's relative error over the
-    full-size arm's, per trial (trials paired by index: common random numbers), at HALF_EPOCHS
-    (the last evaluation at or before each) as a mean over trials with its 95 % t interval; and
-    the last epoch at which the half-size mean curve lies above the full-size one."""
-    s, out = agg["summary"], []
-    default = s[s["chosen"].astype(bool)] if "chosen" in s else s.iloc[:0]
-    rate0 = _learner(agg, default["condition"].iloc[0])["learning_rate"] if len(default) else None
+    """Per variant: half-size over full-size relative error, trials paired by index, at
+    HALF_EPOCHS (t interval), and the last epoch the half-size mean curve lies above."""
+    s, out, rate0 = agg["summary"], [], _rate0(agg)
     for label, g in s.groupby("variant", sort=False):
         refs = g[g["growth"] == "none"].sort_values("end_size")
         if len(refs) != 2 or refs["n_trials"].min() == 0:
@@ -132,20 +114,16 @@ def half_size(agg: dict) -> list[dict]:
 
 
 def _slower(v: dict) -> bool:
-    """The half-size arm learns slower: its ratio's interval lies above 1 at some epoch."""
+    """The ratio's interval lies above 1 at some epoch."""
     return any(r["low"] > 1 for r in v["at"].values())
 
 
-def _ratio_text(r: dict) -> str:
-    return f"{r['value']:.2f} [{r['low']:.2f}, {r['high']:.2f}]"
-
-
 def half_size_text(found: list[dict]) -> str:
-    """The numbers of `half_size` and what they show, conditionally on them."""
     parts = []
     for v in found:
         name = "least squares" if v["kind"] == "lstsq" else f"plain step at {v['rate']:.2g} / W"
-        at = (", ".join(f"epoch {e:,} {_ratio_text(r)}" for e, r in v["at"].items())
+        at = (", ".join(f"epoch {e:,} {r['value']:.2f} [{r['low']:.2f}, {r['high']:.2f}]"
+                        for e, r in v["at"].items())
               or f"the run ends before epoch {HALF_EPOCHS[0]:,}")
         last = (f"still above at the last epoch ({v['end']:,})" if v["last_above"] == v["end"]
                 else f"above until epoch {v['last_above']:,}" if v["last_above"]
@@ -190,15 +168,11 @@ def half_size_text(found: list[dict]) -> str:
 
 
 def rises(agg: dict) -> list[dict]:
-    """readings_fig4 under the default, rate and solver readings: the temporary rise during
-    growth (claims.rise, per trial, epochs 1 ... T_G + 1) for every T_G, with its 95 % t
-    interval, and the reading's rate as a multiple of the default's."""
-    s = agg["summary"]
+    """Per T_G under the default, rate and solver readings: the rise during growth (claims.rise,
+    t interval) and the reading's rate as a multiple of the default's."""
+    s, out, rate0 = agg["summary"], [], _rate0(agg)
     if "choice" not in s:
         return []
-    default = s[s["chosen"].astype(bool)]
-    rate0 = _learner(agg, default["condition"].iloc[0])["learning_rate"] if len(default) else None
-    out = []
     for r in s[(s["growth"] != "none") & (s["n_trials"] > 0)].itertuples():
         if not (r.chosen or str(r.choice).startswith(("learning rate", "solver"))):
             continue
@@ -228,8 +202,7 @@ def rises_markdown(found: list[dict]) -> str:
 
 
 def rises_text(found: list[dict]) -> str:
-    """What changes with the rate, conditionally on the numbers: per gradient reading (by rate)
-    and the least-squares one, the rise at the two longest T_G against the claim's bound."""
+    """The rise at the two longest T_G per reading, against the claim's bound."""
     t = pd.DataFrame(found)
     periods = sorted(t["T_G"].unique())[-2:]
     bound = claims.RISE
@@ -260,22 +233,15 @@ def rises_text(found: list[dict]) -> str:
 
 
 def rows(aggs: dict, named: dict | None = None) -> list[dict]:
-    """The explanation experiments that the aggregated figures allow (reads only); `named`, if
-    given, gets the numbers of their text the pages quote (name -> value, as the text prints it)."""
+    """The explanations' rows; `named` gets the numbers the pages quote, as printed."""
     by, named = explained(), {} if named is None else named
     out = []
     fig2 = aggs.get("fig2", {}).get("models", {}).get("conditions", {})
-    for cond in fig2.values():
-        M = cond["trials"].get("0", {}).get("M")
-        if M is None:
-            continue
-        c = best_cubic(cond["spec"], M)
-        named["explanations.fig2.capacity.measured.n2"] = float(f"{c['best_worst_mm']:.1f}")
-        out.append(dict(figure="fig2", experiment="capacity: the best cubic for the 21 heights",
-                        measured=f"mean {c['best_mean_mm']:.1f} mm, worst {c['best_worst_mm']:.1f} mm"
-                                 f" (Goal Babbling, trial 0: mean {c['learned_mean_mm']:.1f} mm, "
-                                 f"worst {c['learned_worst_mm']:.1f} mm)"))
-        break
+    M, cond = next(((c["trials"]["0"]["M"], c) for c in fig2.values()
+                    if c["trials"].get("0", {}).get("M") is not None), (None, None))
+    if M is not None:
+        out.append(_capacity(named, "fig2", "the 21 heights", cond["spec"], M, "", ".1f",
+                             "explanations.fig2.capacity.measured.n2", "best_worst_mm"))
     if by.get("boundary") in aggs:
         b = boundary(aggs[by["boundary"]])
         named.update({name: float(f"{r['learned_mm']:.1f}") for r in b
@@ -286,16 +252,11 @@ def rows(aggs: dict, named: dict | None = None) -> list[dict]:
                             "+-lim", measured="; ".join(
                                 f"{r['label']}: Goal Babbling {r['learned_mm']:.1f} mm, best "
                                 f"cubic {r['best_cubic_mm']:.1f} mm" for r in b)))
-    fig7 = aggs.get("fig7", {}).get("models", {}).get("conditions", {})
-    full = next((c for name, c in fig7.items() if name == "const1.0"), None)
+    full = aggs.get("fig7", {}).get("models", {}).get("conditions", {}).get("const1.0")
     if full and full["trials"]:
-        models = [t["M"] for t in full["trials"].values()]
-        c = best_cubic(full["spec"], models[0])
-        named["explanations.fig7.capacity.measured.n1"] = float(f"{c['best_mean_mm']:.2f}")
-        out.append(dict(figure="fig7", experiment="capacity: the best cubic for the 4 x 4 x 4 grid",
-                        measured=f"mean {c['best_mean_mm']:.2f} mm, worst {c['best_worst_mm']:.1f} mm"
-                                 f" (Goal Babbling, const1.0 trial 0: mean "
-                                 f"{c['learned_mean_mm']:.1f} mm, worst {c['learned_worst_mm']:.1f} mm)"))
+        out.append(_capacity(named, "fig7", "the 4 x 4 x 4 grid", full["spec"],
+                             next(iter(full["trials"].values()))["M"], "const1.0 ", ".2f",
+                             "explanations.fig7.capacity.measured.n1", "best_mean_mm"))
     k = continuation(aggs[by["continuation"]]) if by.get("continuation") in aggs else None
     if k and k["later"] <= 0:
         out.append(dict(figure="fig7", experiment=f"continuation ({by['continuation']})",
@@ -327,8 +288,19 @@ def rows(aggs: dict, named: dict | None = None) -> list[dict]:
     return out
 
 
+def _capacity(named: dict, figure: str, grid: str, spec: dict, M, which: str, f: str,
+              name: str, key: str) -> dict:
+    """The capacity row: the best cubic for the figure's grid against Goal Babbling's M; `named`
+    gets its `key` as `name`."""
+    c = best_cubic(spec, M)
+    named[name] = float(f"{c[key]:{f}}")
+    return dict(figure=figure, experiment=f"capacity: the best cubic for {grid}",
+                measured=f"mean {c['best_mean_mm']:{f}} mm, worst {c['best_worst_mm']:.1f} mm"
+                         f" (Goal Babbling, {which}trial 0: mean {c['learned_mean_mm']:.1f} mm, "
+                         f"worst {c['learned_worst_mm']:.1f} mm)")
+
+
 def _extents(aggs: dict):
-    """(explanation, experiment, explain_extent.extent) for each extent experiment aggregated."""
     by = explained()
     for explains in explain_extent.FIGURE:
         e = explain_extent.extent(aggs[by[explains]]) if by.get(explains) in aggs else None
@@ -341,9 +313,7 @@ QUOTED_BOUNDARY = {"+-0.9 m": "explanations.fig2.boundary.measured.n5",
 
 
 def _half_size_named(found: list[dict]) -> dict:
-    """The half-size numbers the pages quote, as half_size_text prints them: the ratio at epoch
-    1,000 under the default step and under least squares, and the last epoch the doubled rate's
-    interval lies above 1."""
+    """The half-size numbers the pages quote, as half_size_text prints them."""
     by, out = {v["kind"]: v for v in found}, {}
     for kind, name in (("default", "explanations.fig4.half_size.measured.n9"),
                        ("lstsq", "explanations.fig4.half_size.measured.n36")):
@@ -390,20 +360,15 @@ def section(ctx: Context) -> list[str]:
     return md
 
 
+DEFAULT = "this project's default (plain step, exact R, one batch step, grid)"
 # the rises the pages quote: name -> the row's reading and T_G, its column and scale
 QUOTED_RISE = {
-    'explain_rise.eta_0.1_w.1000.value_pct':
-        ('eta = 0.1 / W', 1000, 'value', 100),
-    'explain_rise.this_project_s_default.1000.value_pct':
-        ("this project's default (plain step, exact R, one batch step, grid)", 1000, 'value', 100),
-    'explain_rise.this_project_s_default.10000.value_pct':
-        ("this project's default (plain step, exact R, one batch step, grid)", 10000, 'value', 100),
-    'explain_rise.this_project_s_default.10000.low_pct':
-        ("this project's default (plain step, exact R, one batch step, grid)", 10000, 'low', 100),
-    'explain_rise.this_project_s_default.10000.high_pct':
-        ("this project's default (plain step, exact R, one batch step, grid)", 10000, 'high', 100),
-    'explain_rise.eta_0.1_w.10000.value_pct':
-        ('eta = 0.1 / W', 10000, 'value', 100),
+    'explain_rise.eta_0.1_w.1000.value_pct': ('eta = 0.1 / W', 1000, 'value', 100),
+    'explain_rise.this_project_s_default.1000.value_pct': (DEFAULT, 1000, 'value', 100),
+    'explain_rise.this_project_s_default.10000.value_pct': (DEFAULT, 10000, 'value', 100),
+    'explain_rise.this_project_s_default.10000.low_pct': (DEFAULT, 10000, 'low', 100),
+    'explain_rise.this_project_s_default.10000.high_pct': (DEFAULT, 10000, 'high', 100),
+    'explain_rise.eta_0.1_w.10000.value_pct': ('eta = 0.1 / W', 10000, 'value', 100),
     'explain_rise.least_squares_solver_lstsq.1000.value_pct':
         ('least squares (solver=lstsq)', 1000, 'value', 100),
     'explain_rise.least_squares_solver_lstsq.10000.value_pct':

@@ -1,12 +1,8 @@
-"""The target set's extent (issue 58; explain_extent_icub, explain_extent_arm5), read by explain.py.
-
-The paper never gives the iCub's target set, and an absolute error scales with its extent. The
-variants learn the body's grid (x1) and grids of the same centre and points at other extents
-(label x0.5, x1.25, x1.5), with common random numbers. Per variant: the final error on the grid,
-on the path targets (eq. 10) and on uniform points, mean over trials with its 95 % t interval,
-and its ratio to x1 per trial on the same seeds; per evaluation point set, the exponent k of
-error ~ extent^k (least squares on log-log over the variants' means).
-"""
+"""The target set's extent (explain_extent_icub|arm5, read by explain.py): the paper never gives
+the iCub's target set, and an absolute error scales with it. Variants x0.5 ... x1.5 of the body's
+grid (same centre and points, same seeds): per variant the final errors on the grid, path targets
+and uniform points (t intervals), their ratio to x1 per trial, and the exponent k of error ~
+extent^k per point set."""
 from __future__ import annotations
 
 import re
@@ -23,7 +19,7 @@ TOLERANCE = 0.2  # k within this of 1: "in proportion"; of 0: "does not change"
 
 
 def factor(label: str) -> float:
-    """The extent factor a variant's label starts with: "x0.5" -> 0.5, "x1 (conf/...)" -> 1."""
+    """The extent factor a variant's label starts with: "x0.5 ..." -> 0.5."""
     m = re.match(r"x(\d+(?:\.\d+)?)(?!\S)", str(label).strip())
     if not m:
         raise ValueError(f"extent variant {label!r}: its label must start with x<factor> (x0.5)")
@@ -36,8 +32,8 @@ def _ci(values) -> dict:
 
 
 def extent(agg: dict) -> dict | None:
-    """Per variant (by factor, ascending) the final errors in mm and their ratios to x1 per
-    trial, and k per point set; None without an x1 variant and another with trials."""
+    """Per variant (by factor) the final errors [mm] and their ratios to x1, and k per point
+    set; None without x1 and another variant with trials."""
     fin = measures.finals(agg["trials"])
     per = {factor(r.variant or r.condition): fin[fin["condition"] == r.condition]
            .set_index("trial").sort_index() for r in agg["summary"].itertuples()}
@@ -60,15 +56,14 @@ def extent(agg: dict) -> dict | None:
 
 
 def lowest(e: dict, name: str) -> float | None:
-    """The extent at which the mean final error is lowest where that is between the smallest and
-    the largest (no power of the extent describes such means); None otherwise."""
+    """The extent where the mean final error is lowest, if strictly inside the range (no power
+    of the extent describes such means); else None."""
     i = int(np.argmin([x[name]["value"] for x in e["variants"]]))
     return e["variants"][i]["factor"] if 0 < i < len(e["variants"]) - 1 else None
 
 
 def scaling(k: float, low: float | None = None) -> str:
-    """How the final error follows the extent, as k says (low: lowest(), where it does not rise
-    with the extent)."""
+    """How the final error follows the extent, as k (or lowest(): `low`) says."""
     if low is not None:
         return f"does not rise with the extent: it is lowest at x{low:g}"
     if not np.isfinite(k):
@@ -87,12 +82,12 @@ def _iv(r: dict, f: str = ".2f") -> str:
 
 
 def spread(e: dict, name: str) -> float:
-    """The final error at the largest extent over that at the smallest (means over trials)."""
+    """The mean final error at the largest extent over that at the smallest."""
     return e["variants"][-1][name]["value"] / e["variants"][0][name]["value"]
 
 
 def measured(e: dict) -> str:
-    """The row's `measured`: the numbers per point set and what k says of them."""
+    """The row's `measured`: the numbers per point set and what k says."""
     v0 = e["variants"][0]
     parts = [f"{name}: " + ", ".join(
         f"x{v['factor']:g} {_iv(v[name])}" + ("" if v["factor"] == 1 else
@@ -116,9 +111,8 @@ NAMED = {"fig7": ("explanations.fig7.extent.path.k", "explanations.fig7.extent.p
 
 
 def named(explains: str, e: dict) -> dict:
-    """The numbers the pages quote, as the texts print them: on the path targets (the primary
-    reading's points), k, the spread (largest over smallest extent) and the ratio to x1 at the
-    smallest extent."""
+    """The numbers the pages quote, as printed: on the path targets, k, the spread and the
+    smallest extent's ratio to x1."""
     k, spread_, ratio = NAMED[FIGURE[explains]]
     v0, name = e["variants"][0], "path targets"
     out = {k: e["k"][name], spread_: spread(e, name)}
@@ -128,7 +122,7 @@ def named(explains: str, e: dict) -> dict:
 
 
 def claim(experiment: str, figure: str, e: dict) -> str:
-    """The report's sentence next to the paper's absolute error: how far the extent moves it."""
+    """The report's sentence beside the paper's absolute error: how far the extent moves it."""
     lo, hi, mm = e["variants"][0]["factor"], e["variants"][-1]["factor"], e["paper_mm"]
     paper = ("its absolute error" if not np.isfinite(mm) else f"{mm / 10:g} cm" if mm % 10 == 0
              else f"{mm:g} mm")

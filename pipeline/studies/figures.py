@@ -1,8 +1,5 @@
-"""The report's drawings, each a function from aggregated data to a matplotlib Figure.
-
-Saved with `save`, which fixes everything that could change the bytes between runs: rcParams,
-no timestamps or software versions in the metadata, a fixed SVG hash salt.
-"""
+"""The report's drawings, each a function from aggregated data to a matplotlib Figure, saved by
+`save` with reproducible bytes (rcParams, no timestamps or versions, a fixed SVG hash salt)."""
 from __future__ import annotations
 
 import functools
@@ -25,22 +22,11 @@ import numpy as np  # noqa: E402
 import gbmodel  # noqa: E402
 from gbmodel.growth import factors  # noqa: E402
 
-RC = {
-    "font.family": "DejaVu Sans",
-    "font.size": 9,
-    "axes.titlesize": 9,
-    "legend.fontsize": 8,
-    "axes.grid": True,
-    "grid.alpha": 0.3,
-    "savefig.bbox": "standard",
-    "svg.hashsalt": "gbgrowth",
-    "pdf.compression": 6,
-    "path.simplify": False,
-}
-METADATA = {
-    "png": {"Software": None},
-    "pdf": {"Creator": None, "Producer": None, "CreationDate": None, "ModDate": None},
-}
+RC = {"font.family": "DejaVu Sans", "font.size": 9, "axes.titlesize": 9, "legend.fontsize": 8,
+      "axes.grid": True, "grid.alpha": 0.3, "savefig.bbox": "standard",
+      "svg.hashsalt": "gbgrowth", "pdf.compression": 6, "path.simplify": False}
+METADATA = {"png": {"Software": None},
+            "pdf": {"Creator": None, "Producer": None, "CreationDate": None, "ModDate": None}}
 
 
 def save(fig, stem: Path, dpi: int) -> list[Path]:
@@ -68,58 +54,46 @@ mathtext.MathTextParser._parse_cached = functools.lru_cache(4096)(
 
 
 @contextmanager
-def drawn_once():
-    """While one figure is drawn (a save), each 2-D axis lays out its ticks and measures their
-    labels once: matplotlib does it for the axis, for each of its two spines, for its label's
-    place (and that of every axis it shares) and for the title's, four to ten times per draw.
-    Each result is kept under what it depends on (the axis's view interval, the Axes' box in
-    pixels, the renderer), so a change within the draw (an aspect applied) computes it anew;
-    3-D axes, which move their labels while drawing, are left alone. The same ticks, the same
-    bytes (tests/studies/test_figure_layout.py)."""
-    update, measure, seen = maxis.Axis._update_ticks, maxis.Axis._get_ticklabel_bboxes, {}
-
-    def kept(fn, axis, *args):
-        if isinstance(axis, Axis3D):
-            return fn(axis, *args)
-        key = (fn, id(axis), *map(id, args), tuple(axis.get_view_interval()),
-               axis.axes.bbox.bounds)
-        if key not in seen:  # what the key names by id is kept with the result
-            seen[key] = (axis, args, fn(axis, *args))
-        return seen[key][2]
-    maxis.Axis._update_ticks = lambda axis: kept(update, axis)
-    maxis.Axis._get_ticklabel_bboxes = (
-        lambda axis, ticks, renderer: kept(measure, axis, ticks, renderer))
-    try:
-        yield
-    finally:
-        maxis.Axis._update_ticks, maxis.Axis._get_ticklabel_bboxes = update, measure
-
-
-@contextmanager
-def measured_once():
-    """While a layout is computed nothing it measures moves, yet matplotlib measures the same
-    things again and again: an axis lays out its ticks (locator, formatter, every tick's text)
-    for its own box, for each of its two spines and for its label's place, and
-    tight_layout(rect=...) measures every Axes twice (once for the margins, once inside the
-    rect) on the same positions. Within this context each axis lays out its ticks once and each
-    Axes' layout box is measured once: the same numbers, so the same layout and the same bytes
-    (tests/studies/test_figure_layout.py compares them); a third of a cold report's CPU was
-    these repeats."""
-    ticks, boxes, seen = maxis.Axis._update_ticks, martist._get_tightbbox_for_layout_only, {}
+def _kept(patched: tuple, key):
+    """Within the context each method (owner, name) of `patched` is computed once per key(fn,
+    obj, args, kwargs) (None: not kept); the objects a key names by id are kept with the result."""
+    real, seen = [(o, n, getattr(o, n)) for o, n in patched], {}
 
     def once(fn):
-        def remembered(obj, *args, **kwargs):
-            key = (fn, id(obj), *map(id, args), *kwargs.items())
-            if key not in seen:  # the object is kept with its result: its id stays its own
-                seen[key] = (obj, fn(obj, *args, **kwargs))
-            return seen[key][1]
-        return remembered
-    maxis.Axis._update_ticks = once(ticks)
-    martist._get_tightbbox_for_layout_only = once(boxes)
+        def kept(obj, *args, **kwargs):
+            k = key(fn, obj, args, kwargs)
+            if k is None:
+                return fn(obj, *args, **kwargs)
+            if k not in seen:
+                seen[k] = (obj, args, fn(obj, *args, **kwargs))
+            return seen[k][2]
+        return kept
+    for o, n, fn in real:
+        setattr(o, n, once(fn))
     try:
         yield
     finally:
-        maxis.Axis._update_ticks, martist._get_tightbbox_for_layout_only = ticks, boxes
+        for o, n, fn in real:
+            setattr(o, n, fn)
+
+
+def drawn_once():
+    """While a figure is drawn (a save), each 2-D axis lays out its ticks and measures their
+    labels once per view interval and Axes box (matplotlib does it four to ten times per draw);
+    3-D axes, which move their labels while drawing, are left alone. The same bytes
+    (tests/studies/test_figure_layout.py)."""
+    return _kept(((maxis.Axis, "_update_ticks"), (maxis.Axis, "_get_ticklabel_bboxes")),
+                 lambda fn, axis, args, kw: None if isinstance(axis, Axis3D) else (
+                     fn, id(axis), *map(id, args), *kw.items(), tuple(axis.get_view_interval()),
+                     axis.axes.bbox.bounds))
+
+
+def measured_once():
+    """While a layout is computed nothing it measures moves: each axis lays out its ticks once
+    and each Axes' layout box is measured once (tight_layout(rect=...) measures every Axes twice,
+    an axis its ticks for each spine and label): the same layout and bytes, a third less CPU."""
+    return _kept(((maxis.Axis, "_update_ticks"), (martist, "_get_tightbbox_for_layout_only")),
+                 lambda fn, obj, args, kw: (fn, id(obj), *map(id, args), *kw.items()))
 
 
 def tight_layout(fig, **kwargs) -> None:
@@ -138,8 +112,7 @@ def by_growth(summary) -> bool:
 
 
 def condition_label(row) -> str:
-    """The legend entry: the paper's wording for a growth label, else the condition's own label
-    (what differs between the figure's conditions: `V=10`, `R=0.1, L=5`, a variant's name)."""
+    """The legend entry: the paper's wording for a growth label, else the condition's own."""
     if not GROWTH_LABEL.fullmatch(row["condition"]):
         return row["condition"]
     if row["growth"] == "none":
@@ -154,14 +127,13 @@ MARKERS = ("o", "s", "^", "D", "v", "P", "X")
 
 def label_levels(labels) -> list[dict]:
     """Each condition label as {factor: level}: `R=0.1, L=5 | TG100` is {R: 0.1, L: 5,
-    growth: TG100} (pipeline.labels.condition_labels: `key=value` parts, joined by ", ", and the
-    growth label or a variant's name after " | "); a part without `=` is a level of its own factor,
+    growth: TG100} (pipeline.labels.condition_labels); a part without `=` is a factor of its own,
     named by its position."""
     out = []
     for label in labels:
         levels = {}
         for i, part in enumerate(str(label).split(" | ")):
-            for j, item in enumerate(re.split(r", (?=[^=,|]+=)", part)):
+            for item in re.split(r", (?=[^=,|]+=)", part):
                 m = FACTOR.fullmatch(item.strip())
                 if m:
                     levels[m.group(1).strip()] = m.group(2).strip()
@@ -172,9 +144,8 @@ def label_levels(labels) -> list[dict]:
 
 
 def sweep_channels(labels) -> dict:
-    """factor -> (channel, {level: value}) for the factors that vary between `labels`, each on its
-    own channel in order: colour, line style, marker (levels in order of appearance). More than
-    three varied factors: every condition its own colour (one channel, "condition")."""
+    """factor -> (channel, {level: value}) for the factors varied between `labels`: colour, line
+    style, marker in turn; more than three: every condition its own colour ("condition")."""
     levels = label_levels(labels)
     names = [k for k in dict.fromkeys(k for lv in levels for k in lv)
              if len({lv.get(k) for lv in levels}) > 1]
@@ -207,9 +178,8 @@ def sweep_handles(labels) -> list:
 
 
 def condition_styles(summary) -> dict:
-    """Colour per growing condition (by period), grey/black dashes for the references; where the
-    conditions differ by more than their growth (a sweep of your own), each varied factor on its
-    own channel (sweep_channels: colour, line style, marker)."""
+    """Colour per growing condition, grey/black dashes for the references; a sweep of one's own:
+    each varied factor on its own channel (sweep_channels)."""
     if not by_growth(summary):
         channels = sweep_channels(summary["condition"])
         styles = {}
@@ -237,16 +207,12 @@ UNITS = {"m": 1.0, "mm": 1e3}  # report.error_unit: the errors' unit -> its fact
 
 def learning_curves(curves, summary, title: str, log_y: bool = True, paper_abs=None,
                     unit: str = "m", log_x: bool = True, suptitle: str | None = None):
-    """Fig. 4/5/7: (a) absolute and (b) relative error against epochs, mean over trials with the
-    inter-quartile band, one line per growth period and per reference; the paper's stated final
-    accuracy, if given, as a horizontal line in (a). The legend lies below the panels, never over
-    the data; a sweep's legend has one entry per level of each varied factor (sweep_handles).
-    For a paper (report.title, report.error_unit, report.log_error_axis, report.log_epoch_axis):
-    `suptitle` replaces the title line, `unit` (m or mm) is the errors' unit, log_x and log_y
-    choose log or linear axes."""
+    """Fig. 4/5/7: (a) absolute and (b) relative error against epochs, mean over trials and
+    quartile band, a line per condition, the paper's final error (paper_abs) a horizontal line,
+    the legend below; suptitle, unit, log_x, log_y: a paper's report.title, error_unit,
+    log_epoch_axis and log_error_axis."""
     styles = condition_styles(summary)
-    sweep = not by_growth(summary)
-    handles = (sweep_handles(summary["condition"]) if sweep else
+    handles = (sweep_handles(summary["condition"]) if not by_growth(summary) else
                [plt.Line2D([], [], lw=1.3, label=condition_label(row),
                            **styles[row["condition"]]) for _, row in summary.iterrows()])
     if (summary["growth"] != "none").any():
@@ -265,10 +231,9 @@ def learning_curves(curves, summary, title: str, log_y: bool = True, paper_abs=N
             if not len(cu):
                 continue
             st = styles[row["condition"]]
-            band = [cu[f"{col}_{q}"] if k == 1.0 else k * cu[f"{col}_{q}"] for q in ("q25", "q75")]
-            mean = cu[f"{col}_mean"] if k == 1.0 else k * cu[f"{col}_mean"]
-            ax.fill_between(cu["epoch"], *band, color=st["color"], alpha=0.15, lw=0)
-            ax.plot(cu["epoch"], mean, label=condition_label(row), lw=1.3, **st)
+            ax.fill_between(cu["epoch"], *(k * cu[f"{col}_{q}"] for q in ("q25", "q75")),
+                            color=st["color"], alpha=0.15, lw=0)
+            ax.plot(cu["epoch"], k * cu[f"{col}_mean"], label=condition_label(row), lw=1.3, **st)
         mark_growth_end(ax, summary, styles)
         if log_x:
             ax.set_xscale("log")
@@ -277,7 +242,7 @@ def learning_curves(curves, summary, title: str, log_y: bool = True, paper_abs=N
         ax.set_xlabel("epoch")
         ax.set_ylabel(ylabel)
     if paper_abs is not None:
-        axes[0].axhline(paper_abs if k == 1.0 else k * paper_abs, color="tab:red", lw=0.9, ls="-.")
+        axes[0].axhline(k * paper_abs, color="tab:red", lw=0.9, ls="-.")
     axes[0].set_title("(a) absolute error")
     axes[1].set_title("(b) relative error")
     n = int(summary["n_trials"].max()) if len(summary) else 0
@@ -287,9 +252,8 @@ def learning_curves(curves, summary, title: str, log_y: bool = True, paper_abs=N
 
 
 def legend_below(fig, handles, height: float, max_cols: int = 4) -> None:
-    """A figure legend under the panels, in as many columns (at most max_cols) as fit the
-    figure's width; the figure grows by the legend's height so the panels keep theirs (height:
-    the panels' part [in]) and tight_layout keeps them clear of it."""
+    """A legend under the panels in as many columns (<= max_cols) as fit; the figure grows by its
+    height so the panels keep theirs (height: the panels' part [in])."""
     r = fig.canvas.get_renderer()
     for ncol in range(min(len(handles), max_cols) or 1, 0, -1):
         legend = fig.legend(handles=handles, loc="lower center", ncol=ncol, frameon=False)
@@ -302,8 +266,7 @@ def legend_below(fig, handles, height: float, max_cols: int = 4) -> None:
 
 
 def mark_growth_end(ax, summary, styles) -> None:
-    """The end of growth (epoch T_G) of every growing condition, a thin vertical line in its
-    colour, so that "during growth" can be read off the curves."""
+    """The end of growth (epoch T_G) of every growing condition: a thin line in its colour."""
     for _, row in summary[summary["growth"] != "none"].iterrows():
         if 0 < row["growth_period"] <= row.get("epochs", np.inf):  # growth that ends in the run
             ax.axvline(row["growth_period"], color=styles[row["condition"]]["color"], lw=0.7,
@@ -311,15 +274,11 @@ def mark_growth_end(ax, summary, styles) -> None:
 
 
 def growth_end_handle():
-    """The legend entry of mark_growth_end's lines."""
-    return plt.Line2D([], [], color="0.3", lw=0.7, ls=(0, (1, 2)),
-                      label="end of growth (T_G)")
+    return plt.Line2D([], [], color="0.3", lw=0.7, ls=(0, (1, 2)), label="end of growth (T_G)")
 
 
 def draws_model(spec: dict) -> bool:
-    """Whether a trial's stored model can be drawn: its learner has predict_model (the commands
-    the stored model chooses), whatever its parameters (a polynomial degree or not). A learner
-    this process does not know (registered at run time elsewhere) cannot be drawn."""
+    """Whether a trial's stored model can be drawn: its learner (known here) has predict_model."""
     from gbmodel import learners
 
     try:
@@ -329,10 +288,7 @@ def draws_model(spec: dict) -> bool:
 
 
 def final_body(spec: dict) -> tuple:
-    """(body, size, growth, predict) of a trial's spec: the body (variant) at its final size, its
-    gbmodel.Growth (gbmodel.growth.factors maps it to the body's per-segment factors) and
-    predict(model, x), the commands its learner's stored model (M) chooses for positions x
-    (the learner's predict_model)."""
+    """(body, final size, gbmodel.Growth, predict(M, x): the commands stored model M chooses)."""
     spec = gbmodel.TrialSpec.from_dict(spec)
     body, growth = spec.make_body(), spec.make_growth()
     learner, params = spec.make_learner()
@@ -343,8 +299,8 @@ def final_body(spec: dict) -> tuple:
 
 
 def joint_space_stages(spec: dict, stages: list[tuple[str, list]], title: str):
-    """Fig. 2: the inverse estimate of the 2-DOF arm in its joint space over the contours of
-    equal hand height, one panel per stage. stages: (label, M) pairs."""
+    """Fig. 2: the inverse estimate of the 2-DOF arm in joint space over contours of equal hand
+    height, a panel per (label, M) of `stages`."""
     body, size, pattern, predict = final_body(spec)
     targets = body.target_set(size)[:, 0]
     xs = np.linspace(targets.min(), targets.max(), 401)[:, None]
@@ -394,42 +350,81 @@ def _draw_grid(ax, points, shape, **style):
     ax.plot(*np.concatenate(parts).T, **style)
 
 
-def postures(panels: list[tuple[str, dict, list]], title: str, n_postures: int = 5):
-    """Fig. 3/6: target grid (grey) against reached grid (black) and a few postures.
+def reach(spec: dict, M, epoch: int | None = None, n_postures: int = 5) -> dict:
+    """What a panel draws of model M of a trial of `spec`: the body at `epoch`'s size (None: its
+    final size), targets, reached points, links of n_postures postures (of every target for a
+    body with one target coordinate) and the mean error."""
+    body, size, growth, predict = final_body(spec)
+    if epoch is not None:
+        size = float(growth.sizes(np.array([epoch]), body)[0])
+    targets = body.target_set(size)
+    q = predict(np.asarray(M, float), targets)
+    k = factors(body, size, growth)
+    reached = body.forward(q, k)
+    picks = np.linspace(0, len(targets) - 1, n_postures).round().astype(int)
+    links = np.stack([body.frame_points(q[i], k) for i in
+                      (range(len(q)) if body.n == 1 else picks)])
+    return dict(epoch=epoch, size=size, targets=targets, reached=reached, links=links,
+                picks=picks, body=body,
+                error=float(np.linalg.norm(reached - targets, axis=-1).mean()))
 
-    panels: (label, spec, M); each panel shows the body at its final size.
-    """
+
+def height_plane(frames: list[dict]) -> tuple[int, int]:
+    """(horizontal, vertical) root axes of a body with one target coordinate: the one along which
+    the arm extends most over the frames, and the output axis."""
+    out, pts = frames[0]["body"].outputs[0], np.concatenate([f["links"] for f in frames])
+    return max((j for j in range(3) if j != out), key=lambda j: np.ptp(pts[..., j])), out
+
+
+def draw_reach(ax, f: dict, plane=None, **limits) -> None:
+    """Target grid (grey), reached grid (black) and postures of reach(); a body with one target
+    coordinate in the plane of its motion, heights beside the hand (limits: its axes')."""
+    body, cols = f["body"], plt.get_cmap("tab10")(np.arange(len(f["picks"])))
+    if body.n == 1:
+        h, v = plane or height_plane([f])
+        hand = f["links"][:, -1, h]
+        ax.scatter(hand, f["targets"][:, 0], s=10, color="0.7", zorder=2)
+        ax.scatter(hand, f["reached"][:, 0], s=4, color="black", zorder=3)
+        for c, i in zip(cols, f["picks"]):
+            ax.plot(f["links"][i, :, h], f["links"][i, :, v], color=c, lw=1.6, marker="o",
+                    ms=2.5)
+        ax.set(**limits, aspect="equal", xlabel=f"{'xyz'[h]} [m]",
+               ylabel=f"{'xyz'[v]} [m] (target)")
+        return
+    shape = _grid_shape(f["targets"])
+    _draw_grid(ax, f["targets"], shape, color="0.7", lw=0.8)
+    _draw_grid(ax, f["reached"], shape, color="black", lw=0.8)
+    for c, pts in zip(cols, f["links"]):
+        ax.plot(*pts[:, list(body.outputs)].T, color=c, lw=1.6, marker="o", ms=2.5)
+
+
+def view_3d(ax, spans, zoom: float, n: int = 4) -> None:
+    """A 3-D panel at the same scale on all axes (spans), no grid but the targets', at most n
+    ticks per axis in a smaller font (the default crowds the foreshortened axes)."""
+    ax.set_box_aspect(spans, zoom=zoom)
+    ax.grid(False)
+    ax.set(xlabel="x [m]", ylabel="y [m]", zlabel="z [m]")
+    ax.view_init(elev=20, azim=-60)
+    for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
+        axis.set_major_locator(matplotlib.ticker.MaxNLocator(n))
+    ax.tick_params(labelsize=7, pad=1)
+
+
+def postures(panels: list[tuple[str, dict, list]], title: str, n_postures: int = 5):
+    """Fig. 3/6: target grid (grey) against reached grid (black) and a few postures, each panel
+    (label, spec, M) with the body at its final size."""
     three_d = any(final_body(spec)[0].n == 3 for _, spec, _ in panels)
     fig = plt.figure(figsize=(max(3.6 * len(panels), 6.0), 4.0))
     for k, (label, spec, M) in enumerate(panels):
-        body, size, pattern, predict = final_body(spec)
-        M = np.asarray(M, dtype=float)
-        targets = body.target_set(size)
-        q = predict(M, targets)
-        reached = body.forward(q, factors(body, size, pattern))
-        shape = _grid_shape(targets)
+        f = reach(spec, M, n_postures=n_postures)
         ax = fig.add_subplot(1, len(panels), k + 1, projection="3d" if three_d else None)
-        picks = np.linspace(0, len(targets) - 1, n_postures).round().astype(int)
-        cols = plt.get_cmap("tab10")(np.arange(n_postures))
-        if body.n == 1:  # one target coordinate (a height): draw the arm in its plane of motion
-            _height_postures(ax, body, q, targets, reached, size, pattern, picks, cols)
-        else:
-            _draw_grid(ax, targets, shape, color="0.7", lw=0.8)
-            _draw_grid(ax, reached, shape, color="black", lw=0.8)
-            for c, i in zip(cols, picks):
-                pts = body.frame_points(q[i], factors(body, size, pattern))[:, list(body.outputs)]
-                ax.plot(*pts.T, color=c, lw=1.6, marker="o", ms=2.5)
-        err = np.linalg.norm(reached - targets, axis=-1).mean()
-        ax.set_title(f"{textwrap.fill(label, TITLE_CHARS)}\nsize {size:g}, mean error "
-                     f"{1000 * err:.1f} mm", fontsize=8)
+        draw_reach(ax, f)
+        ax.set_title(f"{textwrap.fill(label, TITLE_CHARS)}\nsize {f['size']:g}, mean error "
+                     f"{1000 * f['error']:.1f} mm", fontsize=8)
         if three_d:
-            spans = [np.ptp(lim) for lim in (ax.get_xlim3d(), ax.get_ylim3d(), ax.get_zlim3d())]
-            ax.set_box_aspect(spans, zoom=0.85)  # the same scale on all three axes
-            ax.grid(False)  # the target grid is the only grey grid
-            ax.set(xlabel="x [m]", ylabel="y [m]", zlabel="z [m]")
-            ax.view_init(elev=20, azim=-60)
-            sparse_3d_ticks(ax)
-        elif body.n != 1:
+            view_3d(ax, [np.ptp(lim) for lim in (ax.get_xlim3d(), ax.get_ylim3d(),
+                                                 ax.get_zlim3d())], 0.85)
+        elif f["body"].n != 1:
             ax.set(aspect="equal", xlabel="x [m]", ylabel="y [m]")
     fig.legend(handles=[plt.Line2D([], [], color="0.7", lw=0.8, label="targets"),
                         plt.Line2D([], [], color="black", lw=0.8, label="reached"),
@@ -439,26 +434,3 @@ def postures(panels: list[tuple[str, dict, list]], title: str, n_postures: int =
     fig.suptitle(title)
     tight_layout(fig, rect=(0, 0.07, 1, 0.93))  # room for the legend below, the title above
     return fig
-
-
-def sparse_3d_ticks(ax, n: int = 4) -> None:
-    """At most n ticks per axis of a 3-D panel, in a smaller font: the default crowds the
-    foreshortened axes until their labels overlap."""
-    for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
-        axis.set_major_locator(matplotlib.ticker.MaxNLocator(n))
-    ax.tick_params(labelsize=7, pad=1)
-
-
-def _height_postures(ax, body, q, targets, reached, size, pattern, picks, cols):
-    """A body with one target coordinate: the postures in the plane of the output axis and the
-    root axis along which the arm extends most; targets and reached heights beside the hand."""
-    out = body.outputs[0]
-    k = factors(body, size, pattern)
-    pts = np.stack([body.frame_points(q[i], k) for i in range(len(q))])
-    other = max((j for j in range(3) if j != out), key=lambda j: np.ptp(pts[..., j]))
-    hand = pts[:, -1, other]
-    ax.scatter(hand, targets[:, 0], s=10, color="0.7", zorder=2)
-    ax.scatter(hand, reached[:, 0], s=4, color="black", zorder=3)
-    for c, i in zip(cols, picks):
-        ax.plot(pts[i, :, other], pts[i, :, out], color=c, lw=1.6, marker="o", ms=2.5)
-    ax.set(aspect="equal", xlabel=f"{'xyz'[other]} [m]", ylabel=f"{'xyz'[out]} [m] (target)")

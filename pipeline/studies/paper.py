@@ -1,13 +1,10 @@
-"""The paper's figures as a report section: their curves, postures, summary, the scorecard of
-the paper's claims, the discussion of the committed run, and the reporting conventions.
-
-Every experiment that declares no other study (paper.study) is reported here: the paper's own
-(paper.claims: true) with the scorecard, one's own by its curves, summary and the settings that
-made it (studies/settings.py).
-"""
+"""The section of every experiment that declares no other study (paper.study): the paper's own
+(paper.claims: true) with the scorecard, claims, discussion and conventions, and for each its
+curves, summary, stages, postures and animations (one's own: the settings that made it)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -15,8 +12,7 @@ import pandas as pd
 from omegaconf import OmegaConf
 
 from .. import io
-from . import (claims, conventions, discussion, figures, replicate, scorecard, scorecard_page,
-               settings)
+from . import claims, conventions, discussion, figures, replicate, scorecard, scorecard_page
 from .choices import escape
 from .claims import DIVERGED, diverged_conditions
 from .sections import Context, declares_claims, register
@@ -27,8 +23,8 @@ MAX_PANELS = 4  # posture panels of a figure that report.postures does not name
 
 
 def counted_figures(declared: dict) -> list[str]:
-    """The figures whose cells the headline counts: every one that declares the paper's claims,
-    except one judged on another that is there (paper.judged_on: Fig. 7 on fig7_20trials)."""
+    """The figures the headline counts: those declaring the claims, less one judged on another
+    that is there (paper.judged_on: Fig. 7 on fig7_20trials)."""
     return [k for k, a in declared.items()
             if a["models"].get("paper", {}).get("judged_on") not in declared]
 
@@ -38,9 +34,8 @@ def _mm(v) -> str:
 
 
 def _pm(mean, std) -> str:
-    if not np.isfinite(mean):
-        return ""
-    return _mm(mean) + (f" ± {_mm(std)}" if np.isfinite(std) else "")
+    return "" if not np.isfinite(mean) else _mm(mean) + (f" ± {_mm(std)}" if np.isfinite(std)
+                                                         else "")
 
 
 def _heldout(r) -> str:
@@ -52,7 +47,7 @@ def _heldout(r) -> str:
 
 
 def summary_markdown(summary: pd.DataFrame) -> str:
-    """The summary as a Markdown table, errors in mm (relative errors: mm per unit body size)."""
+    """The summary as a Markdown table, errors in mm (relative: mm per unit size)."""
     head = ("| figure | condition | body | growth | T_G | trials | final abs. error [mm] "
             "| held-out error [mm] (% of reach) | final rel. error [mm/size] | peak abs. error during growth [mm] (rise, epoch) "
             "| run failures | diverged | failed to bootstrap | paper: final abs. error [mm] |")
@@ -75,9 +70,8 @@ def summary_markdown(summary: pd.DataFrame) -> str:
 
 
 def figure_options(cfg) -> dict:
-    """The learning curves' options for a paper: report.title (the title line; "" keeps the
-    figure's), report.error_unit (m or mm), report.log_error_axis and report.log_epoch_axis (log
-    or linear axes). A key the config lacks keeps its default."""
+    """learning_curves' options from report.title ("": the figure's), report.error_unit,
+    report.log_error_axis and report.log_epoch_axis; a key the config lacks keeps its default."""
     from ..config import ConfigError
 
     get = lambda key, default: OmegaConf.select(cfg, f"report.{key}", default=default)  # noqa: E731
@@ -88,35 +82,30 @@ def figure_options(cfg) -> dict:
                 unit=unit, suptitle=get("title", "") or None)
 
 
-def _title(figure: str, agg: dict) -> str:
-    return agg["models"].get("paper", {}).get("title") or f"{figure}"
+def _stages(cond: dict, trial: dict) -> list[tuple[str, list]]:
+    """(label, M) of a trial's snapshots, then its final M unless the last snapshot is it."""
+    out = [(f"after epoch {e}", M) for e, M in
+           sorted(trial["snapshots"].items(), key=lambda kv: int(kv[0]))]
+    if str(cond["spec"]["epochs"]) not in trial["snapshots"]:
+        out.append((f"final, epoch {cond['spec']['epochs']}", trial["M"]))
+    return out
 
 
 def _stages_figure(agg: dict) -> tuple | None:
-    """(spec, [(label, M)]) of trial 0 of the first condition: its snapshots, then the final M."""
+    """(spec, [(label, M)]) of trial 0 of the first condition that has one."""
     for cond in agg["models"]["conditions"].values():
-        trial = cond["trials"].get("0")
-        if trial is None:
-            continue
-        stages = [(f"after epoch {e}", M) for e, M in
-                  sorted(trial["snapshots"].items(), key=lambda kv: int(kv[0]))]
-        if str(cond["spec"]["epochs"]) not in trial["snapshots"]:
-            stages.append((f"final, epoch {cond['spec']['epochs']}", trial["M"]))
-        stages = [(f"({chr(97 + i)}) {label}", M) for i, (label, M) in enumerate(stages)]
-        return cond["spec"], stages
+        if "0" in cond["trials"]:
+            return cond["spec"], [(f"({chr(97 + i)}) {label}", M) for i, (label, M) in
+                                  enumerate(_stages(cond, cond["trials"]["0"]))]
     return None
 
 
 def _trial_stages(agg: dict) -> list[list]:
-    """Each trial's M at every stage of _stages_figure (snapshots, then the final M), for the
-    scorecard's interval over Fig. 2's trials."""
+    """Each trial's M at every stage of the first condition with trials (the scorecard's
+    interval over Fig. 2's trials)."""
     for cond in agg["models"]["conditions"].values():
-        out = []
-        for _, trial in sorted(cond["trials"].items(), key=lambda kv: int(kv[0])):
-            ms = [M for _, M in sorted(trial["snapshots"].items(), key=lambda kv: int(kv[0]))]
-            if str(cond["spec"]["epochs"]) not in trial["snapshots"]:
-                ms.append(trial["M"])
-            out.append(ms)
+        out = [[M for _, M in _stages(cond, t)]
+               for _, t in sorted(cond["trials"].items(), key=lambda kv: int(kv[0]))]
         if out:
             return out
     return []
@@ -250,7 +239,7 @@ def curves_part(ctx: Context, p: Paper) -> list[str]:
     io.write_table(ctx.out / "curves.parquet", io.frame_to_table(curves))
     ctx.written.append(ctx.out / "curves.parquet")
     for name, agg in p.aggs.items():
-        title, summ = _title(name, agg), agg["summary"]
+        title, summ = agg["models"].get("paper", {}).get("title") or name, agg["summary"]
         fig = figures.learning_curves(
             agg["curves"], summ, title, paper_abs=agg["models"].get("paper", {}).get("final_abs_error"),
             **figure_options(cfg))
@@ -262,9 +251,53 @@ def curves_part(ctx: Context, p: Paper) -> list[str]:
                    f"{int(summ['n_trials'].max())} trials per condition.", ""]
         if name not in p.declared:  # one's own experiment: what made it
             md += ["Settings of each condition that differ from the defaults:", "",
-                   settings.markdown(agg)]
+                   settings_markdown(agg)]
         md += [f"![{name}]({image})", "", summary_markdown(summ)]
     return md
+
+
+SKIP = ("body.",)  # the body's geometry: named by the body, its file (urdf) shown on its own
+
+
+def flatten(d: dict, prefix: str = "") -> dict:
+    out = {}
+    for k, v in d.items():
+        out.update(flatten(v, f"{prefix}{k}.") if isinstance(v, dict) else {f"{prefix}{k}": v})
+    return out
+
+
+@lru_cache(maxsize=None)
+def _default_spec(body: str) -> tuple:
+    """The default configuration's trial spec for `body`, flattened; the plain default's for a
+    body that does not compose by name (a body file of one's own)."""
+    from ..config import compose
+    from ..plan import plan
+
+    for overrides in ([f"body={body}"], []):
+        try:
+            return tuple(flatten(plan(compose(overrides))[0]["spec"]).items())
+        except Exception:  # a body that is not a config group: the plain default
+            continue
+    return ()
+
+
+def differences(spec: dict) -> dict:
+    """The settings of one condition's spec that differ from the defaults for its body."""
+    base = dict(_default_spec(spec.get("body", {}).get("name", "")))
+    return {k: v for k, v in flatten(spec).items()
+            if not (k.startswith(SKIP) and k not in ("body.name", "body.urdf"))
+            and base.get(k, object()) != v}
+
+
+def settings_markdown(agg: dict) -> str:
+    """What made a figure of one's own: a row per condition, its settings that differ from the
+    spec the default configuration gives for the same body, as `key=value`."""
+    lines = ["| condition | settings that differ from the defaults |", "|---|---|"]
+    lines += [f"| {escape(name)} | "
+              + escape("; ".join(f"{k}={v}" for k, v in differences(c["spec"]).items())
+                       or "the defaults") + " |"
+              for name, c in agg["models"]["conditions"].items()]
+    return "\n".join(lines) + "\n"
 
 
 def _drawing(title: str, paths: list[Path]) -> list[str]:

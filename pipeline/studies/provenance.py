@@ -1,20 +1,7 @@
-"""Results you can pick up: the trained models beside the report, what produced the report, and
-the credits of the third-party robot models.
-
-- `write_models`: models/<figure>.json in the report folder, per condition its trial spec and
-  every trial's final inverse estimate M (no snapshots: a few kB per condition), the layout of
-  the aggregate's models.json, so `pipeline.models.load(figure)` reads it on a fresh clone.
-- `markdown`: the provenance block (when, by which command line and gbgrowth version, commit,
-  lock file hash, Python and key package versions, CPU model, trials per figure and their CPU
-  time, measured and estimated) and the credits section.
-
-Two lines vary between two runs of the same checkout: the date and command line, and the
-measured CPU time (the seconds each trial took when it was computed, whichever run computed
-it: pipeline.cache.read_times; a trial computed before times were kept counts as unmeasured).
-Everything else in the report is reproducible byte for byte, and so is the block within one
-process (the date is taken once). The estimate beside it is the plan's cost model
-(pipeline.plan.cost) in CPU seconds (pipeline.plan.cpu_seconds).
-"""
+"""Results you can pick up: the trained models beside the report (models/<figure>.json, read by
+pipeline.models.load), what produced the report and the credits of the third-party robot models.
+Only the date, command line and measured CPU times (pipeline.cache.read_times) vary between two
+runs of one checkout; the estimate is the plan's cost model (pipeline.plan.cost, cpu_seconds)."""
 from __future__ import annotations
 
 import functools
@@ -35,11 +22,11 @@ from .sections import Context, register
 PACKAGES = ("numpy", "numba", "scipy", "pandas", "pyarrow", "matplotlib", "hydra-core",
             "omegaconf")
 LOCK = REPO_ROOT / "requirements.lock"
+
+
 def write_models(aggs: dict, out: Path) -> list[Path]:
-    """models/<figure>.json per figure with a model: each condition's spec and every trial's
-    final M (rounded to float32's precision, 9 significant digits: the posture it gives
-    differs by < 1e-6 rad), sealed (pipeline.models.load checks the seal); conditions of
-    learners without a model are left out."""
+    """models/<figure>.json, sealed: each condition's spec and every trial's final M to 9
+    significant digits (postures within 1e-6 rad); learners without a model are left out."""
     from .. import io
 
     written = []
@@ -59,9 +46,7 @@ def write_models(aggs: dict, out: Path) -> list[Path]:
 
 
 def _rounded(M):
-    if isinstance(M, list):
-        return [_rounded(x) for x in M]
-    return float(f"{M:.9g}")
+    return [_rounded(x) for x in M] if isinstance(M, list) else float(f"{M:.9g}")
 
 
 def _git(*args) -> str | None:
@@ -76,8 +61,7 @@ def _git(*args) -> str | None:
 
 
 def commit() -> str:
-    """HEAD's commit, with `+ uncommitted changes` when the work tree differs from it (report
-    files and outputs left out: the report being written is not part of what produced it)."""
+    """HEAD's commit, `+ uncommitted changes` when the work tree (outputs/ aside) differs."""
     head = _git("rev-parse", "HEAD")
     if head is None:
         return "unknown (not a git checkout)"
@@ -112,8 +96,7 @@ def made_at() -> str:
 
 
 def command_line() -> str:
-    """The command line that runs this report stage with its overrides, as typed (`gbgrowth
-    report ...` or `python -m pipeline.report ...`); for a call from Python, says so."""
+    """This report stage's command line with its overrides, as typed (or a call from Python)."""
     from hydra.core.hydra_config import HydraConfig
 
     if not HydraConfig.initialized():
@@ -125,64 +108,39 @@ def command_line() -> str:
     return " ".join([prog, *(shlex.quote(o) for o in hc.overrides.task)])
 
 
-def measured_costs(aggs: dict, out_dir) -> dict[str, tuple[int, float]]:
-    """figure -> (trials measured, their CPU seconds) from the times each run kept
-    (pipeline.cache.read_times under paths.out)."""
-    from ..cache import read_times
-
-    times, out = read_times(out_dir), {}
-    for name, agg in aggs.items():
-        found = [times[t["key"]] for c in agg["models"]["conditions"].values()
-                 for t in c["trials"].values() if isinstance(t, dict) and t.get("key") in times]
-        out[name] = (len(found), sum(found))
-    return out
-
-
-def distinct_costs(aggs: dict, out_dir) -> tuple[int, int, float, float]:
-    """Over the trials of every figure, each counted once however many figures share it
-    (pipeline.plan.stream: the same condition's trials are one set of files): (trials,
-    trials measured, their measured CPU seconds, the estimated CPU seconds of all)."""
+def costs(aggs: dict, out_dir) -> tuple[dict, tuple]:
+    """figure -> (trials, trials measured, their measured CPU seconds, estimated CPU seconds), and
+    the same over every figure counting a trial several figures share (pipeline.plan.stream)
+    once; measured: the times the runs under out_dir kept (None: not measured)."""
     from ..cache import read_times
     from ..plan import cost
 
     times = read_times(out_dir) if out_dir is not None else {}
-    est, seen = {}, {}
-    for agg in aggs.values():
+    out, est, seen = {}, {}, {}
+    for name, agg in aggs.items():
+        n = k = 0
+        spent = units = 0.0
         for c in agg["models"]["conditions"].values():
-            units = None
+            u, m = cost(dict(spec=c["spec"])), len(c["trials"]) + len(c.get("diverged", {}))
+            n, units = n + m, units + m * u
             for i, t in {**c["trials"], **c.get("diverged", {})}.items():
-                key = t.get("key") if isinstance(t, dict) else None
-                key = key or (id(c), i)  # no key recorded: this condition's own trial
-                if key not in est:
-                    units = cost(dict(spec=c["spec"])) if units is None else units
-                    est[key] = cpu_seconds(units, 1)
-                    if key in times:
-                        seen[key] = times[key]
-    return len(est), len(seen), sum(seen.values()), sum(est.values())
+                key = (t.get("key") if isinstance(t, dict) else None) or (id(c), i)
+                est.setdefault(key, cpu_seconds(u, 1))
+                if key in times:
+                    seen[key] = times[key]
+            mine = [times[t["key"]] for t in c["trials"].values()
+                    if isinstance(t, dict) and t.get("key") in times]
+            k, spent = k + len(mine), spent + sum(mine)
+        out[name] = (n, k, spent, cpu_seconds(units, n))
+    return out, (len(est), len(seen), sum(seen.values()), sum(est.values()))
 
 
 def _duration(seconds: float) -> str:
     return f"{seconds:.1f} s" if seconds < 60 else f"{seconds / 60:.1f} min"
 
 
-def figure_costs(aggs: dict) -> dict[str, tuple[int, float]]:
-    """figure -> (trials, estimated CPU seconds) from each trial's spec (pipeline.plan.cost)."""
-    from ..plan import cost
-
-    out = {}
-    for name, agg in aggs.items():
-        n, units = 0, 0.0
-        for c in agg["models"]["conditions"].values():
-            k = len(c["trials"]) + len(c.get("diverged", {}))
-            n += k
-            units += k * cost(dict(spec=c["spec"]))
-        out[name] = (n, cpu_seconds(units, n))
-    return out
-
-
 def credits(aggs: dict) -> list[str]:
-    """Markdown lines crediting the third-party robot models the report's trials used: each
-    body's `credits` (its conf/body/<name>.yaml), once per model."""
+    """A line per third-party robot model the trials used (each body file's `credits`)."""
     used = {}
     for a in aggs.values():
         for c in a["models"]["conditions"].values():
@@ -194,31 +152,25 @@ def credits(aggs: dict) -> list[str]:
 
 
 def markdown(aggs: dict, out_dir=None) -> list[str]:
-    """The report's provenance block and credits section (markdown lines); out_dir: paths.out,
-    whose runs kept the measured CPU times (None: not measured)."""
+    """The provenance block and credits (markdown lines); out_dir: as costs()."""
     from .. import __version__
 
     lock = (hashlib.sha256(LOCK.read_bytes()).hexdigest()[:16] if LOCK.exists()
             else "no requirements.lock")
-    v = versions()
-    measured = measured_costs(aggs, out_dir) if out_dir is not None else {}
-    md = ["## Provenance", "",
-          f"- made {made_at()} by gbgrowth {__version__}: `{command_line()}`",
-          f"- commit: `{commit()}`",
-          f"- requirements.lock: sha256 `{lock}`",
-          "- " + ", ".join(f"{k} {val}" for k, val in v.items()),
-          f"- CPU: {cpu_model()}", "",
-          "| figure | trials | CPU time (measured) | CPU time (estimated) |",
-          "|---|---|---|---|"]
-    for name, (n, seconds) in figure_costs(aggs).items():
-        k, spent = measured.get(name, (0, 0.0))
+    per, total = costs(aggs, out_dir)
+
+    def row(name, n, k, spent, seconds):
         mine = ("not measured" if k == 0 else _duration(spent)
                 + (f" ({k} of {n} trials)" if k < n else ""))
-        md.append(f"| {name} | {n} | {mine} | {_duration(seconds)} |")
-    n, k, spent, seconds = distinct_costs(aggs, out_dir)
-    mine = ("not measured" if k == 0 else _duration(spent)
-            + (f" ({k} of {n} trials)" if k < n else ""))
-    md.append(f"| all, each shared trial once | {n} | {mine} | {_duration(seconds)} |")
+        return f"| {name} | {n} | {mine} | {_duration(seconds)} |"
+    md = ["## Provenance", "",
+          f"- made {made_at()} by gbgrowth {__version__}: `{command_line()}`",
+          f"- commit: `{commit()}`", f"- requirements.lock: sha256 `{lock}`",
+          "- " + ", ".join(f"{k} {val}" for k, val in versions().items()),
+          f"- CPU: {cpu_model()}", "",
+          "| figure | trials | CPU time (measured) | CPU time (estimated) |", "|---|---|---|---|"]
+    md += [row(name, *c) for name, c in per.items()]
+    md.append(row("all, each shared trial once", *total))
     md += ["", "CPU time: measured, the CPU seconds each trial took when it was computed (any "
            "run; a trial cached before times were kept is not measured); estimated, the plan's "
            "cost model (pipeline.plan.cost), calibrated on whole trials "
@@ -235,8 +187,6 @@ def markdown(aggs: dict, out_dir=None) -> list[str]:
 
 @register("provenance", 1000)
 def section(ctx: Context) -> list[str]:
-    """The report's last section: the paper figures' trained models (models/<figure>.json),
-    what produced the report, and the credits of the robot models it used."""
     if not ctx.groups:
         return []
     ctx.written.extend(write_models(ctx.of("figures"), ctx.out))

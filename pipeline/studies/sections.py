@@ -1,13 +1,7 @@
-"""The report's sections: a registry the report stage loops over.
-
-Each experiment declares its study in its config (`paper.study`, next to `paper.claims`;
-"figures" unless it says otherwise). A study's section is a function registered here under
-that name with its place in the report; it gets a Context (the settings, the output folder,
-every study's aggregates) and returns its Markdown lines, writing its files through the
-Context. Adding a study is one module that registers its section (in this package, or a
-module a distribution declares as an entry point of `gbgrowth.studies`), and its experiment files (conf/ or
-./conf/experiment/ of the working directory); tests/studies/test_toy_study.py adds one so.
-"""
+"""The report's sections: a study (an experiment's `paper.study`, "figures" by default) is a
+function registered here with its place, given a Context (settings, output folder, every study's
+aggregates) and returning Markdown lines. A new study is one module (here, or an entry point of
+`gbgrowth.studies`) and its experiment files (tests/studies/test_toy_study.py)."""
 from __future__ import annotations
 
 import math
@@ -27,8 +21,7 @@ def register(study: str, place: int):
 
 
 def declared() -> dict:
-    """experiment -> what its file declares (pipeline.experiments: study, group, order, reads,
-    conventions, explains), for every experiment file of the config folders, in order."""
+    """experiment -> what its file declares (pipeline.experiments), in order."""
     from ..config import config_folders
     from ..experiments import declared as read
 
@@ -36,19 +29,13 @@ def declared() -> dict:
 
 
 def of_study(study: str) -> list[str]:
-    """The experiments whose file names `study` as theirs (paper.study), in declared order."""
+    """The experiments whose file names `study` as theirs, in declared order."""
     return [n for n, e in declared().items() if e.study == study]
 
 
-def study_of(agg: dict) -> str:
-    return agg["models"].get("paper", {}).get("study") or DEFAULT
-
-
 def _load() -> None:
-    """Import every module of the studies package, and every study a distribution declares
-    (the entry points `gbgrowth.studies`, as an engine is `gbgrowth.engines`): each registers
-    its section when imported, so a new study is its module and its experiment file, with no
-    edit anywhere else."""
+    """Import every module of this package and every entry point `gbgrowth.studies`: each
+    registers its section."""
     import importlib
     import pkgutil
 
@@ -64,14 +51,13 @@ _BROKEN: dict[str, str] = {}  # study -> why its entry point's module did not im
 
 
 def group(aggs: dict) -> dict:
-    """study -> {figure: aggregate}, by each experiment's declared study. A study no section is
-    registered for is a ConfigError naming it (one line, exit 2)."""
+    """study -> {figure: aggregate}; a study without a section is a ConfigError."""
     from ..config import ConfigError
 
     _load()
     out = {}
     for name, agg in aggs.items():
-        s = study_of(agg)
+        s = agg["models"].get("paper", {}).get("study") or DEFAULT
         if s not in SECTIONS and s in _BROKEN:
             raise ConfigError(f"{name}: paper.study={s!r}: its module did not import "
                               f"({_BROKEN[s]})")
@@ -96,18 +82,15 @@ class Context:
         return self.groups.get(study, {})
 
     def once(self, key, make):
-        """make(), computed at the first call with `key` in this report and the same object
-        after: what two sections read (the readings study's measures and cells, read by the
-        scorecard and by the readings section) is not computed twice. Its readers must not
-        change it."""
+        """make(), computed at the first call with `key` and the same object after (what two
+        sections read, computed once; its readers must not change it)."""
         if key not in self.shared:
             self.shared[key] = make()
         return self.shared[key]
 
     def value(self, name: str, x) -> None:
-        """Name a number of this report where it is computed (or a generated table's text),
-        for the pages that quote it (pipeline/studies/values.py); a name is given once. A number
-        that is not finite (a run of one trial has no interval) names nothing."""
+        """Name a number (or a table's text) for the pages that quote it (values.py), once; a
+        number that is not finite names nothing."""
         from .values import name_ok
 
         name_ok(name)
@@ -119,10 +102,9 @@ class Context:
         self.values[name] = x
 
     def quote(self, frame, keys: tuple, quoted: dict) -> None:
-        """Name the numbers of `frame` (a table this section computed) that the pages quote:
-        quoted maps a name to its row's values of `keys`, its column and optionally a scale;
-        each is named as the table prints it (values.printed), times the scale. A row this
-        report does not hold (a run of fewer studies) names nothing."""
+        """Name the numbers of `frame` the pages quote: `quoted` maps a name to its row's values
+        of `keys`, its column and optionally a scale, named as printed (values.printed) times
+        the scale; a row the frame does not hold names nothing."""
         from .values import printed
 
         for name, (*want, column, scale) in ((n, q if len(q) > len(keys) + 1 else (*q, 1.0))
@@ -143,7 +125,7 @@ class Context:
         return self.out / name
 
     def save(self, fig, stem: str) -> list[Path]:
-        """A figure as PNG and PDF (figures.save); returns the paths, PNG first."""
+        """A figure as PNG and PDF (figures.save), PNG first."""
         from . import figures
 
         paths = figures.save(fig, self.out / stem, self.cfg.report.dpi)
@@ -152,8 +134,7 @@ class Context:
 
 
 def run(ctx: Context, step=None) -> list[str]:
-    """Every registered section in its place: the report's Markdown lines. `step(name)`, if
-    given, is called before each section of a study the report holds (a progress line)."""
+    """Every registered section in its place; `step(name)` before each study the report holds."""
     _load()
     md = []
     for study, (_, section) in sorted(SECTIONS.items(), key=lambda s: s[1][0]):

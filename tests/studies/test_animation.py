@@ -6,7 +6,7 @@ from PIL import Image
 import gbmodel
 from conftest import run_cli, tiny_overrides
 from pipeline.plan import frame_epochs
-from pipeline.studies import animation
+from pipeline.studies import animation, figures
 
 MAX_BYTES = 2 * 1024 * 1024
 
@@ -57,9 +57,9 @@ def test_gif_has_a_frame_per_stage_and_is_small(tmp_path, body, epochs):
     # the same stages give the same bytes
     assert animation.animate(d, stored, f"{body} test", tmp_path / "b.gif").read_bytes() == data
     # each frame's body is at its epoch's size, and the last frame's error is the model's
-    f = animation.frame_data(d, stored[0][0], stored[0][1])
+    f = figures.reach(d, stored[0][1], stored[0][0])
     assert f["size"] == pytest.approx(0.5)
-    last = animation.frame_data(d, epochs, res.M)
+    last = figures.reach(d, res.M, epochs)
     assert last["size"] == 1.0 and np.isfinite(last["error"])
 
 

@@ -16,6 +16,8 @@ from pipeline.config import REPO_ROOT
 from pipeline.studies import provenance
 
 EXAMPLES = REPO_ROOT / "examples"
+SPEC = dict(body={"name": "arm5"}, growth={}, learner={"name": "goal_babbling"}, evaluation={},
+            epochs=1000, evals_per_decade=20, snapshots=[])
 
 
 @pytest.fixture(scope="module")
@@ -81,8 +83,8 @@ def test_measured_cpu_time_sums_each_trials_own_record(tmp_path):
     (tmp_path / "logs" / "times" / "zz-damaged.json").write_text("{")
     assert cache.write_times(tmp_path, {}) is None
     trials = {"0": {"key": "a"}, "1": {"key": "b"}, "2": {"key": "c"}}
-    aggs = {"f": dict(models=dict(conditions={"c": dict(trials=trials)}))}
-    assert provenance.measured_costs(aggs, tmp_path) == {"f": (2, 4.5)}
+    aggs = {"f": dict(models=dict(conditions={"c": dict(spec=SPEC, trials=trials)}))}
+    assert provenance.costs(aggs, tmp_path)[0]["f"][:3] == (3, 2, 4.5)
 
 
 def test_the_total_counts_a_trial_shared_by_two_figures_once(tmp_path):
@@ -94,10 +96,10 @@ def test_the_total_counts_a_trial_shared_by_two_figures_once(tmp_path):
     one = lambda *keys: dict(spec=spec, trials={str(i): {"key": k} for i, k in enumerate(keys)})
     aggs = {"f": dict(models=dict(conditions={"c": one("a", "b")})),
             "g": dict(models=dict(conditions={"c": one("b", "c", "d")}))}  # b: f's trial too
-    n, k, spent, seconds = provenance.distinct_costs(aggs, tmp_path)
+    n, k, spent, seconds = provenance.costs(aggs, tmp_path)[1]
     assert (n, k, spent) == (4, 3, 7.5)  # d not measured
     assert seconds == pytest.approx(provenance.cpu_seconds(4 * cost(dict(spec=spec)), 4))
-    assert provenance.distinct_costs(aggs, None)[:3] == (4, 0, 0)
+    assert provenance.costs(aggs, None)[1][:3] == (4, 0, 0)
     block = "\n".join(provenance.markdown(aggs, tmp_path))
     assert "| all, each shared trial once | 4 | 7.5 s (3 of 4 trials) |" in block
 
@@ -127,7 +129,7 @@ def test_estimated_cpu_time_follows_the_cost_model():
     spec = dict(body={"name": "arm5"}, growth={}, learner={"name": "goal_babbling"},
                 evaluation={}, epochs=1000, evals_per_decade=20, snapshots=[])
     aggs = {"f": dict(models=dict(conditions={"c": dict(spec=spec, trials={"0": {}, "1": {}})}))}
-    n, seconds = provenance.figure_costs(aggs)["f"]
+    n, _, _, seconds = provenance.costs(aggs, None)[0]["f"]
     assert n == 2 and seconds == pytest.approx(provenance.cpu_seconds(2 * cost(dict(spec=spec)), 2))
 
 
