@@ -32,16 +32,12 @@ class Experiment:
     declares: Declares
 
 
-def _yaml(text: str):
-    """`text` as plain data, by libyaml's safe loader where PyYAML has it (a tenth of the
-    pure-Python parser's CPU; strings, integers and flags read alike)."""
+def _read(path: Path) -> Experiment:
+    """The file read by libyaml's safe loader where PyYAML has it (a tenth of the pure-Python
+    parser's CPU; strings, integers and flags read alike)."""
     import yaml
 
-    return yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
-
-
-def _read(path: Path) -> Experiment:
-    raw = _yaml(path.read_text()) or {}
+    raw = yaml.load(path.read_text(), Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader)) or {}
     if not isinstance(raw, dict):
         raise ValueError(f"{path}: not a mapping of keys to values")
     given = raw.get("declares") or {}

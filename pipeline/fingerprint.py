@@ -209,16 +209,12 @@ def as_imported(path: Path, text: str, modules: dict | None = None) -> str:
     module = (_gbmodel_modules() if modules is None else modules).get(path)
     if module is None:
         return text
-    compiled, changed = _codes(_facts(text)["code"]), None
-    for code in _live_codes(module):
-        mine = compiled.get(code.co_qualname, ())
-        if code not in mine and not any(code.replace(co_flags=c.co_flags) == c for c in mine):
-            changed = code.co_qualname
-            break
+    compiled, scope = _codes(_facts(text)["code"]), dict(vars(module))
+    changed = next((c.co_qualname for c in _live_codes(module)
+                    if not any(c == m or c.replace(co_flags=m.co_flags) == m
+                               for m in compiled.get(c.co_qualname, ()))), None)
     if changed is None:
-        scope = dict(vars(module))
-        changed = next((name for name, now, was in _values(_facts(text)["checks"], scope, scope,
-                                                           "")
+        changed = next((name for name, now, was in _values(_facts(text)["checks"], scope, scope, "")
                         if now is not _SKIP and not _same(now, was)), None)
     if changed is not None:
         raise CodeChanged(f"{path}: changed since this process imported it ({changed} "
