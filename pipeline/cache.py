@@ -1,17 +1,9 @@
-"""The trial cache: per trial one Parquet learning curve and one JSON sidecar, checked on read;
-per figure the plan records that say which trials make it (layout: docs/running.md, "Where
-outputs land"; besides it, trials/<kk>/<key>.state.json, a base's final state for its
-continuations, pipeline.checkpoint, and `claims`, a one-byte lock per trial being computed).
-
-A trial's key hashes its content only (pipeline.keys.trial_key), never the figure or the label
-that asked for it. The curve is written first and the sidecar last: the sidecar marks a finished
-trial, its curve checksum proves the curve complete and its seal (pipeline.keys.seal) proves the
-sidecar unchanged. A trial that diverged is a result too (status `diverged`, no curve); one that
-failed with an error is not cached and runs again. Measured CPU time is kept apart, under
-paths.out/logs/times/ (the cache's bytes do not vary with the machine's speed). A figure is a
-*group* of plan records (one simulate run, or every job of one multirun); the group a run writes
-becomes the figure's current one.
-"""
+"""The trial cache: per trial (keyed by its content, pipeline.keys.trial_key) one Parquet curve,
+written first, and one sealed JSON sidecar with the curve's checksum, written last: a finished
+trial (layout: docs/running.md, "Where outputs land"). A diverged trial is a result (no curve);
+a failed one runs again. Per figure, plan records say which trials make it: a *group* of them
+(one simulate run, or every job of a multirun) is the figure's current one. Measured CPU times
+are kept apart (paths.out/logs/times/): the cache's bytes do not vary with the machine."""
 from __future__ import annotations
 
 import errno
@@ -21,6 +13,7 @@ import json
 import os
 import re
 import time
+from contextlib import suppress
 from functools import lru_cache
 from pathlib import Path
 
@@ -30,21 +23,17 @@ from . import io
 from .keys import trial_key
 
 TRIALS, PLANS, FAILED = "trials", "plans", "failed"
-
-
 KEY = re.compile(r"[0-9a-f]{20}")  # pipeline.keys.trial_key
 
 
 def trial_paths(cache_dir, trial: dict) -> tuple[Path, Path]:
-    """(curve, sidecar) of a trial; its key (from a plan record on disk, too) must be a key, so
-    that no name read from a file becomes a path elsewhere."""
+    """(curve, sidecar) of a trial; its key (read from a file, too) must be a key."""
     stem = _stem(cache_dir, trial)
     return Path(f"{stem}.parquet"), Path(f"{stem}.json")
 
 
 def _stem(cache_dir, trial: dict) -> str:
-    """The path of a trial's files without their suffix (trial_paths), as a string: pathlib's
-    joins cost more than the stat of a file."""
+    """A trial's path without suffix, a string (pathlib's joins cost more than a stat)."""
     key = trial["key"]
     if not isinstance(key, str) or not KEY.fullmatch(key):
         raise io.DamagedFile(f"trial key {key!r}: not a trial key (20 hexadecimal digits)")
@@ -53,8 +42,7 @@ def _stem(cache_dir, trial: dict) -> str:
 
 @lru_cache(maxsize=1024)
 def _inside(folder: str, root) -> str:
-    """`folder` checked once per process and confinement (io.check_inside): at most 256 trial
-    folders, each resolved once instead of once per trial."""
+    """io.check_inside(folder), once per process and confinement instead of once per trial."""
     io.check_inside(folder)
     return folder
 
@@ -65,16 +53,15 @@ def failure_path(cache_dir, trial: dict) -> Path:
 
 
 def check(cache_dir, trial: dict) -> tuple[dict | None, str | None]:
-    """(sidecar, None) for a finished trial whose files are intact; (None, None) for one not
-    run yet; (None, why) for one whose files are damaged (they are then recomputed)."""
+    """(sidecar, None) for an intact finished trial, (None, None) for one not run, (None, why)."""
     side, _, why = read_trial(cache_dir, trial, curve=False)
     return side, why
 
 
 def read_trial(cache_dir, trial: dict, curve: bool = True):
-    """(sidecar, curve table or None, None) for a finished trial whose files are intact, each
-    file read once: its checksum and its table come from the same bytes (curve=False: checked,
-    not parsed); (None, None, None) for one not run yet; (None, None, why) for a damaged one."""
+    """(sidecar, curve table or None, None) for an intact finished trial, each file read once
+    (curve=False: checked, not parsed); (None, None, None) for one not run yet; (None, None,
+    why) for a damaged one (recomputed)."""
     stem = _stem(cache_dir, trial)
     try:  # a trial not run yet is the common answer: no path objects for it
         with open(f"{stem}.json", "rb") as fh:
@@ -108,25 +95,20 @@ def read_trial(cache_dir, trial: dict, curve: bool = True):
 
 
 def signature(cache_dir, trial: dict) -> str | None:
-    """What the file system says about a trial's files (size, inode, modification and change
-    times of the sidecar and the curve): any write or replacement changes it, so an unchanged
-    signature lets a reader reuse what it checked before. None: no sidecar."""
+    """Size, inode, modification and change times of a trial's files: unchanged, a reader may
+    reuse what it checked before. None: no sidecar."""
     parts, stem = [], _stem(cache_dir, trial)
     for path in (f"{stem}.json", f"{stem}.parquet"):
         try:
             st = os.stat(path)
+            parts.append(f"{st.st_size}:{st.st_ino}:{st.st_mtime_ns}:{st.st_ctime_ns}")
         except FileNotFoundError:
-            if not parts:
-                return None
             parts.append("-")
-            continue
-        parts.append(f"{st.st_size}:{st.st_ino}:{st.st_mtime_ns}:{st.st_ctime_ns}")
-    return "/".join(parts)
+    return None if parts[0] == "-" else "/".join(parts)
 
 
 def _keyed(s: dict) -> bool:
-    """Whether a sidecar's own spec, seed and code hash to its key (a sidecar copied or edited
-    under another trial's name is not that trial)."""
+    """Whether a sidecar's own spec, seed and code hash to its key (not one copied or edited)."""
     try:
         return trial_key(s["spec"], s["seed"], s["code"], s.get("start")) == s["key"]
     except (KeyError, TypeError, ValueError):
@@ -137,10 +119,8 @@ CONTENT = ("key", "spec", "seed", "code", "labels")  # what a sidecar keeps of t
 
 
 def write_trial(cache_dir, trial: dict, result: dict) -> None:
-    """Store a finished trial: the curve first, then the sealed sidecar with its checksum.
-    Both go through io.write_in_checked (the trial's folder was checked once, by _stem), the
-    sidecar's JSON encoded once for its seal and its bytes (io.sealed_json): the files of
-    io.write_table and io.write_json(side, io.seal(record), compact=True), byte for byte."""
+    """Store a finished trial: the curve, then the sealed sidecar (io.sealed_json: compact, no
+    timing, so its bytes do not vary), both in the folder _stem checked."""
     stem = _stem(cache_dir, trial)
     curve, side = f"{stem}.parquet", f"{stem}.json"
     record = {k: trial[k] for k in CONTENT} | dict(status=result["status"])
@@ -158,19 +138,15 @@ def write_trial(cache_dir, trial: dict, result: dict) -> None:
         record["M"] = None if M is None else np.asarray(M).tolist()
         record["snapshots"] = {str(e): np.asarray(m).tolist()
                                for e, m in sorted(result["snapshots"].items())}
-    # compact: the sidecar is read by programs; timing is left out: its bytes must not vary
     io.write_in_checked(side, io.sealed_json(record))
 
 
 def forget_failure(cache_dir, trial: dict) -> None:
-    """Remove the failure record of a trial (failure_path), if there is one: its folder is
-    checked once per process (an unlink removes a link itself, never what it leads to)."""
+    """Remove the failure record of a trial (failure_path), if there is one."""
     _stem(cache_dir, trial)  # the key checked
     folder = _inside(os.path.join(cache_dir, FAILED), io.confined_root())
-    try:
+    with suppress(FileNotFoundError):  # (an unlink never follows a link)
         os.unlink(os.path.join(folder, f"{trial['key']}.json"))
-    except FileNotFoundError:
-        pass
 
 
 def read_curve(cache_dir, trial: dict):
@@ -178,16 +154,15 @@ def read_curve(cache_dir, trial: dict):
 
 
 CLAIMS = "claims"  # the one lock file of a cache: a byte-range lock per trial being computed
-_claim_files: dict[tuple[int, Path], int] = {}  # (pid, lock file) -> this process's descriptor
-_held: dict[tuple[int, Path], set[int]] = {}  # offsets this process holds, per lock file
+_claims: dict[tuple[int, Path], tuple[int, set]] = {}  # (pid, file) -> (descriptor, offsets held)
 
 
-def _claims_fd(cache_dir) -> tuple[tuple[int, Path], int]:
-    """This process's descriptor of the cache's lock file, opened once and kept open (closing
-    any descriptor of it would drop every lock this process holds on it)."""
+def _claims_fd(cache_dir) -> tuple[int, set]:
+    """This process's descriptor of the lock file, kept open (closing one drops every lock),
+    and the offsets it holds."""
     path = Path(cache_dir).absolute() / CLAIMS
     key = (os.getpid(), path)  # a forked child holds none of its parent's locks
-    if key not in _claim_files:
+    if key not in _claims:
         io.check_inside(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         flags = os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC
@@ -198,40 +173,37 @@ def _claims_fd(cache_dir) -> tuple[tuple[int, Path], int]:
                 raise io.UnsafeName(f"{path}: a link; remove it (the claims file is never "
                                     "followed)") from None
             raise
-        _claim_files[key], _held[key] = fd, set()
-    return key, _claim_files[key]
+        _claims[key] = fd, set()
+    return _claims[key]
 
 
 class Claim:
-    """An exclusive, non-blocking claim on a trial: two runs on one cache do not compute the
-    same trial. Every claim of a cache is a one-byte lock (fcntl) at the trial's offset in one
-    file, cache/claims, held through one descriptor per process: however many trials a run
-    claims, it holds one open file. The operating system drops the locks when their process
-    dies, so a killed run leaves nothing stuck; file systems that share fcntl locks between hosts
-    (NFS with lockd) share the claims too."""
+    """An exclusive, non-blocking claim on a trial, so two runs on one cache do not compute it
+    both: a one-byte fcntl lock at the trial's offset in cache/claims, one descriptor per
+    process. The system drops the locks of a process that dies; NFS with lockd shares them."""
 
     def __init__(self, cache_dir, trial: dict):
         _stem(cache_dir, trial)  # the key checked
         self.cache_dir = cache_dir
         self.offset = int(trial["key"][:15], 16)  # 60 bits: distinct for distinct keys
-        self.fh = None  # not None while held
+        self.fh = None  # (descriptor, offsets held) while held
 
     def acquire(self) -> bool:
-        key, fd = _claims_fd(self.cache_dir)
-        if self.offset in _held[key]:  # another claim of this process holds it
+        fd, held = _claims_fd(self.cache_dir)
+        if self.offset in held:  # another claim of this process holds it
             return False
         try:
             fcntl.lockf(fd, fcntl.LOCK_EX | fcntl.LOCK_NB, 1, self.offset)
         except (BlockingIOError, PermissionError):  # held by another process
             return False
-        _held[key].add(self.offset)
-        self.fh = key
+        held.add(self.offset)
+        self.fh = fd, held
         return True
 
     def release(self) -> None:
         if self.fh is not None:
-            fcntl.lockf(_claim_files[self.fh], fcntl.LOCK_UN, 1, self.offset)
-            _held[self.fh].discard(self.offset)
+            fcntl.lockf(self.fh[0], fcntl.LOCK_UN, 1, self.offset)
+            self.fh[1].discard(self.offset)
             self.fh = None
 
 
@@ -245,11 +217,9 @@ def record_digest(record: dict) -> str:
 
 
 def write_plan(cache_dir, record: dict, group: str | None = None) -> tuple[str, dict | None]:
-    """Record the conditions of one simulate run and make its group the figure's current one.
-
-    group: the multirun this run is a job of (its jobs' records form one figure); None: this run
-    alone. Nothing is rewritten when the same record is there already. Returns (group, the
-    previous current group's summary when this run replaced another group, else None)."""
+    """Record one simulate run's conditions in `group` (a multirun's, whose jobs make one figure;
+    None: this run's own) and make it the figure's current one; returns (group, the summary of
+    the current group it replaced, or None)."""
     folder = io.check_inside(Path(cache_dir) / PLANS / io.safe_name("figure", record["figure"]))
     digest = record_digest(record)
     group = group or f"run-{digest}"
@@ -261,15 +231,14 @@ def write_plan(cache_dir, record: dict, group: str | None = None) -> tuple[str, 
         before = read_current(folder)
     except io.DamagedFile:  # a damaged pointer: this run's group replaces it
         before = None
-    if before != group:
-        replaced = None
-        if before is not None:
-            old, _, _ = group_conditions(folder, before)
-            replaced = dict(group=before, conditions=len(old),
-                            experiment=_group_experiment(folder, before))
-        io.write_json(current, dict(group=group))
-        return group, replaced
-    return group, None
+    if before == group:
+        return group, None
+    replaced = None
+    if before is not None:
+        replaced = dict(group=before, conditions=len(group_conditions(folder, before)[0]),
+                        experiment=_group_experiment(folder, before))
+    io.write_json(current, dict(group=group))
+    return group, replaced
 
 
 def read_current(folder: Path) -> str | None:
@@ -296,8 +265,8 @@ SPEC_KEYS = {"body", "growth", "learner", "evaluation", "epochs"}  # of gbmodel.
 
 
 def _condition_ok(c) -> bool:
-    """Whether a plan record's condition has what the stages read: an id, a spec, a growth
-    label and trials with a key (a trial key, checked before it becomes a path) and an index."""
+    """Whether a plan record's condition has an id, a spec, a growth label and trials with a
+    trial key and an index."""
     return (isinstance(c, dict) and {"id", "spec", "trials", "growth_label"} <= set(c)
             and isinstance(c["spec"], dict) and SPEC_KEYS <= set(c["spec"])
             and isinstance(c["trials"], list)
@@ -307,10 +276,9 @@ def _condition_ok(c) -> bool:
 
 
 def group_conditions(folder: Path, group: str) -> tuple[list[dict], dict, list[str]]:
-    """(conditions, paper, problems) of one group: the union of its records' conditions, one per
-    (variant, settings), in the order of the records' writing (file names are content hashes, so
-    they are sorted by the run order each record stores)."""
-    records, problems = [], []
+    """(conditions, paper, problems) of one group: its records' conditions, one per (variant,
+    settings), in the run order the records store (their names are content hashes)."""
+    records = []
     for p in sorted((Path(folder) / group).glob("*.json")):  # DamagedFile names a bad one
         r = io.read_json(p, need=("figure", "conditions"))
         if not isinstance(r["conditions"], list) or not all(map(_condition_ok, r["conditions"])):
@@ -324,12 +292,11 @@ def group_conditions(folder: Path, group: str) -> tuple[list[dict], dict, list[s
             v = c.get("variant")
             conds.setdefault((v["label"] if v else None, c["id"]), c)
         paper = paper or r.get("paper") or {}
-    return list(conds.values()), paper, problems
+    return list(conds.values()), paper, []
 
 
 def figure_conditions(cache_dir, figure: str) -> tuple[list[dict], dict, list[str]]:
-    """The conditions of a figure (its current group), its paper section and any problems; a
-    damaged plan record is an io.DamagedFile naming it (the figure is then not aggregated, so a
+    """group_conditions of a figure's current group; a damaged plan record is a DamagedFile (a
     good aggregate is never replaced by a partial one)."""
     folder = Path(cache_dir) / PLANS / figure
     group = read_current(folder)
@@ -350,19 +317,17 @@ TIMES = ("logs", "times")  # under paths.out: the measured CPU seconds of each r
 
 
 def write_times(out_dir, cpu: dict[str, float]) -> Path | None:
-    """One run's measured CPU seconds per trial key, in a file of its own (no two runs write
-    the same file); None when the run computed nothing."""
+    """One run's CPU seconds per trial key in a file of its own, named by the nanoseconds since
+    1970 (they sort as the runs ended); None when the run computed nothing."""
     if not cpu:
         return None
-    # nanoseconds since 1970 (19 digits): the names sort as the runs ended
     path = Path(out_dir).joinpath(*TIMES) / f"{time.time_ns()}-{os.getpid()}.json"
     io.write_json(path, {k: round(v, 3) for k, v in cpu.items()}, compact=True)
     return path
 
 
 def read_times(out_dir) -> dict[str, float]:
-    """Trial key -> measured CPU seconds over every run's file (a later run's wins); a damaged
-    file is skipped (the times are provenance, not results)."""
+    """Trial key -> CPU seconds, a later run's winning; a damaged file is skipped (provenance)."""
     out = {}
     for p in sorted(Path(out_dir).joinpath(*TIMES).glob("*.json")):
         try:

@@ -1,17 +1,9 @@
-"""A trial's final state, kept for the trials that another continues (gbmodel.Checkpoint).
-
-A continuation (conditions.continues, pipeline.plan) starts from the saved state of its base
-trial, the trial of the same condition and index that ran its first epochs: the learner's state,
-the generator's state after the base's draws, and the base's curve and snapshots (the base's
-cached files). Its result is an uninterrupted run's, to the bit (tests/pipeline/
-test_continuation.py), so the epochs both share are computed once.
-
-Only a trial planned as a base keeps its state (`keep_state`), in one more file beside its curve
-and sidecar, trials/<kk>/<key>.state.json, sealed like the sidecar (pipeline.io.seal): the
-learner's state as plain data (arrays as base64 of their bytes, dataclasses of gbmodel by name),
-so that it crosses to a worker or a cluster node like any trial. A base found in the cache
-without it is run again (simulate), before its continuations.
-"""
+"""A base trial's final state, from which its continuations start (gbmodel.Checkpoint; planned
+by conditions.continues): the learner's and the generator's state, and the base's cached curve
+and snapshots; the result is an uninterrupted run's, to the bit. Only a trial planned as a base
+keeps it (`keep_state`), in trials/<kk>/<key>.state.json beside its sidecar, sealed, as plain
+data (arrays as base64, gbmodel's dataclasses by name) that crosses to a worker like any trial.
+A base in the cache without it is run again, before its continuations."""
 from __future__ import annotations
 
 import base64
@@ -86,7 +78,7 @@ def final_state(res) -> dict:
 
 
 def path(cache_dir, trial: dict) -> Path:
-    from . import cache  # here: a worker encodes and decodes, the driver reads and writes
+    from . import cache  # here, not above: a worker only encodes and decodes
 
     return cache.trial_paths(cache_dir, trial)[1].with_suffix(SUFFIX)
 
@@ -103,8 +95,7 @@ def has(cache_dir, trial: dict) -> bool:
 
 
 def load(cache_dir, base: dict) -> tuple[dict | None, str | None]:
-    """(the checkpoint of a finished base trial as plain data for a worker, None), or (None,
-    why) when the base is not finished, diverged or its files are damaged."""
+    """(a finished base's checkpoint as plain data for a worker, None), or (None, why)."""
     from . import cache, io
 
     side, table, why = cache.read_trial(cache_dir, base)
@@ -112,11 +103,11 @@ def load(cache_dir, base: dict) -> tuple[dict | None, str | None]:
         return None, why or f"its base trial {base['key']} is not in the cache"
     if side["status"] != "ok":
         return None, f"its base trial {base['key']} {side['status']}: {side.get('error')}"
+    where = path(cache_dir, base)
     try:
-        raw = path(cache_dir, base).read_bytes()
-        saved = io.check_seal(io.parse_json(raw, path(cache_dir, base)), path(cache_dir, base))
+        saved = io.check_seal(io.parse_json(where.read_bytes(), where), where)
         if saved.get("key") != base["key"]:
-            return None, f"{path(cache_dir, base).name} belongs to another trial"
+            return None, f"{where.name} belongs to another trial"
     except FileNotFoundError:
         return None, f"its base trial {base['key']} kept no state"
     except (OSError, ValueError) as err:

@@ -1,21 +1,7 @@
-"""What each experiment declares (conf/experiment/<name>.yaml), read from the files themselves.
-
-An experiment is its YAML file: the conditions it runs, the report section that reports it
-(`paper.study`), and a `declares` block that says where it belongs:
-
-    declares:
-      group: paper        # paper | choices | explain | studies: the Makefile's list it is in
-      order: 4            # its place in those lists and in the committed report
-      reads: fig4         # the paper figure a study reads (the readings study: readings_fig4)
-      conventions: true   # the reporting conventions are measured on this figure
-      explains: boundary  # the explanation it feeds (pipeline/studies/explain.py)
-
-The Makefile's lists (pipeline.tools.experiments), report.paper_experiments (the resolver
-`${experiments:...}`) and the studies' registries (readings, baselines, conventions, explain)
-are derived from these declarations: a study is its module and its experiment files. The files
-are read as YAML, not composed: a declaration is plain data, the same under every profile, and
-an experiment's own (not inherited through its defaults list).
-"""
+"""What each experiment file (conf/experiment/<name>.yaml) declares, read as plain YAML (not
+composed: the same under every profile, not inherited): its report section (`paper.study`) and
+its `declares` block, from which the Makefile's lists, report.paper_experiments and the studies'
+registries are derived."""
 from __future__ import annotations
 
 import dataclasses
@@ -32,11 +18,11 @@ GROUPS = ("paper", "choices", "explain", "studies")  # make reproduce runs the f
 class Declares:
     """The `declares` block of an experiment file (the schema: pipeline.config.Config)."""
 
-    group: Optional[str] = None
-    order: Optional[int] = None
-    reads: Optional[str] = None
-    conventions: bool = False
-    explains: Optional[str] = None
+    group: Optional[str] = None  # paper | choices | explain | studies: the Makefile's list
+    order: Optional[int] = None  # its place in those lists and in the committed report
+    reads: Optional[str] = None  # the paper figure a study reads (readings_fig4: fig4)
+    conventions: bool = False  # the reporting conventions are measured on this figure
+    explains: Optional[str] = None  # the explanation it feeds (pipeline/studies/explain.py)
 
 
 @dataclass(frozen=True)
@@ -46,18 +32,12 @@ class Experiment:
     declares: Declares
 
 
-def _yaml(text: str):
-    """The YAML document `text` as plain data, by libyaml's safe loader where PyYAML has it (a
-    tenth of the pure-Python parser's CPU; OmegaConf.load took 0.34 s for conf/'s 22 files, read
-    by every stage). What is read here (declares, paper.study) is strings, integers and flags,
-    which both parsers read alike; Hydra composes the files with its own loader."""
+def _read(path: Path) -> Experiment:
+    """The file read by libyaml's safe loader where PyYAML has it (a tenth of the pure-Python
+    parser's CPU; strings, integers and flags read alike)."""
     import yaml
 
-    return yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
-
-
-def _read(path: Path) -> Experiment:
-    raw = _yaml(path.read_text()) or {}
+    raw = yaml.load(path.read_text(), Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader)) or {}
     if not isinstance(raw, dict):
         raise ValueError(f"{path}: not a mapping of keys to values")
     given = raw.get("declares") or {}
@@ -72,9 +52,8 @@ def _read(path: Path) -> Experiment:
 
 
 def config_folders() -> tuple[Path, ...]:
-    """The config folders whose experiment files the project's lists are read from: conf/ (the
-    checkout's, or the installed package's) and, in a running stage, every folder of Hydra's
-    search path (an experiment of one's own, a config package of gbgrowth.conf)."""
+    """conf/ (the checkout's or the installed package's) and, in a running stage, every folder
+    of Hydra's search path (one's own experiments, a config package of gbgrowth.conf)."""
     import importlib.util
 
     from gbmodel.bodies import CONF_DIR
@@ -93,9 +72,8 @@ def config_folders() -> tuple[Path, ...]:
 
 @lru_cache(maxsize=8)
 def declared(folders: tuple[Path, ...]) -> dict[str, Experiment]:
-    """name -> Experiment for every experiment file of `folders` (config folders: conf/ and any
-    of hydra.searchpath; the first holding a name wins), ordered by declares.order (those
-    without one last), then by name."""
+    """name -> Experiment of every experiment file of `folders` (the first holding a name wins),
+    by declares.order (those without one last), then by name."""
     found = {}
     for folder in folders:
         for path in sorted((Path(folder) / "experiment").glob("*.yaml")):

@@ -1,21 +1,10 @@
-"""The code fingerprint of a trial: a hash of the gbmodel code that computes it, taken from the
-code this process runs.
-
-The cache key holds it, so a trial is recomputed when its code changes and only then. The files
-are read once per learner and process (code_fingerprint is cached; a learner is read from its
-files, not imported), and each file of a module this process has imported is checked against
-that module's code, when the fingerprint is taken and again once the process has imported more:
-a file edited between the import and the read (the driver imports gbmodel, someone saves a
-file, the fingerprint reads it), or between the read and a later import, would otherwise key
-one code's results with the other code's fingerprint. Both the compiled
-functions and the values the module holds (its constants, function defaults, class attributes
-such as a dataclass's defaults: evaluated from the file as read now and compared with what the
-import made) are checked. Such a file raises CodeChanged, a one-line error: run the command again.
-
-What is learnt from a file's text (its syntax tree without docstrings, its compiled code, the
-expressions of its constants and defaults, its imports: _facts) is learnt once per process and
-kept nowhere else. The checks against the imported module run on every fingerprint, from
-those facts.
+"""The code fingerprint of a trial: a hash of the gbmodel code that computes it (the shared core
+plus its learner's files), as part of its cache key, so a trial is recomputed when its code
+changes and only then. Files are read, not imported, and each text is parsed once per process
+(_facts). Each file of a module this process has imported is checked against that module, when
+the fingerprint is taken and again once the process has imported more: its functions' compiled
+code and the plain values it holds (constants, defaults, class attributes such as a dataclass's
+defaults). A file edited in between raises CodeChanged, a one-line error: run the command again.
 """
 from __future__ import annotations
 
@@ -36,11 +25,6 @@ class CodeChanged(RuntimeError):
     """A gbmodel file differs from the code this process imported from it."""
 
 
-def _code_of(source: str) -> str:
-    """The syntax tree of a module without its docstrings (comments are not in it anyway)."""
-    return _dump(ast.parse(source))
-
-
 def _dump(tree) -> str:
     """ast.dump of `tree` with its docstrings taken out (in place)."""
     for node in ast.walk(tree):
@@ -53,10 +37,9 @@ def _dump(tree) -> str:
 
 
 def source_fingerprint(sources) -> str:
-    """Hash of the code of `sources`, (name, source text) pairs (names + syntax trees): a change
-    of what the code computes changes it; comments, docstrings and layout do not. Whole files,
-    not what the kernels reach: a function no code names can still change results (a numba
-    extension's decorator, a registry), so an added unused function recomputes, on purpose."""
+    """Hash of (name, source text) pairs by their names and syntax trees: comments, docstrings
+    and layout do not change it. Whole files, not what the kernels reach: a function no code
+    names can still change results (a numba extension, a registry)."""
     h = hashlib.sha256()
     for name, text in sorted(sources):
         h.update(name.encode() + b"\0")
@@ -65,7 +48,6 @@ def source_fingerprint(sources) -> str:
 
 
 def _compiled(node):
-    """Expression `node` compiled on its own, or None when it cannot be."""
     try:
         return compile(ast.Expression(node), "<fingerprint>", "eval")
     except Exception:
@@ -73,10 +55,9 @@ def _compiled(node):
 
 
 def _checks(body: list) -> list:
-    """The plain assignments, function defaults and classes of `body` (a module's or class's
-    statements), in order, with their expressions compiled: ("=", name, code),
-    ("def", name, [code of each default], [(keyword-only arg, code or None)]),
-    ("class", name, checks of its body). _values evaluates them against the live module."""
+    """The plain assignments, function defaults and classes of a module's or class's `body`,
+    their expressions compiled: ("=", name, code), ("def", name, [code of each default],
+    [(keyword-only arg, code or None)]), ("class", name, checks of its body)."""
     out = []
     for node in body:
         targets = ([node.target] if isinstance(node, ast.AnnAssign) and node.value is not None
@@ -91,37 +72,25 @@ def _checks(body: list) -> list:
     return out
 
 
-def _imports(tree) -> list:
-    """Every import statement of `tree`: ("from", level, module or None, [names]) and
-    ("import", None, None, [names])."""
-    out = []
-    for node in ast.walk(tree):
-        if isinstance(node, ast.ImportFrom):
-            out.append(("from", node.level, node.module, [a.name for a in node.names]))
-        elif isinstance(node, ast.Import):
-            out.append(("import", None, None, [a.name for a in node.names]))
-    return out
-
-
 def _learn(text: str) -> dict:
-    """What the fingerprint needs of a source text, from one parse and one compile: tree (the
-    syntax tree without docstrings, _code_of), code (the module compiled), checks (_checks) and
-    imports (_imports)."""
+    """From one parse and one compile: tree (without docstrings), code (the module compiled),
+    checks (_checks) and imports: ("from", level, module or None, [names]) or ("import", None,
+    None, [names])."""
     tree = ast.parse(text)
-    checks, imports = _checks(tree.body), _imports(tree)
+    checks = _checks(tree.body)
+    imports = [("from", n.level, n.module, [a.name for a in n.names])
+               if isinstance(n, ast.ImportFrom) else ("import", None, None,
+                                                      [a.name for a in n.names])
+               for n in ast.walk(tree) if isinstance(n, (ast.ImportFrom, ast.Import))]
     return dict(tree=_dump(tree), code=compile(text, "<fingerprint>", "exec"), checks=checks,
                 imports=imports)
 
 
-@lru_cache(maxsize=512)
-def _facts(text: str) -> dict:
-    """_learn(text), once per text and process."""
-    return _learn(text)
+_facts = lru_cache(maxsize=512)(lambda text: _learn(text))  # once per text and process
 
 
 def _codes(code, out=None) -> dict:
-    """Every code object in `code` (a compiled module), by qualified name (several lambdas of
-    one scope share theirs)."""
+    """Every code object in a compiled module, by qualified name (lambdas of a scope share one)."""
     out = {} if out is None else out
     for const in code.co_consts:
         if inspect.iscode(const):
@@ -130,8 +99,9 @@ def _codes(code, out=None) -> dict:
     return out
 
 
-def _live_codes(module, path: Path):
-    """The code objects of the functions (plain, jitted, methods) that `module` got from `path`."""
+def _live_codes(module):
+    """The code objects of the functions (plain, jitted, methods) of `module`'s own file (the
+    import sets their co_filename to module.__file__)."""
     seen, todo = set(), list(vars(module).values())
     while todo:
         obj = todo.pop()
@@ -152,21 +122,13 @@ def _live_codes(module, path: Path):
         except ValueError:
             continue
         code = getattr(obj, "__code__", None)
-        if inspect.iscode(code) and _resolved(code.co_filename) == path:
+        if inspect.iscode(code) and code.co_filename == module.__file__:
             yield code
-
-
-@lru_cache(maxsize=4096)
-def _resolved(filename: str) -> Path:
-    return Path(filename).resolve()
-
-
-_PLAIN = (int, float, complex, str, bytes, bool, type(None))
 
 
 def _plain(value) -> bool:
     """A value that compares by content (a number, a string, containers and arrays of them)."""
-    if isinstance(value, _PLAIN) or isinstance(value, np.generic):
+    if isinstance(value, (int, float, complex, str, bytes, bool, type(None), np.generic)):
         return True
     if isinstance(value, np.ndarray):
         return value.dtype.kind in "biufcSUb"
@@ -195,65 +157,40 @@ def _same(a, b) -> bool:
         return False
 
 
+_SKIP = object()
+
+
 def _value(code, scope: dict):
-    """The value of compiled expression `code` in `scope` (a copy of the live namespace), or a
-    marker when it cannot be evaluated on its own or is not a plain value (an object, a
-    function)."""
-    if code is None:
-        return _SKIP
+    """The plain value of compiled expression `code` in a copy of `scope`, else _SKIP."""
     try:
         value = eval(code, dict(scope))
-    except Exception:
+    except Exception:  # (code None: a TypeError) cannot be evaluated on its own
         return _SKIP
     return value if _plain(value) else _SKIP
 
 
-_SKIP = object()
-
-
 def _values(checks: list, scope: dict, live, where: str):
     """(name, value now in the file, value the import made) of the plain assignments and
-    function defaults of `checks` (_checks of a module's or class's statements); `live` is its
-    namespace. A private mutable container (`_CACHE = {}`) is state the code fills, not a
-    constant: skipped."""
+    defaults of `checks`, `live` their namespace; a private mutable container (`_CACHE = {}`)
+    is state the code fills, not a constant: skipped."""
     for kind, name, *rest in checks:
-        if kind == "=":
-            if name in live and not (name.startswith("_")
-                                     and isinstance(live[name], (list, dict, set))):
-                now = _value(rest[0], scope)
-                if now is not _SKIP and _plain(live[name]):
-                    yield f"{where}{name}", now, live[name]
+        if kind == "=" and name in live and _plain(live[name]) and not (
+                name.startswith("_") and isinstance(live[name], (list, dict, set))):
+            yield f"{where}{name}", _value(rest[0], scope), live[name]
         elif kind == "def" and name in live:
-            func = live[name]
-            func = getattr(func, "__func__", func)
+            func = getattr(live[name], "__func__", live[name])
             func = getattr(func, "py_func", func)
-            defaults = getattr(func, "__defaults__", None) or ()
-            codes, kwonly = rest
-            if len(codes) == len(defaults):
-                for code, was in zip(codes, defaults):
-                    now = _value(code, scope)
-                    if now is not _SKIP and _plain(was):
-                        yield f"{where}{name} (a default)", now, was
+            defaults, (codes, kwonly) = getattr(func, "__defaults__", None) or (), rest
             kw = getattr(func, "__kwdefaults__", None) or {}
-            for arg, code in kwonly:
-                if code is not None and arg in kw and _plain(kw[arg]):
-                    now = _value(code, scope)
-                    if now is not _SKIP:
-                        yield f"{where}{name} (a default)", now, kw[arg]
+            pairs = list(zip(codes, defaults)) if len(codes) == len(defaults) else []
+            pairs += [(code, kw[arg]) for arg, code in kwonly if code is not None and arg in kw]
+            for code, was in pairs:
+                if _plain(was):
+                    yield f"{where}{name} (a default)", _value(code, scope), was
         elif kind == "class" and inspect.isclass(live.get(name)):
             cls = live[name]
             yield from _values(rest[0], {**scope, **vars(cls)}, dict(vars(cls)),
                                f"{where}{name}.")
-
-
-def _changed_value(module, text: str) -> str | None:
-    """The first constant, default or class attribute whose value in `text` differs from the
-    one the imported `module` holds, else None."""
-    scope = dict(vars(module))
-    for name, now, was in _values(_facts(text)["checks"], scope, scope, ""):
-        if not _same(now, was):
-            return name
-    return None
 
 
 def _gbmodel_modules() -> dict:
@@ -263,38 +200,33 @@ def _gbmodel_modules() -> dict:
             and getattr(m, "__file__", None)}
 
 
-def _compiled_from(code, compiled) -> bool:
-    """Whether live `code` is one of `compiled` (the file's as read now). Its flags are not
-    compared: under a profiler (`python -m cProfile`) numba's dispatcher gives its function a
-    copy of its code flagged CO_NEWLOCALS alone, the bytecode, constants and names the file's."""
-    return code in compiled or any(code.replace(co_flags=c.co_flags) == c for c in compiled)
-
-
 def as_imported(path: Path, text: str, modules: dict | None = None) -> str:
     """`text` (the file `path` as read now) if it is the code this process imported from it (or
-    the file is not an imported module of gbmodel), else CodeChanged naming the file."""
+    the file is not an imported module of gbmodel), else CodeChanged naming the file. A code's
+    flags are not compared: under a profiler numba's dispatcher gives its function a copy of its
+    code flagged CO_NEWLOCALS alone, the bytecode, constants and names the file's."""
     path = Path(path).resolve()
     module = (_gbmodel_modules() if modules is None else modules).get(path)
     if module is None:
         return text
-    compiled = _codes(_facts(text)["code"])
-    for code in _live_codes(module, path):
-        if not _compiled_from(code, compiled.get(code.co_qualname, ())):
-            raise CodeChanged(f"{path}: changed since this process imported it ({code.co_qualname} "
-                              "differs); run the command again")
-    name = _changed_value(module, text)
-    if name is not None:
-        raise CodeChanged(f"{path}: changed since this process imported it ({name} differs); "
-                          "run the command again")
+    compiled, scope = _codes(_facts(text)["code"]), dict(vars(module))
+    changed = next((c.co_qualname for c in _live_codes(module)
+                    if not any(c == m or c.replace(co_flags=m.co_flags) == m
+                               for m in compiled.get(c.co_qualname, ()))), None)
+    if changed is None:
+        changed = next((name for name, now, was in _values(_facts(text)["checks"], scope, scope, "")
+                        if now is not _SKIP and not _same(now, was)), None)
+    if changed is not None:
+        raise CodeChanged(f"{path}: changed since this process imported it ({changed} "
+                          "differs); run the command again")
     return text
 
 
 def imported_learners(sources, name: str) -> set[str]:
     """The other learners whose code the files `sources` ((label, text) pairs, labels as
-    gbmodel/learners/...py) import, found in their import statements (relative ones resolved):
-    online Goal Babbling and motor babbling run goal_babbling's reference code. A name imported
-    from the learners package itself counts when it is a learner (`from gbmodel.learners import
-    goal_babbling`), not when it is the registry's (`from . import register`)."""
+    gbmodel/learners/...py) import (relative imports resolved): online Goal Babbling and motor
+    babbling run goal_babbling's code. A name imported from the learners package counts when it
+    is a learner (`from gbmodel.learners import goal_babbling`), not the registry's."""
     found, known = set(), set(gbmodel.learners.available())
     for label, text in sources:
         parts = label[:-3].split("/") if label.endswith(".py") else []
@@ -316,10 +248,8 @@ def imported_learners(sources, name: str) -> set[str]:
 
 
 def _files_of(name: str) -> list[tuple[str, str]] | None:
-    """gbmodel.learners.sources(name) of a learner of gbmodel/learners/ (its package's files, or
-    its module's), read without importing it (sources imports the module to find its file: a
-    cached simulate then loaded numba and scipy for nothing); None for any other learner (one
-    registered at run time), which sources describes."""
+    """gbmodel.learners.sources(name) of a learner of gbmodel/learners/, read without importing
+    it (a cached simulate loads no numba); None for a learner registered at run time."""
     root = Path(gbmodel.__file__).resolve().parent
     if name in gbmodel.learners._REGISTERED or name not in gbmodel.learners.available():
         return None
@@ -333,7 +263,7 @@ def _files_of(name: str) -> list[tuple[str, str]] | None:
 
 def learner_sources(learner: str) -> list[tuple[str, str]]:
     """(label, text) of the learner's own files and of every learner's whose code it imports,
-    transitively (gbmodel.learners.sources of each, read from the files where it can: _files_of)."""
+    transitively."""
     done, todo, out = set(), [learner], {}
     while todo:
         name = todo.pop()
@@ -348,9 +278,9 @@ def learner_sources(learner: str) -> list[tuple[str, str]]:
 
 
 @lru_cache(maxsize=None)
-def _fingerprint(learner: str) -> tuple[str, dict, set]:
-    """(fingerprint, resolved path -> the text hashed, the paths checked against their module)
-    of `learner` (code_fingerprint), computed once per process."""
+def _fingerprint(learner: str) -> tuple[str, dict, set, list]:
+    """(fingerprint, resolved path -> the text hashed, the paths checked against their module,
+    [len(sys.modules) at the last check]) of `learner`, computed once per process."""
     root = Path(gbmodel.__file__).resolve().parent
     shared = [p for p in root.rglob("*.py")
               if "learners" not in p.relative_to(root).parts[:-1]]
@@ -360,47 +290,23 @@ def _fingerprint(learner: str) -> tuple[str, dict, set]:
     own = [(p.relative_to(root.parent).as_posix(), texts[p.resolve()]) for p in shared]
     for label, text in theirs:
         texts[(root.parent / label).resolve()] = text
-    checked = set()
-    _check_imported(texts, checked)
-    return source_fingerprint(own + theirs), texts, checked
-
-
-def _check_imported(texts: dict, checked: set) -> None:
-    """as_imported for each file of `texts` whose module is imported now and was not checked
-    yet: the text hashed must be the code the process imported (CodeChanged otherwise)."""
-    modules = _gbmodel_modules()
-    for path in texts.keys() & modules.keys() - checked:
-        as_imported(path, texts[path], modules)
-        checked.add(path)
-
-
-_SEEN_MODULES: dict = {}  # learner -> len(sys.modules) when its imported files were last checked
+    return source_fingerprint(own + theirs), texts, set(), [None]
 
 
 def code_fingerprint(learner: str) -> str:
     """The fingerprint of the code a trial of `learner` runs: gbmodel's shared core (every file
-    outside gbmodel/learners/, and the registry) plus that learner's own files and those of the
-    learners it imports code from (learner_sources). Changing one learner recomputes its trials
-    and those of the learners using its code only; an edited comment recomputes none.
-
-    The files are read and hashed once per process (no module is imported for it: a cached
-    simulate never loads a learner's kernels). Every file whose module the process has imported
-    is checked against the text that was hashed (as_imported): on the first call, and again on
-    any later call after the process imported more modules (a learner's, when its first trial
-    runs; pipeline.worker.run_one asks again after each trial). A file edited between the read
-    and the import therefore raises CodeChanged instead of keying new code's results with the
-    old code's fingerprint."""
-    fp, texts, checked = _fingerprint(learner)
-    n = len(sys.modules)
-    if _SEEN_MODULES.get(learner) != n:
-        _check_imported(texts, checked)
-        _SEEN_MODULES[learner] = n
+    outside gbmodel/learners/, and the registry) plus the files of that learner and of the
+    learners it imports code from. Every file whose module the process has imported is checked
+    against the text hashed (as_imported) on the first call and on any later one after the
+    process imported more (pipeline.worker.run_one asks again after each trial)."""
+    fp, texts, checked, seen = _fingerprint(learner)
+    if seen[0] != len(sys.modules):
+        modules, n = _gbmodel_modules(), len(sys.modules)
+        for path in texts.keys() & modules.keys() - checked:
+            as_imported(path, texts[path], modules)
+            checked.add(path)
+        seen[0] = n
     return fp
 
 
-def _clear() -> None:
-    _fingerprint.cache_clear()
-    _SEEN_MODULES.clear()
-
-
-code_fingerprint.cache_clear = _clear  # the tests' way to read the files again
+code_fingerprint.cache_clear = _fingerprint.cache_clear  # the tests' way to read files again

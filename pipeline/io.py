@@ -1,6 +1,6 @@
 """Every file the pipeline writes goes through here: atomic, deterministic writes (a temporary
-name beside the file, then a rename; Parquet with fixed settings and no timestamps, JSON with
-sorted keys: the same content gives the same bytes), and the schema of the learning-curve table."""
+name beside the file, then a rename; Parquet without timestamps, JSON with sorted keys: the same
+content gives the same bytes), and the schema of the learning-curve table."""
 from __future__ import annotations
 
 import errno
@@ -37,8 +37,7 @@ class BadInput(ValueError):
 
 
 class DamagedFile(BadInput):
-    """A file the pipeline wrote is not what it should be: the message names it, and the stage
-    that meets it replaces nothing."""
+    """A file the pipeline wrote is not what it should be; the stage replaces nothing."""
 
 
 class UnsafeName(BadInput):
@@ -53,13 +52,11 @@ class FileTooLarge(OSError, BadInput):
                 "(ulimit -f); raise the limit or choose another paths.root")
 
 
-MAX_NAME = 100  # characters of one path component built from a name
-MAX_NAME_BYTES = 200  # its UTF-8 bytes (file systems allow 255; temporary names add some)
+MAX_NAME, MAX_NAME_BYTES = 100, 200  # a name's characters, its UTF-8 bytes (file systems: 255)
 
 
 def safe_name(key: str, value) -> str:
-    """`value` if it can name one file or folder inside an output folder, else UnsafeName naming
-    `key`: every name from the config or from files on disk, before it becomes part of a path."""
+    """`value` if it can name one file or folder inside an output folder, else UnsafeName."""
     why = None
     if not isinstance(value, str) or not value:
         why = "must be a non-empty name"
@@ -77,14 +74,12 @@ def safe_name(key: str, value) -> str:
     return value
 
 
-
 # ---- every write and delete stays under paths.root ------------------------------------------
 _ROOT: list[Path] = []  # the root a stage confines its writes to (pipeline.cli.finish)
 _ALSO: set[Path] = set()  # single files outside it a stage writes on purpose (allow)
 
 
 def confine(root) -> None:
-    """Confine every later write and delete of this process (here, pipeline.cache) to `root`."""
     _ROOT[:] = [] if root is None else [Path(root).resolve()]
 
 
@@ -105,7 +100,6 @@ def confined_root() -> Path | None:
 
 
 def allow(path) -> None:
-    """Let the confined stage write the one file `path` outside the root."""
     _ALSO.add(Path(path).absolute())
 
 
@@ -162,9 +156,9 @@ def _exclusive(path: str) -> tuple[str, int]:
 
 @contextmanager
 def _atomic(path, checked: bool = False):
-    """Yield (temporary path, open descriptor) of a new file beside `path`, renamed onto `path`
-    on success, else deleted; OSError names `path`. checked: the caller checked path's folder
-    (pipeline.cache: once per trial folder): only a link at the name is checked."""
+    """Yield (temporary path, descriptor) of a new file renamed onto `path` on success, else
+    deleted; OSError names `path`. checked: the caller checked its folder (only a link at the
+    name is checked)."""
     path, tmp = os.fspath(path), None
     if not checked or (_ROOT and os.path.islink(path)):
         check_inside(path)  # UnsafeName when it leads outside
@@ -218,8 +212,8 @@ def atomic_path(path):
 
 @contextmanager
 def new_dir(final):
-    """Yield an empty folder beside `final`; if the block succeeds, it replaces `final` (old set
-    aside, new one in): a reader, or a process killed at any moment, never sees a mix."""
+    """Yield an empty folder that replaces `final` if the block succeeds (old set aside, new
+    one in): a reader, or a process killed at any moment, never sees a mix."""
     final = Path(final)
     check_inside(final)
     final.parent.mkdir(parents=True, exist_ok=True)
@@ -279,7 +273,6 @@ def read_json(path, need: tuple = ()) -> dict:
 
 
 def parse_json(raw: bytes, path, need: tuple = ()) -> dict:
-    """read_json on the bytes `raw` of the file `path` (named in the error)."""
     try:
         obj = json.loads(raw)
     except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as err:
@@ -319,8 +312,8 @@ def write_in_checked(path: str, data) -> None:
 
 
 def read_table(path, columns=None, schema: pa.Schema | None = None) -> pa.Table:
-    """The Parquet table in `path` (with `schema`'s columns), else DamagedFile naming it (read
-    by pq.ParquetFile: pq.read_table's import loads pandas, 0.4 s CPU)."""
+    """The Parquet table in `path` (with `schema`'s columns), else DamagedFile naming it (not
+    pq.read_table: its import loads pandas, 0.4 s CPU)."""
     try:
         with pq.ParquetFile(path) as f:
             absent = sorted(set(columns or ()) - set(f.schema_arrow.names))
@@ -351,8 +344,8 @@ def _damaged(path, err) -> DamagedFile:
 
 
 def _has_columns(table: pa.Table, path, schema: pa.Schema | None) -> pa.Table:
-    if schema is not None and not set(schema.names) <= set(table.column_names):
-        missing = sorted(set(schema.names) - set(table.column_names))
+    missing = sorted(set(schema.names) - set(table.column_names)) if schema is not None else ()
+    if missing:
         raise DamagedFile(f"{path}: damaged, lacks the columns {', '.join(missing)}")
     return table
 
@@ -361,23 +354,21 @@ def frame_to_table(df) -> pa.Table:
     return pa.Table.from_pandas(df, preserve_index=False)
 
 
-def trial_curve_table(result: dict) -> pa.Table:
-    """One trial's learning curve in the TRIAL_CURVE schema (a worker's result)."""
-    return pa.Table.from_arrays([_column(result[f.name], f.type) for f in TRIAL_CURVE],
-                                schema=TRIAL_CURVE)
-
-
 _NUMPY_OF = {pa.int64(): np.dtype(np.int64), pa.float64(): np.dtype(np.float64)}
 
 
-def _column(values, type_: pa.DataType) -> pa.Array:
-    """pa.array(values, type=type_), an array of the column's numpy type as its buffer (the
-    same bytes; pa.array would import pandas: 0.6 s CPU)."""
-    a = np.asarray(values)
-    if a.ndim == 1 and a.dtype == _NUMPY_OF.get(type_):
-        a = np.ascontiguousarray(a)
-        return pa.Array.from_buffers(type_, len(a), [None, pa.py_buffer(a)])
-    return pa.array(a, type=type_)
+def trial_curve_table(result: dict) -> pa.Table:
+    """One trial's learning curve (a worker's result) in the TRIAL_CURVE schema, each column an
+    array of its numpy type as its buffer (the same bytes; pa.array imports pandas: 0.6 s CPU)."""
+    def column(values, type_):
+        a = np.asarray(values)
+        if a.ndim == 1 and a.dtype == _NUMPY_OF.get(type_):
+            a = np.ascontiguousarray(a)
+            return pa.Array.from_buffers(type_, len(a), [None, pa.py_buffer(a)])
+        return pa.array(a, type=type_)
+
+    return pa.Table.from_arrays([column(result[f.name], f.type) for f in TRIAL_CURVE],
+                                schema=TRIAL_CURVE)
 
 
 def sha256_file(path) -> str:
@@ -460,12 +451,11 @@ def set_of(folder) -> Path:
     return Path(folder).resolve()
 
 
-# ---- a checksum over a whole record --------------------------------------------------------------
+# ---- a checksum over a whole record: the SHA-256 of its canonical JSON without the seal --------
 SEAL = "seal"
 
 
 def _encoded(record: dict) -> dict[str, str]:
-    """Each member but the seal as `"key":value` (_joined: the record's canonical JSON)."""
     enc = _COMPACT.encode
     return {k: f"{enc(k)}:{enc(v)}" for k, v in record.items() if k != SEAL}
 
@@ -474,7 +464,7 @@ def _joined(items: dict[str, str]) -> str:
     return "{" + ",".join(items[k] for k in sorted(items)) + "}"
 
 
-def _sha_of(items: dict[str, str]) -> str:  # the seal: the SHA-256 of the record without it
+def _sha_of(items: dict[str, str]) -> str:
     return hashlib.sha256(_joined(items).encode()).hexdigest()
 
 

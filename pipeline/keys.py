@@ -16,16 +16,13 @@ def stable_hash32(obj) -> int:
 
 
 def condition_id(spec: dict, root_seed: int) -> str:
-    """A condition is its settings: the hash of its trial spec (body, growth, learner,
-    evaluation, epochs, snapshots) and the root seed, never a label."""
+    """A condition is its settings: the hash of its trial spec and root seed, never a label."""
     return hashlib.sha256(canonical(dict(spec=spec, root_seed=root_seed)).encode()).hexdigest()[:16]
 
 
 def trial_key(spec: dict, seed: dict, code: str, start: dict | None = None) -> str:
-    """A trial is its content: spec, seed and code fingerprint. The figure, the condition's
-    label or the variant that asked for it are not part of it, so the same trial under two
-    figures or two sweeps is computed once. start: a continuation's base, dict(epoch, key) (the
-    trial whose saved state it continues: pipeline.checkpoint)."""
+    """A trial is its content: spec, seed, code fingerprint and, for a continuation, its start
+    dict(epoch, key) of the base whose saved state it continues (pipeline.checkpoint)."""
     content = dict(spec=spec, seed=seed, code=code)
     if start is not None:
         content["start"] = start

@@ -1,7 +1,4 @@
-"""Condition labels: what differs between the conditions of a figure (condition_labels): `V=10`,
-`R=0.1, L=5`, the growth label `TG<period>` / `const<size>` where the growth differs, or a
-variant's own label. A condition is its settings (pipeline.keys.condition_id); its label is
-derived, never part of a key."""
+"""Condition labels, from what differs between the conditions of a figure; never part of a key."""
 from __future__ import annotations
 
 import json
@@ -16,8 +13,7 @@ GROWTH_AXIS = ("pattern", "period", "start_size", "end_size")  # named by the gr
 
 
 def _settings(cond: dict) -> dict:
-    """A condition's settings as flat `section.field` -> value (the growth axis left out: its
-    growth label names it)."""
+    """A condition's settings as flat `section.field` -> value, but the growth label's axis."""
     spec = cond["spec"]
     flat = {"learner.epochs": spec["epochs"], "learner.evals_per_decade": spec["evals_per_decade"],
             "snapshots": spec["snapshots"], "root_seed": cond["root_seed"]}
@@ -37,8 +33,8 @@ def _fmt(v) -> str:
 
 
 def varying_keys(conds: list[dict]) -> list[str]:
-    """The settings that differ between conditions. A body or learner of another name differs
-    by its name alone (its fields only where they differ between conditions of one name)."""
+    """The settings that differ between conditions (a body's or learner's fields only where they
+    differ between conditions of one name)."""
     flats = [_settings(c) for c in conds]
     keys = sorted({k for f in flats for k in f})
     differ = [k for k in keys if len({canonical(f.get(k)) for f in flats}) > 1]
@@ -57,9 +53,8 @@ def varying_keys(conds: list[dict]) -> list[str]:
 
 
 def condition_labels(conds: list[dict]) -> list[str]:
-    """A label per condition, from what differs between them: `V=10`, `R=0.1, L=5`, the growth
-    label (`TG100`, `const0.5`) where the growth differs, or the variant's own label. Two
-    conditions that would share a label are a ConfigError naming both."""
+    """A label per condition: `V=10`, `R=0.1, L=5`, the growth label (`TG100`, `const0.5`) where
+    the growth differs, or a variant's own; a ConfigError names two that would share one."""
     keys = varying_keys([c for c in conds if not c.get("variant")])
     per_variant = {}
     for c in conds:

@@ -1,6 +1,4 @@
-"""The measures of a learning curve that the aggregate stage and the studies share: the
-temporary rise of the error during growth (the paper's "significant temporary increase", sec.
-3.1) and each trial's final row."""
+"""The measures of a learning curve that the aggregate stage and the studies share."""
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
@@ -12,17 +10,15 @@ if TYPE_CHECKING:  # the frames come from the callers: a cached aggregate loads 
 
 
 def rise(values: np.ndarray) -> tuple:
-    """(index, rise) of the point rising most above the lowest value before it (0, 0 if none):
-    the paper's "significant temporary increase" of the error during growth (sec. 3.1). Along
-    the last axis: a curve gives scalars, trials x epochs one index and rise per trial."""
+    """(index, rise) of the point rising most above the lowest value before it (0, 0 if none),
+    along the last axis: the paper's "significant temporary increase" (sec. 3.1)."""
     values = np.asarray(values)
     r = values - np.minimum.accumulate(values, axis=-1)
     i = np.argmax(r, axis=-1)
     return i, np.take_along_axis(r, np.expand_dims(i, -1), -1)[..., 0]
 
 
-def growth_peak(curve: pd.DataFrame) -> tuple[int, float, float]:
-    """(epoch, value, rise) of the temporary increase of the mean absolute error during growth."""
+def growth_peak(curve: pd.DataFrame) -> tuple[int, float, float]:  # (epoch, value, rise)
     c = curve.sort_values("epoch")
     err = c["abs_error_mean"].to_numpy()
     i, r = rise(err)
@@ -30,6 +26,6 @@ def growth_peak(curve: pd.DataFrame) -> tuple[int, float, float]:
 
 
 def finals(trials: pd.DataFrame) -> pd.DataFrame:
-    """Each trial's final row: the rows of every condition at that condition's last epoch."""
+    """The rows of every condition at that condition's last epoch."""
     last = trials.groupby("condition", sort=False)["epoch"].transform("max")
     return trials[trials["epoch"] == last]

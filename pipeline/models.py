@@ -1,35 +1,17 @@
 """Trained models from Python: the final inverse estimates (and snapshots) of a figure's trials.
 
-    >>> from pipeline import models
     >>> fig = models.load("fig4")                      # outputs/aggregate/fig4/models.json
-    >>> fig.labels                                     # ['TG10', 'TG100', ..., 'const1.0']
-    >>> m = fig["TG1000"]                              # one condition
-    >>> q = m.posture([[0.1, 0.5]])                    # the commands its trial 0 chooses
-    >>> m.joint_angles([[0.1, 0.5]])                   # the same as joint angles [rad]
-    >>> m.reach([[0.1, 0.5]])                          # where the hand then is [m]
-    >>> dict(fig.items())                              # a Figure is a mapping label -> Model
+    >>> m = fig["TG1000"]                              # a Figure maps label -> Model
+    >>> m.posture([[0.1, 0.5]]), m.joint_angles([[0.1, 0.5]]), m.reach([[0.1, 0.5]])
 
-It reads what `python -m pipeline.aggregate` wrote (paths.aggregate/<figure>/models.json), or
-the report's compact copy (models/<figure>.json: final models, no snapshots), and
-builds bodies and growth from each condition's trial spec, so a model is evaluated on the body
-it learned, at the size the body had at the end of its trial.
-
-Every file is checked before a model is built from it (DamagedFile, one line naming the file and
-what makes it again): the report's copy carries a seal (pipeline.io.seal, as a trial's sidecar)
-over its figure and conditions; an aggregate's models.json is checked line by line against the
-checksums of its manifest.json. A spec must validate (a degree of 1e9 is refused, not built) and
-every M must be finite, of the shape its body and degree give. `python -m pipeline.models seal
-FILE...` seals a report's models file that has no seal (one written before seals) only after
-re-deriving the report's final errors from its models (verify_against_curves): each condition's
-mean and quartiles over trials at its last epoch, as curves.parquet beside it holds them.
-
-What the checks hold against, and what not: the seal and the checksums are unkeyed SHA-256s,
-so they detect damage (a truncated, garbled or hand-edited file), not a deliberate edit by
-someone who reseals the file afterwards; such a file is still validated as above. Loading
-calls no function a file names: a body in the loop (`callable`) is described, never built, and
-its factory is called only when a model is evaluated, and only if its author marked it
-(gbmodel.body_factory; docs/faults.md). A file whose `figure` is not its name (models/<figure>.json,
-<figure>/models.json: two files swapped or one renamed) is refused.
+Each model is evaluated on the body its trial spec builds, at its final size. Every file is
+checked first (DamagedFile, one line naming the file and what makes it again): a report's copy
+(models/<figure>.json) by its seal, an aggregate's models.json line by line against its
+manifest.json; a spec must validate, every M be finite and of its shape, and the file's `figure`
+its name. The seal and checksums detect damage, not a deliberate edit resealed; loading calls no
+function a file names (a body in the loop's factory runs only if its author marked it:
+docs/faults.md). `python -m pipeline.models seal FILE...` seals a report's file written before
+seals, after re-deriving its final errors against curves.parquet (verify_against_curves).
 """
 from __future__ import annotations
 
@@ -61,22 +43,17 @@ class Model:
         return self.spec.make_body()
 
     @property
-    def size(self) -> float:
-        """The body's size factor at the end of the trial."""
+    def size(self) -> float:  # the body's size factor at the end of the trial
         return float(self.spec.make_growth().sizes([self.spec.epochs], self.body)[-1])
 
     @property
-    def scale(self) -> np.ndarray:
-        """Per-joint length factors of the body at the end of the trial."""
+    def scale(self) -> np.ndarray:  # per-joint length factors at the end of the trial
         return self.spec.make_growth().scales(self.body, np.array([self.size]))[0]
 
     def posture(self, x, trial: int = 0, epoch: int | None = None) -> np.ndarray:
         """Commands (N, m) the model of `trial` (after `epoch`, a snapshot; None: the final M)
-        chooses for targets x (N, n) [m], in the body's command units: joint angles [rad] for a
-        body in radians (arm2, arm5), normalised commands in [-1, 1] onto the joint limits for a
-        body with `normalise: true` (the iCub, URDF bodies); joint_angles() gives radians for
-        both. A target whose number of coordinates is not the body's n is refused
-        (ValueError)."""
+        chooses for targets x (N, n) [m], in the body's units: radians (arm2, arm5) or, for a
+        body with `normalise: true` (iCub, URDF), [-1, 1] onto the joint limits."""
         M = self.M[trial] if epoch is None else self.snapshots[trial][epoch]
         body = self.body
         x = np.atleast_2d(np.asarray(x, dtype=np.float64))
@@ -87,9 +64,8 @@ class Model:
         return learner.predict_model(M, params, body, x)
 
     def joint_angles(self, x, trial: int = 0, epoch: int | None = None) -> np.ndarray:
-        """The joints' angles (N, m) [rad] of the posture for targets x, in the robot's own
-        convention (its limits', without the DH table's offsets), saturated at the limits as
-        the body takes them."""
+        """The posture's joint angles (N, m) [rad] in the robot's own convention (its limits',
+        without the DH offsets), saturated at the limits."""
         body = self.body
         return body.joint_angles(self.posture(x, trial, epoch)) - body.theta_offset
 
@@ -122,15 +98,10 @@ class Figure(Mapping):
 
 
 def load(figure, aggregate_dir=None) -> Figure:
-    """The trained models of `figure`: a figure's name, found under outputs/ of the default
-    paths.root (the checkout or, installed, the working directory): in the full profile's
-    aggregate (outputs/aggregate), then any other profile's (outputs/smoke/aggregate: make
-    smoke), then a report folder's models/<figure>.json (the report stage writes them; the
-    committed report's, outputs/report/models/, are read on a fresh clone); or in the
-    aggregate folder `aggregate_dir` only (another root); or a
-    path: a models JSON file (outputs/report/models/fig4.json) or a figure's aggregate folder
-    (outputs/aggregate/fig4). A name is plain (no folder separator, no .json); anything else
-    is a path, relative to the working directory."""
+    """The trained models of `figure`: a name (no separator, no .json) looked up under outputs/
+    of the default paths.root, in outputs/aggregate, then any profile's (outputs/smoke/aggregate),
+    then outputs/report/models/ (read on a fresh clone), or in `aggregate_dir` only; or a path:
+    a models JSON file or a figure's aggregate folder."""
     path = locate(figure, aggregate_dir)
     data = read(path)
     out = {}
@@ -147,7 +118,6 @@ def load(figure, aggregate_dir=None) -> Figure:
 
 
 def locate(figure, aggregate_dir=None) -> Path:
-    """The models file `load` reads (FileNotFoundError naming where it looked)."""
     text = str(figure)
     if isinstance(figure, Path) or "/" in text or os.sep in text or text.endswith(".json"):
         path = Path(figure).expanduser()
@@ -166,16 +136,12 @@ def locate(figure, aggregate_dir=None) -> Path:
              for p in (d / figure / "models.json", d / "models" / f"{figure}.json")]
     path = next((p for p in tried if p.exists()), None)
     if path is None:
+        held = sorted({p.parent.name for d in folders for p in d.glob("*/models.json")}
+                      | {p.stem for d in folders for p in d.glob("models/*.json")})
         raise FileNotFoundError(f"{figure}: no models under {', '.join(map(str, folders))} "
-                                f"(they hold: {', '.join(_held(folders)) or 'none'}; run "
+                                f"(they hold: {', '.join(held) or 'none'}; run "
                                 "pipeline.simulate and pipeline.aggregate for this figure)")
     return path
-
-
-def _held(folders: list[Path]) -> list[str]:
-    """The figures whose models `folders` hold (aggregate folders, a report's models/)."""
-    names = {p.parent.name for d in folders for p in d.glob("*/models.json")}
-    return sorted(names | {p.stem for d in folders for p in d.glob("models/*.json")})
 
 
 def _remedy(path: Path) -> str:
@@ -187,10 +153,8 @@ def _remedy(path: Path) -> str:
 
 
 def read(path, sealed: bool = True) -> dict:
-    """The checked content of a models file (a report's models/<figure>.json or an aggregate's
-    models.json); DamagedFile, one line naming the file and what makes it again, when it is not
-    JSON, its seal or checksums do not match (sealed=False: a report's file is read without
-    its seal, for `seal`), a spec does not validate or an M is not finite or of its shape."""
+    """The checked content of a models file, else DamagedFile (sealed=False: a report's file
+    read without its seal, for `seal`)."""
     path = Path(path)
     try:
         raw = path.read_bytes()
@@ -215,8 +179,8 @@ def read(path, sealed: bool = True) -> dict:
 
 
 def _named_for(path: Path) -> str:
-    """The figure a models file's place names: <figure>.json, <figure>/models.json (a set of
-    <figure> in .<figure>.sets/ when the link was resolved)."""
+    """The figure a models file's place names: <figure>.json, <figure>/models.json, or a set
+    in .<figure>.sets/."""
     if path.name != "models.json":
         return path.stem
     sets = path.parent.parent.name
@@ -225,8 +189,7 @@ def _named_for(path: Path) -> str:
     return path.parent.name
 
 
-def _check_lines(path: Path, raw: bytes) -> None:
-    """An aggregate's models.json against its manifest.json: each condition's line checksum."""
+def _check_lines(path: Path, raw: bytes) -> None:  # each condition's line against manifest.json
     from .aggregate_set import MODELS_HEAD, _checksum
 
     manifest = io.read_json(path.parent / "manifest.json", need=("models",))
@@ -265,8 +228,7 @@ def _check_condition(label: str, c: dict) -> None:
 
 
 def final_errors(data: dict) -> dict[str, np.ndarray]:
-    """Condition -> each trial's final absolute error, from its model: the error its trial's
-    last evaluation measured (its points and formula, the body at its final size)."""
+    """Condition -> each trial's final absolute error as its last evaluation measured it."""
     out = {}
     for label, c in data["conditions"].items():
         spec = gbmodel.TrialSpec.from_dict(c["spec"])
@@ -282,10 +244,9 @@ def final_errors(data: dict) -> dict[str, np.ndarray]:
 
 
 def verify_against_curves(path, curves_file=None, rtol: float = 2e-5) -> list[str]:
-    """What differs between a report's models file and its curves.parquet (beside models/):
-    per condition, the mean, q25 and q75 of the trials' final errors (final_errors) at the
-    last epoch. [] when every condition agrees within rtol (the report rounds M to 9 digits: the
-    committed report's files agree to 4.3e-6)."""
+    """What differs between a report's models file and its curves.parquet: per condition, the
+    mean and quartiles of the final errors at the last epoch. [] when all agree within rtol (M
+    is rounded to 9 digits: the committed files agree to 4.3e-6)."""
     import pandas as pd
 
     path = Path(path)
@@ -310,20 +271,15 @@ def verify_against_curves(path, curves_file=None, rtol: float = 2e-5) -> list[st
 
 
 def seal_file(path) -> None:
-    """Seal a report's models file after verify_against_curves found it to agree."""
-    path = Path(path)
-    data = read(path, sealed=False)
-    problems = verify_against_curves(path)
+    data, problems = read(path, sealed=False), verify_against_curves(path)
     if problems:
         raise io.DamagedFile(f"{path}: its models do not give the report's final errors "
                              f"({problems[0]}); not sealed")
-    body = {k: v for k, v in data.items() if k != io.SEAL}
-    io.write_text(path, json.dumps(io.seal(body), sort_keys=True, separators=(",", ":")) + "\n")
+    io.write_json(path, io.seal({k: v for k, v in data.items() if k != io.SEAL}), compact=True)
 
 
 def main(argv=None) -> int:
-    """python -m pipeline.models seal FILE...: verify each report models file against the
-    report's curves, then seal it; one line and exit 2 for a file that does not verify."""
+    """python -m pipeline.models seal FILE...: exit 2 and one line for a file not verified."""
     argv = sys.argv[1:] if argv is None else argv
     if len(argv) < 2 or argv[0] != "seal":
         print("usage: python -m pipeline.models seal outputs/report/models/<figure>.json ...",

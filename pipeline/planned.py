@@ -1,10 +1,7 @@
-"""Planned runs: a fully planned command plans nothing again.
-
-paths.out/planned/<digest>.json keeps a command's jobs (the cache holds trials), named by
-plan_digest: the config, the overrides and every file a plan is made from (planning_sources);
-misplanned checks a saved plan like a cache. A command line that planned without error leaves a
-note (checked_marker) so that its next run skips the check, unless a body file it read changed
-since."""
+"""Planned runs: paths.out/planned/<digest>.json keeps a command's jobs (plan_digest: its config,
+overrides and every file a plan is made from), checked like a cache (misplanned); a command line
+that planned without error leaves a note (checked_marker) so that its next run skips the check,
+unless a body file it read changed since."""
 from __future__ import annotations
 
 import hashlib
@@ -23,30 +20,30 @@ _PLAN_SOURCES = (("conf", ("*.yaml",)), ("pipeline", ("*.py",)),
                  ("gbmodel", ("*.py", "*.yaml", "*.urdf", "*.json")))
 
 
+def _hash_files(h, base: Path, folder: Path, patterns) -> None:
+    for p in sorted({p for pat in patterns for p in folder.rglob(pat)
+                     if "__pycache__" not in p.parts}):
+        h.update(str(p.relative_to(base)).encode() + b"\0" + p.read_bytes() + b"\0")
+
+
 @lru_cache(maxsize=1)
 def planning_sources() -> str:
-    """The hash of every file a plan is made from (config files, pipeline's and gbmodel's code
-    and data) and of the versions of Hydra and OmegaConf that compose the config."""
+    """The hash of every file a plan is made from (conf/, pipeline's and gbmodel's code and
+    data) and of the versions of Hydra and OmegaConf."""
     import hydra
     import omegaconf
 
     root = Path(__file__).resolve().parents[1]
     h = hashlib.sha256(f"{hydra.__version__} {omegaconf.__version__}".encode())
     for folder, patterns in _PLAN_SOURCES:
-        files = sorted({p for pat in patterns for p in (root / folder).rglob(pat)
-                        if "__pycache__" not in p.parts})
-        for p in files:
-            h.update(str(p.relative_to(root)).encode() + b"\0" + p.read_bytes() + b"\0")
+        _hash_files(h, root, root / folder, patterns)
     return h.hexdigest()
 
 
 def config_sources() -> str | None:
-    """The hash of the config files outside the checkout's conf/ (which planning_sources holds)
-    that a plan may be composed from: the installed package's configs, a conf/ of the working
-    directory (pipeline/searchpath.py) and, in a running stage, the folders of hydra.searchpath.
-    `experiments=[mine]` and a variant's `learner=...` compose files that the run's resolved
-    config does not hold: an edit there must plan again. None when there is no such folder.
-    Read on every call (the files are few and small; they may change within a process)."""
+    """The hash of the config files outside the checkout's conf/ a plan may be composed from
+    (the installed package's, ./conf, hydra.searchpath's folders: `experiments=[mine]` composes
+    files the resolved config does not hold); None when there are none. Read on every call."""
     from .experiments import config_folders
 
     checkout = (Path(__file__).resolve().parents[1] / "conf").resolve()
@@ -58,26 +55,23 @@ def config_sources() -> str | None:
     h = hashlib.sha256()
     for folder in folders:
         h.update(str(folder).encode() + b"\0")
-        for p in sorted(p for p in folder.rglob("*.yaml") if "__pycache__" not in p.parts):
-            h.update(str(p.relative_to(folder)).encode() + b"\0" + p.read_bytes() + b"\0")
+        _hash_files(h, folder, folder, ("*.yaml",))
     return h.hexdigest()
 
 
 def plan_digest(cfg: DictConfig, overrides) -> str:
-    """What a command's plan is made of: its config (resolved), its overrides,
-    planning_sources() and config_sources(). The same digest, the same trials."""
+    """The hash of what a command's plan is made of: the same digest, the same trials."""
     body = dict(config=OmegaConf.to_container(cfg, resolve=True), overrides=list(overrides),
                 sources=planning_sources())
     own = config_sources()
-    if own is not None:  # (absent: the digests of a checkout's runs stay as they were)
+    if own is not None:
         body["config_sources"] = own
     return hashlib.sha256(canonical(body).encode()).hexdigest()[:24]
 
 
 def checked_marker(cfg: DictConfig, overrides) -> Path | None:
-    """Where the note that this command line's config planned without error is kept:
-    paths.out/planned/checked/<digest>.json (plan_digest of the config and `overrides`); None
-    when the config does not resolve outside Hydra's run (then it is planned every time)."""
+    """paths.out/planned/checked/<digest>.json, the note that this command line planned without
+    error; None when the config does not resolve outside Hydra's run."""
     try:
         digest = plan_digest(cfg, ["checked", list(overrides)])
     except Exception:  # an interpolation only Hydra's own run resolves
@@ -86,8 +80,8 @@ def checked_marker(cfg: DictConfig, overrides) -> Path | None:
 
 
 def _body_files(trials: list[dict]) -> list[list]:
-    """(section, its description, sha256) of every file the trials' bodies read (a URDF, an MJCF
-    model, a body in the loop's function: outside plan_digest)."""
+    """(section, its description, sha256) of every file the trials' bodies read (outside
+    plan_digest: a URDF, an MJCF model, a body in the loop's function)."""
     seen, out = set(), []
     for t in trials:
         if id(t["spec"]) in seen:
@@ -104,9 +98,8 @@ def _body_files(trials: list[dict]) -> list[list]:
 
 
 def was_checked(marker: Path | None, root=None) -> bool:
-    """Whether `marker` (checked_marker) says the config planned without error, and every body
-    file it read still has those bytes. A marker reached through a link that leaves `root`
-    (paths.root) is no note of this project's (it could be planted to skip the checks)."""
+    """Whether `marker` says the config planned without error and every body file it read is
+    unchanged; not through a link leaving `root` (a planted note)."""
     if marker is None:
         return False
     from . import io
@@ -124,9 +117,8 @@ def was_checked(marker: Path | None, root=None) -> bool:
 
 
 def mark_checked(marker: Path | None, trials: list[dict], root=None) -> None:
-    """Keep `marker` for the next run of the same command line, confined to `root` (paths.root:
-    a link at planned/ or planned/checked that leads elsewhere is refused, never followed); a
-    folder that cannot be written leaves it out (the stage names that folder itself)."""
+    """Keep `marker`, confined to `root` (paths.root); a folder that cannot be written (or leads
+    outside) leaves it out."""
     if marker is None:
         return
     from . import io
@@ -140,11 +132,9 @@ def mark_checked(marker: Path | None, trials: list[dict], root=None) -> None:
 
 
 def misplanned(specs: list[dict], jobs: list[dict]) -> str | None:
-    """What is wrong with a saved plan's trials (paths.out/planned/<digest>.json: specs once,
-    trials naming theirs by index), None when each trial's spec, seed and code hash to its key
-    and its condition is its spec's (condition_id): the file is a cache, checked like the trial
-    sidecars, so an edited spec is planned again instead of run under another spec's key. Each
-    spec's canonical JSON is made once: checking 100,000 trials costs what planning them did."""
+    """What is wrong with a saved plan's trials (specs once, trials naming theirs by index);
+    None when each trial's spec, seed and code hash to its key and its condition is its spec's.
+    Each spec's canonical JSON is made once (trial_key and condition_id, by hand)."""
     canon = [canonical(spec) for spec in specs]
     conds = {}
     for job in jobs:

@@ -10,9 +10,8 @@ ENGINES, STUDIES = "gbgrowth.engines", "gbgrowth.studies"  # the groups (pyproje
 
 
 def load_plugins(group: str, broken: dict[str, str]) -> None:
-    """Load every entry point of `group` (each module registers itself when imported). Someone
-    else's module that fails to import costs no other command: broken[name] says why, for the
-    one that asks for it by name."""
+    """Import every entry point of `group`; one that fails costs no other command: broken[name]
+    says why, for the one that asks for it by name."""
     for ep in entry_points(group=group):
         try:
             ep.load()

@@ -1,16 +1,7 @@
-"""A conf/ folder of the working directory, and the config packages distributions declare, on
-Hydra's search path.
-
-A user's own bodies, learners and experiments in ./conf/body/, ./conf/experiment/, ... are found
-as if named on hydra.searchpath: after the shipped configs and before hydra.searchpath's
-folders; then those of every package declared as an entry point of `gbgrowth.conf`
-(`[project.entry-points."gbgrowth.conf"] mine = "my_package.conf"`: a package holding body/,
-experiment/, ...), an installed library of bodies and studies. A shipped name wins, and a file
-of the user's that it hides is named in one line (shadowed): `./conf/body/arm5.yaml` is ignored,
-not run in silence as the shipped arm5. pipeline.config registers the plugin with Hydra when it is imported
-(Hydra's manual registration: no hydra_plugins package to install or discover); it acts only
-when the primary config is gbgrowth's own (pipeline.config.CONFIG_PATH, given to register).
-"""
+"""A Hydra plugin: ./conf of the working directory, then the config packages declared as entry
+points of `gbgrowth.conf` (`mine = "my_package.conf"`), on the search path after the shipped
+configs, for gbgrowth's primary config only. A shipped name wins; a user's file it hides is
+named in one line (shadowed). pipeline.config registers the plugin when imported."""
 from __future__ import annotations
 
 import os
@@ -43,22 +34,19 @@ class WorkingDirConf(SearchPathPlugin):
             search_path.append(provider=f"gbgrowth: {CONF_GROUP}", path=f"pkg://{package}")
 
 
-def declared() -> list[str]:
-    """The config packages of the entry points of CONF_GROUP (named, never imported here)."""
+def declared() -> list[str]:  # the config packages of CONF_GROUP (named, never imported)
     from importlib.metadata import entry_points
 
     return sorted({ep.value for ep in entry_points(group=CONF_GROUP)})
 
 
-def register(config_path: str) -> None:
-    """Make Hydra call the plugin for the stages' primary config `config_path`."""
+def register(config_path: str) -> None:  # for the stages' primary config `config_path`
     WorkingDirConf.config_path = config_path
     Plugins.instance().register(WorkingDirConf)
 
 
 def shadowed(shipped: Path, folders: list[Path]) -> list[str]:
-    """One line for each config file of `folders` (./conf, the folders of hydra.searchpath)
-    that a shipped file of the same group and name hides (Hydra reads the first it finds)."""
+    """A line for each config file of `folders` that a shipped one of its group and name hides."""
     out = []
     for folder in folders:
         if not folder.is_dir() or folder.resolve() == shipped.resolve():

@@ -1,16 +1,8 @@
-"""Ctrl-C, SIGTERM and SIGHUP all stop a stage the same way: one line, exit 128 + the signal.
-
-A scheduler stops a job with SIGTERM (Slurm, `kill PID`), a closed terminal sends SIGHUP; by
-default either kills the driver at once and leaves the pool's workers and multiprocessing's
-resource tracker running forever. Here the three signals raise `Stopped` (a KeyboardInterrupt)
-in the driver while a stage runs (`armed()`), so the stage's `finally` blocks release their claims
-and stop the workers, and pipeline.cli prints one line and exits 130 (SIGINT), 143 (SIGTERM) or
-129 (SIGHUP), what a shell reports for a process killed by that signal.
-
-Before a stage runs (imports, checking the command line: nothing is written yet) a signal ends
-the process at once with the same one line instead of a traceback from inside an import. This
-module imports only the standard library, so that it can be installed before anything slow.
-"""
+"""Ctrl-C, SIGTERM (Slurm, `kill`) and SIGHUP all stop a stage the same way: while a stage runs
+(`armed()`) they raise `Stopped`, a KeyboardInterrupt, so its `finally` blocks release claims
+and stop the workers, and pipeline.cli prints one line and exits 128 + the signal; before it
+runs (nothing written yet) they end the process at once with one line, no traceback. Standard
+library only, so it is installed before anything slow."""
 from __future__ import annotations
 
 import os
@@ -23,7 +15,7 @@ _state = {"armed": False, "stopping": None}
 
 
 class Stopped(KeyboardInterrupt):
-    """A stage was asked to stop by signal `signum`; handled exactly like Ctrl-C."""
+    """A stage was asked to stop by signal `signum`."""
 
     def __init__(self, signum: int):
         super().__init__(signal.Signals(signum).name)
@@ -50,16 +42,15 @@ def _handler(signum, frame):
     raise Stopped(signum)
 
 
-def install() -> None:
-    """Handle the three signals in this process (the main thread only can)."""
+def install() -> None:  # (the main thread only can)
     for s in SIGNALS:
         signal.signal(s, _handler)
 
 
 @contextmanager
 def armed():
-    """While the block runs, a signal raises Stopped in it (once; repeats are ignored while the
-    clean-up runs); the previous handlers come back afterwards."""
+    """While the block runs, a signal raises Stopped in it once (repeats are ignored during the
+    clean-up); the previous handlers come back afterwards."""
     old = {s: signal.getsignal(s) for s in SIGNALS}
     install()
     _state.update(armed=True, stopping=None)

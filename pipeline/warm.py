@@ -1,13 +1,6 @@
-"""Compile every kernel once (numba caches the machine code beside the sources), so that no
-stage is interrupted mid-compile and no worker compiles again: `make setup` runs this.
-
-    python -m pipeline.warm
-
-A damaged cache file (`__pycache__/*.nbi|*.nbc`, e.g. truncated by a full disk or a killed
-compile) would make every trial on the fast path fail with EOFError or UnpicklingError, on every
-rerun. `recovering` catches an error raised while numba loads its cache, removes that kernel's
-cache files, says so in one line and runs the call once more (numba compiles it again).
-"""
+"""`python -m pipeline.warm` (make setup) compiles every kernel once into numba's cache, so no
+stage or worker compiles; `recovering` removes a kernel's damaged cache files (truncated by a
+full disk or a killed compile, failing every trial on every rerun), says so and calls again."""
 from __future__ import annotations
 
 import sys
@@ -20,8 +13,7 @@ import gbmodel
 
 
 def damaged_cache(err: BaseException) -> list[Path]:
-    """The cache files (index and data) of the kernel whose cache numba was loading when `err`
-    was raised; [] if the error did not come from numba's cache."""
+    """The cache files of the kernel whose cache numba was loading at `err`, else []."""
     tb, index = err.__traceback__, None
     while tb is not None:
         owner = tb.tb_frame.f_locals.get("self")
@@ -36,9 +28,8 @@ def damaged_cache(err: BaseException) -> list[Path]:
 
 
 def recovering(call):
-    """call(), and if numba's cache of a kernel turns out damaged: remove that kernel's cache
-    files, say so in one line (stderr) and call() again (once per damaged kernel). `call` must
-    start afresh (make its random generator inside it), so that a retry draws the same numbers."""
+    """call(), again once per damaged kernel cache removed; `call` must start afresh (make its
+    random generator inside it), so that a retry draws the same numbers."""
     removed = set()
     while True:
         try:
