@@ -1,6 +1,4 @@
-"""Bodies as data: a body is a description (conf/body/<name>.yaml, docs/bodies.md) read into a
-gbmodel.body.Body; this module holds the generic reading and no body's numbers.
-"""
+"""Bodies as data: a description (conf/body/<name>.yaml, docs/bodies.md) read into a Body."""
 from __future__ import annotations
 
 import importlib.util
@@ -18,11 +16,8 @@ from .spec import Choice, Flag, Free, Maybe, Members, Record, Text, check_fields
 from .urdf import MAX_MAGNITUDE
 
 
-
 @dataclass(frozen=True)
 class Grid:
-    """The regular target grid at full size: num[j] points from lo[j] to hi[j] along axis j."""
-
     lo: list[float]
     hi: list[float]
     num: list[int]
@@ -30,9 +25,7 @@ class Grid:
 
 @dataclass(frozen=True, kw_only=True)
 class Description:
-    """A body's whole description, the fields of conf/body/<name>.yaml (docs/bodies.md); a field
-    without a default must be given. body_from checks the values; the pipeline's config schema
-    (BodyConf) is generated from these fields."""
+    """The fields of conf/body/<name>.yaml (the pipeline's BodyConf is generated from them)."""
 
     name: str  # what the trials are labelled with
     description: str = ""
@@ -51,8 +44,7 @@ class Description:
     home: list[float]  # the home posture, command units
     grid: Grid  # the target grid at full size
     grows: Optional[list[bool]] = None  # per segment: grows under non-proportional growth
-    # a third-party model's credit, {model, source, licence}: listed in every report whose trials
-    # use the body (pipeline/studies/provenance.py); what the trial computes does not depend on it
+    # a third-party model's credit, {model, source, licence}, listed in the reports using it
     credits: Optional[dict[str, str]] = None
 
 
@@ -60,9 +52,7 @@ FIELDS = tuple(f.name for f in fields(Description))
 CHAINS = ("dh", "urdf", "mjcf", "callable")  # the fields of which a body gives exactly one
 CREDITS = ("model", "source", "licence")  # the fields of a body's credits
 UNITS = {"rad": 1.0, "deg": None}  # deg: np.deg2rad (the same bits as the tables' conversion)
-# The description's fields and what each may hold (gbmodel.spec.check_fields, in this order);
-# body_from checks the rest against the chain: the joints' count m (dh, limits, home, grows), the
-# grid's coordinates against outputs, the one chain of CHAINS
+# body_from checks the Free ones against the chain
 LIMITS = dict(
     name=Text(), units=Choice(*UNITS), description=Free("any text"),
     base=Free("3 x 4 numbers"), hand=Free("3 numbers"),
@@ -76,8 +66,7 @@ CONF_PACKAGE = "gbgrowth_conf"  # conf/ installed from a wheel (pyproject.toml: 
 
 
 def conf_dir() -> Path:
-    """The config folder: conf/ of the checkout beside this package (a clone, `pip install -e`),
-    else the installed package data (a wheel installs conf/ as gbgrowth_conf)."""
+    """conf/ of the checkout beside this package, else the installed gbgrowth_conf."""
     checkout = Path(__file__).resolve().parents[1]
     if (checkout / "pyproject.toml").is_file() and (checkout / "conf" / "config.yaml").is_file():
         return checkout / "conf"
@@ -105,13 +94,10 @@ _Loader.add_implicit_resolver(
 
 
 def shipped() -> tuple:
-    """The names of the bodies shipped as conf/body/<name>.yaml."""
     return tuple(sorted(p.stem for p in SHIPPED.glob("*.yaml")))
 
 
 def read_description(name: str) -> dict:
-    """The shipped description conf/body/<name>.yaml as a plain dict (the one file gbmodel reads:
-    a body's description)."""
     path = SHIPPED / f"{name}.yaml"
     if not isinstance(name, str) or "/" in name or not path.is_file():
         raise ValueError(f"body.name={name!r}: unknown body; choose one of {list(shipped())} "
@@ -130,7 +116,6 @@ def _bad(key, value, why):
 
 
 def _matrix(desc, key, rows, cols, default=None):
-    """desc[key] as a float array (rows, cols) (rows None: any number of rows)."""
     value = desc.get(key, default)
     try:
         arr = np.asarray(value, dtype=np.float64)
@@ -145,8 +130,7 @@ def _matrix(desc, key, rows, cols, default=None):
 
 
 def body_from(desc: dict) -> Body:
-    """A Body from a whole description (the fields of conf/body/*.yaml; docs/bodies.md).
-    Raises ValueError naming the bad key as `body.<key>`."""
+    """A Body from a whole description; ValueError naming `body.<key>`."""
     unknown = sorted(set(desc) - set(FIELDS))
     if unknown:
         raise _bad(unknown[0], desc[unknown[0]], f"unknown key; a body has {list(FIELDS)}")
@@ -224,8 +208,7 @@ def body_from(desc: dict) -> Body:
 
 
 def _file_chain(kind, section, base, hand) -> tuple[dict, np.ndarray]:
-    """(frames, tool) of the URDF's or MJCF model's chain (kind: urdf, mjcf) with `base` before
-    it and the hand point `hand` (in the tip's frame) as the tool, and the file's limits [rad]."""
+    """(frames, tool) of a URDF's or MJCF's chain after `base`, `hand` the tool; its limits."""
     from . import mjcf, urdf
 
     keys = ("file", "root", "tip", "joints", "hold", "sha256")
@@ -239,7 +222,6 @@ def _file_chain(kind, section, base, hand) -> tuple[dict, np.ndarray]:
 
 
 def _loop(section, m, base, hand) -> dict:
-    """A body in the loop's forward function and segment lengths (gbmodel/body_loop.py)."""
     from . import body_loop
 
     body_loop.check(section)
@@ -262,10 +244,8 @@ READS = ("urdf", "mjcf", "callable")  # the sections whose source_digest joins t
 
 
 def source_digest(section: str, value) -> str | None:
-    """The SHA-256 of what a body's `section` (one of READS) reads beyond its description (a
-    file's bytes, an MJCF's includes, a function's source): the part of a trial's cache key that
-    planning adds as `<section>.sha256`. None when the section reads nothing (absent, or missing
-    the key naming what it reads)."""
+    """The SHA-256 of what `section` (of READS) reads beyond the description, which planning
+    adds to the key as `<section>.sha256`; None when it reads nothing."""
     from . import body_loop, mjcf, urdf
 
     if not isinstance(value, dict):
@@ -278,12 +258,9 @@ def source_digest(section: str, value) -> str | None:
 
 
 def make_body(description: str | dict | None = None, **fields) -> Body:
-    """The body a description gives: a dict of conf/body/*.yaml's fields (what the config holds),
-    or the name of a shipped body; `fields` replace single fields (e.g. home=..., saturate=False,
-    grid=dict(lo, hi, num)). A description without a chain (no `dh`) starts from the shipped body
-    of its name, so make_body("arm5"), make_body({"name": "arm5"}) and
-    make_body("icub", saturate=False) all work. Fields given as None keep the description's.
-    Raises ValueError naming the bad field as `body.<field>`."""
+    """The body of a description (a dict, or a shipped body's name), `fields` replacing single
+    fields; one without a chain starts from the shipped body of its name (make_body("icub",
+    saturate=False)); None keeps a field. ValueError naming `body.<field>`."""
     desc = {"name": description} if isinstance(description, str) else dict(description or {})
     desc.update(fields)
     if not any(k in desc for k in CHAINS):

@@ -1,12 +1,8 @@
 """A body: its full-size chain (DH rows, a URDF's or MJCF's frames, or a Python forward function),
-joint limits, home posture, target set and growing segments; gbmodel/bodies.py reads a
-description into one. Growth is per-segment length factors (gbmodel.growth), never new code.
-
-Commands q are what the inverse estimate outputs. For the planar arms they are joint angles in
-radians. For the iCub they are normalised (paper sec. 3.3): q_i in [-1, 1] maps linearly onto
-[min_i, max_i] of the joint's limits, and a command outside [-1, 1] saturates at the limit, as
-the real robot's position controller does. The example learned from is the posture actually
-taken (the saturated one): that is the only posture whose outcome was observed.
+limits, home, targets and growing segments; growth is per-segment length factors. Commands q are
+joint angles [rad], or normalised (the iCub, sec. 3.3): [-1, 1] onto the joint's limits,
+saturating beyond as its position controller does; the example learned from is the posture
+taken (the saturated one), the only one whose outcome was observed.
 """
 from __future__ import annotations
 
@@ -36,12 +32,10 @@ class Body:
     q_max: np.ndarray | None = None
     saturates: bool = True  # normalised commands are clipped to [-1, 1] (False: limits ignored)
     description: str = ""
-    # a general serial chain (a URDF's, gbmodel/urdf.py) instead of the DH rows: per joint a
-    # fixed 3x4 transform, then a rotation about local z; the tool point in the last frame
+    # or a general chain (gbmodel/urdf.py): per joint a fixed 3x4 transform, then Rz; the tool
     frames: np.ndarray | None = None  # (m, 3, 4)
     tool: np.ndarray | None = None  # (3,)
-    # or a body in the loop (gbmodel/body_loop.py): a Python forward function, its segments'
-    # lengths (what growth patterns weigh)
+    # or a body in the loop (gbmodel/body_loop.py) and its segments' lengths
     loop: Any = None  # body_loop.Forward
     lengths: np.ndarray | None = None  # (m,)
     _cos_alpha: np.ndarray = field(init=False, repr=False)
@@ -57,14 +51,12 @@ class Body:
 
     @property
     def general(self) -> bool:
-        """A chain of fixed transforms and rotations about z (a URDF's), not DH rows."""
         return self.frames is not None
 
     @property
     def segment_lengths(self) -> np.ndarray:
-        """Full length of each segment (m,): what growth scales. DH: hypot(a_i, d_i); a general
-        chain: the translation after joint i (to the next joint, or to the tool); a body in the
-        loop: its description's `callable.lengths`."""
+        """Full length of each segment (m,), what growth scales: hypot(a_i, d_i), or the
+        translation after joint i, or `callable.lengths`."""
         if self.loop is not None:
             return self.lengths
         if not self.general:
@@ -82,19 +74,16 @@ class Body:
 
     @property
     def limited(self) -> bool:
-        """Whether a command stops at the joint limits: normalised to [-1, 1] and saturating
-        (the clip of `saturate`; the solver's limit pull and decaying anchor need it too)."""
+        """A command stops at the joint limits (normalised and saturating)."""
         return self.normalized and self.saturates
 
     # ---- commands -> joint angles ------------------------------------------------------------
     def saturate(self, q: np.ndarray) -> np.ndarray:
-        """The posture actually taken for command q (clipped to [-1, 1] when normalised)."""
         if self.limited:
             return np.clip(q, -1.0, 1.0)
         return np.asarray(q, dtype=np.float64)
 
     def joint_angles(self, q: np.ndarray) -> np.ndarray:
-        """DH joint angles [rad] for (saturated) commands q."""
         q = self.saturate(q)
         if self.normalized:
             q = self.q_min + 0.5 * (q + 1.0) * (self.q_max - self.q_min)
@@ -102,13 +91,10 @@ class Body:
 
     # ---- kinematics ------------------------------------------------------------------------------
     def _factors(self, factors) -> np.ndarray:
-        """Per-segment length factors (m,) or (..., m): the full-size body's ones when None
-        (gbmodel.growth.factors maps a size and a growth pattern to them)."""
         return np.ones(self.m) if factors is None else np.asarray(factors, np.float64)
 
     def chain(self, factors=None) -> dict:
-        """Arrays describing the DH chain with per-segment length factors `factors` (m,):
-        a, d, cos/sin alpha, base. DH chains only."""
+        """The DH chain (a, d, cos/sin alpha, base) at length factors `factors`."""
         if self.loop is not None:
             raise ValueError(f"body {self.name!r} is a body in the loop (a Python forward "
                              "function): only the numpy reference path takes it "
@@ -123,34 +109,28 @@ class Body:
         )
 
     def forward(self, q: np.ndarray, factors=None) -> np.ndarray:
-        """Hand position (n,) or (N, n) [m] for commands q of shape (m,) or (N, m), with
-        per-segment length factors `factors` (m,) (None: the full-size body; a size and a growth
-        pattern give them through gbmodel.growth.factors)."""
+        """Hand positions (..., n) [m] for commands q (..., m) at length factors `factors` (None:
+        full size; gbmodel.growth.factors gives them)."""
         q = np.asarray(q, dtype=np.float64)
         if q.shape[-1] != self.m:
             raise ValueError(f"{self.name} takes {self.m} joint commands, got shape {q.shape}")
         if self.loop is not None:
             from .body_loop import positions
-
             p = positions(self.loop, self.joint_angles(q), self._factors(factors), self.name)
-            return p[..., list(self.outputs)]
-        if self.general:
+        elif self.general:
             p = chain_position(self.joint_angles(q), self.frames, self.tool,
                                self._factors(factors))
-            return p[..., list(self.outputs)]
-        p = hand_position(self.joint_angles(q), **self.chain(factors))
+        else:
+            p = hand_position(self.joint_angles(q), **self.chain(factors))
         return p[..., list(self.outputs)]
 
     def frame_points(self, q: np.ndarray, factors=None) -> np.ndarray:
-        """Root-frame points (m + 1, 3) for command q (m,), base to hand: every joint's origin,
-        then the hand (the tool point, all three coordinates of what forward returns), as
-        robotics-toolbox's fkine_all. For drawing a posture. A body in the loop: the hand only
-        (1, 3), its joints' places are not known."""
+        """Root-frame points (m + 1, 3), every joint's origin then the hand, for drawing (a body
+        in the loop: the hand only)."""
         theta = self.joint_angles(np.asarray(q, float))
         k = self._factors(factors)
         if self.loop is not None:
             from .body_loop import positions
-
             return positions(self.loop, theta[None], k, self.name)
         if self.general:
             joints = [chain_position(theta[:j], self.frames[:j], self.frames[j][:, 3], k[:j])
@@ -163,7 +143,6 @@ class Body:
                          for j in range(self.m + 1)])
 
     def target_set(self, size: float = 1.0) -> np.ndarray:
-        """The target set scales with the body (paper sec. 3.1)."""
         return self.targets * size
 
     def target_box(self, size: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
@@ -180,9 +159,7 @@ MAX_GRID_POINTS = 4096  # targets of one grid (64 x 64, 16 x 16 x 16): memory gr
 
 
 def grid_points(lo, hi, num) -> np.ndarray:
-    """The regular target grid with num[j] points from lo[j] to hi[j] along axis j: (prod num, n).
-    At least 2 points per axis (one point has no cells to learn between), at most
-    MAX_GRID_POINTS in all, bounds finite within MAX_MAGNITUDE metres, lo < hi."""
+    """The regular target grid (prod num, n), num[j] >= 2 points from lo[j] to hi[j]."""
     if not len(lo) == len(hi) == len(num):
         raise ValueError(f"grid: lo, hi and num need one entry per axis, got {lo}, {hi}, {num}")
     if any(isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 2 for k in num):
@@ -198,20 +175,16 @@ def grid_points(lo, hi, num) -> np.ndarray:
 
 
 def cell_centres(targets: np.ndarray) -> np.ndarray:
-    """The centres of the cells of a regular grid (off-grid points between the targets)."""
     axes = [np.unique(targets[:, j]) for j in range(targets.shape[1])]
     return _grid(*[0.5 * (a[1:] + a[:-1]) if len(a) > 1 else a for a in axes])
 
 
 def unreachable(body: Body, rng: np.random.Generator, size: float = 1.0, samples: int = 4000,
                 steps: int = 30, tol: float = 1e-3, starts: int = 6) -> np.ndarray:
-    """Indices of the targets (at `size`) that no posture within the limits reaches to `tol` m:
-    from each of the `starts` nearest of `samples` random postures, damped Gauss-Newton steps on
-    the commands (clipped to [-1, 1] where normalised, numerical Jacobian); a target counts as
-    reached when any start reaches it. One start missed targets a bounded search reaches (on
-    7-DOF arms, a start stuck at a joint limit); six miss none of 2,000 postures' hand positions
-    on the two test arms (tests/new_robots.py). Still a local search, so callers warn, never
-    refuse."""
+    """Indices of the targets at `size` no posture within the limits reaches to `tol` m: damped
+    Gauss-Newton from the `starts` nearest of `samples` random postures (one start gets stuck at
+    a limit on 7-DOF arms; six miss nothing on tests/new_robots.py's). A local search: callers
+    warn, never refuse."""
     targets, k = body.target_set(size), np.full(body.m, float(size))  # proportional at `size`
     box = 1.0 if body.normalized else np.pi
     Q = rng.uniform(-box, box, size=(samples, body.m))

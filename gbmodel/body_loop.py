@@ -1,17 +1,12 @@
-"""A body in the loop: a forward function that the project cannot compile (a simulator's step, a
-robot's sensors), called with a batch of postures and the body's growth, returning positions
-(docs/bodies.md, "A body in the loop": the description's `callable` section, the protocol, what
-the cache key holds and what it does not).
-
-Only a factory its author marked with `gbmodel.body_factory` is ever called (a data file naming a
-function never makes the pipeline call it); describing or validating a body imports nothing and
-calls nothing. The module's import and the factory's first call are tried first in a child
-process bounded by TIME_LIMIT seconds, then made in this process. `factory(**args)` returns
-`forward(angles (N, m) [rad], factors (m,)) -> (N, 3) [m]`, every position finite within
-+-MAX_MAGNITUDE m.
+"""A body in the loop: a forward function the project cannot compile (a simulator, a robot),
+`factory(**args)` -> forward(angles (N, m) [rad], factors (m,)) -> (N, 3) [m] (docs/bodies.md,
+"A body in the loop"). Only a factory its author marked with `gbmodel.body_factory` is called;
+describing or validating a body imports and calls nothing; the import and first call are tried
+in a child process within TIME_LIMIT seconds first.
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib
 import inspect
@@ -27,23 +22,17 @@ from typing import Protocol
 
 import numpy as np
 
-from .urdf import MAX_MAGNITUDE, read_bytes
+from .urdf import MAX_MAGNITUDE, _bad as _urdf_bad, read_bytes
 
 KEYS = ("factory", "args", "files", "lengths", "version", "sha256")
+_bad = functools.partial(_urdf_bad, kind="callable")
 
 
 class Forward(Protocol):
-    """The forward function of a body in the loop (module docstring)."""
-
     def __call__(self, angles: np.ndarray, factors: np.ndarray) -> np.ndarray: ...
 
 
-def _bad(key, value, why):
-    return ValueError(f"body.callable.{key}={value!r}: {why}")
-
-
 def check(section) -> dict:
-    """The `callable` section with its keys checked (one line naming body.callable.<key>)."""
     if not isinstance(section, dict) or "factory" not in section or not set(section) <= set(KEYS):
         raise ValueError(f"body.callable={section!r}: needs factory (and optionally "
                          f"{', '.join(KEYS[1:])})")
@@ -69,8 +58,7 @@ TIME_LIMIT = 60.0  # seconds: a factory's import and first call, in a child proc
 
 
 def body_factory(func):
-    """Declare `func` a body factory: the one kind of function a body description's
-    `callable.factory` may name (module docstring). Use it as a decorator."""
+    """Mark `func` (a decorator) as the one kind of function `callable.factory` may name."""
     if not callable(func):
         raise TypeError(f"body_factory marks a function, not {type(func).__name__}")
     setattr(func, MARK, True)
@@ -78,7 +66,6 @@ def body_factory(func):
 
 
 def _parts(factory: str) -> tuple[str, str]:
-    """(module, attribute path) of a checked factory name; the standard library refused."""
     module, attr = factory.split(":")
     if not all(p.isidentifier() for p in module.split(".") + attr.split(".")):
         raise _bad("factory", factory, "give module:attribute, e.g. my_robot.sim:make_forward")
@@ -90,8 +77,7 @@ def _parts(factory: str) -> tuple[str, str]:
 
 
 def _marked(mod, attr: str, factory: str):
-    """The attribute `attr` of `mod`, looked up without running code (no property, no module
-    __getattr__), if its author marked it as a body factory."""
+    """`attr` of `mod`, looked up without running code, if its author marked it."""
     obj = mod
     for part in attr.split("."):
         obj = inspect.getattr_static(obj, part, None)
@@ -135,9 +121,8 @@ os._exit(0)
 
 @lru_cache(maxsize=16)
 def _probe(factory: str, args_json: str) -> None:
-    """Import the factory's module and call it once in a child process, within TIME_LIMIT
-    seconds; ValueError, one line, if that hangs, ends the process, raises (SystemExit and
-    KeyboardInterrupt included) or finds no mark."""
+    """Import and call the factory once in a child process within TIME_LIMIT seconds; ValueError
+    (one line) if it hangs, ends the process, raises or finds no mark."""
     gb = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # where gbmodel is
     with tempfile.TemporaryDirectory(prefix="gbmodel-probe-") as folder:
         answer = os.path.join(folder, "verdict.json")
@@ -170,8 +155,6 @@ def _probe(factory: str, args_json: str) -> None:
 
 
 def _object(factory: str, args_json: str):
-    """(module, the marked factory): tried in a child process first (_probe), then imported
-    here; nothing unmarked is called."""
     module, attr = _parts(factory)
     _probe(factory, args_json)
     try:
@@ -199,13 +182,11 @@ def _args(section: dict) -> str:
 
 
 def load(section: dict) -> Forward:
-    """The forward function of a checked `callable` section (one per process and description)."""
     return _load(section["factory"], _args(section))
 
 
 class Deferred:
-    """The forward function of a checked `callable` section, built at its first call: a body
-    described, validated or loaded with a model (pipeline.models) imports and calls nothing."""
+    """load(section) at its first call: a body described or loaded imports nothing."""
 
     def __init__(self, section: dict):
         self.section = section
@@ -215,8 +196,7 @@ class Deferred:
 
 
 def digest(section: dict) -> str:
-    """The SHA-256 of what the key holds of the function: its factory's name, the source file of
-    the module defining it, and the files it declares (module docstring)."""
+    """The SHA-256 of the factory's name, its module's source file and its declared files."""
     check(section)
     mod, _ = _object(section["factory"], _args(section))
     h = hashlib.sha256(section["factory"].encode() + b"\0")
@@ -238,7 +218,6 @@ def digest(section: dict) -> str:
 
 
 def positions(forward: Forward, angles: np.ndarray, factors: np.ndarray, name: str) -> np.ndarray:
-    """forward(angles, factors) for angles (..., m), checked: (..., 3) finite floats."""
     flat = np.ascontiguousarray(angles, dtype=np.float64).reshape(-1, angles.shape[-1])
     out = np.asarray(forward(flat, np.array(factors, np.float64)), dtype=np.float64)
     if out.shape != (len(flat), 3):

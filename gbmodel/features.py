@@ -1,8 +1,4 @@
-"""Polynomial feature map Phi^P(x) of the inverse estimate (paper eq. 7).
-
-Phi holds every monomial of the n inputs up to total degree P, constant first:
-binomial(n + P, P) terms, i.e. 4, 10 and 20 for n = 1, 2, 3 at P = 3.
-"""
+"""Phi^P(x) (eq. 7): every monomial of the n inputs up to degree P, constant first."""
 from __future__ import annotations
 
 import itertools
@@ -11,10 +7,7 @@ import numpy as np
 
 
 def exponents(n: int, degree: int = 3) -> np.ndarray:
-    """Exponent table (p, n) of all monomials of total degree <= degree.
-
-    Row 0 is the constant; rows are ordered by total degree, then lexicographically.
-    """
+    """Exponent table (p, n), ordered by total degree, then lexicographically."""
     if n < 1 or degree < 0:
         raise ValueError(f"need n >= 1 and degree >= 0, got n={n}, degree={degree}")
     rows = [
@@ -27,20 +20,17 @@ def exponents(n: int, degree: int = 3) -> np.ndarray:
 
 
 def features(x: np.ndarray, exps: np.ndarray) -> np.ndarray:
-    """Phi(x) for x of shape (..., n): returns (..., p)."""
     x = np.asarray(x, dtype=np.float64)
     return _monomials(x[..., None, :], exps)
 
 
 def feature_bounds(lo: np.ndarray, hi: np.ndarray, exps: np.ndarray) -> np.ndarray:
-    """max |Phi_k(x)| over the box lo <= x <= hi, for each monomial k (exact)."""
     amax = np.maximum(np.abs(lo), np.abs(hi))
     return _monomials(amax[None, :], exps)
 
 
 def _monomials(x: np.ndarray, exps: np.ndarray) -> np.ndarray:
-    """prod_j x_j ** e_kj by repeated multiplication in a fixed order (no libm pow, whose last
-    bit may differ between machines): x (..., 1, n) -> (..., p)."""
+    """prod_j x_j ** e_kj by multiplications in a fixed order (libm's pow may differ)."""
     out = np.ones(np.broadcast_shapes(x.shape[:-1], exps.shape[:-1]))
     for j in range(exps.shape[1]):
         for power in range(1, int(exps[:, j].max(initial=0)) + 1):
@@ -49,11 +39,8 @@ def _monomials(x: np.ndarray, exps: np.ndarray) -> np.ndarray:
 
 
 def monomial_tree(exps: np.ndarray, last: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """For the compiled kernels: parent[k], var[k] with exps[k] = exps[parent[k]] + unit(var[k])
-    (parent[0] = var[0] = 0), so that Phi_k = Phi_parent[k] * x_var[k], one multiplication per
-    monomial (rows of exps are ordered by total degree, so a parent comes first). var[k] is the
-    first coordinate in monomial k, or the last with last=True (the kernels' products then run in
-    different orders, and each kernel keeps its own)."""
+    """parent, var with Phi_k = Phi_parent[k] * x_var[k] for the kernels; var: the first
+    coordinate of monomial k, or the last (each kernel keeps its own order)."""
     table = np.asarray(exps).tolist()
     rows = {tuple(e): k for k, e in enumerate(table)}
     parent, var = np.zeros(len(table), np.int64), np.zeros(len(table), np.int64)

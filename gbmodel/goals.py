@@ -1,22 +1,12 @@
-"""Which targets a goal-directed learner aims at: `random` (the paper's: uniform over the target
-set) or `progress`, goals chosen by learning progress, in the spirit of intrinsically motivated
-goal exploration (Baranes & Oudeyer's SAGG-RIAC: interest = the change of competence in a region).
-
-progress (not the paper's; the numbers below are chosen here, not tuned):
-- the target set is split into regions: each axis of the target box halved at its centre (2^n
-  regions: 4 on the planar arms, 8 on the iCub), a target belongs to the half it lies in (the
-  centre itself to the lower one);
-- every `period` epochs (10) the learner's own reaching error |f(g(x*)) - x*| is measured at every
-  target of the set (the unperturbed inverse, at the body's current size: N reaching movements,
-  counted in the learner's samples per epoch); a region's error is the mean over its targets;
-- its progress is |mean of its last `window` (3) errors - mean of the `window` before them|, the
-  recent change of its error, whichever the sign (forgetting after growth is interesting too);
-- a target is drawn with probability share / N + (1 - share) progress_r / (sum of the regions'
-  progress) / N_r (share = 0.2, the small random part that keeps every region visited; N_r the
-  region's targets); uniform until 2 window measurements exist or while no region progresses.
-The uniform numbers behind each choice are drawn by the learner's `draw` (from the Generator
-passed in), one per target; the choice itself happens in `train`, where the errors are known.
-Successive targets may repeat (as with targets=any): a repeat is a still segment.
+"""Which targets a goal-directed learner aims at: `random` (the paper's) or `progress`, after
+SAGG-RIAC (Baranes & Oudeyer: interest = the change of competence in a region; not the paper's,
+the numbers chosen, not tuned). The target box is halved along each axis into 2^n regions (the
+centre to the lower half); every `period` epochs the unperturbed inverse's error is measured at
+every target (N reaching movements, counted as samples), a region's error the mean over its
+targets; its progress is |mean of the last `window` errors - mean of the window before|; a
+target is drawn with probability share / N + (1 - share) progress_r / sum progress / N_r,
+uniform until 2 window measurements exist or while nothing progresses. `draw` draws the uniform
+numbers, `train` chooses; targets may repeat (a still segment).
 """
 from __future__ import annotations
 
@@ -24,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .spec import MAX_EPOCHS, Choice, Int, Number, check_fields
+from .spec import MAX_EPOCHS, Choice, Int, Number
 
 SELECTIONS = ("random", "progress")
 
@@ -34,20 +24,13 @@ LIMITS = dict(goal_selection=Choice(*SELECTIONS), progress_period=Int(1, MAX_EPO
               progress_window=Int(1, 10_000), progress_share=Number(0.0, 1.0))
 
 
-def check(params) -> None:
-    """Validate a learner's goal-selection fields (goal_selection, progress_*)."""
-    check_fields(params, "learner", LIMITS)
-
-
 def regions(targets: np.ndarray) -> np.ndarray:
-    """Region index (N,) of each target: the halves of the box it lies in, as bits."""
     lo, hi = targets.min(axis=0), targets.max(axis=0)
     upper = targets > 0.5 * (lo + hi)
     return (upper * (2 ** np.arange(targets.shape[1]))).sum(axis=1)
 
 
 def probabilities(progress: np.ndarray | None, region: np.ndarray, share: float) -> np.ndarray:
-    """p (N,) over the targets from the regions' progress (indexed by region number)."""
     N = len(region)
     uniform = np.full(N, 1.0 / N)
     if progress is None or not np.isfinite(progress).all() or progress.sum() <= 0:
@@ -58,19 +41,16 @@ def probabilities(progress: np.ndarray | None, region: np.ndarray, share: float)
 
 
 def choose(u: np.ndarray, p: np.ndarray) -> np.ndarray:
-    """Target indices for uniform numbers u in [0, 1) (any shape) under p: inverse CDF."""
     cdf = np.cumsum(p)
     return np.minimum(np.searchsorted(cdf, u * cdf[-1], side="right"), len(p) - 1)
 
 
 @dataclass(frozen=True)
 class Tracker:
-    """The regions' error measurements so far (oldest first), at most 2 window kept."""
     history: tuple = ()  # tuples of the regions' mean errors
     n_regions: int = 1
 
     def measured(self, errors: np.ndarray, region: np.ndarray, window: int) -> "Tracker":
-        """The tracker after one more measurement: per-target errors (N,)."""
         mean = np.bincount(region, weights=errors, minlength=self.n_regions) \
             / np.maximum(np.bincount(region, minlength=self.n_regions), 1)
         return Tracker((self.history + (tuple(mean),))[-2 * window:], self.n_regions)
@@ -86,16 +66,41 @@ def start(targets: np.ndarray) -> Tracker:
     return Tracker((), int(regions(targets).max()) + 1 if len(targets) else 1)
 
 
+def first(predict, body, size: float, window: int) -> Tracker:
+    """The tracker after its first measurement, the body at `size` (a learner's init)."""
+    errors = reaching_errors(predict, body, size, np.ones(body.m))
+    return start(body.targets).measured(errors, regions(body.targets), window)
+
+
+def train(state, tracker: Tracker, params, body, sizes, scales, draws, epochs, step, predict):
+    """(state, tracker) after goal_selection=progress's epochs: chunks cut at the measurements,
+    step(state, targets, lo, hi) learns epochs lo ... hi - 1 aiming at the chosen targets (from
+    the uniform numbers draws[0]), predict(state, x) is the inverse measured."""
+    region = regions(body.targets)
+    for lo, hi, measure in chunks(epochs, params.progress_period):
+        p = probabilities(tracker.progress(params.progress_window), region,
+                          params.progress_share)
+        state = step(state, choose(draws[0][lo:hi], p), lo, hi)
+        if measure:
+            errors = reaching_errors(lambda x: predict(state, x), body, sizes[hi - 1],
+                                     scales[hi - 1])
+            tracker = tracker.measured(errors, region, params.progress_window)
+    return state, tracker
+
+
+def extra_samples(params, body) -> int:
+    """Reaching movements per epoch spent on measuring (progress; N every period, rounded up)."""
+    return samples(body, params.progress_period) if params.goal_selection == "progress" else 0
+
+
 def reaching_errors(predict, body, size: float, scale) -> np.ndarray:
-    """|f(g(x*)) - x*| at every target of the set at `size` (the unperturbed inverse)."""
     xs = body.target_set(size)
     return np.linalg.norm(body.forward(predict(xs), scale) - xs, axis=-1)
 
 
 def chunks(epochs: np.ndarray, period: int) -> list[tuple[int, int, bool]]:
-    """(lo, hi, measure) slices of a train call's epochs (1-based numbers `epochs`), cut after
-    every epoch that is a multiple of period (measure: the slice ends on one), so that the
-    choices never depend on how the trial splits its train calls."""
+    """(lo, hi, measure) slices of `epochs`, cut after each multiple of period, so the choices
+    never depend on how the trial splits its train calls."""
     out, lo = [], 0
     for i, e in enumerate(np.asarray(epochs)):
         if e % period == 0 or i == len(epochs) - 1:
@@ -105,5 +110,4 @@ def chunks(epochs: np.ndarray, period: int) -> list[tuple[int, int, bool]]:
 
 
 def samples(body, period: int) -> int:
-    """Reaching movements per epoch spent on measuring (N every period epochs, rounded up)."""
     return -(-len(body.targets) // period)

@@ -1,22 +1,13 @@
-"""How a body grows: its size factor epoch by epoch, and which segments carry the growth
-(docs/bodies.md, "Growth of a body" and "Growth as measured data").
+"""How a body grows (docs/bodies.md, "Growth of a body"): a schedule gives the size factor S(e)
+(1.0 = the full body; the targets scale with it, paper sec. 3.1), a pattern (a row of
+PATTERN_TABLE) turns S into per-joint length factors by `segment_factors` or `rate_factors`.
 
-A schedule gives the size factor S(e) of epochs e = 1 ... E (1.0 = the full body); the pattern
-turns S into per-joint length factors through one mechanism, `segment_factors` (which segments
-grow, and each one's lead), or `rate_factors` (relative growth rates); every pattern is a row of
-PATTERN_TABLE. The target set scales with S (paper sec. 3.1).
-
-Schedules, with the growth progress u = (e - 1) / T_G clipped to [0, 1]:
-- linear: S = start + (end - start) u (the paper's);
-- infant: S = start + (end - start) (1 - exp(-k u)) / (1 - exp(-k)): fast early, then slowing
-  (paper sec. 1). k = INFANT_RATE is fitted to the WHO Child Growth Standards, length-for-age of
-  boys, median, 0 ... 24 months: the first half of that time brings f = (75.7 - 49.9) / (87.1 -
-  49.9) = 0.694 of the growth, and the curve's value at u = 1/2 is 1 / (1 + exp(-k/2)), so
-  k = 2 ln(f / (1 - f)) = 1.63: a constant of one published shape, not a free parameter;
-- table: measured sizes, `growth.table`, rows [t, size] or [t, f_1, ..., f_m], interpolated
-  linearly in time between rows (the two-row table is the linear schedule to the bit); a
-  per-segment table's rows interpolate linearly in the body size too (their length-weighted
-  mean), which is exactly the factors at that epoch.
+Schedules, with u = (e - 1) / T_G clipped to [0, 1]: linear, S = start + (end - start) u (the
+paper's); infant, (1 - exp(-k u)) / (1 - exp(-k)) in place of u, k = INFANT_RATE fitted to the
+WHO length-for-age of boys (median, 0 ... 24 months: the first half brings f = 0.694 of the
+growth, so k = 2 ln(f / (1 - f)) = 1.63, not a free parameter); table, measured sizes, rows
+[t, size] or [t, f_1, ..., f_m], linear in time (two rows: the linear schedule to the bit), a
+per-segment table's rows linear in the body size (their length-weighted mean) too.
 """
 from __future__ import annotations
 
@@ -40,11 +31,9 @@ INFANT_RATE = 1.6335222730542454  # tests/core/test_growth.py checks it against 
 
 
 def _expm1(x):
-    """exp(x) - 1 for |x| <= 2 (float64), from + - * / alone, which IEEE rounds the same on every
-    CPU: numpy's expm1 does not (its AVX-512 loop and its AVX2 one differ in a last bit, and
-    a size drawn from it moved least squares' results between CPUs). The Taylor series of
-    exp(x / 16) - 1 to the 14th power (a remainder below 1e-22), then 4 doublings,
-    e(2y) = e(y) (e(y) + 2): within a few ulp of the true value."""
+    """exp(x) - 1 for |x| <= 2 from + - * / alone, the same on every CPU (numpy's expm1 differs
+    in a last bit between AVX-512 and AVX2): Taylor of exp(x / 16) - 1 to the 14th power, then
+    4 doublings e(2y) = e(y) (e(y) + 2); within a few ulp."""
     y = np.asarray(x, dtype=np.float64) / 16.0
     p = np.ones_like(y)
     for k in range(14, 1, -1):
@@ -56,7 +45,6 @@ def _expm1(x):
 
 
 def progress(u, schedule: str = "linear"):
-    """The fraction of the growth done, 0 ... 1, at growth progress u (0 ... 1) of a schedule."""
     u = np.clip(np.asarray(u, dtype=np.float64), 0.0, 1.0)
     if schedule == "linear":
         return u
@@ -70,18 +58,11 @@ def progress(u, schedule: str = "linear"):
 
 def segment_factors(seg, grows, leads, sizes, start_size: float = 0.5, end_size: float = 1.0,
                     fixed: float = 1.0) -> np.ndarray:
-    """Per-joint length factors (..., m) at body sizes `sizes`: the one growth mechanism.
-
-    seg (m,): the segments' full lengths; grows (m,) bool: which segments grow; leads (m,): each
-    growing segment's lead c_i. With the body's growth done to the fraction
-    p = (S - start) / (end - start), segment i has done p_i = p + c_i p (1 - p) of its own, so
-    |c_i| <= 1 keeps every segment growing monotonically from start_size to end_size, and a
-    length-weighted mean of zero keeps the total length S times the full one (proximal_first).
-    Segments that do not grow stay at `fixed` times their full length and the growing ones change
-    by the common factor that makes the total length S times the full one (non-proportional
-    growth, sec. 3.2; `fixed` 1.0: the full-size body is the common end of every size, 0.5: the
-    half-size body is the common start). Leads and held segments together are refused.
-    """
+    """Per-joint length factors (..., m) at body sizes `sizes`: the one growth mechanism. With
+    growth done to p = (S - start) / (end - start), segment i (lead c_i) has done p + c_i p (1 -
+    p) of its own (|c_i| <= 1: monotonic; a length-weighted mean of 0 keeps the total S times
+    the full). Segments that do not grow (`grows` false) stay at `fixed` times their length, the
+    others share the factor that keeps the total (sec. 3.2); not together with leads."""
     sizes = np.asarray(sizes, dtype=np.float64)[..., None]
     seg, grows = np.asarray(seg, np.float64), np.asarray(grows, bool)
     leads = np.asarray(leads, np.float64)
@@ -104,12 +85,8 @@ def segment_factors(seg, grows, leads, sizes, start_size: float = 0.5, end_size:
 
 
 def proximal_leads(seg, lead: float = 1.0) -> np.ndarray:
-    """The leads of proximal_first: the upper arm grows faster than the forearm (paper sec. 1,
-    after Wells et al. 2002). c_i = lead (1 - 2 u_i) / max_j |1 - 2 u_j|, u_i in (0, 1) the
-    position of segment i's midpoint along the chain (in fractions of the total length): the
-    proximal end has c > 0 and runs ahead, the distal end c < 0 and lags; the length-weighted
-    mean of the c_i is zero (the mean of u is 1/2), so the total length is S times the full one
-    at every epoch, as with proportional growth."""
+    """proximal_first's leads (paper sec. 1, after Wells et al. 2002): c_i = lead (1 - 2 u_i) /
+    max_j |1 - 2 u_j|, u_i segment i's midpoint along the chain; length-weighted mean 0."""
     seg = np.asarray(seg, np.float64)
     u = (np.cumsum(seg) - 0.5 * seg) / seg.sum()
     spread = np.where(seg > 0, 1.0 - 2.0 * u, 0.0)  # segments of no length carry no weight
@@ -117,9 +94,7 @@ def proximal_leads(seg, lead: float = 1.0) -> np.ndarray:
 
 
 def check_table(table, m: int) -> tuple[np.ndarray, np.ndarray]:
-    """(times (n,), sizes (n, k)) of a growth table, k = 1 (the body) or m (per segment);
-    SpecError (one line) for a table that is not rows [t, size...] of one length, >= 2 rows,
-    strictly rising times and positive finite sizes."""
+    """(times (n,), sizes (n, k)) of a growth table, k = 1 (the body) or m; else SpecError."""
     key = "growth.table"
     if (not isinstance(table, (list, tuple)) or len(table) < 2
             or not all(isinstance(r, (list, tuple)) for r in table)):
@@ -130,8 +105,7 @@ def check_table(table, m: int) -> tuple[np.ndarray, np.ndarray]:
                         f"({m} segment factors)")
     if len(table) > MAX_TABLE_ROWS:
         raise SpecError(key, f"<{len(table):,} rows>", f"at most {MAX_TABLE_ROWS:,} rows")
-    if not all(isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x)
-               for r in table for x in r):
+    if not all(Number().ok(x) for r in table for x in r):
         raise SpecError(key, table, "every entry must be a finite number")
     arr = np.asarray(table, np.float64)
     if np.any(np.abs(arr[:, 0]) > MAX_TABLE_TIME):
@@ -149,8 +123,8 @@ def check_table(table, m: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def interpolate(x, xs, ys) -> np.ndarray:
-    """Piecewise-linear ys (n, k) over strictly rising xs (n,) at x (...,) -> (..., k): between
-    rows y_j + (y_{j+1} - y_j) ((x - x_j) / (x_{j+1} - x_j)), the end rows beyond the ends."""
+    """Piecewise-linear ys (n, k) over rising xs at x: y_j + (y_j+1 - y_j) ((x - x_j) / (x_j+1 -
+    x_j)), the end rows beyond the ends."""
     x = np.asarray(x, np.float64)
     j = np.clip(np.searchsorted(xs, x, side="right") - 1, 0, len(xs) - 2)
     w = np.clip((x - xs[j]) / (xs[j + 1] - xs[j]), 0.0, 1.0)[..., None]
@@ -158,8 +132,7 @@ def interpolate(x, xs, ys) -> np.ndarray:
 
 
 def table_body_sizes(sizes: np.ndarray, seg) -> np.ndarray:
-    """The body size of each row of a table's sizes (n, k): the column itself (k = 1), or the
-    length-weighted mean of the segment factors (k = m)."""
+    """The body size of each table row: its size, or its factors' length-weighted mean."""
     if sizes.shape[1] == 1:
         return sizes[:, 0]
     seg = np.asarray(seg, np.float64)
@@ -167,9 +140,7 @@ def table_body_sizes(sizes: np.ndarray, seg) -> np.ndarray:
 
 
 def table_factors(seg, table, sizes) -> np.ndarray:
-    """Per-joint length factors (..., m) of a per-segment table at body sizes `sizes`: its rows
-    interpolated linearly in the body size (module docstring: exactly the factors at that
-    epoch). A size outside the table's raises ValueError."""
+    """A per-segment table's factors at body sizes `sizes` (ValueError outside its range)."""
     _, f = check_table(table, len(seg))
     body = table_body_sizes(f, seg)
     order = np.argsort(body)
@@ -182,12 +153,8 @@ def table_factors(seg, table, sizes) -> np.ndarray:
 
 
 def rate_factors(seg, rates, sizes, start_size: float = 0.5, end_size: float = 1.0) -> np.ndarray:
-    """Per-joint length factors (..., m) when segment i grows at r_i times a common rate.
-
-    Every segment ends at end_size (the full body's shape) and f_i = end - r_i c (1 - p), with
-    p = (S - start) / (end - start) the growth done and c = (end - start) L / sum_j r_j l_j, so
-    that the total length is S times the full one L at every size; df_i/dp = r_i c, hence
-    df_i / df_j = r_i / r_j throughout the growth."""
+    """Factors when segment i grows at r_i times a common rate: f_i = end - r_i c (1 - p), c =
+    (end - start) L / sum_j r_j l_j, so the total length is S L throughout."""
     seg, r = np.asarray(seg, np.float64), np.asarray(rates, np.float64)
     sizes = np.asarray(sizes, np.float64)[..., None]
     if end_size == start_size:
@@ -199,12 +166,9 @@ def rate_factors(seg, rates, sizes, start_size: float = 0.5, end_size: float = 1
 
 @dataclass(frozen=True)
 class Growth:
-    """Size S from start_size (epoch 1) to end_size (epoch period + 1) along `schedule`, constant
-    afterwards; period 0 is a body of constant size end_size (the paper's references).
-    proximal_lead (0 ... 1) is how far proximal segments run ahead under proximal_first: the
-    paper gives only the direction, not the amount, so the default is the most the pattern allows
-    with every segment still growing monotonically (arm5 at half its growth: the segments, base
-    to hand, have done 75, 62.5, 50, 37.5 and 25 % of theirs)."""
+    """Size from start_size (epoch 1) to end_size (epoch period + 1) along `schedule`, constant
+    after; period 0: constant end_size. proximal_lead: the paper gives only the direction, so
+    the most that keeps every segment monotonic (arm5 halfway: 75 ... 25 % base to hand)."""
 
     pattern: str = "proportional"
     start_size: float = 0.5
@@ -212,15 +176,12 @@ class Growth:
     period: int = 0  # T_G [epochs]
     schedule: str = "linear"
     proximal_lead: float = 1.0
-    # non-proportional growth holds the non-growing segments at this fraction of their length:
-    # 1.0, the full-size arm is the common end body (our reading of Fig. 3c); 0.5, the half-size
-    # arm (5 x 0.1 m) is the common start body and the end body is unequal (the other reading)
+    # non-proportional growth holds the other segments at this fraction of their length: 1.0,
+    # the full-size arm is the common end (our reading of Fig. 3c); 0.5, the common start
     fixed_scale: float = 1.0
-    # per_segment: each segment's lead c_i (-1 ... 1; segment_factors), base to hand, e.g.
-    # [0.5, 0.25, 0, -0.25, -0.5]: the upper arm grows ahead of the forearm
+    # per_segment: each segment's lead c_i (-1 ... 1; segment_factors), base to hand
     leads: Optional[list[float]] = None
-    # per_segment: each segment's relative growth rate r_i >= 0 instead of leads (rate_factors),
-    # e.g. [2, 2, 1, 1, 1]: the upper arm grows twice as fast as the forearm
+    # per_segment: or each segment's relative growth rate r_i >= 0 (rate_factors)
     rates: Optional[list[float]] = None
     # schedule table: rows [t, size] or [t, f_1, ..., f_m] (module docstring)
     table: Optional[list] = None
@@ -247,10 +208,7 @@ class Growth:
         r = self.rates
         if self.leads is not None:
             raise SpecError("growth.rates", r, "give growth.leads or growth.rates, not both")
-        if (not isinstance(r, (list, tuple)) or len(r) != body.m
-                or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
-                           and np.isfinite(x) and x >= 0 for x in r)
-                or not np.dot(r, body.segment_lengths) > 0):
+        if not _per_segment(r, body.m, Number(0.0)) or not np.dot(r, body.segment_lengths) > 0:
             raise SpecError("growth.rates", r, f"per_segment growth needs {body.m} rates >= 0, "
                             f"one per segment of {body.name}, not all zero")
         first = rate_factors(body.segment_lengths, r, self.start_size, self.start_size,
@@ -292,7 +250,6 @@ class Growth:
                             f"growth.end_size={sizes[-1]:.6g}")
 
     def sizes(self, epochs, body: "Body | None" = None) -> np.ndarray:
-        """Size factor of each epoch in `epochs` (1-based); a per-segment table needs the body."""
         e = np.asarray(epochs)
         if self.period == 0:
             return np.full(e.shape, float(self.end_size))
@@ -308,11 +265,9 @@ class Growth:
         return self.start_size + (self.end_size - self.start_size) * done
 
     def segments(self, body) -> tuple[np.ndarray, np.ndarray]:
-        """(grows, leads) per segment of `body`: the pattern as data for segment_factors."""
         return PATTERN_TABLE[self.pattern].segments(self, body)
 
     def scales(self, body, sizes) -> np.ndarray:
-        """Per-joint length factors (..., m) of the body at `sizes` (any slice of epochs)."""
         if self.table is not None and len(self.table[0]) > 2:
             return table_factors(body.segment_lengths, self.table, sizes)
         if self.rates is not None:
@@ -324,6 +279,10 @@ class Growth:
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+
+def _per_segment(value, m: int, number: Number) -> bool:
+    return isinstance(value, (list, tuple)) and len(value) == m and all(map(number.ok, value))
 
 
 def _every_segment_grows(body) -> np.ndarray:
@@ -348,26 +307,22 @@ def _needs_leads_or_rates(growth: Growth, body) -> None:
         growth._validate_rates(body)
         return
     c = growth.leads
-    if (not isinstance(c, (list, tuple)) or len(c) != body.m
-            or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
-                       and np.isfinite(x) and abs(x) <= 1 for x in c)):
+    if not _per_segment(c, body.m, Number(-1.0, 1.0)):
         raise SpecError("growth.leads", c, f"per_segment growth needs {body.m} leads "
                         "in -1 ... 1, one per segment of " + body.name)
 
 
 @dataclass(frozen=True)
 class Pattern:
-    """A growth pattern as data: which segments grow and their leads (for segment_factors), what
-    it needs of a body and of the config (check: raises SpecError), the fields only it uses, and
-    whether it holds segments (its start and end sizes are then checked reachable)."""
+    """A growth pattern: (grows, leads) for segment_factors, its check of a body and config,
+    the fields only it uses, whether it holds segments (end sizes checked reachable)."""
     segments: Callable[[Growth, Any], tuple[np.ndarray, np.ndarray]]
     check: Callable[[Growth, Any], None] = lambda growth, body: None
     uses: tuple = ()
     holds: bool = False
 
 
-# The growth patterns (conf/growth/<name>.yaml picks one; docs/bodies.md, "Growth of a body"):
-# a new pattern is a row here and a config file
+# the growth patterns: a new one is a row here and a conf/growth/<name>.yaml
 PATTERN_TABLE = {
     "proportional": Pattern(lambda g, b: (_every_segment_grows(b), np.zeros(b.m)), holds=True),
     "nonproportional": Pattern(lambda g, b: (b.growing, np.zeros(b.m)),
@@ -382,8 +337,6 @@ PATTERN_TABLE = {
 PATTERNS = tuple(PATTERN_TABLE)  # the names, in the table's order
 
 
-# Growth's fields and their ranges (gbmodel.spec.check_fields); validate() checks the rest
-# against the body (leads, rates and a table per segment, sizes the pattern can reach)
 LIMITS = dict(
     pattern=Choice(*PATTERNS), schedule=Choice(*SCHEDULES),
     period=Int(0, MAX_INT64, " epochs (int64)"),
@@ -396,9 +349,8 @@ LIMITS = dict(
 
 
 def factors(body, size, pattern="proportional") -> np.ndarray:
-    """Per-segment length factors (..., m) of `body` at size `size` (scalar or array) grown by
-    `pattern`: a Growth, or a pattern's name with its default settings. The one place where a
-    growth pattern becomes the factors Body.forward, Body.chain and Body.frame_points take."""
+    """Per-segment length factors (..., m) of `body` at `size` grown by `pattern` (a Growth or
+    a pattern's name): what Body.forward, chain and frame_points take."""
     growth = pattern if isinstance(pattern, Growth) else Growth(pattern=pattern)
     check_choice("growth.pattern", growth.pattern, PATTERNS)
     try:

@@ -1,31 +1,40 @@
-"""The polynomial inverse estimate and Goal Babbling's sample weights, shared by the learners.
-
-g(x) = M Phi(x) (eq. 7) with its initialisation around the home posture (sec. 3), the linear
-exploratory perturbations scaled to a radius over the target box (eq. 8), and the weights of a
-sample against its predecessor (eq. 1-3). Goal Babbling, online Goal Babbling and motor babbling
-use them; gbmodel.learners.goal_babbling.reference states the batch epoch built from them.
-"""
+"""Shared by the learners: the polynomial inverse g(x) = M Phi(x) (eq. 7), its initialisation
+(sec. 3), the perturbations (eq. 8) and the sample weights (eq. 1-3)."""
 from __future__ import annotations
 
 import numpy as np
 
-from .features import feature_bounds, features
+from functools import lru_cache
+
+from .features import exponents, feature_bounds, features
 
 NO_MOVEMENT = 1e-9  # [m] intended steps shorter than this have no direction (eq. 1)
 
 
 def predict(M: np.ndarray, x: np.ndarray, exps: np.ndarray) -> np.ndarray:
-    """The inverse estimate g(x) = M Phi(x): commands (..., m) for positions x (..., n)."""
     return features(x, exps) @ M.T
 
 
-def init_inverse(home, lo, hi, exps, init_range, rng) -> np.ndarray:
-    """M (m, p): g(x) = home plus a random polynomial, |g_i(x) - home_i| <= init_range on the box.
+@lru_cache(maxsize=64)
+def _table(n: int, degree: int) -> np.ndarray:
+    exps = exponents(n, degree)
+    exps.setflags(write=False)
+    return exps
 
-    Paper sec. 3: "set M to zero and make some random adaptations such that g produces joint
-    angles in a range of 0.1 radian around the home posture". The bound is guaranteed, not hoped
-    for: sum_k |D_ik| max|Phi_k| over the box is an upper bound of the deviation, scaled to init_range.
-    """
+
+def table(params, body) -> np.ndarray:
+    """features.exponents(body.n, params.degree), built once (a trial asks ~200 times)."""
+    return _table(body.n, params.degree)
+
+
+def predict_model(model, params, body, x) -> np.ndarray:
+    """A learner's predict from what its `model(state)` stored (M; its params.degree)."""
+    return predict(np.asarray(model, np.float64), x, table(params, body))
+
+
+def init_inverse(home, lo, hi, exps, init_range, rng) -> np.ndarray:
+    """M (m, p): home plus a random polynomial within init_range on the box (sec. 3), bounded
+    for sure: sum_k |D_ik| max |Phi_k| is scaled to init_range."""
     m, p = len(home), len(exps)
     D = rng.uniform(-1.0, 1.0, size=(m, p))
     D *= init_range / (np.abs(D) @ feature_bounds(lo, hi, exps))[:, None]
@@ -34,13 +43,8 @@ def init_inverse(home, lo, hi, exps, init_range, rng) -> np.ndarray:
 
 
 def scale_perturbations(raw, lo, hi, radius, amp=None):
-    """Linear disturbances E^v(x) = A x + b (eq. 8) from raw draws (..., m, n + 1) = [A | b].
-
-    Each row i is scaled so that max over the box lo <= x <= hi of |A_i x + b_i| is exactly
-    `radius` (times amp[..., i] if given, amp in [0, 1]); the box holds the whole target set and
-    every path between targets, and a linear function takes its maximum over the box at a corner:
-    |A_i c + b_i| + sum_j |A_ij| h_j.
-    """
+    """Eq. 8: A, b from raw [A | b], each row scaled so that its max over the box, |A_i c + b_i|
+    + sum_j |A_ij| h_j (at a corner), is radius (times amp)."""
     A, b = raw[..., :-1], raw[..., -1]
     c, h = 0.5 * (lo + hi), 0.5 * (hi - lo)
     peak = np.abs(A @ c + b) + np.abs(A) @ h
@@ -49,14 +53,8 @@ def scale_perturbations(raw, lo, hi, radius, amp=None):
 
 
 def sample_weights(xstar, x, q):
-    """w_dir * w_eff (eq. 1-3) of every sample against its predecessor along axis -2.
-
-    xstar, x: (..., T+1, n) intended and reached positions, q: (..., T+1, m) postures; row 0 is
-    the home example and gets weight 1 (eq. 5). Degenerate cases, without NaN: an intended step
-    shorter than NO_MOVEMENT has no direction to judge, and the sample is dropped (w_dir = 0);
-    no hand movement gives w_eff = 0 (and cos = 0); no joint movement means no hand movement
-    either, and w_eff = 0.
-    """
+    """w_dir * w_eff (eq. 1-3) of every sample against its predecessor along axis -2, row 0
+    (home) 1 (eq. 5); without NaN: a step shorter than NO_MOVEMENT, or no movement, weighs 0."""
     dxs, dx, dq = (np.diff(a, axis=-2) for a in (xstar, x, q))
     nxs, nx, nq = (np.linalg.norm(a, axis=-1) for a in (dxs, dx, dq))
     denom = nxs * nx

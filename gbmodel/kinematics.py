@@ -1,29 +1,14 @@
-"""Forward kinematics of a serial chain, in numpy, and the chain's layout for the kernels.
-
-A body is either a chain in standard Denavit-Hartenberg form (hand_position)
-    A_i = Rz(theta_i) . Tz(d_i) . Tx(a_i) . Rx(alpha_i),   T = H0 . A_0 ... A_{m-1}
-or a general chain read from a URDF (chain_position): per joint a fixed transform, then a
-rotation about the local z axis. Only the hand *position* is needed, so the hand point is
-carried backwards through the chain, one rotation about z per joint and no 4x4 products.
-chain_layout gives both kinds as one table for the compiled kernels (gbmodel.simd).
+"""Forward kinematics in numpy, DH rows (A_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i)) or a
+general chain, the hand point carried backwards (no 4x4 products); chain_layout gives both as
+one table for the kernels.
 """
 from __future__ import annotations
 
 import numpy as np
 
 
-def hand_position(
-    theta: np.ndarray,
-    a: np.ndarray,
-    d: np.ndarray,
-    cos_alpha: np.ndarray,
-    sin_alpha: np.ndarray,
-    base: np.ndarray,
-) -> np.ndarray:
-    """Hand position (..., 3) in the root frame for joint angles theta (..., m) in radians.
-
-    base is the 3x4 upper part of the root transform H0.
-    """
+def hand_position(theta, a, d, cos_alpha, sin_alpha, base) -> np.ndarray:
+    """Hand position (..., 3) for joint angles theta (..., m) [rad]; base: H0's 3x4 part."""
     theta = np.asarray(theta, dtype=np.float64)
     px = np.zeros(theta.shape[:-1])
     py = np.zeros_like(px)
@@ -40,13 +25,8 @@ def hand_position(
 
 def chain_position(theta: np.ndarray, frames: np.ndarray, tool: np.ndarray,
                    scale=None) -> np.ndarray:
-    """Hand position (..., 3) of a general serial chain (a URDF's; gbmodel/urdf.py): per joint a
-    fixed 3x4 transform F_i, then a rotation about the local z axis by theta_i, then the tool
-    point: hand = F_0 Rz(theta_0) ... F_{m-1} Rz(theta_{m-1}) tool, carried backwards.
-
-    scale (m,): per-segment length factors; segment i is the translation after joint i (the next
-    transform's, or the tool's for the last joint), so growth lengthens the links and never
-    changes the base's placement or any angle."""
+    """Hand position (..., 3) of F_0 Rz(theta_0) ... F_{m-1} Rz(theta_{m-1}) tool; scale (m,)
+    multiplies segment i, the translation after joint i (never the base or an angle)."""
     theta = np.asarray(theta, dtype=np.float64)
     m = theta.shape[-1]
     k = np.ones(m) if scale is None else np.asarray(scale, np.float64)
@@ -60,13 +40,23 @@ def chain_position(theta: np.ndarray, frames: np.ndarray, tool: np.ndarray,
     return p
 
 
+_KERNEL: dict = {}  # (id(body), key) -> (body, arrays); the body kept so its id stays its own
+
+
+def kernel_arrays(body, key, build):
+    """build(), once per body object (bodies are frozen) and key: a trial asks ~100 times."""
+    hit = _KERNEL.get((id(body), key))
+    if hit is None or hit[0] is not body:
+        if len(_KERNEL) >= 64:
+            _KERNEL.clear()
+        hit = _KERNEL[id(body), key] = (body, build())
+    return hit[1]
+
+
 def chain_layout(body) -> dict:
-    """The chain at full size as the compiled kernels step through it (gbmodel.simd.chain_step,
-    chain_forward64): p <- Rz(theta_i) (R_i p + t_i), t_i = (a_i, ty_i, d_i) scaled by segment
-    i's growth, then the base (3x4). DH rows: R_i = Rx(alpha_i) (cos_alpha, sin_alpha, the rows'
-    own branch), ty = 0, general False. A general chain (a URDF's: hand = F_0 Rz(q_0) F_1 ...
-    Rz(q_{m-1}) tool): the base is F_0, (R_i | t_i) is F_{i+1}, and the tool the last joint's
-    translation (R = I), general True."""
+    """The full-size chain as the kernels step through it: p <- Rz(theta_i) (R_i p + t_i), t_i
+    = (a_i, ty_i, d_i) scaled, then the base. DH rows: R_i = Rx(alpha_i), ty = 0; a general
+    chain: base F_0, (R_i | t_i) = F_i+1, the tool last (R = I)."""
     m = body.m
     if not body.general:
         ch = body.chain()

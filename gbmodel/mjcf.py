@@ -1,14 +1,11 @@
-"""A serial chain out of an MJCF file (MuJoCo's model format), compiled into the chain form of
-gbmodel/urdf.py (per commanded joint a fixed 3x4 transform F_i, then a rotation about local z,
-and a tool point), so an MJCF body runs on the same kernels as a URDF body, bit-identically
-across CPUs. Read with the standard library's XML parser (the core needs no `mujoco`), as
-MuJoCo's compiler reads it: docs/bodies.md, "A body from an MJCF file", lists what is read and
-what is refused (one line naming `body.mjcf.<key>`). An `<include>` is read from the model's
-folder only; a model and its includes hold at most urdf.MAX_BYTES in all, nested at most
-MAX_DEPTH deep; the digest covers every file read.
+"""A serial chain out of an MJCF file (MuJoCo's format) in urdf.py's chain form, read with the
+standard library as MuJoCo's compiler reads it (docs/bodies.md, "A body from an MJCF file": what
+is read, what refused). Includes come from the model's folder only, at most urdf.MAX_BYTES in
+all; the digest covers every file read.
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import xml.etree.ElementTree as ET
 
@@ -21,10 +18,7 @@ MAX_FILES = 64  # the model and its includes
 MAX_DEPTH = 200  # elements nested in one another (the deepest shipped model nests a dozen)
 ORIENTATIONS = ("quat", "axisangle", "euler", "xyaxes", "zaxis")
 ELEMENTS = ("body", "frame", "site")  # what the path from root to tip may pass through
-
-
-def _bad(key, value, why):
-    return ValueError(f"body.mjcf.{key}={value!r}: {why}")
+_bad = functools.partial(urdf._bad, kind="mjcf")
 
 
 def _parse(data: bytes, file, name: str) -> ET.Element:
@@ -39,8 +33,7 @@ def _parse(data: bytes, file, name: str) -> ET.Element:
 
 
 def read_model(file) -> tuple[ET.Element, str]:
-    """The model's XML tree (its <mujoco> element) with every <include> replaced by the
-    children of the file it names, and the SHA-256 over the bytes of every file read."""
+    """(the <mujoco> tree with its includes expanded, the SHA-256 of every file read)."""
     path = resolve(file, "mjcf")
     data = read_bytes(file, "mjcf")
     folder = path.resolve().parent
@@ -88,8 +81,6 @@ def read_model(file) -> tuple[ET.Element, str]:
 
 
 def digest(file) -> str:
-    """The SHA-256 of the MJCF `file` and every file it includes: what makes an edited model
-    another body."""
     return read_model(file)[1]
 
 
@@ -110,8 +101,7 @@ def _compiler(tree, file) -> dict:
 
 
 def _classes(tree, file) -> dict:
-    """{class name: {element tag: attributes}}, every class with what it inherits; a nested
-    class without a name, or a name given twice, is refused (as MuJoCo refuses it)."""
+    """{class: {tag: attributes}} with what each inherits (refusing what MuJoCo refuses)."""
     classes: dict = {}
 
     def walk(elem, inherited, name):
@@ -138,7 +128,6 @@ def _classes(tree, file) -> dict:
 
 # ---- poses -----------------------------------------------------------------------------------
 def _quat(q) -> np.ndarray:
-    """The rotation of the quaternion (w, x, y, z), normalised as MuJoCo does."""
     n = np.linalg.norm(q)
     if not n > 1e-12:
         raise ValueError(f"quat {q.tolist()} (a zero quaternion)")
@@ -184,7 +173,6 @@ def _rotation(attrs, compiler) -> np.ndarray:
 
 
 def _pose(attrs, compiler) -> np.ndarray:
-    """The 4x4 transform of a body's, frame's or site's pos and orientation."""
     T = np.eye(4)
     if "fromto" in attrs:  # a site's segment: at its middle, z from its end to its start
         v = _floats(attrs["fromto"], 6, "fromto")  # (as MuJoCo's compiler turns it)
@@ -197,7 +185,6 @@ def _pose(attrs, compiler) -> np.ndarray:
 
 # ---- the chain -------------------------------------------------------------------------------
 def _attrs(elem, tag, cls, classes, file) -> dict:
-    """An element's attributes over its class's defaults for its tag."""
     name = elem.get("class", cls)
     if name not in classes:
         raise _bad("file", str(file), f"<{tag} name={elem.get('name')!r}> names the default "
@@ -213,7 +200,6 @@ def _find(tree, tag, name):
 
 
 def _couplings(tree) -> dict:
-    """{joint name: what couples it to other joints}: fixed tendons and joint equalities."""
     out = {}
     for tendon in tree.findall("tendon"):
         for fixed in tendon.findall("fixed"):
@@ -228,12 +214,8 @@ def _couplings(tree) -> dict:
 
 
 def read_chain(file, root: str, tip: str, joints=None, hold=None, sha256=None) -> dict:
-    """The chain from body `root` (`world`: the world frame) to body or site `tip` of an MJCF
-    model: dict(frames (m, 3, 4), tool (3,), rest (3, 3), names (m,), limits (m, 2) [rad],
-    NaN where the joint has none). joints: the commanded hinge joints (default: every hinge on
-    the chain); hold: {joint: qpos [rad]} for the chain's other hinges (default: their `ref`,
-    the model's reference posture); sha256: the digest the model must have (a body planned
-    from it). Raises ValueError naming `body.mjcf.<key>`."""
+    """urdf.read_chain's dict for body `root` (`world`) to body or site `tip`; joints: hinges
+    (default: all on the chain), hold: {joint: qpos} (default: their `ref`)."""
     path = resolve(file, "mjcf")
     tree, sha = read_model(file)
     if sha256 is not None and sha != sha256:
@@ -250,7 +232,6 @@ def read_chain(file, root: str, tip: str, joints=None, hold=None, sha256=None) -
 
 
 def _path(tree, root, tip, name):
-    """The elements from below `root` down to `tip` (root to tip), and {child: parent}."""
     if root == "world":
         start = None
     else:
@@ -281,7 +262,6 @@ def _path(tree, root, tip, name):
 
 
 def _ops(tree, steps, parent, classes, compiler, root, file) -> list:
-    """("pose", 4x4) or ("hinge", name, attributes) per step of the chain, root to tip."""
     def cls(elem):  # the class of an element without its own: the nearest childclass around it
         e = parent.get(elem)
         while e is not None:
@@ -316,7 +296,6 @@ def _ops(tree, steps, parent, classes, compiler, root, file) -> list:
 
 
 def _compile(ops, joints, hold, compiler, file) -> dict:
-    """The chain form (frames, tool, rest, names, limits) of the ops, `joints` commanded."""
     angle = np.deg2rad if compiler["angle"] == "degree" else (lambda x: x)
     T, frames, limits = np.eye(4), [], []
     for op in ops:

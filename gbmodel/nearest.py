@@ -1,19 +1,8 @@
-"""Exact nearest neighbours over a set of examples that only grows: the memory that keeps
-everything (gbmodel.learners.example_memory with window 0).
-
-Rebuilding one k-d tree over every example after each epoch costs O(N log N) per epoch, O(E^2)
-over a trial; this structure keeps the examples in levels, each a k-d tree (scipy's cKDTree) over a
-contiguous run of examples, merged like the digits of a binary counter (Bentley & Saxe 1980): a new
-batch is a level of its own, and while the level before it is no larger, the two are rebuilt as
-one. Every example is rebuilt into a tree O(log(N / batch)) times over its life, and a query asks
-at most log2(N / batch) + 1 trees.
-
-The answer is defined, so that it is the same however the examples are split into levels: the
-example at the smallest distance (as cKDTree computes it), and among equally distant examples the
-one stored first (the lowest index). Within a level the two nearest are asked for, and where they
-tie, more, until the tie is resolved; across levels, which run in index order, a later level wins
-only at a strictly smaller distance (tests/core/test_alternatives.py compares it with a single tree over
-every example and with brute force, ties included).
+"""Exact nearest neighbours over examples that only grow (example_memory's window 0): levels of
+k-d trees over contiguous runs, merged like a binary counter (Bentley & Saxe 1980), so an example
+is rebuilt O(log(N / batch)) times and a query asks at most log2(N / batch) + 1 trees. The answer
+does not depend on the levels: the nearest, ties to the lowest index (within a level more
+neighbours until a tie is resolved; a later level wins only strictly nearer).
 """
 from __future__ import annotations
 
@@ -22,9 +11,6 @@ from scipy.spatial import cKDTree
 
 
 class Nearest:
-    """Points (N, n) with values (N, m), appended batch by batch; `query` returns, for each
-    query point, the index of its nearest stored point (ties: the lowest index)."""
-
     def __init__(self, n: int, m: int):
         self._x = np.empty((0, n))
         self._q = np.empty((0, m))
@@ -32,8 +18,7 @@ class Nearest:
         self._levels: list[tuple[int, int, cKDTree]] = []  # (start, stop, tree), in index order
 
     def add(self, x: np.ndarray, q: np.ndarray) -> None:
-        """Append examples (k, n), (k, m) as a new level; merge while the level before it is no
-        larger (capacity doubles, so appending is amortised O(1) per example)."""
+        """Append examples as a new level, merged while the level before is no larger."""
         k, stop = len(x), self.count + len(x)
         if stop > len(self._x):
             cap = max(stop, 2 * len(self._x))
@@ -58,7 +43,6 @@ class Nearest:
         return self._q[:self.count]
 
     def query(self, xs: np.ndarray) -> np.ndarray:
-        """Indices (len(xs),) of the nearest stored point of each row of xs."""
         xs = np.asarray(xs, dtype=np.float64)
         best_d = np.full(len(xs), np.inf)
         best_i = np.zeros(len(xs), dtype=np.int64)
@@ -69,14 +53,12 @@ class Nearest:
         return best_i
 
     def copy_first(self, count: int) -> "Nearest":
-        """A fresh structure over the first `count` examples (a state reused after it grew)."""
         out = Nearest(self._x.shape[1], self._q.shape[1])
         out.add(self._x[:count].copy(), self._q[:count].copy())
         return out
 
 
 def _lowest_nearest(tree: cKDTree, xs: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
-    """(distance, index) of each query's nearest point in `tree`, ties to the lowest index."""
     if size == 1:
         d, _ = tree.query(xs, k=1)
         return d, np.zeros(len(xs), dtype=np.int64)

@@ -1,23 +1,11 @@
-"""The compiled kernels' toolbox (numba): explicit vector types, sin/cos, and the chain step.
-
-Every kernel (Goal Babbling's float32 batch kernel, online Goal Babbling's float64 per-sample
-kernel) takes its vectors, its sin and cos and its step through a chain from here, so that each
-computes lane by lane what it writes, on every x86-64 CPU:
-
-- `F32x16` (vload ... vwhere, vsum; LANES = 16) and `sincos` on it, for the float32 kernel;
-- `F64x8` (vload8 ... vwhere8; W8 = 8), whose lanes round as the scalar loop does (separate *
-  and +; vfma8, the fused multiply-add, where a kernel asks for it), and `sincos64`, a scalar
-  float64 sin/cos, for the float64 kernel; both vector sets made by one definition (_vector_set);
-- `chain_kinematics` (F32x16) and `chain_forward64` (scalar float64): the hand point carried
-  backwards through the chain laid out by gbmodel.kinematics.chain_layout, joint by joint
-  (F32x16: joint by joint over a block of columns).
-
-`F32x16` is LLVM
-<16 x float> (one zmm register, or two ymm halves without AVX-512, with the same result lane by
-lane); vadd ... vfma are single IEEE operations (vfma: llvm.fma, rounded once; vdiv, vsqrt
-correctly rounded); vsum adds the lanes in a fixed tree; sincos is a branch-free polynomial
-(Cephes' kernels after a Cody-Waite reduction). Nothing is compiled with fastmath.
-tests/core/test_kernel_targets.py checks the kernels bit for bit across CPU targets.
+"""The compiled kernels' toolbox (numba), so that each kernel computes lane by lane what it
+writes, on every x86-64 CPU: `F32x16` (LLVM <16 x float>: one zmm register, or two ymm halves
+without AVX-512, the same result lane by lane) and `F64x8` (lanes round as the scalar loop does),
+both made by _vector_set; single IEEE operations (vfma rounded once, vdiv and vsqrt correctly
+rounded), vsum in a fixed tree; `sincos` (F32x16) and `sincos64` (float64), branch-free Cephes
+polynomials after a Cody-Waite reduction; `chain_kinematics` (F32x16) and `chain_forward64`
+(float64) through kinematics.chain_layout. No fastmath. tests/core/test_kernel_targets.py checks
+the kernels bit for bit across CPU targets.
 """
 from __future__ import annotations
 
@@ -35,13 +23,10 @@ F4 = np.float32
 
 
 def fresh_cache(folder, files=()) -> bool:
-    """Remove numba's cached kernels of `folder` (its __pycache__/*.nbi, *.nbc) when the code
-    they were compiled from changed: numba checks a kernel's cache against its own file only,
-    but a kernel's machine code holds the kernels it calls from other files (the driver of
-    goal_babbling/fast.py holds the rollout's and the update rules'), so an edit of a callee's
-    file would otherwise leave its callers running the old code. The stamp is a hash of the
-    folder's *.py files, this file and `files`; returns whether the caches were removed. A
-    folder that cannot be written (an installed package) is left alone."""
+    """Remove numba's cached kernels of `folder` when its *.py files, this file or `files`
+    changed (numba checks a cache against its own file only, but a kernel's machine code holds
+    its callees' from other files); returns whether they were removed. An unwritable folder
+    (an installed package) is left alone."""
     folder = Path(folder)
     sources = sorted(folder.glob("*.py")) + [Path(__file__)] + [Path(f) for f in files]
     h = hashlib.sha256()
@@ -74,9 +59,6 @@ _LLVM = {"F32x16": _VEC, "F64x8": _VEC8}
 
 
 class VectorType(types.Type):
-    """An LLVM vector of floats in registers: F32x16 (<16 x float>: one zmm register, or two ymm
-    halves without AVX-512, with the same result lane by lane) or F64x8 (<8 x double>)."""
-
     def __init__(self, name):
         super().__init__(name=name)
 
@@ -91,7 +73,6 @@ class _VectorModel(models.PrimitiveModel):
 
 
 def _vector_pointer(context, builder, sig, args, n, vec=_VEC):
-    """Address of element args[1:1 + n] of the array args[0], as a pointer to a vector `vec`."""
     aryty = sig.args[0]
     inds = [context.cast(builder, v, t, types.intp) for v, t in zip(args[1:1 + n],
                                                                     sig.args[1:1 + n])]
@@ -101,7 +82,6 @@ def _vector_pointer(context, builder, sig, args, n, vec=_VEC):
 
 
 def _llvm(builder, name, args, vec=_VEC):
-    """A call of the LLVM intrinsic `name` on vectors `vec`."""
     kind = "f32" if vec is _VEC else "f64"
     fn = cgutils.get_or_insert_function(
         builder.module, ir.FunctionType(vec, [vec] * len(args)), f"{name}.v{vec.count}{kind}")
@@ -109,13 +89,10 @@ def _llvm(builder, name, args, vec=_VEC):
 
 
 def _vector_set(vt, scalar, suffix):
-    """The operations on the vector type `vt` (scalar: its lanes' numba type), named with
-    `suffix` (F32x16: none; F64x8: 8): load (a[k, i:i + lanes] of a 2-d array with contiguous
-    rows; load1: a[i:i + lanes] of a contiguous 1-d array; no bounds check), store, store1,
-    splat (every lane x, cast to the lanes' type), and single IEEE operations: add, sub, mul,
-    div (correctly rounded), neg, sqrt (correctly rounded), fma (a * b + c rounded once: one
-    instruction on an FMA CPU, a correctly rounded libm call without) and where (x where a > b,
-    else y, lane by lane; a NaN compares false)."""
+    """The operations on `vt`, named v<op><suffix>: load a[k, i:i + lanes] (load1: a[i:...] of
+    1-d; no bounds check), store, store1, splat, add ... div, neg, sqrt, fma (rounded once: one
+    instruction, or a correctly rounded libm call without FMA), where (x if a > b else y; a NaN
+    compares false)."""
     vec, align = _LLVM[vt.name], 4 if scalar is types.float32 else 8
 
     def pointer(context, builder, sig, args, n):
@@ -197,9 +174,8 @@ define void @probe(<16 x float>* %p) {
 
 
 def _one_register(codegen) -> bool:
-    """Whether the target LLVM compiles for (the host, or NUMBA_CPU_NAME / NUMBA_CPU_FEATURES)
-    holds an F32x16 in one zmm register: asks LLVM, by compiling an add of two of them. False
-    where it cannot tell (numba's codegen without a target machine)."""
+    """Whether LLVM's target holds an F32x16 in one zmm register (compiles an add of two to
+    see; False where it cannot tell)."""
     key = codegen.magic_tuple()
     if key not in _ONE_REGISTER:
         try:
@@ -213,9 +189,8 @@ def _one_register(codegen) -> bool:
 
 @intrinsic
 def wide_vectors(typingctx):
-    """A compile-time constant: True where the target holds an F32x16 in one of 32 registers
-    (AVX-512), False where it takes two of 16 (AVX2) or more. For choices that move no bit (the
-    shape of a register tile), never for what a lane computes."""
+    """Compile-time: an F32x16 is one of 32 registers (AVX-512). Only for choices that move no
+    bit (a register tile's shape)."""
     def codegen(context, builder, sig, args):
         return context.get_constant(types.boolean, _one_register(context.codegen()))
     return types.boolean(), codegen
@@ -223,8 +198,7 @@ def wide_vectors(typingctx):
 
 @intrinsic
 def vsum(typingctx, v):
-    """The lanes' sum in float64, in a fixed tree: lanes l and l + 8 first, then l and l + 4,
-    and so on."""
+    """The lanes' sum in float64, in a fixed tree (l + l + 8 first, then l + l + 4, ...)."""
     def codegen(context, builder, sig, args):
         x = builder.fpext(args[0], ir.VectorType(ir.DoubleType(), LANES))
         width = LANES
@@ -249,9 +223,8 @@ _ROUND = F4(1.5 * 2 ** 23)  # y + _ROUND - _ROUND rounds |y| < 2^22 to an intege
 
 @intrinsic
 def _quadrant(typingctx, kf, s, c):
-    """(sin x, cos x) from s = sin r, c = cos r for x = k pi/2 + r, with k in the low bits of
-    kf = k + _ROUND: odd k swaps s and c, then bit 1 of k (of k + 1) is the sign of the sine
-    (of the cosine). Exact: a select and a flip of the sign bit."""
+    """(sin x, cos x) from sin r, cos r, x = k pi/2 + r, k in kf's low bits: odd k swaps, bit 1
+    of k (of k + 1) is the sine's (cosine's) sign. Exact."""
     def codegen(context, builder, sig, args):
         i32 = ir.VectorType(ir.IntType(32), LANES)
 
@@ -270,9 +243,8 @@ def _quadrant(typingctx, kf, s, c):
 
 @njit(inline="always")
 def sincos(x):
-    """(sin x, cos x) lane by lane, within 1e-7 for |x| < 10 (joint angles), branch-free:
-    x = k pi/2 + r with |r| <= pi/4 (Cody-Waite, two parts of pi/2), the kernels on r, then the
-    quadrant k mod 4 swaps and negates them."""
+    """(sin x, cos x), within 1e-7 for |x| < 10: x = k pi/2 + r (Cody-Waite, pi/2 in two
+    parts), the kernels on r, the quadrant k mod 4."""
     kf = vfma(x, vsplat(_TWO_OVER_PI), vsplat(_ROUND))
     k = vsub(kf, vsplat(_ROUND))
     r = vfma(k, vsplat(-_PIO2_HI), x)
@@ -286,7 +258,6 @@ def sincos(x):
 
 @njit(cache=True)
 def sincos_array(x):
-    """sincos of a float32 array (for tests)."""
     n = len(x)
     pad = np.zeros(n + LANES, np.float32)
     pad[:n] = x
@@ -301,7 +272,6 @@ def sincos_array(x):
 # ---- the chain on F32x16: forward kinematics of LANES samples at a time ---------------------------
 @njit(inline="always")
 def vclip(q):
-    """q clipped to [-1, 1] lane by lane (a NaN stays NaN)."""
     one, minus_one = vsplat(_1), vsplat(-_1)
     return vwhere(minus_one, q, minus_one, vwhere(q, one, one, q))
 
@@ -311,17 +281,11 @@ _KB = 256  # columns per block of chain_kinematics: the block's hand points stay
 
 @njit(cache=True)
 def chain_kinematics(Q, X, C, joints, body):
-    """Hand positions X[:, :C] of the commands Q[:, :C] (float32, C a multiple of LANES), through
-    the chain of gbmodel.kinematics.chain_layout as float32 arrays (body: a, d, cos alpha, sin
-    alpha, base, outputs, ty, R, general; joints: normalized, saturates, q_lo, q_span, offset),
-    saturating Q in place where the body does. Joint angles theta = q (span / 2) + offset + lo +
-    span / 2 for normalised commands, else offset + q. The hand point is carried from the last
-    joint to the base: p <- Rz(theta) (p_x + a, cos(alpha) p_y - sin(alpha) p_z, sin(alpha) p_y
-    + cos(alpha) p_z + d) (for the twists 0 and +-90 degrees, every joint of our bodies,
-    without the products by 0 and +-1: the same values, up to the sign of a zero). Joint by
-    joint over a block of _KB columns, LANES at a time, the block's points in L1 (P): a joint's
-    constants and its kind of step stay out of the loop over columns; each lane computes what
-    it would sample by sample."""
+    """Hand positions X[:, :C] of commands Q[:, :C] (C a multiple of LANES) through
+    kinematics.chain_layout in float32, saturating Q in place where the body does. The point
+    goes from the last joint to the base, joint by joint over blocks of _KB columns (a joint's
+    constants out of the column loop); twists of 0 and +-90 degrees skip the products by 0 and
+    +-1 (the same values up to a zero's sign)."""
     normalized, saturates, q_lo, q_span, offset = joints
     a, d, ca, sa, base, outputs, ty, R, general = body
     m = Q.shape[0]
@@ -381,11 +345,9 @@ def chain_kinematics(Q, X, C, joints, body):
                 vstore(X, j, c0 + c, vfma(vsplat(base[o, 2]), vload(P, 2, c), x))
 
 
-# ---- F64x8: with separate roundings of * and + (no fused multiply-add), a lane computes
-# exactly what a scalar loop computes, whatever the CPU's vector width.
 @intrinsic
 def vload8f(typingctx, a, k, i):
-    """a[k, i:i + 8] of a 2-d float32 array with contiguous rows, as float64 lanes (exact)."""
+    """a[k, i:i + 8] of a float32 array as float64 lanes (exact)."""
     def codegen(context, builder, sig, args):
         ptr = _vector_pointer(context, builder, sig, args, 2, ir.VectorType(ir.FloatType(), W8))
         return builder.fpext(builder.load(ptr, align=4), _VEC8)
@@ -394,8 +356,7 @@ def vload8f(typingctx, a, k, i):
 
 @intrinsic
 def transpose8(typingctx, r0, r1, r2, r3, r4, r5, r6, r7):
-    """The 8 x 8 transpose of eight F64x8 rows: row l of the result holds lane l of r0 ... r7
-    (three stages of shuffles; exact, the values only move)."""
+    """The 8 x 8 transpose of eight F64x8 rows (three stages of shuffles)."""
     def codegen(context, builder, sig, args):
         mask = ir.VectorType(ir.IntType(32), W8)
 
@@ -415,12 +376,9 @@ def transpose8(typingctx, r0, r1, r2, r3, r4, r5, r6, r7):
     return types.UniTuple(F64x8, W8)(r0, r1, r2, r3, r4, r5, r6, r7), codegen
 
 # ---- float64 scalars ------------------------------------------------------------------------------
-# sin and cos of a joint angle: Cephes' double-precision kernels (sin.c: |r| <= pi/4) after a
-# Cody-Waite reduction x = k pi/2 + r with pi/2 in three parts (the first two with trailing zero
-# bits, so k times them is exact for |k| < 2^24), then the quadrant k mod 4 swaps and negates
-# them. Plain float64 operations in a fixed order: the same result on every CPU and C library,
-# within 2 ulp of the C library's (tests/core/test_learners.py), and without a branch but the (always
-# taken) range check, as the angles' quadrants are unpredictable.
+# Cephes' double kernels (|r| <= pi/4) after x = k pi/2 + r, pi/2 in three parts (the first two
+# with trailing zero bits: k times them exact for |k| < 2^24); plain float64 in a fixed order,
+# the same on every CPU and libm, within 2 ulp of the C library's (tests/core/test_learners.py).
 _PIO2_64 = (1.57079625129699707031e0, 7.54978941586159635335e-8, 5.39030285815811905290e-15)
 _ROUND64 = 6755399441055744.0  # 1.5 * 2^52: x + _ROUND64 - _ROUND64 rounds x to an integer
 _SIN64 = (1.58962301576546568060e-10, -2.50507477628578072866e-8, 2.75573136213857245213e-6,
@@ -432,7 +390,7 @@ _COS64 = (-1.13585365213876817300e-11, 2.08757008419747316778e-9, -2.75573141792
 @njit(cache=True)
 def sincos64(x):
     """(sin x, cos x): the polynomials for |x| < 2^24, the C library beyond (a diverging
-    command, NaN or inf: never a joint angle of a learning trial)."""
+    command)."""
     if not abs(x) < 16777216.0:
         return np.sin(x), np.cos(x)
     k = (x * 0.63661977236758134308 + _ROUND64) - _ROUND64  # nearest integer to x / (pi/2)
@@ -444,8 +402,7 @@ def sincos64(x):
           + _COS64[4]) * z + _COS64[5]
     s = r + r * z * ps
     c = (1.0 - 0.5 * z) + z * z * pc
-    # quadrant 0: (s, c), 1: (c, -s), 2: (-s, -c), 3: (-c, s), without a branch (the angles'
-    # quadrants are unpredictable): a swap by select, signs by exact products with +-1.
+    # quadrant 0: (s, c), 1: (c, -s), 2: (-s, -c), 3: (-c, s), branch-free: exact +-1 products
     quadrant = int(k) & 3
     swap = quadrant & 1
     a = c if swap else s
@@ -455,10 +412,8 @@ def sincos64(x):
 
 @njit(cache=True)
 def chain_forward64(q, scale, chain, joints, out):
-    """body.forward(q, scale) into out (n,) in scalar float64: the hand point carried
-    backwards through the chain of kinematics.chain_layout (float64 arrays; joints: normalized,
-    saturates, q_min, q_span, theta_offset), DH rows operation by operation as
-    kinematics.hand_position, a general chain as chain_position."""
+    """body.forward(q, scale) into out (n,) in float64, operation by operation as
+    kinematics.hand_position (DH rows) or chain_position."""
     a, d, ca, sa, base, outputs, ty, R, general = chain
     normalized, _, q_min, q_span, offset = joints
     px = py = pz = 0.0

@@ -1,8 +1,7 @@
-"""What a trial's spec may hold: the one error type of a bad value, the checks every part of the
-core (bodies, growth, learners, the trial) runs on its fields, and the limits they enforce.
-
-A check raises SpecError with a one-line message `<section>.<field>=<value>: why`; the pipeline
-turns it into its configuration error (exit 2) without a traceback.
+"""What a trial's spec may hold: SpecError, the one error of a bad value (one line,
+`<section>.<field>=<value>: why`, which the pipeline turns into its exit 2), and the limits
+every part of the core checks its fields against, each once: a class's LIMITS table names every
+field's Constraint, check_fields checks them in order, its validate() adds what relates fields.
 """
 from __future__ import annotations
 
@@ -15,8 +14,6 @@ MAX_DEGREE = 6  # a learner's polynomial degree P: p = C(n + P, P) features, 84 
 
 
 class SpecError(ValueError):
-    """A bad value of a trial's spec; the message is one line, `<section>.<field>=<value>: why`."""
-
     def __init__(self, key: str, value, why: str):
         super().__init__(f"{key}={value!r}: {why}")
         self.key = key
@@ -30,31 +27,14 @@ def check_int(key, value, minimum):
 
 
 def check_epochs(key, value):
-    """value is a whole number of epochs, 1 ... MAX_EPOCHS."""
-    check_int(key, value, 1)
-    if value > MAX_EPOCHS:
-        raise SpecError(key, value, f"at most {MAX_EPOCHS:.0e} epochs per trial")
-
-
-def check_number(key, value, minimum=None, strict=False):
-    """value is a finite number (not a bool), >= minimum (> with strict) when given."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
-        raise SpecError(key, value, "must be a finite number")
-    if minimum is not None and (value <= minimum if strict else value < minimum):
-        raise SpecError(key, value, f"must be {'>' if strict else '>='} {minimum:g}")
+    Int(1, MAX_EPOCHS).check(key, value, f"at most {MAX_EPOCHS:.0e} epochs per trial")
 
 
 def check_choice(key, value, options):
-    """value is one of options."""
     if value not in options:
         raise SpecError(key, value, f"choose one of {list(options)}")
 
 
-# ---- declared ranges: a table per parameter class, one validator ---------------------------------
-# Every field of a validated class names its constraint in the class's table (`<Class>.LIMITS`,
-# a dict field -> constraint), and `check_fields` checks them all in the table's order; a class's
-# validate() keeps only what relates several fields. A constraint is data: the range a key may
-# take is read in one place, shown in one message, and a test can walk every table.
 class Constraint:
     """What one field may hold; check() raises SpecError naming the key."""
 
@@ -65,9 +45,6 @@ class Constraint:
             return False
         return True
 
-    def check(self, key, value) -> None:  # pragma: no cover (every constraint has its own)
-        raise NotImplementedError
-
 
 class Int(Constraint):
     """An integer (not a bool) in lo ... hi; `why` says what the upper bound protects."""
@@ -75,10 +52,10 @@ class Int(Constraint):
     def __init__(self, lo: int = 1, hi: int | None = None, why: str = ""):
         self.lo, self.hi, self.why = lo, hi, why
 
-    def check(self, key, value):
+    def check(self, key, value, above=None):
         check_int(key, value, self.lo)
         if self.hi is not None and value > self.hi:
-            raise SpecError(key, value, f"at most {self.hi:,}{self.why}")
+            raise SpecError(key, value, above or f"at most {self.hi:,}{self.why}")
 
     def describe(self) -> str:
         return f"an integer in [{self.lo:,}, {self.hi:,}]{self.why}"
@@ -92,7 +69,11 @@ class Number(Constraint):
         self.lo, self.hi, self.lo_open, self.why = lo, hi, lo_open, why
 
     def check(self, key, value):
-        check_number(key, value, self.lo, strict=self.lo_open)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
+            raise SpecError(key, value, "must be a finite number")
+        lo = self.lo
+        if lo is not None and (value <= lo if self.lo_open else value < lo):
+            raise SpecError(key, value, f"must be {'>' if self.lo_open else '>='} {lo:g}")
         if self.hi is not None and value > self.hi:
             raise SpecError(key, value, f"must be <= {self.hi:g}{self.why}")
 
@@ -126,8 +107,6 @@ class Maybe(Constraint):
 
 
 class Text(Constraint):
-    """A non-empty string."""
-
     def check(self, key, value):
         if not isinstance(value, str) or not value:
             raise SpecError(key, value, "must be a non-empty string")
@@ -159,8 +138,8 @@ class Members(Constraint):
 
 
 class Free(Constraint):
-    """A field whose value the class's validate() checks against other fields (a list whose
-    length is the body's segments, a table): named here so that every field is in the table."""
+    """A field the class's validate() checks against other fields (named, so every field is in
+    the table)."""
 
     def __init__(self, why: str):
         self.why = why
@@ -170,7 +149,6 @@ class Free(Constraint):
 
 
 def check_fields(obj, section: str, limits: dict) -> None:
-    """Check every field of `obj` against its constraint in `limits` (field -> Constraint), in
-    the table's order; SpecError names the first bad one as `<section>.<field>=<value>: why`."""
+    """Check every field of `obj` against its constraint in `limits`, in the table's order."""
     for name, constraint in limits.items():
         constraint.check(f"{section}.{name}", getattr(obj, name))

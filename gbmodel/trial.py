@@ -1,17 +1,15 @@
-"""One trial: a body grows while a learner learns; returns its learning curve.
-
-The loop is the same for every learner (gbmodel.learners): the body and its variant, the growth
-schedule, the random draws in blocks of DRAW_BLOCK epochs, the evaluation schedule and the
-snapshots live here; the learner only learns. Random numbers are drawn in a fixed order
-(initialisation, then per block the learner's draws), so that the result does not depend on where
-the curve is evaluated or snapshot, and the fast and reference paths of a learner consume the same
-numbers.
+"""One trial: a body grows while a learner learns; returns its learning curve. The loop, growth,
+draws, evaluation and snapshots live here, the same for every learner. Draws come in a fixed
+order (initialisation, then the learner's per block of DRAW_BLOCK epochs), so the result does
+not depend on where the curve is evaluated or snapshot, and both paths of a learner consume the
+same numbers.
 """
 from __future__ import annotations
 
 import math
 import pickle
 from dataclasses import asdict, dataclass, field
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -25,8 +23,6 @@ DRAW_BLOCK = 1000
 
 
 class Diverged(ArithmeticError):
-    """The learner's error became non-finite (NaN or inf): the trial cannot go on."""
-
     def __init__(self, epoch: int, value: float):
         super().__init__(f"diverged: the error became {value} at epoch {epoch}")
         self.epoch = epoch
@@ -34,13 +30,8 @@ class Diverged(ArithmeticError):
 
 @dataclass(frozen=True)
 class TrialSpec:
-    """Everything one trial depends on, as plain data mirroring the config's sections.
-
-    body: the body's description (conf/body/*.yaml's fields; gbmodel.make_body), or
-    dict(name) of a shipped body with single fields replaced; growth: gbmodel.Growth's fields;
-    learner: dict(name, **the learner's Params); evaluation: dict(points, formula).
-    Defaults: the 5-DOF arm with Goal Babbling at the paper's settings, no growth.
-    """
+    """Everything one trial depends on, as plain data mirroring the config's sections (body: a
+    description for make_body; growth: Growth's fields; learner: dict(name, **Params))."""
 
     body: dict = field(default_factory=lambda: {"name": "arm5"})
     growth: dict = field(default_factory=dict)
@@ -57,7 +48,6 @@ class TrialSpec:
         return Growth(**self.growth)
 
     def make_learner(self):
-        """(learner module, its validated Params)."""
         kw = dict(self.learner)
         module = learners.get(kw.pop("name", "goal_babbling"))
         try:
@@ -67,11 +57,15 @@ class TrialSpec:
         return module, params.validate()
 
     def validate(self, body: Body | None = None) -> "TrialSpec":
-        """Raise SpecError (a ValueError) naming the first bad value as `<section>.<field>`.
-        body: this spec's body if the caller built it already (it is then not built again)."""
+        """SpecError naming the first bad value; body: this spec's, if built already."""
+        self._checked(body)
+        return self
+
+    def _checked(self, body: Body | None = None) -> tuple:
+        """(body, growth, learner, params), each built and checked once."""
         body = self.make_body() if body is None else body
-        self.make_growth().validate(body)
-        _, params = self.make_learner()
+        growth = self.make_growth().validate(body)
+        learner, params = self.make_learner()
         if body.loop is not None and getattr(params, "fast", False):
             raise SpecError("learner.fast", True, f"body {body.name!r} is a body in the loop (a "
                             "Python forward function): only the numpy reference path takes it; "
@@ -85,7 +79,7 @@ class TrialSpec:
         for e in self.snapshots:
             if not 1 <= e <= self.epochs:
                 raise SpecError("snapshots", e, f"outside the epochs 1 ... {self.epochs}")
-        return self
+        return body, growth, learner, params
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -116,11 +110,9 @@ class TrialResult:
 
 @dataclass
 class Checkpoint:
-    """A trial after `epoch` epochs, as a continuation starts from it: the learner's state, the
-    generator's state after that trial's draws (bit_generator.state) and its result (the curve
-    up to `epoch`, its snapshots). `epoch` is a multiple of DRAW_BLOCK: the draws come in blocks
-    shaped by their length, so only there is the rest of a longer run's draws what follows. The
-    pipeline keeps a checkpoint with the trial that ended there (gbmodel reads no file)."""
+    """A trial after `epoch` epochs (a multiple of DRAW_BLOCK: only there does a longer run's
+    draws continue), as a continuation starts from it: the learner's and generator's states and
+    the result so far."""
     epoch: int
     state: Any
     rng: dict
@@ -128,8 +120,7 @@ class Checkpoint:
 
 
 def _resume(spec: TrialSpec, at: Checkpoint, evals: np.ndarray, rng: np.random.Generator):
-    """The part of the curve (k evaluations) and the snapshots a continuation takes from its
-    checkpoint, with the generator set to the checkpoint's state; SpecError if it cannot."""
+    """(k, rows, snapshots) a continuation takes from its checkpoint; sets the generator."""
     if not (0 < at.epoch < spec.epochs and at.epoch % DRAW_BLOCK == 0):
         raise SpecError("resume.epoch", at.epoch, f"a continuation starts after a multiple of "
                         f"{DRAW_BLOCK} epochs (the draw block) before the end ({spec.epochs})")
@@ -146,36 +137,15 @@ def _resume(spec: TrialSpec, at: Checkpoint, evals: np.ndarray, rng: np.random.G
     return k, rows, {e: at.result.snapshots[e] for e in snaps}
 
 
-@dataclass(frozen=True)
-class _Setup:
-    """What a trial's loop needs before its first draw, all of it given by its spec (none by
-    its seed): the body, validated spec, growth, learner and its Params, the evaluation's
-    settings, points and epochs, and the sizes and scales of the first block of epochs."""
-    body: Body
-    growth: Any
-    learner: Any
-    params: Any
-    ev: dict
-    unit_heldout: np.ndarray  # the held-out set at size 1 (scaled at each evaluation)
-    unit_path: np.ndarray  # the sampled path targets at size 1, L the learner's (else path_steps)
-    evals: np.ndarray
-    at: tuple  # evals as ints
-    cuts: frozenset
-    size_one: Any  # the size of epoch 1 (the learner's init)
-    sizes: np.ndarray  # of epochs 1 ... min(DRAW_BLOCK, epochs)
-    scales: np.ndarray
-
-
-_SETUPS: dict = {}  # a spec's content (pickled) -> its _Setup (_setup_of)
+_SETUPS: dict = {}  # a spec's content (pickled) -> its set-up (_setup_of)
 MAX_SETUPS = 64
 
 
-def _setup_of(spec: TrialSpec) -> _Setup:
-    """The spec's _Setup: built and validated (SpecError), or, for a body given by its DH
-    table (no file read, no function in the loop), the one built for the same spec content
-    before in this process: a sweep's trials of one condition differ by their seed only, and
-    the set-up was most of a short trial's cost. The same values either way (each is built by
-    the same code from the same content; the arrays a trial could write are its own copies)."""
+def _setup_of(spec: TrialSpec) -> SimpleNamespace:
+    """What a trial's loop needs before its first draw, all given by its spec (none by its
+    seed), built and validated; for a DH body (nothing read) the one built for the same content
+    before: a condition's trials differ by their seed only, and set-up was most of a short
+    trial's cost."""
     key = None
     if spec.body.get("dh") is not None and all(spec.body.get(k) is None for k in READS):
         try:  # pickle tells 1 from 1.0 and "1", a tuple from a list: no two contents share one
@@ -186,21 +156,18 @@ def _setup_of(spec: TrialSpec) -> _Setup:
     hit = _SETUPS.get(key) if key is not None else None
     if hit is not None and hit.learner is learners.get(spec.learner.get("name", "goal_babbling")):
         return hit  # (a learner registered again under the name is not the one it was built with)
-    body = spec.make_body()
-    spec.validate(body)
-    growth = spec.make_growth()
-    learner, params = spec.make_learner()
+    body, growth, learner, params = spec._checked()
     evals = evaluation.eval_epochs(spec.epochs, spec.evals_per_decade)
     sizes = growth.sizes(np.arange(1, min(DRAW_BLOCK, spec.epochs) + 1), body)
     ev = {**evaluation.DEFAULTS, **spec.evaluation}
     steps = getattr(params, "steps", ev["path_steps"])  # eq. 9's L of a learner that has one
-    setup = _Setup(body=body, growth=growth, learner=learner, params=params, ev=ev,
-                   unit_heldout=evaluation.heldout_points(body),
-                   unit_path=evaluation.path_targets(body, steps), evals=evals,
-                   at=tuple(evals.tolist()),
-                   cuts=frozenset(evals.tolist()) | frozenset(spec.snapshots),
-                   size_one=growth.sizes(np.array([1]), body)[0], sizes=sizes,
-                   scales=growth.scales(body, sizes))
+    setup = SimpleNamespace(  # unit_*: at size 1, scaled at each evaluation; at: evals as ints
+        body=body, growth=growth, learner=learner, params=params, ev=ev,
+        unit_heldout=evaluation.heldout_points(body),
+        unit_path=evaluation.path_targets(body, steps), evals=evals, at=tuple(evals.tolist()),
+        cuts=frozenset(evals.tolist()) | frozenset(spec.snapshots),
+        size_one=growth.sizes(np.array([1]), body)[0], sizes=sizes,  # of the first block
+        scales=growth.scales(body, sizes))
     if key is not None:
         if len(_SETUPS) >= MAX_SETUPS:
             _SETUPS.clear()
@@ -210,9 +177,8 @@ def _setup_of(spec: TrialSpec) -> _Setup:
 
 def run_trial(spec: TrialSpec, rng: np.random.Generator,
               resume: Checkpoint | None = None) -> TrialResult:
-    """Run one trial and return its learning curve; raises Diverged on a non-finite error.
-    resume: continue the trial of that checkpoint (its first epochs and draws are this
-    trial's), rather than start one: the result is an uninterrupted run's, to the bit."""
+    """One trial's learning curve (Diverged on a non-finite error); resume: continue from that
+    checkpoint, to the bit an uninterrupted run's result."""
     setup = _setup_of(spec)
     body, growth, learner, params = setup.body, setup.growth, setup.learner, setup.params
     ev, unit_heldout, cuts = setup.ev, setup.unit_heldout, setup.cuts
@@ -228,9 +194,8 @@ def run_trial(spec: TrialSpec, rng: np.random.Generator,
                          (uniform, done.uniform_abs_error), (path, done.path_abs_error),
                          (size, done.size)):
             to[:k] = np.asarray(part)[rows]
-    # Sizes and scales are built per block of DRAW_BLOCK epochs, never for every epoch at once,
-    # so a trial's memory does not grow with its epochs (each value is computed elementwise:
-    # the same bytes as from the whole array).
+    # sizes and scales per block, so memory does not grow with the epochs (elementwise: the
+    # same bytes as from the whole array)
     for start in range(first, spec.epochs, DRAW_BLOCK):  # epochs start+1 ... stop
         stop = min(start + DRAW_BLOCK, spec.epochs)
         if start == 0:  # the set-up's, copied: a learner may not share them with other trials

@@ -1,13 +1,7 @@
-"""A serial chain out of a URDF file, compiled into the exact form the kinematics evaluate: per
-commanded joint i a fixed transform F_i (fixed joints and held ones folded in), then a rotation
-about local z by the joint's angle, and a tool point,
-
-    hand = F_0 Rz(q_0) F_1 Rz(q_1) ... F_{m-1} Rz(q_{m-1}) tool
-
-exact for every serial chain (docs/bodies.md, "A body from a URDF"). The file is read once, a
-regular file of at most MAX_BYTES (a FIFO would block the read); its SHA-256 belongs to the
-body's description, so an edited file is another body. Every number read is finite within
-MAX_MAGNITUDE (metres, radians).
+"""A serial chain out of a URDF, compiled into hand = F_0 Rz(q_0) ... F_{m-1} Rz(q_{m-1}) tool
+(fixed and held joints folded into the F_i; docs/bodies.md, "A body from a URDF"). The file: a
+regular file of at most MAX_BYTES, read once; its SHA-256 makes an edited file another body.
+Every number read is finite within MAX_MAGNITUDE (metres, radians).
 """
 from __future__ import annotations
 
@@ -31,9 +25,8 @@ def _bad(key, value, why, kind="urdf"):
 
 
 def resolve(file, kind="urdf") -> Path:
-    """The URDF's path: a path, or {package: <distribution>, path: <end of a file's path in it>}
-    for a file that an installed package holds (e.g. icub-models' robots). kind: the body's
-    section that names the file in errors (urdf, mjcf)."""
+    """The file's path: a path, or {package, path} for a file an installed package holds (e.g.
+    icub-models'); kind: the section named in errors."""
     if isinstance(file, dict):
         package, tail = file.get("package"), file.get("path")
         if set(file) != {"package", "path"} or not isinstance(tail, str):
@@ -54,9 +47,7 @@ def resolve(file, kind="urdf") -> Path:
 
 
 def read_bytes(file, kind="urdf", limit: int | None = None) -> bytes:
-    """The bytes of the URDF `file` (a path or {package, path}): a regular file of at most
-    `limit` bytes (None: MAX_BYTES; an MJCF include: what its model has left of it), else
-    ValueError naming body.urdf.file (body.<kind>.file)."""
+    """The bytes of a regular file of at most `limit` (MAX_BYTES) bytes, else ValueError."""
     limit = MAX_BYTES if limit is None else limit
     path = resolve(file, kind)
     what = kind.upper()
@@ -85,12 +76,11 @@ def read_bytes(file, kind="urdf", limit: int | None = None) -> bytes:
 
 
 def digest(file) -> str:
-    """The SHA-256 of the URDF `file`'s bytes: what makes an edited file another body."""
     return hashlib.sha256(read_bytes(file)).hexdigest()
 
 
-# a number as C's strtod reads it, which URDF and MuJoCo parsers use (Python's float() would also
-# take 1_0 as 10, and digits of other scripts); nan and inf are read to be refused as such
+# a number as C's strtod reads it (float() would take 1_0 and other scripts' digits); nan and
+# inf are read to be refused
 NUMBER = re.compile(r"[+-]?(?:(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?|inf|infinity|nan)",
                     re.IGNORECASE)
 
@@ -110,7 +100,6 @@ def _floats(text, n, what):
 
 
 def _rpy(r, p, y) -> np.ndarray:
-    """URDF's fixed-axis roll, pitch, yaw: R = Rz(y) Ry(p) Rx(r)."""
     cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
     return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
                      [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
@@ -118,7 +107,6 @@ def _rpy(r, p, y) -> np.ndarray:
 
 
 def _z_onto(axis) -> np.ndarray:
-    """A rotation R with R e_z = axis (unit): Rodrigues' formula about e_z x axis."""
     z = np.array([0.0, 0.0, 1.0])
     c = float(axis @ z)
     if c > 1.0 - 1e-15:
@@ -137,9 +125,7 @@ def _rot_axis(axis, angle) -> np.ndarray:
 
 
 def chosen(movable, joints, hold, what, kind="urdf") -> tuple[list, dict]:
-    """The commanded joints (default: every movable one of the chain, in chain order) and the
-    held ones' angles, checked: distinct joints of the chain in chain order, held joints that
-    are the chain's other movable ones, finite angles. what: the joints' kind, in errors."""
+    """(commanded joints, held angles), checked (default: every movable one, chain order)."""
     joints = list(movable if joints is None else joints)
     unknown = [n for n in joints if n not in movable]
     if unknown or len(set(joints)) != len(joints) or not joints:
@@ -161,11 +147,9 @@ def chosen(movable, joints, hold, what, kind="urdf") -> tuple[list, dict]:
 
 
 def read_chain(file, root: str, tip: str, joints=None, hold=None, sha256=None) -> dict:
-    """The chain from link `root` to link `tip` of a URDF: dict(frames (m, 3, 4), tool (3,),
-    names (m,), limits (m, 2) [rad], NaN where the URDF gives none). joints: the commanded
-    joints (default: every revolute joint on the path); hold: {joint: angle [rad]} for the other
-    revolute joints on the path (default 0); sha256: the digest the file must have (a body
-    planned from it). Raises ValueError naming `body.urdf.<key>`."""
+    """The chain from link `root` to `tip`: dict(frames (m, 3, 4), tool, rest, names, limits
+    (m, 2) [rad], NaN where none). hold: {joint: angle} of the uncommanded (default 0); sha256:
+    the digest the file must have. ValueError naming `body.urdf.<key>`."""
     path = resolve(file)
     data = read_bytes(file)
     if sha256 is not None and hashlib.sha256(data).hexdigest() != sha256:

@@ -1,11 +1,4 @@
-"""A body's workspace, sampled: where its hand can be with every joint within its limits, and
-how far it reaches.
-
-All from hand positions of random postures within the limits (uniform commands: [-1, 1] where
-normalised, else [-pi, pi]): a sampled workspace, not a guess from the link lengths. The
-pipeline's body inspector (`python -m pipeline.tools.body`) prints them; the aggregate stage
-states held-out errors in % of `reach`.
-"""
+"""A body's workspace sampled from random postures within the limits, and its reach."""
 from __future__ import annotations
 
 import numpy as np
@@ -18,16 +11,14 @@ SEED = 0  # a body's reach is the same in every run
 
 def hand_samples(body: Body, samples: int = SAMPLES, seed: int = SEED,
                  factors=None) -> np.ndarray:
-    """Hand positions (samples, n) of random postures within the limits [m]."""
     box = 1.0 if body.normalized else np.pi
     q = np.random.default_rng(seed).uniform(-box, box, size=(samples, body.m))
     return body.forward(q, factors)
 
 
 def diameter(points: np.ndarray) -> float:
-    """The largest distance between two of `points` (N, n): exact over the 512 points farthest
-    from their centre and the pair a double-normal search finds, which hold the farthest pair of
-    a workspace's samples in practice."""
+    """The largest distance between two points, over the 512 farthest from the centre and a
+    double-normal search's pair (in practice the farthest pair)."""
     p = np.asarray(points, np.float64)
     if len(p) < 2:
         return 0.0
@@ -43,7 +34,5 @@ def diameter(points: np.ndarray) -> float:
 
 
 def reach(body: Body, factors=None, samples: int = SAMPLES, seed: int = SEED) -> float:
-    """The body's reach [m]: half the largest distance between two hand positions within the
-    limits (an arm that turns about its shoulder: the radius of its workspace about it; the
-    5-DOF arm: 1.0 m)."""
+    """Half the largest distance between two hand positions [m] (arm5: 1.0)."""
     return 0.5 * diameter(hand_samples(body, samples, seed, factors))

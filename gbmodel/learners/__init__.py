@@ -1,43 +1,22 @@
-"""Learners as plug-ins: the registry, and what a learner module provides.
+"""Learners as plug-ins: a module (or package) of this folder, found by its name, or one
+`register`ed at run time. It provides (REQUIRED):
 
-A learner is one module (or package) in this folder, found by its name (`goal_babbling` is
-`gbmodel/learners/goal_babbling/`). It provides:
-
-    Params                 frozen dataclass of hyperparameters, with defaults; its validate()
-                           returns it or raises gbmodel.spec.SpecError naming `learner.<field>`
+    Params                 frozen dataclass of hyperparameters with defaults; validate() returns
+                           it or raises SpecError naming `learner.<field>`
     init(params, body, size, rng) -> state
-                           the initial state with the body at size `size` (the first epoch's)
-    draw(params, body, B, rng) -> tuple of arrays
-                           the random numbers of B epochs, each array with leading axis B (drawn
-                           in blocks of gbmodel.trial.DRAW_BLOCK epochs, so that where a trial is
-                           evaluated or snapshot never changes the draws)
+    draw(params, body, B, rng) -> arrays with leading axis B (per block of trial.DRAW_BLOCK
+                           epochs, so where a trial is evaluated never changes the draws)
     train(state, params, body, sizes, scales, draws, epochs) -> state
-                           len(sizes) epochs with the body at size sizes[e] and per-joint length
-                           factors scales[e] (m,), consuming draws (sliced to those epochs);
-                           epochs: their numbers, 1-based (for a schedule over the epochs)
-    predict(state, params, body, x) -> q
-                           the inverse estimate: commands (N, m) for positions (N, n)
-    model(state) -> np.ndarray | None
-                           a copy of the learned parameters to store (M for a polynomial inverse)
-    samples_per_epoch(params, body) -> int
-                           forward-kinematics evaluations (reaching movements) per epoch
+                           epochs at sizes[e], per-joint length factors scales[e]; epochs:
+                           their 1-based numbers
+    predict(state, params, body, x) -> q (N, m) for x (N, n)
+    model(state) -> np.ndarray | None: a copy of what to store (M)
+    samples_per_epoch(params, body) -> int: forward-kinematics evaluations per epoch
 
-and may provide (OPTIONAL; the pipeline falls back where one is missing):
-
-    sample_cost(params) -> float
-                           CPU time per sample and joint relative to Goal Babbling's fast
-                           batch path (1.0 if missing): a run's ETA and its shards' balance
-    notes(params, body) -> list[str]
-                           what a user should know about these settings on this body (printed
-                           once per run, e.g. a learning rate made for another body)
-    predict_model(model, params, body, x) -> q
-                           predict from what `model(state)` stored (the report draws with it;
-                           a learner without it is not drawn)
-    distances(state, params, body, scale, xs) -> (N,)
-                           |f(g(x*)) - x*| per point, computed its own (faster) way
-
-The trial loop (gbmodel.trial) owns the body, its growth, the draws, the evaluation and the
-snapshots; a learner only learns. `register` adds a module under a name at run time (tests).
+and may provide (OPTIONAL): sample_cost(params) (CPU time per sample and joint relative to Goal
+Babbling's fast path; 1.0), notes(params, body) (what a user should know), predict_model(model,
+params, body, x) (a learner without it is not drawn), distances(state, params, body, scale, xs)
+(|f(g(x*)) - x*| its own faster way). The trial loop owns the rest; a learner only learns.
 """
 from __future__ import annotations
 
@@ -54,13 +33,11 @@ OPTIONAL = ("sample_cost", "notes", "predict_model", "distances")
 
 
 def available() -> list[str]:
-    """Names of every learner: the modules of this package and those registered at run time."""
     found = {m.name for m in pkgutil.iter_modules([str(Path(__file__).parent)])}
     return sorted(found | set(_REGISTERED))
 
 
 def register(name: str, module: ModuleType) -> None:
-    """Make `module` the learner `name` in this process (it must provide REQUIRED)."""
     missing = [a for a in REQUIRED if not hasattr(module, a)]
     if missing:
         raise TypeError(f"learner {name!r} lacks {', '.join(missing)}")
@@ -68,7 +45,6 @@ def register(name: str, module: ModuleType) -> None:
 
 
 def get(name: str) -> ModuleType:
-    """The learner module `name`; ValueError naming `learner.name` if there is none."""
     if name in _REGISTERED:
         return _REGISTERED[name]
     loaded = sys.modules.get(f"{__name__}.{name}")
@@ -80,9 +56,8 @@ def get(name: str) -> ModuleType:
 
 
 def sources(name: str) -> list[tuple[str, str]]:
-    """(label, source text) of learner `name`'s code, for the cache key's code fingerprint: its
-    files under gbmodel/learners/, or, for a module registered from elsewhere (or built at run
-    time), its module name and the source of what it provides."""
+    """(label, source text) of learner `name`'s code for the key's fingerprint: its files here,
+    or a registered module's name and the source of what it provides."""
     module = get(name)
     here = Path(__file__).resolve().parent
     path = Path(getattr(module, "__file__", None) or "")

@@ -1,18 +1,9 @@
-"""Memory-based goal babbling: a nearest-neighbour inverse model (as explauto's `nearest_neighbor`
-sensorimotor model with goal babbling).
-
-The inverse model is the memory itself: g(x*) is the command of the stored example whose outcome
-lies nearest to x*. Each epoch draws `goals` targets from the target set at the body's current
-size; for each, the body executes that command plus Gaussian exploration noise (`sigma`, command
-units), saturated, and the example (x, q) it observes is stored. The memory starts with the home
-example and keeps the examples of the last `window` epochs (window >= 1): at most
-1 + window * goals examples, however long the trial. Outcomes are stored as observed, at the size
-the body had then; under growth the window is how fast stale outcomes are forgotten.
-
-window 0 keeps every example, the home example included: the memory the paper's "stored
-experience is void after growth" is about. Its nearest neighbours come from gbmodel.nearest (k-d
-trees merged like a binary counter, the same answers as one tree over everything, ties to the
-oldest example), so that an epoch costs O(goals log N), not a rebuild over all N examples.
+"""Memory-based goal babbling, as explauto's `nearest_neighbor` model: g(x*) is the command of
+the stored example whose outcome lies nearest to x*. Each epoch the body executes, for `goals`
+targets at its current size, that command plus Gaussian noise (`sigma`), saturated, and stores
+what it observes. The memory starts with the home example and keeps the last `window` epochs'
+(under growth, how fast stale outcomes are forgotten); window 0 keeps everything (the paper's
+"stored experience is void after growth"), in gbmodel.nearest, O(goals log N) per epoch.
 """
 from __future__ import annotations
 
@@ -28,21 +19,17 @@ from ..nearest import Nearest
 
 @dataclass(frozen=True)
 class Params:
-    # goals per epoch: Goal Babbling's sample budget on arm5, V (K L + 1) = 2120
-    goals: int = 2120
-    # exploration noise [command units] (explauto's default: 0.1 of the motor range; too little
-    # learns the grid points only: docs/baselines.md, "Why the alternatives' defaults")
+    goals: int = 2120  # per epoch: Goal Babbling's budget on arm5, V (K L + 1)
+    # exploration noise [command units] (explauto's default; too little learns the grid points
+    # only: docs/baselines.md)
     sigma: float = 0.1
-    # epochs whose examples are kept (memory <= 1 + window * goals): under growth stale outcomes
-    # mislead, without growth more memory is better. 0: keep every example (gbmodel.nearest)
-    window: int = 10
+    window: int = 10  # epochs whose examples are kept; 0: every example
 
     def validate(self) -> "Params":
         check_fields(self, "learner", LIMITS)
         return self
 
 
-# Params' fields and their ranges (gbmodel.spec.check_fields)
 LIMITS = dict(goals=Int(1, 10**6), sigma=Number(0.0, 100.0), window=Int(0, 10_000))
 
 
@@ -56,9 +43,8 @@ class State:
 
 @dataclass(frozen=True)
 class Everything:
-    """The state of the memory that keeps everything (window 0): the examples in a growing
-    gbmodel.nearest.Nearest, of which this state owns the first `count` (a state trained on
-    again after the structure grew gets a copy of its own examples)."""
+    """window 0: the first `count` examples of a growing Nearest (a state trained on again
+    after it grew gets a copy of its own)."""
     store: Nearest
     count: int
     epochs: int = 0
@@ -79,7 +65,6 @@ def init(params: Params, body, size: float, rng: np.random.Generator):
 
 
 def memory(state) -> tuple[np.ndarray, np.ndarray]:
-    """Every stored example: outcomes (N, n), commands (N, m)."""
     if isinstance(state, Everything):
         store = state.own()
         return store.points, store.values
@@ -92,7 +77,6 @@ def memory(state) -> tuple[np.ndarray, np.ndarray]:
 
 
 def draw(params: Params, body, B: int, rng: np.random.Generator) -> tuple:
-    """Goal indices (B, goals) into the target set, standard normal noise (B, goals, m)."""
     idx = rng.integers(0, len(body.targets), size=(B, params.goals))
     return idx, rng.standard_normal((B, params.goals, body.m))
 
@@ -119,7 +103,6 @@ def train(state, params: Params, body, sizes, scales, draws, epochs=None):
 
 
 def predict(state, params: Params, body, x) -> np.ndarray:
-    """The command of the stored example whose outcome is nearest to each x (N, n)."""
     if isinstance(state, Everything):
         store = state.own()
         return store.values[store.query(np.asarray(x, dtype=np.float64))]
@@ -137,6 +120,4 @@ def samples_per_epoch(params: Params, body) -> int:
 
 
 def sample_cost(params: Params) -> float:
-    """CPU time per sample and joint, relative to Goal Babbling's fast batch path (a k-d tree
-    query and insertion per sample)."""
     return 300.0

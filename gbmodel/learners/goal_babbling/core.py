@@ -1,19 +1,7 @@
-"""The shared core of Goal Babbling's kernels: sample columns as LANES-wide float32 vectors.
-
-What every update rule and the rollout use (fast.py says how the kernels fit together and why
-they give the same bits on every x86-64 CPU):
-- `_features`: Phi of a block of columns, monomial by monomial, each a parent monomial times
-  one coordinate;
-- `_predict`: M Phi of a block of columns (or the weighted residuals w (M Phi - q)), rows of M
-  in register tiles of _TILE;
-- `_accumulate`: lanes of R Phi^T over a block of columns in register tiles of vector
-  accumulators, 5 x 5 (10 loads per 25 fused multiply-adds) where the target has 32 vector
-  registers of 16 lanes (AVX-512), 2 x 2 where it has 16 of 8 (AVX2): the gradient, and the
-  Gram sums of solver=lstsq; float32 lanes whose sum is float64;
-- `_lane_sum`, `_zeros64`: a sum over columns in lanes; float64 rows aligned to cache lines.
-
-Each is a function of arrays (the samples, M, its work arrays) and nothing else, so that a kernel
-over many trials at once can call them per trial.
+"""The shared core of Goal Babbling's kernels on LANES-wide float32 sample columns (fast.py says
+why they give the same bits on every x86-64 CPU): features, M Phi (or weighted residuals), the
+register tiles of R Phi^T (the gradient; lstsq.py's Gram sums) and the gradient rule. Each is a
+function of arrays alone, so that a kernel over many trials can call them per trial.
 """
 from __future__ import annotations
 
@@ -27,8 +15,7 @@ from ...simd import (
     wide_vectors,
 )
 
-# every kernel file imports this one first: numba's caches of this folder are removed when any
-# of its files (or simd.py) changed, before a kernel is loaded from them
+# every kernel file imports this one first: the folder's stale numba caches go before a load
 fresh_cache(Path(__file__).parent)
 
 _BLOCK = 512  # columns per block of features, residuals and gradient (multiple of LANES)
@@ -36,8 +23,7 @@ _TILE = 5  # rows of a register tile of M Phi and of the gradient (m = 5, 10; p 
 
 @njit(cache=True)
 def _features(X, c0, C, parent, var, Phi):
-    """Phi[:, :C] of X[:, c0:c0 + C]: monomial k = monomial parent[k] * x[var[k]], the constant
-    first."""
+    """Phi[:, :C] of X[:, c0:c0 + C]: monomial k = monomial parent[k] * x[var[k]]."""
     one = vsplat(_1)
     for c in range(0, C, LANES):
         vstore(Phi, 0, c, one)
@@ -49,10 +35,8 @@ def _features(X, c0, C, parent, var, Phi):
 
 @njit(cache=True)
 def _predict(M32, Phi, C, out, Q, w, c0):
-    """out[:, :C] = M Phi[:, :C] (float32, summed over k in order); with weights w given
-    (len(w) > 0), the weighted residuals w (M Phi - Q) of the columns c0 ... c0 + C - 1 of Q
-    and w instead. Rows in tiles of _TILE, a tile's
-    LANES columns in registers while k runs."""
+    """out[:, :C] = M Phi[:, :C] (summed over k in order), or with len(w) > 0 the weighted
+    residuals w (M Phi - Q) of columns c0 ...; rows in register tiles of _TILE."""
     m, p = M32.shape
     residual = len(w) > 0
     mt = m - m % _TILE
@@ -92,21 +76,16 @@ def _predict(M32, Phi, C, out, Q, w, c0):
 
 
 # ---- R Phi^T: register tiles of vector accumulators --------------------------------------------
-# A tile's accumulators start at 0, add the block's columns in order, then are added to GL: lane
-# l of G[i, k] adds the columns c = l (mod LANES) one by one in order whatever the tile's shape,
-# so the shape follows the target's registers without moving a bit: 5 x 5 tiles (25
-# accumulators, 10 loads per 25 fused multiply-adds) where an F32x16 is one register of 32
-# (AVX-512), 2 x 2 tiles where it is two of 16 (AVX2: 4 accumulators in 8 registers, 4 loads per
-# 4; a 5 x 5 tile would spill its accumulators to the stack at every step, twice as slow).
+# Lane l of G[i, k] adds the columns c = l (mod LANES) in order whatever the tile's shape, so the
+# shape follows the registers without moving a bit: 5 x 5 where an F32x16 is one of 32 registers
+# (AVX-512), 2 x 2 where it is two of 16 (AVX2: a 5 x 5 tile would spill, twice as slow).
 @njit(inline="always")
 def _put(GL, i, o, a):
-    """GL[i, lanes o ... o + LANES - 1] += a."""
     vstore(GL, i, o, vadd(vload(GL, i, o), a))
 
 
 @njit(inline="always")
 def _flush(GL, i, k, b0, b1, b2, b3, b4):
-    """GL[i, lanes of k ... k + 4] += b0 ... b4."""
     o = k * LANES
     _put(GL, i, o, b0)
     _put(GL, i, o + LANES, b1)
@@ -117,8 +96,7 @@ def _flush(GL, i, k, b0, b1, b2, b3, b4):
 
 @njit(cache=True)
 def _tile5x5(Rw, Phi, C, i, k, GL):
-    """Lanes of G[i:i+5, k:k+5] += Rw[i:i+5, :C] Phi[k:k+5, :C]^T: 25 vector accumulators, 10
-    loads per 25 fused multiply-adds."""
+    """Lanes of G[i:i+5, k:k+5] += Rw[i:i+5, :C] Phi[k:k+5, :C]^T."""
     a00 = a01 = a02 = a03 = a04 = vsplat(0)
     a10 = a11 = a12 = a13 = a14 = vsplat(0)
     a20 = a21 = a22 = a23 = a24 = vsplat(0)
@@ -151,7 +129,6 @@ def _tile5x5(Rw, Phi, C, i, k, GL):
 
 @njit(cache=True)
 def _tile1x5(Rw, Phi, C, i, k, GL):
-    """Lanes of G[i, k:k+5] += Rw[i, :C] Phi[k:k+5, :C]^T."""
     a0 = a1 = a2 = a3 = a4 = vsplat(0)
     for c in range(0, C, LANES):
         x = vload(Rw, i, c)
@@ -163,8 +140,6 @@ def _tile1x5(Rw, Phi, C, i, k, GL):
 
 @njit(cache=True)
 def _tile2x2(Rw, Phi, C, i, k, GL):
-    """Lanes of G[i:i+2, k:k+2] += Rw[i:i+2, :C] Phi[k:k+2, :C]^T: 4 vector accumulators, 4
-    loads per 4 fused multiply-adds."""
     a00 = a01 = a10 = a11 = vsplat(0)
     for c in range(0, C, LANES):
         x0, x1 = vload(Rw, i, c), vload(Rw, i + 1, c)
@@ -181,7 +156,6 @@ def _tile2x2(Rw, Phi, C, i, k, GL):
 
 @njit(cache=True)
 def _tile1x2(Rw, Phi, C, i, k, GL):
-    """Lanes of G[i, k:k+2] += Rw[i, :C] Phi[k:k+2, :C]^T."""
     a0 = a1 = vsplat(0)
     for c in range(0, C, LANES):
         x = vload(Rw, i, c)
@@ -193,7 +167,6 @@ def _tile1x2(Rw, Phi, C, i, k, GL):
 
 @njit(cache=True)
 def _tile1x1(Rw, Phi, C, i, k, GL):
-    """Lanes of G[i, k] += Rw[i, :C] . Phi[k, :C]."""
     a = vsplat(0)
     for c in range(0, C, LANES):
         a = vfma(vload(Rw, i, c), vload(Phi, k, c), a)
@@ -202,11 +175,8 @@ def _tile1x1(Rw, Phi, C, i, k, GL):
 
 @njit(cache=True)
 def _accumulate(Rw, Phi, C, GL, symmetric=0):
-    """Lanes of the gradient, GL (m, p * LANES) += Rw[:, :C] Phi[:, :C]^T: lane l of G[i, k]
-    sums the columns c = l (mod LANES) in order, whatever the CPU. With `symmetric` rows (the
-    first rows of Rw are Phi's, weighted: a Gram matrix), the tiles of those rows wholly above
-    the diagonal are left out (the caller mirrors them). Tiles of 5 x 5 or 2 x 2 by the
-    target's registers (simd.wide_vectors: a compile-time constant)."""
+    """Lanes of GL (m, p * LANES) += Rw[:, :C] Phi[:, :C]^T. With `symmetric` rows (a Gram
+    matrix's), their tiles wholly above the diagonal are left out (the caller mirrors them)."""
     m, p = Rw.shape[0], Phi.shape[0]
     t = _TILE if wide_vectors() else 2
     mt, pt = m - m % t, p - p % t
@@ -231,7 +201,6 @@ def _accumulate(Rw, Phi, C, GL, symmetric=0):
 
 @njit(cache=True)
 def _lane_sum(w, C):
-    """sum w[:C] (C a multiple of LANES): LANES partial sums, then the lanes (vsum)."""
     acc = vsplat(0)
     for c in range(0, C, LANES):
         acc = vadd(acc, vload1(w, c))
@@ -240,10 +209,36 @@ def _lane_sum(w, C):
 
 @njit(cache=True)
 def _zeros64(shape):
-    """np.zeros(shape) (float64) starting on a 64-byte boundary: a row of whole F64x8 vectors
-    then lies in whole cache lines (a vector across two lines is a split load or store, and a
-    split store is not forwarded to the next load)."""
+    """np.zeros(shape) on a 64-byte boundary: F64x8 rows in whole cache lines (a split store is
+    not forwarded to the next load)."""
     n = shape[0] * shape[1]
     buf = np.zeros(n + W8)
     off = (-(buf.ctypes.data // 8)) % W8
     return buf[off:off + n].reshape(shape)
+
+
+@njit(cache=True)
+def _gradient_step(M, M32, X, Q, w, Npad, parent, var, Phi, Rw, GL, eta):
+    """M -= eta sum_t w (M Phi - q) Phi^T over the columns (M32: M in float32 on entry)."""
+    m, p = M.shape
+    GL[:] = 0
+    for c0 in range(0, Npad, _BLOCK):  # blocks of columns: their Phi and Rw stay in cache
+        C = min(_BLOCK, Npad - c0)
+        _features(X, c0, C, parent, var, Phi)
+        _predict(M32, Phi, C, Rw, Q, w, c0)
+        _accumulate(Rw, Phi, C, GL)
+    for i in range(m):
+        for k in range(p):
+            M[i, k] -= eta * vsum(vload(GL, i, k * LANES))
+
+
+@njit(cache=True)
+def gradient_steps(M, M32, X, Q, w, Npad, parent, var, Phi, Rw, GL, eta, steps):
+    """`steps` gradient steps on the same samples (updates=batch: 1; updates=steps: k)."""
+    m, p = M.shape
+    for u in range(steps):
+        if u > 0:
+            for i in range(m):
+                for k in range(p):
+                    M32[i, k] = M[i, k]
+        _gradient_step(M, M32, X, Q, w, Npad, parent, var, Phi, Rw, GL, eta)

@@ -1,9 +1,5 @@
-"""The lstsq rule in the kernel (solver=lstsq; solve.py states it in numpy).
-
-An epoch's Gram sums [sum_t w Phi Phi^T; sum_t w q Phi^T] into its slot of a ring of `window`
-slots, then M from the sum of the slots by the ridge system (solve.system), solved by a
-Cholesky factor in plain loops of a fixed order (solve.cholesky_solve, compiled here).
-"""
+"""The lstsq rule in the kernel (solver=lstsq), as solve.py states it: Gram sums into a ring's
+slot, M from their sum by solve.system and a compiled solve.cholesky_solve."""
 from __future__ import annotations
 
 import numpy as np
@@ -16,9 +12,7 @@ from .solve import cholesky_solve
 
 @njit(cache=True)
 def _gram_sums(X, Q, w, Npad, parent, var, Phi, Z, GG, out):
-    """out (p + m, p) = [sum_t w Phi Phi^T; sum_t w q Phi^T] over the columns of X, Q, w
-    (solve.grams): the rows w Phi and w q in blocks, their products with Phi in the gradient's
-    register tiles (float32 lanes, float64 sum)."""
+    """out (p + m, p) = solve.grams of the columns, in the gradient's register tiles."""
     p, m = Phi.shape[0], Q.shape[0]
     GG[:] = 0
     for c0 in range(0, Npad, _BLOCK):
@@ -44,9 +38,7 @@ _cholesky_solve = njit(cache=True)(cholesky_solve)
 
 @njit(cache=True)
 def _target_gram(targets, s, parent, var, phi, P, M, clip, PC):
-    """P = mean over the targets at size s of Phi(x*) Phi(x*)^T (solve.target_gram), float64
-    in a fixed order; PC = mean Phi(x*) c(x*)^T, c = M Phi(x*) clipped to [-1, 1] where `clip`
-    (the commands the body executes; solve.limit_gram)."""
+    """P = solve.target_gram and PC = solve.limit_gram at size s, float64 in a fixed order."""
     NT, n = targets.shape
     p = P.shape[0]
     m = M.shape[0]
@@ -78,9 +70,7 @@ def _target_gram(targets, s, parent, var, phi, P, M, clip, PC):
 @njit(cache=True)
 def solve(M, M0, ring, slot, ridge, anchor, limit, clip, X, Q, w, Npad, parent, var, Phi,
           targets, s, solver_work):
-    """solver=lstsq (solve.solve): this epoch's Gram sums into ring[slot], then M from the sum
-    of the slots (in slot order) by solve.system (the ridge towards M, the anchor towards M0
-    over the targets at size s), in place."""
+    """solve.solve in place: this epoch's Gram sums into ring[slot], M from the slots' sum."""
     Z, GG, total, A, B, L, out, P, phi, PC = solver_work
     m, p = M.shape
     _gram_sums(X, Q, w, Npad, parent, var, Phi, Z, GG, ring[slot])
@@ -90,8 +80,7 @@ def solve(M, M0, ring, slot, ridge, anchor, limit, clip, X, Q, w, Npad, parent, 
             for j in range(p):
                 total[i, j] += ring[k, i, j]
     _target_gram(targets, s, parent, var, phi, P, M, clip, PC)
-    la = anchor * total[0, 0]  # the anchor's weight: anchor (solve.anchor_at) times the
-    # window's sum of weights
+    la = anchor * total[0, 0]  # times the window's sum of weights
     lc = limit * total[0, 0]
     for i in range(p):
         for j in range(p):
@@ -111,7 +100,6 @@ def solve(M, M0, ring, slot, ridge, anchor, limit, clip, X, Q, w, Npad, parent, 
 
 @njit(cache=True)
 def solver_work(m, n, p, V, T, solving):
-    """Work arrays of the lstsq rule (solving false: token ones, for the other rules)."""
     Npad = -(-(V * (T + 1)) // LANES) * LANES
     cols = min(Npad, _BLOCK) if solving else LANES
     f4 = np.float32

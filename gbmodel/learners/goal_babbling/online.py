@@ -1,8 +1,5 @@
-"""The online rule in the kernel (updates=online; reference.update): one float64 step per sample.
-
-M_t = M_t-1 - eta w_t (M_t-1 phi_t - q_t) phi_t^T, the samples in the order they were reached,
-the rows of M the lanes of F64x8 vectors (see `online`).
-"""
+"""The online rule in the kernel (updates=online; reference.update): one float64 step per
+sample, the rows of M the lanes of F64x8 vectors (see `online`)."""
 from __future__ import annotations
 
 import numpy as np
@@ -19,15 +16,13 @@ _CHUNK = 128  # samples whose float64 features and commands are laid out togethe
 
 @njit(inline="always")
 def _row8(Q, i, m, c):
-    """Q[i, c:c + 8] as float64 lanes, zeros for a row i >= m."""
     return vload8f(Q, i, c) if i < m else vsplat8(0.0)
 
 
 @njit(cache=True)
 def _online_rows(MT, Ph, D, QT, w, c0, C, eta, g, P, b):
-    """_online's steps of the chunk's C samples on the rows b ... b + 7 of M (lanes of MT[:, b:]),
-    g_t and P_t+1 in registers while the samples run (g, P: at the chunk's start and end).
-    Two samples per pass over M: M_t and M_t+1 from one load of M_t-1, one store of M_t+1."""
+    """The chunk's C samples on rows b ... b + 7 of M, two samples per pass over M (M_t and
+    M_t+1 from one load of M_t-1), g_t and P_t+1 in registers."""
     p = MT.shape[0]
     pe = p - p % 2
     g0, P0 = vload18(g, b), vload18(P, b)
@@ -78,8 +73,7 @@ def _online_rows(MT, Ph, D, QT, w, c0, C, eta, g, P, b):
 
 @njit(cache=True)
 def _online_rows2(MT, Ph, D, QT, w, c0, C, eta, g, P, b):
-    """_online_rows on the rows b ... b + 15, two vectors side by side (the features loaded
-    once, two independent chains)."""
+    """_online_rows on rows b ... b + 15, two vectors side by side (features loaded once)."""
     p = MT.shape[0]
     pe = p - p % 2
     b1 = b + W8
@@ -152,19 +146,13 @@ def _online_rows2(MT, Ph, D, QT, w, c0, C, eta, g, P, b):
 
 @njit(cache=True)
 def online(M, X, Q, w, N, parent, var, eta):
-    """One step per sample, columns 0 ... N-1 in order (reference.update, updates=online), in
-    float64: M_t = M_t-1 - s_t phi_t^T with s_t = eta w_t (M_t-1 phi_t - q_t) (a weight 0 steps
-    by 0). X needs W8 + 2 columns past N, Q W8 (read, not used).
-
-    The step waits for nothing but s_t, and s_t for the prediction M_t-1 phi_t, which is
-    g_t = P_t - s_t-1 d_t-1 with P_t = M_t-2 phi_t (summed while the pass over M wrote M_t-2)
-    and d_t-1 = phi_t-1 . phi_t (with the features): a sample waits for a few operations, not
-    for a sum over the p features. Per chunk of _CHUNK samples, their features, commands and
-    the products d first; then, per block of rows of M (the rows are independent), one pass
-    over M per pair of samples, the rows of M the lanes of F64x8 vectors (M kept transposed,
-    MT (p, W), zero-padded to whole vectors, in whole cache lines). Fused multiply-adds,
-    every sum in a fixed order (P: even and odd k apart, then added): the same bytes on every
-    CPU. It agrees with the numpy reference to rounding (tests/core/test_fast.py)."""
+    """M_t = M_t-1 - s_t phi_t^T, s_t = eta w_t (M_t-1 phi_t - q_t), columns 0 ... N-1 in order
+    (X needs W8 + 2 columns past N, Q W8). The prediction M_t-1 phi_t is g_t = P_t - s_t-1
+    d_t-1, P_t = M_t-2 phi_t summed in the pass that wrote M_t-2, d_t-1 = phi_t-1 . phi_t: a
+    sample waits for a few operations, not a sum over p. Per chunk of _CHUNK samples, features,
+    commands and d first, then per block of rows (independent) one pass over M (transposed,
+    padded, in whole cache lines) per pair of samples. Every sum in a fixed order (P: even and
+    odd k apart): the same bytes on every CPU, the numpy reference's to rounding."""
     m, p = M.shape
     W = -(-m // W8) * W8
     MT = _zeros64((p, W))

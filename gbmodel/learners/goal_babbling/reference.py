@@ -1,7 +1,5 @@
-"""The Goal Babbling learner (paper sec. 2.2 and 3), plain numpy: the reference path.
-
-This module is the readable statement of the algorithm; `gbmodel.fast` computes the same epoch in
-compiled loops and is tested against it. One epoch:
+"""Goal Babbling (paper sec. 2.2 and 3) in plain numpy, the readable statement; fast.py computes
+the same epoch compiled. One epoch:
 
 1. a target path: K + 1 targets drawn from the target set (at the body's current size), joined by
    L linear steps (eq. 9), T = K * L path targets x*_t;
@@ -13,8 +11,7 @@ compiled loops and is tested against it. One epoch:
 5. one gradient step on the weighted command error (eq. 6):
        M <- M - eta * sum_vt w (M Phi(x) - q) Phi(x)^T.
 
-Readings of the text that it leaves open are options of Params (__init__.py says each: the
-step, the amplitude, the updates, the solver, the rate schedule); the defaults are the above.
+Readings the text leaves open are options of Params; the defaults are the above.
 """
 from __future__ import annotations
 
@@ -27,10 +24,7 @@ from ...inverse import (  # noqa: F401 (the statement of an epoch names them her
 
 
 def target_path(targets, idx, steps):
-    """Eq. 9: targets[idx[0]] -> targets[idx[1]] -> ... in `steps` linear steps each.
-
-    Returns (len(idx) - 1) * steps path targets, starting at targets[idx[0]] (l = 0 ... L-1).
-    """
+    """Eq. 9: (len(idx) - 1) steps path targets, targets[idx[0]] -> targets[idx[1]] -> ..."""
     tau = targets[idx]
     frac = (np.arange(steps) / steps)[None, :, None]
     path = (1.0 - frac) * tau[:-1, None, :] + frac * tau[1:, None, :]
@@ -38,10 +32,7 @@ def target_path(targets, idx, steps):
 
 
 def rollout(M, body, scale, exps, path, A, b):
-    """All variations reach along the path, home example first.
-
-    Returns intended xstar (V, T+1, n), reached x (V, T+1, n), postures q (V, T+1, m).
-    """
+    """All variations along the path, home first: xstar, x (V, T+1, n), q (V, T+1, m)."""
     V = A.shape[0]
     q_home = body.saturate(body.home)
     x_home = body.forward(q_home, scale)
@@ -54,8 +45,7 @@ def rollout(M, body, scale, exps, path, A, b):
 
 
 def gradient_step(M, x, q, w, exps, learning_rate, step="plain"):
-    """One gradient-descent step on the weighted command error (eq. 6), plain (step="plain") or
-    normalised by sum w (step="normalised")."""
+    """One gradient step on eq. 6, plain or normalised by sum w."""
     phi = features(x, exps)
     r = phi @ M.T - q
     grad = np.einsum("vt,vti,vtk->ik", w, r, phi)
@@ -63,7 +53,6 @@ def gradient_step(M, x, q, w, exps, learning_rate, step="plain"):
 
 
 def update(M, x, q, w, exps, learning_rate, step="plain", updates="batch", update_steps=1):
-    """The learning step of one epoch on its samples (x, q, w), by the `updates` reading."""
     if updates == "batch":
         return gradient_step(M, x, q, w, exps, learning_rate, step)
     if updates == "steps":
@@ -80,15 +69,13 @@ def update(M, x, q, w, exps, learning_rate, step="plain", updates="batch", updat
 
 def epoch(M, body, size, scale, exps, idx, raw, radius, steps, learning_rate, amp=None,
           step="plain", updates="batch", update_steps=1):
-    """One epoch of Goal Babbling with the body at size `size` (per-joint length factors
-    `scale`); returns the updated M and the samples (xstar, x, q, w)."""
+    """One epoch: the updated M and the samples (xstar, x, q, w)."""
     xstar, x, q, w = samples(M, body, size, scale, exps, idx, raw, radius, steps, amp)
     M = update(M, x, q, w, exps, learning_rate, step, updates, update_steps)
     return M, (xstar, x, q, w)
 
 
 def samples(M, body, size, scale, exps, idx, raw, radius, steps, amp=None):
-    """Steps 1-4 of an epoch: the samples (xstar, x, q, w) that M's variations collect."""
     lo, hi = body.target_box(size)
     path = target_path(body.target_set(size), idx, steps)
     A, b = scale_perturbations(raw, lo, hi, radius, amp)

@@ -1,10 +1,5 @@
-"""The rollout of one epoch in the kernel (reference.samples): path, commands, postures, weights.
-
-`rollout` leaves an epoch's samples in its work arrays (`_work`): Q (m, N) commands as the body
-took them (saturated), X (n, N) the hand's positions, w (N) the weights w_dir w_eff (eq. 1-3),
-the home example first in each variation (eq. 5); an update rule (gradient.py, online.py,
-lstsq.py) then learns from them. `_distances` is the evaluation's rollout of g itself.
-"""
+"""The rollout of one epoch in the kernel (reference.samples), and the evaluation's rollout of g
+itself (`_distances`)."""
 from __future__ import annotations
 
 import numpy as np
@@ -19,9 +14,8 @@ from .reference import NO_MOVEMENT
 
 @njit(cache=True)
 def _disturbances(raw, amp, s, centre, half, radius, A, b):
-    """Eq. 8: rows of [A | b] of every variation, scaled so that max |A_i x + b_i| = radius
-    times amp[v, i] over the target box (centre +- half) at size s (float64; stored as float32;
-    amp is 1 for the exact reading, U(0, 1) for the uniform one)."""
+    """Eq. 8: rows of [A | b] scaled to max |A_i x + b_i| = radius amp[v, i] over the target box
+    at size s (in float64, stored as float32)."""
     V, m, n = A.shape
     for v in range(V):
         for i in range(m):
@@ -38,10 +32,8 @@ def _disturbances(raw, amp, s, centre, half, radius, A, b):
 
 @njit(cache=True)
 def _commands(gpath, path, A, b, home, T, Npad, Q):
-    """Commands of every variation, v in the columns v (T + 1) ... v (T + 1) + T of Q: the home
-    posture, then g + A x* + b along the path; home again in the columns N ... Npad - 1.
-    (A variation's last vector runs into the next variation's columns, which that variation
-    then writes; hence in order.)"""
+    """Q: per variation the home posture, then g + A x* + b along the path; home in the padding.
+    (A variation's last vector runs into the next one's columns: in order.)"""
     m, Bv = gpath.shape
     V, n = A.shape[0], path.shape[0]
     for v in range(V):
@@ -68,10 +60,8 @@ def _commands(gpath, path, A, b, home, T, Npad, Q):
 
 @njit(cache=True)
 def _weights(dxs, nxs, X, Q, V, T, Npad, w):
-    """w_dir * w_eff (eq. 1-3) of every path column r0 + 1 ... r0 + T of a variation (r0 =
-    v (T + 1)) against the column before, w = 1 for its home column r0 (eq. 5); 0 for the
-    columns N ... Npad - 1. dxs, nxs: the intended steps u -> u + 1 and their squared lengths,
-    the same for every variation. (In order, as _commands.)"""
+    """w_dir * w_eff (eq. 1-3) of each path column against the one before, 1 for home columns,
+    0 for the padding; dxs, nxs: the intended steps and their squared lengths."""
     n, m = X.shape[0], Q.shape[0]
     Bv = len(nxs)
     zero, one, half = vsplat(0), vsplat(_1), vsplat(_HALF)
@@ -102,11 +92,9 @@ def _weights(dxs, nxs, X, Q, V, T, Npad, w):
 @njit(cache=True)
 def rollout(M, idx, raw, amp, s, body, targets, home, parent, var, joints, radius, steps, box,
             work):
-    """Steps 1-4 of an epoch (reference.samples): the target path at size s, V variations of g
-    (M) along it, their postures and the weights, into work (_work): Q (m, N) postures, X (n, N)
-    reached positions, w (N) weights, variation v in the columns v (T + 1) ... v (T + 1) + T
-    (N = V (T + 1); then columns of padding up to a multiple of LANES, weight 0, and LANES spare
-    ones). Leaves M in float32 in work's M32."""
+    """Steps 1-4 of an epoch (reference.samples) into work: Q (m, N) postures, X (n, N) hands,
+    w (N) weights, variation v in columns v (T + 1) ... v (T + 1) + T, then weight-0 padding to
+    a multiple of LANES and LANES spare columns; M in float32 in work's M32."""
     Q, X, w, _, _, path, Phip, gpath, dxs, nxs, A, b, M32, _, Qh, Xh = work
     m, p = M.shape
     n = targets.shape[1]
@@ -156,8 +144,6 @@ def rollout(M, idx, raw, amp, s, body, targets, home, parent, var, joints, radiu
 
 @njit(cache=True)
 def _work(m, n, p, V, T):
-    """Work arrays of one epoch: Npad = V (T + 1) rounded up to LANES sample columns (and LANES
-    spare), Bv = T + 1 rounded up for the path."""
     Bv = -(-(T + 1) // LANES) * LANES
     Npad = -(-(V * (T + 1)) // LANES) * LANES
     N = Npad + LANES
@@ -173,7 +159,6 @@ def _work(m, n, p, V, T):
 
 @njit(cache=True)
 def _box(targets):
-    """(centre, half width) of the box around the targets (at full size), per coordinate."""
     n = targets.shape[1]
     centre, half = np.empty(n), np.empty(n)
     for j in range(n):
@@ -184,7 +169,6 @@ def _box(targets):
 
 @njit(cache=True)
 def _distances(M, scale, chain, xs, parent, var, joints, out):
-    """out[t] = |f(g(xs_t)) - xs_t| (float64) with the chain's lengths times scale."""
     a, d, ca, sa, base, outputs, ty, R, general = chain
     m, p = M.shape
     NT, n = xs.shape

@@ -1,31 +1,17 @@
-"""M solved from the weighted normal equations of eq. 6 (learner.solver=lstsq), plain numpy.
-
-The paper updates M by a gradient step on the weighted command error (eq. 6) and notes that
-"any regression algorithm can be used for this step (e.g. linear regression schemes)". Here M
-minimises that error exactly over the samples of the last `window` epochs:
+"""M solved from eq. 6's weighted normal equations (learner.solver=lstsq; the paper: "any
+regression algorithm can be used for this step"), over the last `window` epochs' samples:
 
     min_M  sum_{e in window} sum_t w_t |M Phi(x_t) - q_t|^2  +  ridge sum_k G_kk |M_:k - Mc_:k|^2
            +  a W mean_{x* in targets} |(M - M0) Phi(x*)|^2
            +  l W mean_{x* in targets} |M Phi(x*) - clip(Mc Phi(x*))|^2
 
 with Mc the M before the solve, M0 the initial M, W the window's sum of weights, a the anchor
-(anchor_at) and l the limit pull (on a body with joint limits; 0 without). Each epoch
-contributes its Gram sums G_e = sum_t w Phi Phi^T (p x p) and H_e = sum_t w q Phi^T (m x p),
-the home example (weight 1, eq. 5) included, as a slot of a ring of `window` slots (the oldest
-is overwritten); the solve sums the slots in slot order and solves (G + D + (a + l) W P) M^T =
-H^T + D Mc^T + a W P M0^T + l W PC, D = ridge diag(G) (1 where a feature never varies, G_kk =
-0: its column keeps Mc's), P = mean Phi(x*) Phi(x*)^T over the targets at the current size
-(target_gram), PC = mean Phi(x*) clip(Mc Phi(x*))^T (limit_gram). The ridge is relative to each
-feature's own scale and keeps the system well conditioned; the anchor is relative to the data's
-weight and measured where the inverse is used, so neither depends on the body's units, its
-outputs or its sample count.
-
-Why the anchor and the limit pull: docs/bodies.md, "The exact solver" (the first solves
-extrapolate from samples clustered at home; commands past a limit get no weight, so no sample
-brings them back).
-
-The fast path (lstsq.py) accumulates G_e and H_e in the kernel and solves the same p x p system
-by `cholesky_solve` below, compiled; this module states it with numpy's solver.
+(anchor_at) and l the limit pull (0 without joint limits). Each epoch's Gram sums G_e = sum_t
+w Phi Phi^T and H_e = sum_t w q Phi^T fill a slot of a ring of `window`; the solve sums the
+slots in slot order and solves (G + D + (a + l) W P) M^T = H^T + D Mc^T + a W P M0^T + l W PC,
+D = ridge diag(G) (1 where G_kk = 0), P = target_gram, PC = limit_gram. Ridge and anchor are
+relative to the data, so neither depends on the body's units or sample count. Why the anchor
+and the pull: docs/bodies.md, "The exact solver". lstsq.py computes the same in the kernel.
 """
 from __future__ import annotations
 
@@ -38,11 +24,8 @@ from ...features import features
 
 @dataclass(frozen=True)
 class Solved:
-    """The state under solver=lstsq: M, the ring of per-epoch Gram sums, and the initial M.
-
-    ring (window, p + m, p): rows 0 ... p-1 of a slot are G_e, rows p ... p+m-1 are H_e;
-    epochs: the epochs learned so far (the next slot is epochs % window); M0: the initial
-    inverse, the anchor of the prior."""
+    """The state under solver=lstsq: ring (window, p + m, p) of [G_e; H_e], the next slot
+    epochs % window, M0 the initial M."""
     M: np.ndarray
     ring: np.ndarray
     epochs: int = 0
@@ -64,16 +47,13 @@ def grams(x, q, w, exps) -> np.ndarray:
 
 
 def target_gram(targets, exps) -> np.ndarray:
-    """P = mean over the targets of Phi(x*) Phi(x*)^T (p x p): |M Phi|^2 averaged over the
-    targets is the trace of M P M^T."""
+    """P = mean over the targets of Phi(x*) Phi(x*)^T (p x p)."""
     phi = features(targets, exps)
     return phi.T @ phi / len(phi)
 
 
 def limit_gram(targets, exps, M, clip: bool) -> np.ndarray:
-    """PC = mean over the targets of Phi(x*) c(x*)^T (p x m), c = M Phi(x*) clipped to [-1, 1]
-    where `clip` (a body whose joints saturate): the commands the body executes at the targets
-    under the current M."""
+    """PC = mean over the targets of Phi(x*) c(x*)^T, c = M Phi(x*) (clipped where `clip`)."""
     phi = features(targets, exps)
     c = phi @ M.T
     if clip:
@@ -82,12 +62,8 @@ def limit_gram(targets, exps, M, clip: bool) -> np.ndarray:
 
 
 def system(M, total, ridge, P=None, M0=None, anchor=0.0, PC=None, limit=0.0):
-    """The p x p system (A, B) of A M^T = B for the summed Gram sums `total` (p + m, p): the
-    ridge on each coefficient, relative to its feature's G_kk, towards M, and (with P, the
-    targets' target_gram) the anchor anchor |(M' - M0) Phi|^2 averaged over the targets, times
-    the window's sum of weights (G_00, the constant feature's), towards M0, and (with PC, the
-    targets' limit_gram) the limit term limit |M' Phi - c|^2 averaged over the targets, times
-    the same sum, towards the executed commands c."""
+    """(A, B) of A M^T = B for the summed Gram sums `total`: the ridge towards M, with P the
+    anchor towards M0 and with PC the limit pull, both times the weight sum G_00."""
     p = total.shape[1]
     G, H = total[:p], total[p:]
     diag = np.diag(G)
@@ -103,10 +79,8 @@ def system(M, total, ridge, P=None, M0=None, anchor=0.0, PC=None, limit=0.0):
 
 
 def anchor_at(anchor, anchor_epochs, epoch, body) -> float:
-    """The anchor's factor in (1-based) epoch `epoch`: anchor on a body without joint limits
-    (nothing else holds a joint that barely moves the hand), anchor tau / (tau + epoch - 1),
-    tau = anchor_epochs, on a body with limits (they hold the joints; the anchor only keeps
-    the first solves' commands within them)."""
+    """anchor, decaying as tau / (tau + epoch - 1) on a body with limits (they hold the
+    joints; the anchor keeps only the first solves within them)."""
     if not body.limited:
         return anchor
     return anchor * anchor_epochs / (anchor_epochs + epoch - 1)
@@ -114,8 +88,7 @@ def anchor_at(anchor, anchor_epochs, epoch, body) -> float:
 
 def solve(state: Solved, slot_grams: np.ndarray, ridge: float, P=None, anchor=0.0, PC=None,
           limit=0.0) -> Solved:
-    """The state after one epoch whose Gram sums are slot_grams: the slot stored, M solved
-    (PC: limit_gram of the targets under state.M)."""
+    """The state after an epoch whose Gram sums are slot_grams."""
     window = len(state.ring)
     ring = state.ring.copy()
     ring[state.epochs % window] = slot_grams
@@ -127,8 +100,8 @@ def solve(state: Solved, slot_grams: np.ndarray, ridge: float, P=None, anchor=0.
 
 
 def cholesky_solve(A, B, L, out):
-    """out = A^-1 B by the Cholesky factor L of A (A symmetric positive definite; plain loops in
-    a fixed order, compiled by lstsq.py so that every CPU computes the same bits)."""
+    """out = A^-1 B by A's Cholesky factor L: plain loops in a fixed order (compiled by
+    lstsq.py, the same bits on every CPU)."""
     p, r = B.shape
     for j in range(p):
         s = A[j, j]

@@ -1,40 +1,19 @@
-"""Online Goal Babbling, after Rolf, Steil & Gienger 2011 ("Online goal babbling for rapid
-bootstrapping of inverse models in high dimensions"): one continuous movement, learned sample by
-sample.
+"""Online Goal Babbling (Rolf, Steil & Gienger 2011), as we read it and as the IRP group's `pygb`
+realises it: one continuous stream of goal-directed movements, learned sample by sample. The
+path, perturbation and last sample carry over between epochs; the perturbation E_t(x) = A_t x +
+b_t drifts, P <- (P + drift xi) / sqrt(1 + drift^2), xi ~ N(0, 1), so that P = [A | b] stays
+N(0, 1); one gradient step per sample on w_t |g(x_t) - q_t|^2 (weights of eq. 1-3, 2010); after
+a target, a return home with probability `home_probability`.
 
-Taken from the 2011 paper (as we read it, and as the IRP group's open implementation `pygb`
-realises it):
-- a single continuous stream of goal-directed movements instead of V rollouts per epoch: the
-  target moves along straight paths between targets drawn from the target set, and the path, the
-  perturbation and the last sample carry over from epoch to epoch;
-- the exploratory perturbation E_t(x) = A_t x + b_t drifts slowly: per sample, its parameters
-  take a random-walk step that keeps their spread, P <- (P + drift xi) / sqrt(1 + drift^2),
-  xi ~ N(0, 1), so that the entries of P = [A | b] stay N(0, 1)-distributed;
-- one gradient step per sample on that sample's weighted error, w_t (g(x_t) - q_t)^2, weights
-  w_dir * w_eff (eq. 1-3 of the 2010 paper) against the previous sample;
-- after a target, a return to home with probability `home_probability`.
+Chosen here: the 2010 paper's paths (eq. 9: L steps to each next target, uniform over the
+others), amplitude (eq. 8: rows scaled to peak at R over the target box), inverse (eq. 7,
+initialised alike) and home example (one sample of weight 1; the next path starts at x_home);
+the step is plain gradient descent (2011 learns a local-linear map). An epoch: K targets, K L
+path samples plus the returns home. goal_selection: random or progress (gbmodel/goals.py).
 
-Chosen here:
-- the paths are the 2010 paper's (eq. 9): L linear steps to each next target, the last one on it,
-  the next target uniform over the other targets; an epoch is K targets, K L path samples;
-- the perturbation's amplitude is the 2010 paper's (eq. 8): each row of [A | b] scaled so that
-  max |E_i(x)| over the target box is exactly R (gbmodel.learners.goal_babbling.reference), so
-  that R means what it means for Goal Babbling;
-- a return home is one sample, the home example (q_home, x_home) with weight 1 (eq. 5 of 2010),
-  and the next path starts at x_home (2011 moves home through joint space);
-- the inverse estimate is Goal Babbling's polynomial (eq. 7), initialised the same way, and the
-  step is plain per-sample gradient descent, M <- M - eta w_t (M Phi(x_t) - q_t) Phi(x_t)^T
-  (2011 learns a local-linear map);
-- samples per epoch: K L plus the returns home, K home_probability in expectation;
-- goal_selection: random (the above: each next target uniform over the others) or progress
-  (gbmodel/goals.py: by the regions' recent change of error, not the 2011 paper's).
-
-Two paths compute the same thing with the same draws (all random numbers come from `draw`):
-`reference.py`, plain numpy, is the readable statement; `fast.py`, the same per-sample loop
-compiled with numba in float64 (no fastmath: every sum in a fixed order, so the result does not
-depend on the CPU's vector width), is what runs by default. They agree to rounding
-(tests/core/test_learners.py). `Params.fast` picks the path. The random walk's normals are drawn by
-numba's Generator from the trial's generator (fast.normals): numpy's very numbers.
+`train_reference` (below, numpy) states it; fast.py computes it compiled in float64 with the
+same draws (its normals by numba's Generator: numpy's very numbers), to rounding
+(tests/core/test_learners.py); Params.fast picks the path.
 """
 from __future__ import annotations
 
@@ -43,13 +22,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ... import evaluation, goals
-from ...features import exponents
+from ...features import features
 from ...growth import factors
 from ...spec import MAX_DEGREE, Flag, Int, Number, check_fields
-from ...inverse import init_inverse, predict as predict_inverse
-from . import fast, reference
-from .fast import train_fast  # noqa: F401 (the two paths, named here for the tests)
-from .reference import perturbations, plan, train_reference  # noqa: F401
+from ...inverse import (init_inverse, predict as predict_inverse, predict_model,  # noqa: F401
+                        sample_weights, scale_perturbations, table as _exps)
+from . import fast
+from .fast import train_fast  # noqa: F401 (the compiled path, named here for the tests)
 
 
 @dataclass(frozen=True)
@@ -57,19 +36,15 @@ class Params:
     targets_per_epoch: int = 15  # K
     steps: int = 7  # L, linear steps to each next target (eq. 9)
     radius: float = 0.2  # R, max |E_i(x)| over the target box (eq. 8)
-    # random-walk step of the perturbation's parameters per sample, relative to their spread:
-    # 0.3 keeps a perturbation for about 23 samples (1 / ln sqrt(1 + drift^2)), 3 targets; a
-    # perturbation held too long is learned as if it were the body (docs/baselines.md, "Why the
-    # alternatives' defaults")
+    # the random walk's step per sample: 0.3 keeps a perturbation ~23 samples (1 / ln sqrt(1 +
+    # drift^2)); one held too long is learned as the body (docs/baselines.md)
     drift: float = 0.3
     home_probability: float = 0.1  # chance of a return home after each target
-    # eta of the per-sample step; a body with smaller weights (normalised commands, the iCub's)
-    # may need its own (conf/body_learner/<body>_online_goal_babbling.yaml, docs/baselines.md)
+    # eta per sample; a body with smaller weights (the iCub's) has its own (conf/body_learner)
     learning_rate: float = 0.1
     init_range: float = 0.1  # |g(x) - home| bound at initialisation (as Goal Babbling)
     degree: int = 3
-    fast: bool = True  # the compiled per-sample loop (fast.py); False: reference.py
-    # which targets (gbmodel/goals.py): random (the paper's) or progress, and its settings
+    fast: bool = True  # the compiled per-sample loop (fast.py); False: train_reference
     goal_selection: str = "random"
     progress_period: int = 10
     progress_window: int = 3
@@ -80,7 +55,6 @@ class Params:
         return self
 
 
-# Params' fields and their ranges (gbmodel.spec.check_fields)
 LIMITS = dict(
     targets_per_epoch=Int(1, 10_000), steps=Int(1, 1000), radius=Number(0.0, 100.0),
     drift=Number(0.0, 100.0), home_probability=Number(0.0, 1.0),
@@ -99,30 +73,20 @@ class State:
     tracker: goals.Tracker | None = None  # the regions' errors (goal_selection=progress)
 
 
-def _exps(params, body):
-    return exponents(body.n, params.degree)
-
-
 def init(params: Params, body, size: float, rng: np.random.Generator) -> State:
-    """Goal Babbling's initial M, a random perturbation, the body at home."""
     M = init_inverse(body.home, *body.target_box(size), _exps(params, body), params.init_range,
                      rng)
     P = rng.standard_normal((body.m, body.n + 1))
     q_home = body.saturate(body.home)
     x_home = body.forward(q_home, factors(body, size))
-    tracker = None
-    if params.goal_selection == "progress":
-        errors = goals.reaching_errors(lambda x: predict_inverse(M, x, _exps(params, body)),
-                                       body, size, np.ones(body.m))
-        tracker = goals.start(body.targets).measured(errors, goals.regions(body.targets),
-                                                     params.progress_window)
+    tracker = None if params.goal_selection != "progress" else goals.first(
+        lambda x: predict_inverse(M, x, _exps(params, body)), body, size, params.progress_window)
     return State(M, P, target=0, at_home=True, last=(x_home, x_home, q_home), tracker=tracker)
 
 
 def draw(params: Params, body, B: int, rng: np.random.Generator) -> tuple:
-    """Per epoch: hops to the next targets (B, K) in 1 ... N-1 (so each differs from the last),
-    home coins (B, K) in [0, 1), random-walk steps (B, K L, m, n+1). With goal_selection=progress
-    the first array holds uniform numbers (B, K) in [0, 1), turned into targets in train."""
+    """Hops to the next targets (B, K) in 1 ... N-1 (progress: uniform numbers), home coins
+    (B, K), random-walk steps (B, K L, m, n+1)."""
     K = params.targets_per_epoch
     if params.goal_selection == "progress":
         hops = rng.uniform(0.0, 1.0, size=(B, K))
@@ -137,27 +101,20 @@ def draw(params: Params, body, B: int, rng: np.random.Generator) -> tuple:
 def train(state: State, params: Params, body, sizes, scales, draws, epochs=None) -> State:
     if params.goal_selection == "random":
         return _train(state, params, body, sizes, scales, draws)
-    region, N = goals.regions(body.targets), len(body.targets)
-    for lo, hi, measure in goals.chunks(epochs, params.progress_period):
-        p = goals.probabilities(state.tracker.progress(params.progress_window), region,
-                                params.progress_share)
-        chosen = goals.choose(draws[0][lo:hi], p)  # (C, K) the targets, as hops from the last
+    def step(state, chosen, lo, hi):  # chosen (C, K): the targets, as hops from the last
         flat = np.concatenate([[state.target], chosen.ravel()])
-        hops = (np.diff(flat) % N).reshape(chosen.shape)
-        state = _train(state, params, body, sizes[lo:hi], scales[lo:hi],
-                       (hops,) + tuple(d[lo:hi] for d in draws[1:]))
-        if measure:
-            errors = goals.reaching_errors(lambda x: predict(state, params, body, x), body,
-                                           sizes[hi - 1], scales[hi - 1])
-            state = replace(state, tracker=state.tracker.measured(errors, region,
-                                                                  params.progress_window))
-    return state
+        hops = (np.diff(flat) % len(body.targets)).reshape(chosen.shape)
+        return _train(state, params, body, sizes[lo:hi], scales[lo:hi],
+                      (hops,) + tuple(d[lo:hi] for d in draws[1:]))
+    state, tracker = goals.train(state, state.tracker, params, body, sizes, scales, draws,
+                                 epochs, step, lambda s, x: predict(s, params, body, x))
+    return replace(state, tracker=tracker)
 
 
 def _train(state: State, params: Params, body, sizes, scales, draws) -> State:
     if params.fast:
         return fast.train_fast(state, params, body, sizes, scales, draws)
-    return reference.train_reference(state, params, body, sizes, scales, draws)
+    return train_reference(state, params, body, sizes, scales, draws)
 
 
 def predict(state: State, params: Params, body, x) -> np.ndarray:
@@ -165,9 +122,6 @@ def predict(state: State, params: Params, body, x) -> np.ndarray:
 
 
 def distances(state: State, params: Params, body, scale, xs) -> np.ndarray:
-    """|f(g(x*)) - x*| per point (rows of xs), the body at per-joint factors `scale`: on the
-    fast path by fast.distances (the kernel's float64 features, prediction and kinematics, every
-    sum in order), else by the shared numpy evaluation; they agree to rounding."""
     if not params.fast:
         return evaluation.distances(lambda x: predict(state, params, body, x), body, scale, xs)
     return fast.distances(state.M, params, body, scale, xs)
@@ -178,20 +132,65 @@ def model(state: State) -> np.ndarray:
 
 
 def samples_per_epoch(params: Params, body) -> int:
-    """K L path samples plus the returns home, K home_probability in expectation (rounded)."""
     K = params.targets_per_epoch
-    extra = goals.samples(body, params.progress_period) if params.goal_selection == "progress" \
-        else 0
-    return int(round(K * (params.steps + params.home_probability))) + extra
+    return int(round(K * (params.steps + params.home_probability))) + goals.extra_samples(params,
+                                                                                          body)
 
 
 def sample_cost(params: Params) -> float:
-    """CPU time per sample and joint, relative to Goal Babbling's fast batch path: the
-    per-sample loop (one pass over M per sample) about 35 times, its numpy reference about
-    11,000 times."""
     return 35.0 if params.fast else 11000.0
 
 
-def predict_model(model, params: Params, body, x) -> np.ndarray:
-    """predict from what `model` stored (M)."""
-    return predict_inverse(np.asarray(model, np.float64), x, _exps(params, body))
+def plan(state, params, targets, x_home, hops, coins):
+    """The epoch's intended positions x* (T, n), which of them are returns home (T,), and the
+    state's target and at_home after it."""
+    L = params.steps
+    target, at_home, xs, home = state.target, state.at_home, [], []
+    for hop, coin in zip(hops, coins):
+        start = x_home if at_home else targets[target]
+        target = (target + hop) % len(targets)
+        frac = np.arange(1, L + 1)[:, None] / L
+        xs.append(start + frac * (targets[target] - start))
+        home += [False] * L
+        at_home = coin < params.home_probability
+        if at_home:
+            xs.append(x_home[None])
+            home.append(True)
+    return np.concatenate(xs), np.array(home), target, at_home
+
+
+def perturbations(P, walk, params, lo, hi):
+    """The perturbation of every path sample: A (T, m, n), b (T, m), and P after the walk."""
+    keep = 1.0 / np.sqrt(1.0 + params.drift ** 2)
+    raw = np.empty_like(walk)
+    for t, step in enumerate(walk):
+        P = keep * (P + params.drift * step)
+        raw[t] = P
+    A, b = scale_perturbations(raw, lo, hi, params.radius)
+    return A, b, P
+
+
+def train_reference(state, params, body, sizes, scales, draws):
+    hops, coins, walk = draws
+    exps = _exps(params, body)
+    M, P = state.M.copy(), state.P
+    for e in range(len(sizes)):
+        q_home = body.saturate(body.home)
+        x_home = body.forward(q_home, scales[e])
+        xstar, home, target, at_home = plan(state, params, body.target_set(sizes[e]), x_home,
+                                            hops[e], coins[e])
+        A, b, P = perturbations(P, walk[e], params, *body.target_box(sizes[e]))
+        last, j = state.last, 0  # j: the next path sample's perturbation
+        for xs, is_home in zip(xstar, home):
+            if is_home:  # the home example, weight 1 (eq. 5)
+                x, q, w = x_home, q_home, 1.0
+            else:
+                q = body.saturate(predict_inverse(M, xs, exps) + A[j] @ xs + b[j])
+                x = body.forward(q, scales[e])
+                w = sample_weights(*(np.stack([a, c]) for a, c in zip(last, (xs, x, q))))[1]
+                j += 1
+            phi = features(x, exps)
+            M -= (params.learning_rate * w) * np.outer(M @ phi - q, phi)
+            last = (xs, x, q)
+        state = replace(state, M=M, P=P, target=target, at_home=at_home, last=last)
+    return replace(state, M=M.copy())

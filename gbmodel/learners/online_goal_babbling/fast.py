@@ -1,13 +1,7 @@
-"""Online Goal Babbling compiled (numba): the per-sample loop of reference.py, in float64.
-
-Plain float64, sequential: every sum runs in a fixed order (first term first), nothing is compiled
-with fastmath (no reassociation, no fused multiply-adds), so the results do not depend on the
-CPU's vector width; sin and cos are gbmodel.simd.sincos64, not the C library's. They differ from
-the numpy path's only by rounding, where numpy (or its BLAS) sums in another order or calls its
-own sin and cos. The work on M runs on the explicit 8-lane float64 vectors of gbmodel.simd, one
-lane per row of M (M kept transposed and padded to whole vectors), and one pass over M per
-sample does the step and the next sample's prediction together; the kinematics is
-simd.chain_forward64 on kinematics.chain_layout.
+"""Online Goal Babbling compiled (numba): train_reference's per-sample loop in float64, every sum
+in a fixed order, no fastmath or fused multiply-adds, sin and cos simd.sincos64: the same on every
+CPU, numpy's to rounding. M's rows are the lanes of simd's F64x8 (M transposed, padded); one pass
+over M per sample does the step and the next prediction.
 """
 from __future__ import annotations
 
@@ -19,46 +13,29 @@ from numba import njit
 
 from ...features import exponents, monomial_tree
 from ...inverse import NO_MOVEMENT
-from ...kinematics import chain_layout
+from ...kinematics import chain_layout, kernel_arrays
 from ...simd import (
     W8, chain_forward64, fresh_cache, vadd8, vload8, vload18, vmul8, vsplat8, vstore8, vstore18,
     vsub8,
 )
 
-# the kernels below hold simd.py's chain_forward64 and sincos64, compiled in: their caches go
-# when simd.py (or a file of this folder) changes, as goal_babbling's do
+# the kernels hold simd.py's code: their caches go when it (or this folder) changes
 fresh_cache(Path(__file__).parent)
 
 
 @njit(cache=True)
 def normals(rng, size):
-    """rng.standard_normal(size), drawn by numba's Generator: numpy's algorithm on the same bit
-    generator, so the same numbers and the same state after (tests/core/test_learners.py checks
-    both), in less time than numpy's (the random walk draws m (n + 1) of them per path
-    sample)."""
+    """rng.standard_normal(size) by numba's Generator: numpy's numbers and state, faster."""
     return rng.standard_normal(size)
 
 
-_ARRAYS: dict = {}  # (id(body), degree) -> (body, arrays); the body kept so its id stays its own
-
-
 def _kernel_arrays(body, params) -> tuple:
-    """(chain, joints, parent, coord) for the kernels: built once per body object (bodies are
-    frozen) and degree, not at every call (a trial calls train and distances ~100 times)."""
-    key = (id(body), params.degree)
-    hit = _ARRAYS.get(key)
-    if hit is None or hit[0] is not body:
-        if len(_ARRAYS) >= 32:
-            _ARRAYS.clear()
-        hit = _ARRAYS[key] = (body, _body_arrays(body) + monomial_tree(exponents(body.n, params.degree), last=True))
-    return hit[1]
+    """(chain, joints, parent, coord) for the kernels, once per body object and degree."""
+    return kernel_arrays(body, ("f8", params.degree), lambda: _body_arrays(body) + monomial_tree(
+        exponents(body.n, params.degree), last=True))
 
 
 def _body_arrays(body) -> tuple:
-    """The body as the kernel takes it, float64: the full-size chain (a, d, cos alpha, sin
-    alpha, base, outputs, ty, R, general: kinematics.chain_layout, DH rows or a URDF's general
-    chain) and the joint map (normalized, saturates, q_min, q_max - q_min,
-    theta_offset)."""
     f8 = lambda x: np.ascontiguousarray(x, np.float64)  # noqa: E731
     full = chain_layout(body)  # at full size: the kernel scales the translations epoch by epoch
     chain = tuple(f8(full[k]) for k in ("a", "d", "cos_alpha", "sin_alpha", "base")) \
@@ -72,7 +49,6 @@ def _body_arrays(body) -> tuple:
 
 @njit(cache=True)
 def _saturate(q, normalized, saturates):
-    """body.saturate in place: clip to [-1, 1] (a NaN stays NaN)."""
     if normalized and saturates:
         for i in range(len(q)):
             if q[i] > 1.0:
@@ -83,7 +59,6 @@ def _saturate(q, normalized, saturates):
 
 @njit(cache=True)
 def _weight(lxs, lx, lq, xs, x, q):
-    """sample_weights(...)[1]: w_dir * w_eff of sample (xs, x, q) against its predecessor."""
     sxs = sx = sq = dot = 0.0
     for j in range(len(xs)):
         dxs, dx = xs[j] - lxs[j], x[j] - lx[j]
@@ -107,7 +82,6 @@ def _weight(lxs, lx, lq, xs, x, q):
 
 @njit(cache=True)
 def _features_tree(x, parent, coord, phi):
-    """Phi(x) into phi (p,): each monomial its parent times one coordinate (phi[0] = 1)."""
     phi[0] = 1.0
     for k in range(1, len(phi)):
         phi[k] = phi[parent[k]] * x[coord[k]]
@@ -115,8 +89,7 @@ def _features_tree(x, parent, coord, phi):
 
 @njit(cache=True)
 def _predict_rows(MT, phi, g):
-    """g = M Phi (g padded to MT's W columns), M stored transposed and padded, MT (p, W): lane i
-    of block j sums M[8 j + i, k] Phi_k over k in order."""
+    """g = M Phi from MT (p, W), over k in order."""
     p, W = MT.shape
     for j in range(0, W, W8):
         acc = vsplat8(0.0)
@@ -127,10 +100,8 @@ def _predict_rows(MT, phi, g):
 
 @njit(cache=True)
 def _step_predict(MT, phi, sr, psi, g, predict):
-    """The step M <- M - (eta w r) Phi^T (sr = eta w r, padded with zeros), in place on M^T,
-    and, in the same pass over M, the next sample's prediction g = M_new Psi when `predict`
-    (Psi: its features): one pass over M per sample instead of two, every entry's update and
-    every sum in the order of a separate update followed by a separate prediction."""
+    """M^T -= sr Phi^T (sr = eta w r) and, in the same pass, g = M_new Psi when `predict`:
+    every operation in the order of a separate update and prediction."""
     p, W = MT.shape
     for j in range(0, W, W8):
         s = vload18(sr, j)
@@ -148,11 +119,8 @@ def _step_predict(MT, phi, sr, psi, g, predict):
 def _train_block(MT, P, lxs, lx, lq, target, at_home, hops, coins, walk, sizes, scales, targets,
                  q_home, chain, joints, parent, coord, steps, radius, drift, keep,
                  home_probability, learning_rate):
-    """train_reference's epochs: M^T (p, W) (padded with zero columns), P and the last sample
-    (lxs, lx, lq) updated in place; returns the target last reached and whether the last movement returned home.
-
-    Per epoch, the intended positions x* and the returns home are laid out first (the reference's
-    `plan`), so that each sample's step can compute the next sample's prediction on its way."""
+    """train_reference's epochs, MT, P and the last sample in place; returns (target, at_home).
+    Each epoch's plan comes first, so a step can compute the next prediction on its way."""
     p, W = MT.shape
     m = P.shape[0]
     n = targets.shape[1]
@@ -243,7 +211,6 @@ def _train_block(MT, P, lxs, lx, lq, target, at_home, hops, coins, walk, sizes, 
 
 
 def train_fast(state, params, body, sizes, scales, draws):
-    """train on the compiled path: the same epochs, with the same draws, as train_reference."""
     hops, coins, walk = draws
     f8 = lambda x: np.array(x, dtype=np.float64, order="C")  # noqa: E731 (copies)
     m, p = state.M.shape
@@ -266,7 +233,6 @@ def train_fast(state, params, body, sizes, scales, draws):
 
 
 def distances(M, params, body, scale, xs) -> np.ndarray:
-    """|f(g(x*)) - x*| per point (rows of xs), the body at per-joint factors `scale`."""
     chain, joints, parent, coord = _kernel_arrays(body, params)
     out = np.empty(len(xs))
     _distances(np.ascontiguousarray(M, np.float64), np.ascontiguousarray(xs, np.float64),
@@ -277,7 +243,6 @@ def distances(M, params, body, scale, xs) -> np.ndarray:
 
 @njit(cache=True)
 def _distances(M, xs, scale, chain, joints, parent, coord, out):
-    """out[t] = |f(saturate(M Phi(xs[t]))) - xs[t]|, f the body at per-joint factors scale."""
     m, p = M.shape
     n = xs.shape[1]
     phi, q, x = np.empty(p), np.empty(m), np.empty(n)
