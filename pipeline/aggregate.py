@@ -13,7 +13,6 @@ is named.
 from __future__ import annotations
 
 import gc
-import hashlib
 import logging
 import os
 import sys
@@ -28,8 +27,9 @@ import pyarrow as pa
 from omegaconf import DictConfig
 
 from . import cache, cli, io
-from .aggregate_set import (INDEX, Previous, _compact, _fill, code_of_stage, curves_table,
-                            index_table, load_trials, models, models_text, refresh_index)
+from .aggregate_set import (INDEX, Previous, _checksum, _compact, _fill, code_of_stage,
+                            curves_table, index_table, load_trials, models, models_text,
+                            refresh_index)
 from .aggregate_stats import statistics, trials_file_table
 from .config import CONFIG_PATH
 
@@ -37,36 +37,17 @@ log = logging.getLogger("pipeline.aggregate")
 SHOWN_CONDITIONS = 8  # a figure of more conditions (make smoke's) is not listed unless named
 
 
-def heldout_lines(fig: str, summary: pa.Table) -> list[str]:
-    """Per condition of a summary.parquet: the held-out error in mm and in % of the body's reach,
-    the grid error and the trials: what a first run of one's own robot wants to read."""
-    out = []
-    for r in summary.to_pylist():
-        r = {k: np.nan if v is None else v for k, v in r.items()}
-        if not np.isfinite(r["final_heldout_abs_error_mean"]):
-            out.append(f"[{fig}] {r['condition']}: no finished trial")
-            continue
-        out.append(f"[{fig}] {r['condition']}: held out "
-                   f"{1e3 * r['final_heldout_abs_error_mean']:.1f} mm"
-                   f" = {r['final_heldout_abs_error_pct_reach']:.2f} % of the reach "
-                   f"({r['reach']:.3f} m); grid {1e3 * r['final_abs_error_mean']:.1f} mm; "
-                   f"{r['n_trials']} trial(s) of {r['epochs']:,} epochs")
-    return out
-
-
 def inputs_digest(figure: str, conds: dict, fail_factor: float, paper=None) -> str:
-    """What one figure's aggregate is made of: its conditions (label, settings, trials' seals),
-    the experiment's paper block, the failure factor and the code of this stage."""
+    """What one figure's aggregate is made of (the code of this stage included)."""
     body = dict(figure=figure, fail_factor=fail_factor, code=code_of_stage(), paper=paper,
                 conditions=[[k, c["id"], c["variant"], sorted(c["trials"]), c["missing"],
                              c["seals"]] for k, c in conds.items()])
-    return hashlib.sha256(_compact(body).encode()).hexdigest()[:20]  # json's C encoder
+    return _checksum(_compact(body))
 
 
 def aggregate_figure(cfg: DictConfig, fig: str) -> tuple[list[str], bool]:
-    """(problems, whether it was rebuilt): one figure's set replaced as one (pipeline.io.new_set),
-    unless made of the same inputs; a damaged plan record, or no trial where the aggregate had
-    some, leaves it as it was."""
+    """(problems, whether rebuilt): the figure's set replaced as one unless made of the same
+    inputs; a damaged plan record, or no trial where it had some, leaves it as it was."""
     folder = Path(cfg.paths.aggregate) / io.safe_name("figure", fig)
     previous = Previous(folder)
     try:
@@ -114,8 +95,8 @@ def aggregate_figure(cfg: DictConfig, fig: str) -> tuple[list[str], bool]:
 
 def named_figures(cfg: DictConfig, explicit: bool, known: list[str], folder,
                   state: str) -> list[str] | None:
-    """The figures the command line names (experiments=, or figure= / experiment= when
-    `explicit`), or None; one not `known` (`state` under `folder`) is a FileNotFoundError."""
+    """The figures experiments= (or `explicit`: figure=) names, or None; one not `known` (`state`
+    under `folder`) is a FileNotFoundError."""
     if not cfg.get("experiments") and not explicit:
         return None
     wanted = list(cfg.experiments) if cfg.get("experiments") else [cfg.figure]
@@ -127,8 +108,7 @@ def named_figures(cfg: DictConfig, explicit: bool, known: list[str], folder,
 
 
 def aggregate(cfg: DictConfig, explicit: bool = False) -> list[str]:
-    """Aggregate every simulated figure, or those the command line names, whose inputs changed;
-    return the problems found."""
+    """The problems found aggregating every simulated figure, or those named, that changed."""
     known = cache.figures(cfg.paths.cache)
     if not known:
         raise FileNotFoundError(f"no simulated figure under {cfg.paths.cache}: "
@@ -148,15 +128,24 @@ def aggregate(cfg: DictConfig, explicit: bool = False) -> list[str]:
 
 
 def show_heldout(folder: Path, fig: str, named: bool) -> None:
-    """Log heldout_lines for a figure named (or the only one), or of few conditions."""
+    """Log per condition the held-out error (mm, % of the body's reach), the grid error and the
+    trials, of a figure named (or the only one) or of few conditions: what a first run of one's
+    own robot wants to read."""
     try:  # a pyarrow table: a figure left as it was loads no pandas
         summary = io.read_table(io.set_of(folder) / "summary.parquet")
     except (OSError, ValueError):
         return  # nothing aggregated (a problem already named)
-    if "final_heldout_abs_error_pct_reach" in summary.column_names and (
+    if "final_heldout_abs_error_pct_reach" not in summary.column_names or not (
             named or summary.num_rows <= SHOWN_CONDITIONS):
-        for line in heldout_lines(fig, summary):
-            log.info("%s", line)
+        return
+    for r in summary.to_pylist():
+        r = {k: np.nan if v is None else v for k, v in r.items()}
+        log.info("[%s] %s: %s", fig, r["condition"], "no finished trial" if not np.isfinite(
+            r["final_heldout_abs_error_mean"]) else
+            f"held out {1e3 * r['final_heldout_abs_error_mean']:.1f} mm"
+            f" = {r['final_heldout_abs_error_pct_reach']:.2f} % of the reach "
+            f"({r['reach']:.3f} m); grid {1e3 * r['final_abs_error_mean']:.1f} mm; "
+            f"{r['n_trials']} trial(s) of {r['epochs']:,} epochs")
 
 
 def names_a_figure(overrides: list[str]) -> bool:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-from functools import lru_cache
+from functools import cached_property, lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -27,8 +27,8 @@ _DECODER = json.JSONDecoder()
 
 
 def figure_conditions(cache_dir, figure: str) -> tuple[list[dict], dict, list[str]]:
-    """The figure's conditions, each labelled by what differs between them, in order: variants
-    in their order, then growing bodies by period, then references by size (a stable sort)."""
+    """The figure's conditions labelled by what differs between them: variants in their order,
+    then growing bodies by period, then references by size (a stable sort)."""
     conds, paper, problems = cache.figure_conditions(cache_dir, figure)
     order = {}
     for c in conds:
@@ -50,19 +50,16 @@ def _checksum(text: str) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:20]
 
 
-def _compact(obj) -> str:
+def _compact(obj) -> str:  # json's C encoder
     return json.dumps(obj, sort_keys=True, separators=(",", ":"))
 
 
 class Previous:
-    """The figure's current aggregate, made by this stage's code: per trial it read, the
-    signature of the trial's files (pipeline.cache.signature), its seal, model and rows. A trial
-    whose files still have that signature is taken from here, not read and checked again.
-    Anything unreadable here: nothing is reused."""
+    """The figure's current aggregate, if made by this stage's code: a trial whose files still
+    have the signature it records is taken from here, not read again; if unreadable, nothing."""
 
     def __init__(self, folder: Path | None = None):
-        self.index, self.where, self._pieces = {}, None, {}
-        self._table = self._texts = None
+        self.index, self.where = {}, None
         self.finished = {}  # condition -> its finished trials (their indices)
         self.lines = {}  # condition -> (id, checksum of its models.json line)
         self.stats = {}  # condition -> (stats_digest, first row in curves, rows, row in summary)
@@ -88,68 +85,63 @@ class Previous:
             if r["status"] != "diverged":
                 self.finished.setdefault(r["condition"], []).append(str(r["trial"]))
 
-    def table(self) -> pa.Table:
-        if self._table is None:
-            # the curves' own columns only: the labels are set again per condition, and their
-            # strings cost nine tenths of reading the file (0.08 of 0.09 s, 10,000 trials)
-            self._table = self.checked_table("trials.parquet", io.TRIAL_CURVE)
-        return self._table
+    @cached_property
+    def trials(self) -> pa.Table:
+        # the curves' own columns only: the labels are set again per condition, and their
+        # strings cost nine tenths of reading the file (0.08 of 0.09 s, 10,000 trials)
+        return self.checked_table("trials.parquet", io.TRIAL_CURVE)
 
     def checked_table(self, name: str, schema: pa.Schema | None = None) -> pa.Table:
-        """A file of the set, if its bytes are those the manifest recorded (else ValueError: an
-        edited file is never copied from)."""
+        """A file of the set, if its bytes are those the manifest recorded (else ValueError)."""
         data = (self.where / name).read_bytes()
         if hashlib.sha256(data).hexdigest() != self._sums.get(name):
             raise ValueError(f"{name}: not the file the manifest recorded")
         return io.parse_table(data, self.where / name, schema,
                               None if schema is None else schema.names)
 
+    @cached_property
+    def _texts(self) -> dict[str, str]:  # condition -> its line of models.json
+        lines, out = (self.where / "models.json").read_text().split("\n"), {}
+        for line in lines[1:-2] if lines[0] == MODELS_HEAD else ():
+            if line:
+                name, end = _DECODER.raw_decode(line)
+                out[name] = line[end + 1:].rstrip(",")
+        return out
+
     def text(self, condition: str) -> str:
-        """The condition's line of the previous models.json, checked against the manifest's
-        checksum (ValueError if it differs or is not there)."""
-        if self._texts is None:
-            self._texts = {}
-            lines = (self.where / "models.json").read_text().split("\n")
-            for line in lines[1:-2] if lines[0] == MODELS_HEAD else ():
-                if line:
-                    name, end = _DECODER.raw_decode(line)
-                    self._texts[name] = line[end + 1:].rstrip(",")
+        """The condition's line of models.json, checked against the manifest (else ValueError)."""
         text = self._texts.get(condition)
         if text is None or _checksum(text) != self.lines.get(condition, (None, None))[1]:
             raise ValueError(f"models.json: the line of {condition!r} is damaged")
         return text
 
     def pieces(self, condition: str) -> dict[str, str]:
-        """trial -> the JSON text of its model in the condition's line (text()), each cut where
-        json's decoder ends its value, not encoded again (ValueError if the line is not what
-        model_line writes)."""
-        if condition not in self._pieces:
-            text, out = self.text(condition), {}
-            decode, scan = _DECODER.raw_decode, json.decoder.scanstring
-            pos, key = 1, None
-            while text[pos - 1] in "{," and key != "trials":
-                key, pos = scan(text, pos + 1)  # past the opening quote
-                if text[pos] != ":":
-                    break
-                if key == "trials":
-                    pos += 2
-                    while text[pos - 1] in "{," and text[pos] == '"':
-                        trial, pos = scan(text, pos + 1)
-                        end = decode(text, pos + 1)[1]
-                        out[trial], pos = text[pos + 1:end], end + 1
-                    pos += text[pos - 1] == "{"  # no trial: past the closing brace
-                else:
-                    pos = decode(text, pos + 1)[1] + 1
-            if key != "trials" or text[pos - 1:] != "}}" or text[0] != "{":
-                raise ValueError(f"models.json: the line of {condition!r} is not a condition's")
-            self._pieces[condition] = out
-        return self._pieces[condition]
+        """trial -> its model's JSON text in text(condition), cut where json's decoder ends it,
+        not encoded again (ValueError if the line is not model_line's)."""
+        text, out = self.text(condition), {}
+        decode, scan = _DECODER.raw_decode, json.decoder.scanstring
+        pos, key = 1, None
+        while text[pos - 1] in "{," and key != "trials":
+            key, pos = scan(text, pos + 1)  # past the opening quote
+            if text[pos] != ":":
+                break
+            if key == "trials":
+                pos += 2
+                while text[pos - 1] in "{," and text[pos] == '"':
+                    trial, pos = scan(text, pos + 1)
+                    end = decode(text, pos + 1)[1]
+                    out[trial], pos = text[pos + 1:end], end + 1
+                pos += text[pos - 1] == "{"  # no trial: past the closing brace
+            else:
+                pos = decode(text, pos + 1)[1] + 1
+        if key != "trials" or text[pos - 1:] != "}}" or text[0] != "{":
+            raise ValueError(f"models.json: the line of {condition!r} is not a condition's")
+        return out
 
 
 def load_trials(cache_dir, figure: str, previous: Previous | None = None):
-    """(conditions by label, paper, problems) of the figure: each condition lists its trials'
-    entries (seal, status, and the curve table or the rows of the previous aggregate), each read
-    and checked once, or taken from `previous` where its files did not change."""
+    """(conditions by label, paper, problems): each condition's trial entries (seal, status, the
+    curve table or its rows in `previous`), each read once or taken from `previous`."""
     previous = previous or Previous()
     conditions, paper, problems = figure_conditions(cache_dir, figure)
     conds = {}
@@ -167,7 +159,8 @@ def load_trials(cache_dir, figure: str, previous: Previous | None = None):
                 entry = _read(cache_dir, t, signature)
             if not isinstance(entry, dict):
                 c["missing"].append(i)
-                problems.append(f"{name} trial {i}: {entry or 'not computed (run pipeline.simulate)'}")
+                problems.append(f"{name} trial {i}: "
+                                f"{entry or 'not computed (run pipeline.simulate)'}")
                 continue
             entry = dict(entry, trial=t["trial"], key=t["key"])
             c["seals"].append(entry["seal"])
@@ -194,8 +187,7 @@ def _read(cache_dir, t: dict, signature: str | None):
 
 
 def _fill(cache_dir, entries: list[dict]) -> None:
-    """Read from the cache the entries that were to come from a previous aggregate that turned
-    out unreadable."""
+    """Read the entries that were to come from an unreadable previous aggregate."""
     for e in entries:
         if "table" not in e:
             fresh = _read(cache_dir, e, e["signature"])
@@ -206,8 +198,7 @@ def _fill(cache_dir, entries: list[dict]) -> None:
 
 
 def curves_table(conds: dict, previous: Previous) -> pa.Table:
-    """Every finished trial's curve in io.CURVE, in condition and trial order, with the labels
-    of its condition; each entry's row range in it is recorded."""
+    """Every finished trial's curve in io.CURVE, with its labels; each entry's rows recorded."""
     parts, row = [], 0
     for c in conds.values():
         pieces, counts, trials = [], [], []
@@ -226,7 +217,7 @@ def curves_table(conds: dict, previous: Previous) -> pa.Table:
             trials.append(e["trial"])
         if not pieces:
             continue
-        old = previous.table().select(io.TRIAL_CURVE.names) if any(
+        old = previous.trials.select(io.TRIAL_CURVE.names) if any(
             isinstance(p, tuple) for p in pieces) else None
         body = pa.concat_tables([old.slice(p[1], p[2]) if isinstance(p, tuple) else p
                                  for p in pieces])
@@ -242,10 +233,9 @@ def curves_table(conds: dict, previous: Previous) -> pa.Table:
 
 
 def models(conds: dict, previous: Previous) -> tuple[dict[str, str], dict[str, str]]:
-    """Per condition, the JSON text of its spec, id and each finished trial's model (model_line)
-    and the text's checksum (the manifest's). A condition whose id and trials are the previous
-    aggregate's, none read again, keeps its checked text and checksum (not hashed again); in a
-    condition that changed, only the models read are encoded (the others: Previous.pieces)."""
+    """Per condition its model_line and checksum: a condition whose id and trials are the previous
+    aggregate's, none read again, keeps both (not hashed again); in one that changed, only the
+    models read are encoded (the others: Previous.pieces)."""
     out, sums = {}, {}
     for k, c in conds.items():
         before, kept = previous.lines.get(k), [e for e in c["trials"].values() if "model" not in e]
@@ -274,8 +264,7 @@ def models_text(fig: str, paper, texts: dict[str, str]) -> str:
 
 
 def refresh_index(conds: dict, previous: Previous) -> None:
-    """Inputs unchanged, but some trials' files rewritten with the same seals: their new
-    signatures replace the index alone, in place (no other file depends on signatures)."""
+    """Inputs unchanged, trials rewritten with the same seals: their signatures into the index."""
     fresh = [e for c in conds.values() for e in c["entries"] if "table" in e]
     for e in fresh:
         known = previous.index.get(e["key"])

@@ -3,16 +3,16 @@ condition the summary (summarize), each condition's rows kept from the previous 
 inputs did not change (statistics)."""
 from __future__ import annotations
 
-import hashlib
 import json
 from functools import lru_cache
+from itertools import islice, takewhile
 from typing import TYPE_CHECKING
 
 import numpy as np
 import pyarrow as pa
 
 from . import io
-from .aggregate_set import Previous, _compact
+from .aggregate_set import Previous, _checksum, _compact
 from .measures import finals, growth_peak
 
 if TYPE_CHECKING:  # pandas is imported where a figure is rebuilt (summarize): not when cached
@@ -38,9 +38,8 @@ def curve_stats(trials: pd.DataFrame) -> pd.DataFrame:
 
 def summarize(trials: pd.DataFrame, curves: pd.DataFrame, conds: dict, paper: dict,
               fail_factor: float) -> pd.DataFrame:
-    """One row per condition: final errors (mean, std over trials), the temporary increase of the
-    mean absolute error during growth (epochs 1 ... T_G + 1; growth_peak), trials that diverged,
-    are missing or failed to bootstrap, the body's reach, and the paper's final accuracy."""
+    """One row per condition: final errors, the peak during growth (epochs 1 ... T_G + 1), trials
+    that diverged, are missing or failed to bootstrap, the body's reach, the paper's accuracy."""
     import pandas as pd
 
     paper_abs = paper.get("final_abs_error")
@@ -80,22 +79,20 @@ def summarize(trials: pd.DataFrame, curves: pd.DataFrame, conds: dict, paper: di
 
 
 def stats_digest(name: str, c: dict, paper, fail_factor: float) -> str:
-    """What a condition's rows of curves.parquet and summary.parquet are made of (the code is the
-    manifest's; the libraries that compute them are here). The same digest, the same rows."""
+    """What a condition's rows of curves and summary are made of (with the libraries' versions)."""
     import pandas as pd
 
     body = [name, c["labels"], c["id"], c["variant"], sorted(c["trials"]), c["seals"],
             c["diverged"], c["missing"], paper, fail_factor, pd.__version__, np.__version__,
             pa.__version__]
-    return hashlib.sha256(_compact(body).encode()).hexdigest()[:20]
+    return _checksum(_compact(body))
 
 
 def statistics(table: pa.Table, conds: dict, paper: dict, fail_factor: float,
                previous: Previous) -> tuple[pa.Table, pa.Table, dict]:
-    """(curves, summary, stats) of the figure's trial curves `table`, stats per condition
-    [stats_digest, first row in curves, rows, row in summary] for the manifest. A condition whose
-    digest is the previous set's keeps its rows from there, unless that set is unreadable or its
-    schema is not the computed rows' (another pandas): then all are computed."""
+    """(curves, summary, stats for the manifest) of the trial curves `table`: a condition whose
+    stats_digest is the previous set's keeps its rows, unless that set is unreadable or of
+    another schema (another pandas)."""
     digests = {k: stats_digest(k, c, paper, fail_factor) for k, c in conds.items()}
     kept = {k for k, d in digests.items() if previous.stats.get(k, (None,))[0] == d}
     if kept and len(kept) < len(conds):
@@ -139,9 +136,8 @@ def _computed(table, conds, paper, fail_factor, digests, kept=(), previous=None)
 
 
 def trials_file_table(table: pa.Table) -> pa.Table:
-    """What pa.Table.from_pandas(table.to_pandas(), schema=io.CURVE, preserve_index=False) makes
-    of `table`, without converting 110,000 rows twice: with no null and no NaN, its own values in
-    one chunk under the metadata of its first row's conversion (it names columns, not rows)."""
+    """pa.Table.from_pandas(table.to_pandas(), schema=io.CURVE, preserve_index=False) without the
+    round trip where no value is null or NaN: one chunk, its first row's pandas metadata."""
     floats = [f.name for f in io.CURVE if pa.types.is_floating(f.type)]
     if table.num_rows and not any(table.column(n).null_count for n in table.column_names) and \
             not any(np.isnan(table.column(n).to_numpy()).any() for n in floats):
@@ -156,9 +152,7 @@ def _stats_record(curves: pa.Table, conds: dict, digests: dict) -> dict:
     names = curves.column("condition").to_pylist()
     first, out = 0, {}
     for i, k in enumerate(conds):
-        n = 0
-        while first + n < len(names) and names[first + n] == k:
-            n += 1
+        n = sum(1 for _ in takewhile(k.__eq__, islice(names, first, None)))
         out[k], first = [digests[k], first, n, i], first + n
     if first != len(names):
         raise ValueError("curves: rows of no condition of the figure")
@@ -185,8 +179,7 @@ def _reach(body_json: str, growth_json: str) -> float:
 
 @lru_cache(maxsize=256)
 def _reach_at(body_json: str, factors: tuple) -> float:
-    """Conditions that differ in their growth's period only end at the same body, whose
-    workspace is sampled once (20,000 postures: 20 ms each time)."""
+    """A body's reach at `factors`, sampled once for conditions that end at it (20 ms each)."""
     import gbmodel
     from gbmodel import workspace
 

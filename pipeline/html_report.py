@@ -149,12 +149,12 @@ def write_index(root: Path) -> Path:
     rows = []
     for p, d in sorted(info.items(), key=lambda kv: kv[1]["date"], reverse=True):
         folder, e = p.parent.relative_to(root).as_posix(), html.escape
-        page = f"{folder}/report.html" if p.with_name("report.html").exists() else f"{folder}/report.md"
+        page = f"{folder}/report.{'html' if p.with_name('report.html').exists() else 'md'}"
         img = (f'<img src="{e(folder + "/" + d["figure"])}" alt="{e(d["title"])}">'
                if d["figure"] else "")
         settings = " ".join(a for a in d["args"] if a not in common) or "(the same as all)"
-        rows.append(f'<tr><td><a href="{e(page)}">{e(folder)}</a><br>{e(d["title"])}</td>'
-                    f"<td>{img}</td><td>{e(d['date'])}</td><td><code>{e(settings)}</code></td></tr>")
+        rows.append(f'<tr><td><a href="{e(page)}">{e(folder)}</a><br>{e(d["title"])}</td><td>'
+                    f"{img}</td><td>{e(d['date'])}</td><td><code>{e(settings)}</code></td></tr>")
     target = root / "index.html"
     io.write_text(target, _page("Reports", (
         '<h1>Reports</h1><table class="index"><thead><tr><th>report</th><th>figure</th>'

@@ -46,10 +46,10 @@ def load_aggregates(folder: Path, names=None) -> dict:
 
 def _load_set(link: Path) -> dict:
     d = io.set_of(link)
-    out = dict(curves=io.read_table(d / "curves.parquet", schema=_CURVES).to_pandas(),
+    out = dict(models=io.read_json(d / "models.json", need=("figure", "conditions")),
+               curves=io.read_table(d / "curves.parquet", schema=_CURVES).to_pandas(),
                summary=io.read_table(d / "summary.parquet").to_pandas(),
                trials=io.read_table(d / "trials.parquet", schema=io.CURVE).to_pandas(),
-               models=io.read_json(d / "models.json", need=("figure", "conditions")),
                inputs=io.read_json(d / "manifest.json").get("inputs"))
     if "choice" not in out["summary"]:
         raise io.DamagedFile(f"{d / 'summary.parquet'}: not an aggregate summary (no choice)")
@@ -72,8 +72,9 @@ def inputs_digest(cfg: DictConfig, inputs: dict) -> str:
     """What a report is made of: each figure's aggregate digest (`inputs`), the report's resolved
     settings, the failure factor and the code that draws it. The same digest, the same files."""
     here, code = Path(__file__).parent, hashlib.sha256()
-    for f in [here / "report.py", here / "io.py", *sorted(
-            p for p in (here / "studies").iterdir() if p.suffix in (".py", ".md", ".csv", ".yaml"))]:
+    kinds = (".py", ".md", ".csv", ".yaml")
+    for f in [here / "report.py", here / "io.py",
+              *sorted(p for p in (here / "studies").iterdir() if p.suffix in kinds)]:
         code.update(f.name.encode() + b"\0" + f.read_bytes() + b"\0")
     body = dict(figures=inputs, code=code.hexdigest(),
                 report=OmegaConf.to_container(cfg.report, resolve=True),
