@@ -4,11 +4,9 @@
     python -m pipeline.aggregate              # every figure in the cache
     python -m pipeline.aggregate figure=fig4  # one figure (or experiment=fig4)
 
-A figure is its current plan's conditions (pipeline.cache.figure_conditions), each labelled by
-what differs between them, rebuilt when its inputs changed, from the trials whose files changed
-(pipeline/aggregate_set.py) and the conditions whose trials changed (pipeline/aggregate_stats.py).
-A trial that diverged or failed is counted and left out of every mean; a damaged or missing file
-is named.
+A figure's set is rebuilt when its inputs changed, from the trials whose files changed
+(aggregate_set.py) and the conditions whose trials changed (aggregate_stats.py); a trial that
+diverged or failed is counted and left out of every mean; a damaged or missing file is named.
 """
 from __future__ import annotations
 
@@ -27,7 +25,7 @@ import pyarrow as pa
 from omegaconf import DictConfig
 
 from . import cache, cli, io
-from .aggregate_set import (INDEX, Previous, _checksum, _compact, _fill, code_of_stage,
+from .aggregate_set import (INDEX, Previous, _checksum, _compact, _read, code_of_stage,
                             curves_table, index_table, load_trials, models, models_text,
                             refresh_index)
 from .aggregate_stats import statistics, trials_file_table
@@ -68,9 +66,13 @@ def aggregate_figure(cfg: DictConfig, fig: str) -> tuple[list[str], bool]:
     try:
         table, (model_of, sums) = curves_table(conds, previous), models(conds, previous)
     except (OSError, ValueError, KeyError, IndexError):  # the previous aggregate is damaged
-        previous = Previous()
-        for c in conds.values():
-            _fill(cfg.paths.cache, c["entries"])
+        previous = Previous()  # the entries that were to come from it are read from the cache
+        for e in (e for c in conds.values() for e in c["entries"] if "table" not in e):
+            fresh = _read(cfg.paths.cache, e, e["signature"])
+            if not isinstance(fresh, dict):
+                raise io.DamagedFile(f"trial {e['key']}: {fresh or 'gone'} while aggregating; "
+                                     "run the stage again")
+            e.update(fresh)
         table, (model_of, sums) = curves_table(conds, previous), models(conds, previous)
     curves, summary, stats = statistics(table, conds, paper, cfg.aggregate.fail_factor,
                                         previous)
@@ -128,9 +130,8 @@ def aggregate(cfg: DictConfig, explicit: bool = False) -> list[str]:
 
 
 def show_heldout(folder: Path, fig: str, named: bool) -> None:
-    """Log per condition the held-out error (mm, % of the body's reach), the grid error and the
-    trials, of a figure named (or the only one) or of few conditions: what a first run of one's
-    own robot wants to read."""
+    """Log per condition the held-out error (mm, % of the reach), the grid error and the trials
+    of a figure named (or the only one) or of few conditions: what a first run wants to read."""
     try:  # a pyarrow table: a figure left as it was loads no pandas
         summary = io.read_table(io.set_of(folder) / "summary.parquet")
     except (OSError, ValueError):

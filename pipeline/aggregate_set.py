@@ -186,17 +186,6 @@ def _read(cache_dir, t: dict, signature: str | None):
     return entry
 
 
-def _fill(cache_dir, entries: list[dict]) -> None:
-    """Read the entries that were to come from an unreadable previous aggregate."""
-    for e in entries:
-        if "table" not in e:
-            fresh = _read(cache_dir, e, e["signature"])
-            if not isinstance(fresh, dict):
-                raise io.DamagedFile(f"trial {e['key']}: {fresh or 'gone'} while aggregating; "
-                                     "run the stage again")
-            e.update(fresh)
-
-
 def curves_table(conds: dict, previous: Previous) -> pa.Table:
     """Every finished trial's curve in io.CURVE, with its labels; each entry's rows recorded."""
     parts, row = [], 0

@@ -2,10 +2,9 @@
 
     python -m pipeline.report              # everything under paths.aggregate -> paths.report
 
-From the aggregates only, each experiment's study section (pipeline/studies/sections.py; the
-paper's claims where `paper.claims: true`), report.md listing every file (reproducible bytes,
-relative paths) and report.html. Only `report.publish=true` writes the committed report,
-paths.published, and only when every paper experiment is aggregated at its full scale.
+From the aggregates only: each experiment's study section (studies/sections.py), report.md
+listing every file (reproducible bytes, relative paths) and report.html. Only report.publish=true
+writes the committed report (paths.published), with every paper experiment at full scale.
 """
 from __future__ import annotations
 
