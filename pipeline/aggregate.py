@@ -1,40 +1,22 @@
-"""Stage 2, aggregate: the cache into one tidy table per figure, its statistics and summary.
+"""Stage 2, aggregate: the cache into one set of files per figure, under paths.aggregate/<figure>/
+(trials, curves and summary Parquet, models.json, manifest.json, index.parquet: docs/running.md).
 
     python -m pipeline.aggregate              # every figure in the cache
     python -m pipeline.aggregate figure=fig4  # one figure (or experiment=fig4)
 
-For every figure (the conditions of its current plan group, pipeline.cache.figure_conditions,
-each labelled by what differs between them) whose inputs changed, it writes as one set, under
-paths.aggregate/<figure>/:
-    trials.parquet    every trial's learning curve (pipeline.io.CURVE, concatenated)
-    curves.parquet    per condition and epoch: mean, std (over trials, ddof 1), 25 % and 75 %
-                      quantiles of abs_error and rel_error, and n_trials
-    summary.parquet   per condition: final errors (the held-out one also in % of the body's
-                      reach, gbmodel.workspace), peak error during growth, failures, diverged
-    models.json       per condition and trial: the final model M and its snapshots (compact
-                      JSON, one line per condition: a rebuild copies the line of a condition
-                      whose trials did not change; manifest.json holds each line's checksum)
-    manifest.json     the digest of the inputs (conditions, trials' seals, code): unchanged
-                      inputs leave the figure as it is; the SHA-256 of the Parquet files: a
-                      file of the set that is not the one written is never copied from
-    index.parquet     per trial: its files' signature (pipeline.cache.signature), seal, status
-                      and rows in trials.parquet; the next run reads only the trials whose
-                      files changed and takes the others from this set
-pipeline/aggregate_set.py reads the trials into the set (and the previous set, where they did not
-change); pipeline/aggregate_stats.py computes its curves and summary. Only the trials of the plan
-are read, so stale cache entries never mix in. A trial that diverged
-or failed is counted as such and left out of every mean; a damaged or missing file is named.
+A figure's set is rebuilt when its inputs changed, from the trials whose files changed
+(aggregate_set.py) and the conditions whose trials changed (aggregate_stats.py); a trial that
+diverged or failed is counted and left out of every mean; a damaged or missing file is named.
 """
 from __future__ import annotations
 
 import gc
-import hashlib
 import logging
 import os
 import sys
 from pathlib import Path
 
-if __name__ == "__main__":  # the command: no cyclic collection from here on (one_shot)
+if __name__ == "__main__":  # the command: no cyclic collection from here on (run)
     gc.disable()
 
 import hydra
@@ -43,49 +25,27 @@ import pyarrow as pa
 from omegaconf import DictConfig
 
 from . import cache, cli, io
-from .aggregate_set import (INDEX, Previous, _compact, _fill, code_of_stage, curves_table,
-                            index_table, load_trials, models, models_text, refresh_index)
+from .aggregate_set import (INDEX, Previous, _checksum, _compact, _read, code_of_stage,
+                            curves_table, index_table, load_trials, models, models_text,
+                            refresh_index)
 from .aggregate_stats import statistics, trials_file_table
 from .config import CONFIG_PATH
 
 log = logging.getLogger("pipeline.aggregate")
-
-
-def heldout_lines(fig: str, summary: pa.Table) -> list[str]:
-    """Per condition: the held-out error (the points no learner is told to reach) in mm and in
-    % of the body's reach, the grid error and the trials: what a first run of one's own robot
-    wants to read. `summary`: a figure's summary.parquet, read with pyarrow (a null is NaN, as
-    pandas reads it)."""
-    out = []
-    for r in summary.to_pylist():
-        r = {k: np.nan if v is None else v for k, v in r.items()}
-        if not np.isfinite(r["final_heldout_abs_error_mean"]):
-            out.append(f"[{fig}] {r['condition']}: no finished trial")
-            continue
-        out.append(f"[{fig}] {r['condition']}: held out "
-                   f"{1e3 * r['final_heldout_abs_error_mean']:.1f} mm"
-                   f" = {r['final_heldout_abs_error_pct_reach']:.2f} % of the reach "
-                   f"({r['reach']:.3f} m); grid {1e3 * r['final_abs_error_mean']:.1f} mm; "
-                   f"{r['n_trials']} trial(s) of {r['epochs']:,} epochs")
-    return out
+SHOWN_CONDITIONS = 8  # a figure of more conditions (make smoke's) is not listed unless named
 
 
 def inputs_digest(figure: str, conds: dict, fail_factor: float, paper=None) -> str:
-    """What one figure's aggregate is made of: its conditions (label, settings, trials' seals),
-    the experiment's paper block (its study, claims, the paper's numbers: the summary and
-    models.json carry it), the failure factor and the code of this stage. The same digest, the
-    same files."""
+    """What one figure's aggregate is made of (the code of this stage included)."""
     body = dict(figure=figure, fail_factor=fail_factor, code=code_of_stage(), paper=paper,
                 conditions=[[k, c["id"], c["variant"], sorted(c["trials"]), c["missing"],
                              c["seals"]] for k, c in conds.items()])
-    return hashlib.sha256(_compact(body).encode()).hexdigest()[:20]  # json's C encoder
+    return _checksum(_compact(body))
 
 
 def aggregate_figure(cfg: DictConfig, fig: str) -> tuple[list[str], bool]:
-    """Aggregate one figure, unless its aggregate is already made of the same inputs; (problems,
-    whether it was rebuilt). Only the trials whose files changed since the current aggregate are
-    read (Previous). The figure's files are replaced as one set (pipeline.io.new_set); a damaged
-    plan record, or no trial at all where the aggregate had some, leaves it as it was."""
+    """(problems, whether rebuilt): the figure's set replaced as one unless made of the same
+    inputs; a damaged plan record, or no trial where it had some, leaves it as it was."""
     folder = Path(cfg.paths.aggregate) / io.safe_name("figure", fig)
     previous = Previous(folder)
     try:
@@ -104,17 +64,19 @@ def aggregate_figure(cfg: DictConfig, fig: str) -> tuple[list[str], bool]:
         return problems + ["no trial of the figure is readable; its aggregate is left as it "
                            "was"], False
     try:
-        table = curves_table(conds, previous)
-        model_of, sums = models(conds, previous)
+        table, (model_of, sums) = curves_table(conds, previous), models(conds, previous)
     except (OSError, ValueError, KeyError, IndexError):  # the previous aggregate is damaged
-        previous = Previous()
-        for c in conds.values():
-            _fill(cfg.paths.cache, c["entries"])
+        previous = Previous()  # the entries that were to come from it are read from the cache
+        for e in (e for c in conds.values() for e in c["entries"] if "table" not in e):
+            fresh = _read(cfg.paths.cache, e, e["signature"])
+            if not isinstance(fresh, dict):
+                raise io.DamagedFile(f"trial {e['key']}: {fresh or 'gone'} while aggregating; "
+                                     "run the stage again")
+            e.update(fresh)
         table, (model_of, sums) = curves_table(conds, previous), models(conds, previous)
     curves, summary, stats = statistics(table, conds, paper, cfg.aggregate.fail_factor,
                                         previous)
-    for c, n in zip(summary.column("condition").to_pylist(),
-                    summary.column("n_trials").to_pylist()):
+    for c, n in zip(*summary.select(["condition", "n_trials"]).to_pydict().values()):
         if n == 0:
             print(f"note: [{fig}] {c}: every trial diverged or failed; the report marks it "
                   "diverged", file=sys.stderr)
@@ -135,42 +97,31 @@ def aggregate_figure(cfg: DictConfig, fig: str) -> tuple[list[str], bool]:
 
 def named_figures(cfg: DictConfig, explicit: bool, known: list[str], folder,
                   state: str) -> list[str] | None:
-    """The figures the command line names (experiments=, or the one figure= / experiment=
-    names), or None where it names none; one that is not among `known` (the figures `state`,
-    simulated or aggregated, under `folder`) is a FileNotFoundError (one line)."""
-    if cfg.get("experiments"):
-        wanted = list(cfg.experiments)  # an experiment's figure is its name (tested)
-    elif explicit:
-        wanted = [cfg.figure]
-    else:
+    """The figures experiments= (or `explicit`: figure=) names, or None; one not `known` (`state`
+    under `folder`) is a FileNotFoundError."""
+    if not cfg.get("experiments") and not explicit:
         return None
-    missing = [f for f in wanted if f not in known]
+    wanted = list(cfg.experiments) if cfg.get("experiments") else [cfg.figure]
+    missing = [f for f in wanted if f not in known]  # an experiment's figure is its name
     if missing:
         raise FileNotFoundError(f"figure={missing[0]}: not {state} under {folder} "
                                 f"({state}: {', '.join(known) or 'none'})")
     return wanted
 
 
-def selected_figures(cfg: DictConfig, explicit: bool) -> list[str]:
-    """The figures a stage works on: every simulated one, or (figure= / experiment= /
-    experiments= on the command line) those named; an unknown one is a FileNotFoundError."""
+def aggregate(cfg: DictConfig, explicit: bool = False) -> list[str]:
+    """The problems found aggregating every simulated figure, or those named, that changed."""
     known = cache.figures(cfg.paths.cache)
     if not known:
         raise FileNotFoundError(f"no simulated figure under {cfg.paths.cache}: "
                                 "run pipeline.simulate first")
-    named = named_figures(cfg, explicit, known, cfg.paths.cache, "simulated")
-    return known if named is None else named
-
-
-def aggregate(cfg: DictConfig, explicit: bool = False) -> list[str]:
-    """Aggregate the selected figures (selected_figures) whose inputs changed; return the
-    problems found."""
-    problems, rebuilt, figures = [], 0, selected_figures(cfg, explicit)
+    figures = named_figures(cfg, explicit, known, cfg.paths.cache, "simulated") or known
+    problems, rebuilt = [], 0
     for fig in figures:
         found, new = aggregate_figure(cfg, fig)
         problems += [f"[{fig}] {p}" for p in found]
         rebuilt += new
-        if not gc.isenabled():  # the command (one_shot): each figure's cycles freed before the next
+        if not gc.isenabled():  # the command (run): each figure's cycles freed before the next
             gc.collect()
         show_heldout(Path(cfg.paths.aggregate) / io.safe_name("figure", fig), fig,
                      explicit or len(figures) == 1)
@@ -178,12 +129,9 @@ def aggregate(cfg: DictConfig, explicit: bool = False) -> list[str]:
     return problems
 
 
-SHOWN_CONDITIONS = 8  # a figure of more conditions (make smoke's) is not listed unless named
-
-
 def show_heldout(folder: Path, fig: str, named: bool) -> None:
-    """Log heldout_lines for a figure named on the command line (or the only one), or one of at
-    most SHOWN_CONDITIONS conditions."""
+    """Log per condition the held-out error (mm, % of the reach), the grid error and the trials
+    of a figure named (or the only one) or of few conditions: what a first run wants to read."""
     try:  # a pyarrow table: a figure left as it was loads no pandas
         summary = io.read_table(io.set_of(folder) / "summary.parquet")
     except (OSError, ValueError):
@@ -191,31 +139,27 @@ def show_heldout(folder: Path, fig: str, named: bool) -> None:
     if "final_heldout_abs_error_pct_reach" not in summary.column_names or not (
             named or summary.num_rows <= SHOWN_CONDITIONS):
         return
-    for line in heldout_lines(fig, summary):
-        log.info("%s", line)
+    for r in summary.to_pylist():
+        r = {k: np.nan if v is None else v for k, v in r.items()}
+        log.info("[%s] %s: %s", fig, r["condition"], "no finished trial" if not np.isfinite(
+            r["final_heldout_abs_error_mean"]) else
+            f"held out {1e3 * r['final_heldout_abs_error_mean']:.1f} mm"
+            f" = {r['final_heldout_abs_error_pct_reach']:.2f} % of the reach "
+            f"({r['reach']:.3f} m); grid {1e3 * r['final_abs_error_mean']:.1f} mm; "
+            f"{r['n_trials']} trial(s) of {r['epochs']:,} epochs")
 
 
 def names_a_figure(overrides: list[str]) -> bool:
     return any(o.lstrip("+").startswith(("figure=", "experiment=")) for o in overrides)
 
 
-def one_shot() -> None:
-    """Settings for the command's one process (not for the API: a caller's process is its own).
-    Arrow's buffers come from the C library's allocator: with Arrow's default (mimalloc) the
-    writes of a 10,000-trial set cost 0.1 to 0.9 s of system time more, varying from run to run
-    (ARROW_DEFAULT_MEMORY_POOL, if set, wins). Python's cyclic collector, off since the imports
-    began, runs once per figure (aggregate) instead of about 300 times over the objects a
-    rebuild holds (0.1 s): what the imports made is frozen out of every collection."""
-    import pyarrow as pa
-
+def run(cfg: DictConfig) -> int:
+    """aggregate() for the command line: a warning per problem, exit status 1 if any. Its one
+    process takes Arrow's buffers from the C library and freezes what the imports made out of
+    the cyclic collector, which runs once per figure (docs/scale.md: The command's process)."""
     if "ARROW_DEFAULT_MEMORY_POOL" not in os.environ:
         pa.set_memory_pool(pa.system_memory_pool())
     gc.freeze()
-
-
-def run(cfg: DictConfig) -> int:
-    """aggregate() for the command line: a warning per problem, exit status 1 if any."""
-    one_shot()
     problems = aggregate(cfg, names_a_figure(cli.hydra_run()[0]))
     for p in problems:
         print(f"warning: {p}", file=sys.stderr)

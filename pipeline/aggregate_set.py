@@ -1,12 +1,10 @@
-"""The aggregate's set of files as trials enter it: each trial read from the cache once, or, where
-its files did not change, taken from the figure's previous set (Previous: index.parquet, the
-manifest's checksums), and the models.json text of each condition (pipeline/aggregate.py writes
-the set; pipeline/aggregate_stats.py computes its curves and summary)."""
+"""The aggregate's set as trials enter it: each trial read from the cache once, or taken from the
+figure's previous set where its files did not change (Previous), and the models.json text."""
 from __future__ import annotations
 
 import hashlib
 import json
-from functools import lru_cache
+from functools import cached_property, lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -16,60 +14,56 @@ from . import cache, io
 from .fingerprint import source_fingerprint
 from .labels import condition_labels
 
-
-def condition_order(c: dict) -> tuple:
-    """Variants in their order, then growing bodies by period, then references by size (a
-    stable sort: conditions that tie keep the order they were planned in)."""
-    return (c["_variant_index"], c["growth"] == "none", c["growth_period"],
-            c["spec"]["growth"]["end_size"])
+# what an aggregate's bytes depend on
+CODE = ("aggregate.py", "aggregate_set.py", "aggregate_stats.py", "cache.py", "io.py", "keys.py",
+        "labels.py", "measures.py")
+INDEX = "index.parquet"  # per trial of the aggregate: what was read, to reuse it next time
+_S, _I = pa.string(), pa.int64()
+INDEX_SCHEMA = pa.schema([("key", _S), ("condition", _S), ("trial", _I), ("status", _S),
+                          ("epoch", _I), ("seal", _S), ("signature", _S),
+                          ("largest_jump", pa.float64()), ("row", _I), ("rows", _I)])
+MODELS_HEAD = '{"conditions":{'
+_DECODER = json.JSONDecoder()
 
 
 def figure_conditions(cache_dir, figure: str) -> tuple[list[dict], dict, list[str]]:
-    """The figure's conditions in order, each labelled by what differs between them."""
+    """The figure's conditions labelled by what differs between them: variants in their order,
+    then growing bodies by period, then references by size (a stable sort)."""
     conds, paper, problems = cache.figure_conditions(cache_dir, figure)
-    variant_order = {}
+    order = {}
     for c in conds:
-        label = (c.get("variant") or {}).get("label")
-        c["_variant_index"] = variant_order.setdefault(label, len(variant_order))
-    conds = sorted(conds, key=condition_order)
+        c["_variant_index"] = order.setdefault((c.get("variant") or {}).get("label"), len(order))
+    conds = sorted(conds, key=lambda c: (c["_variant_index"], c["growth"] == "none",
+                                         c["growth_period"], c["spec"]["growth"]["end_size"]))
     for c, label in zip(conds, condition_labels(conds)):
         c["label"] = label
     return conds, paper, problems
 
 
-# what an aggregate's bytes depend on
-CODE = ("aggregate.py", "aggregate_set.py", "aggregate_stats.py", "cache.py", "io.py", "keys.py", "labels.py", "measures.py")
-
-
 @lru_cache(maxsize=1)
 def code_of_stage() -> str:
-    """The fingerprint of this stage's code: read once per process, not once per figure."""
     here = Path(__file__).parent
     return source_fingerprint((n, (here / n).read_text()) for n in CODE)
 
 
+def _checksum(text: str) -> str:
+    return hashlib.sha256(text.encode()).hexdigest()[:20]
 
-INDEX = "index.parquet"  # per trial of the aggregate: what was read, to reuse it next time
-INDEX_SCHEMA = pa.schema([("key", pa.string()), ("condition", pa.string()),
-                          ("trial", pa.int64()), ("status", pa.string()),
-                          ("epoch", pa.int64()), ("seal", pa.string()),
-                          ("signature", pa.string()), ("largest_jump", pa.float64()),
-                          ("row", pa.int64()), ("rows", pa.int64())])
+
+def _compact(obj) -> str:  # json's C encoder
+    return json.dumps(obj, sort_keys=True, separators=(",", ":"))
 
 
 class Previous:
-    """The figure's current aggregate, made by this stage's code: for each trial it read, the
-    signature of the trial's files (pipeline.cache.signature), its seal, its model and its rows.
-    A trial whose files still have that signature is taken from here instead of being read and
-    checked again, so a rebuild reads only what changed. Anything unreadable here: nothing is
-    reused (every trial is read from the cache)."""
+    """The figure's current aggregate, if made by this stage's code: a trial whose files still
+    have the signature it records is taken from here, not read again; if unreadable, nothing."""
 
     def __init__(self, folder: Path | None = None):
-        self.index, self.where, self._table, self._texts, self._pieces = {}, None, None, None, {}
-        self._finished = None
+        self.index, self.where = {}, None
+        self.finished = {}  # condition -> its finished trials (their indices)
         self.lines = {}  # condition -> (id, checksum of its models.json line)
-        self.stats = {}  # condition -> (stats_digest, first row in curves.parquet, rows, row in
-        self._sums = {}  # summary.parquet); file -> its SHA-256 (the manifest's)
+        self.stats = {}  # condition -> (stats_digest, first row in curves, rows, row in summary)
+        self._sums = {}  # file -> its SHA-256 (the manifest's)
         if folder is None or not folder.exists():
             return
         try:
@@ -80,89 +74,74 @@ class Previous:
             index = io.read_table(where / INDEX, schema=INDEX_SCHEMA)
             names = index.column_names  # table.to_pylist()'s rows, built column by column
             rows = [dict(zip(names, r)) for r in zip(*(index.column(n).to_pylist() for n in names))]
-            self.lines = {k: tuple(v) for k, v in manifest.get("models", {}).items()}
-            self.stats = {k: tuple(v) for k, v in manifest.get("stats", {}).items()}
-            self._sums = dict(manifest.get("sha256", {}))
+            lines = {k: tuple(v) for k, v in manifest.get("models", {}).items()}
+            stats = {k: tuple(v) for k, v in manifest.get("stats", {}).items()}
+            sums = dict(manifest.get("sha256", {}))
         except (OSError, ValueError, TypeError):
             return
         self.index, self.where = {r["key"]: r for r in rows}, where
+        self.lines, self.stats, self._sums = lines, stats, sums
+        for r in rows:
+            if r["status"] != "diverged":
+                self.finished.setdefault(r["condition"], []).append(str(r["trial"]))
 
-    def trials_of(self, condition: str) -> list[str]:
-        """The finished trials (their indices) the previous aggregate holds for `condition`."""
-        if self._finished is None:  # every condition's in one pass over the index
-            self._finished = {}
-            for r in self.index.values():
-                if r["status"] != "diverged":
-                    self._finished.setdefault(r["condition"], []).append(str(r["trial"]))
-        return self._finished.get(condition, [])
-
-    def table(self) -> pa.Table:
-        if self._table is None:
-            # the curves' own columns only: the labels are set again per condition, and their
-            # strings cost nine tenths of reading the file (0.08 of 0.09 s, 10,000 trials)
-            self._table = self.checked_table("trials.parquet", io.TRIAL_CURVE)
-        return self._table
+    @cached_property
+    def trials(self) -> pa.Table:
+        # the curves' own columns only: the labels are set again per condition, and their
+        # strings cost nine tenths of reading the file (0.08 of 0.09 s, 10,000 trials)
+        return self.checked_table("trials.parquet", io.TRIAL_CURVE)
 
     def checked_table(self, name: str, schema: pa.Schema | None = None) -> pa.Table:
-        """A file of the set whose bytes are those the manifest recorded (ValueError if not: an
-        edited file is never copied from); with `schema`, its columns only."""
+        """A file of the set, if its bytes are those the manifest recorded (else ValueError)."""
         data = (self.where / name).read_bytes()
         if hashlib.sha256(data).hexdigest() != self._sums.get(name):
             raise ValueError(f"{name}: not the file the manifest recorded")
         return io.parse_table(data, self.where / name, schema,
                               None if schema is None else schema.names)
 
+    @cached_property
+    def _texts(self) -> dict[str, str]:  # condition -> its line of models.json
+        lines, out = (self.where / "models.json").read_text().split("\n"), {}
+        for line in lines[1:-2] if lines[0] == MODELS_HEAD else ():
+            if line:
+                name, end = _DECODER.raw_decode(line)
+                out[name] = line[end + 1:].rstrip(",")
+        return out
+
     def text(self, condition: str) -> str:
-        """The condition's line of the previous models.json (models_text), checked against the
-        checksum the manifest recorded for it (ValueError if it differs or is not there)."""
-        if self._texts is None:
-            self._texts = {}
-            lines = (self.where / "models.json").read_text().split("\n")
-            decoder = json.JSONDecoder()
-            for line in lines[1:-2] if lines[0] == MODELS_HEAD else ():
-                if line:
-                    name, end = decoder.raw_decode(line)
-                    self._texts[name] = line[end + 1:].rstrip(",")
+        """The condition's line of models.json, checked against the manifest (else ValueError)."""
         text = self._texts.get(condition)
         if text is None or _checksum(text) != self.lines.get(condition, (None, None))[1]:
             raise ValueError(f"models.json: the line of {condition!r} is damaged")
         return text
 
     def pieces(self, condition: str) -> dict[str, str]:
-        """trial -> the JSON text of its model in the condition's previous line (text(), checked):
-        the line parsed key by key by json's decoder, each model cut where its value ends (not
-        encoded again; ValueError if the line is not what model_line writes)."""
-        if condition not in self._pieces:
-            text, out = self.text(condition), {}
-            decode, scan = _DECODER.raw_decode, json.decoder.scanstring
-            pos, key = 1, None
-            while text[pos - 1] in "{," and key != "trials":
-                key, pos = scan(text, pos + 1)  # past the opening quote
-                if text[pos] != ":":
-                    break
-                if key == "trials":
-                    pos += 2
-                    while text[pos - 1] in "{," and text[pos] == '"':
-                        trial, pos = scan(text, pos + 1)
-                        end = decode(text, pos + 1)[1]
-                        out[trial], pos = text[pos + 1:end], end + 1
-                    pos += text[pos - 1] == "{"  # no trial: past the closing brace
-                else:
-                    pos = decode(text, pos + 1)[1] + 1
-            if key != "trials" or text[pos - 1:] != "}}" or text[0] != "{":
-                raise ValueError(f"models.json: the line of {condition!r} is not a condition's")
-            self._pieces[condition] = out
-        return self._pieces[condition]
-
-
-_DECODER = json.JSONDecoder()
+        """trial -> its model's JSON text in text(condition), cut where json's decoder ends it,
+        not encoded again (ValueError if the line is not model_line's)."""
+        text, out = self.text(condition), {}
+        decode, scan = _DECODER.raw_decode, json.decoder.scanstring
+        pos, key = 1, None
+        while text[pos - 1] in "{," and key != "trials":
+            key, pos = scan(text, pos + 1)  # past the opening quote
+            if text[pos] != ":":
+                break
+            if key == "trials":
+                pos += 2
+                while text[pos - 1] in "{," and text[pos] == '"':
+                    trial, pos = scan(text, pos + 1)
+                    end = decode(text, pos + 1)[1]
+                    out[trial], pos = text[pos + 1:end], end + 1
+                pos += text[pos - 1] == "{"  # no trial: past the closing brace
+            else:
+                pos = decode(text, pos + 1)[1] + 1
+        if key != "trials" or text[pos - 1:] != "}}" or text[0] != "{":
+            raise ValueError(f"models.json: the line of {condition!r} is not a condition's")
+        return out
 
 
 def load_trials(cache_dir, figure: str, previous: Previous | None = None):
-    """(conditions by label, paper, problems found) of the figure's trials: each trial's files
-    read and checked once, or, where they did not change since `previous`, taken from there.
-    Each condition lists its trials' entries (seal, status, and the curve table or the rows of
-    the previous aggregate); curves_table and models() turn them into the figure's files."""
+    """(conditions by label, paper, problems): each condition's trial entries (seal, status, the
+    curve table or its rows in `previous`), each read once or taken from `previous`."""
     previous = previous or Previous()
     conditions, paper, problems = figure_conditions(cache_dir, figure)
     conds = {}
@@ -178,10 +157,10 @@ def load_trials(cache_dir, figure: str, previous: Previous | None = None):
             entry = previous.index.get(t["key"])
             if signature is None or entry is None or entry["signature"] != signature:
                 entry = _read(cache_dir, t, signature)
-            if isinstance(entry, str) or entry is None:
-                why = entry or "not computed (run pipeline.simulate)"
+            if not isinstance(entry, dict):
                 c["missing"].append(i)
-                problems.append(f"{name} trial {i}: {why}")
+                problems.append(f"{name} trial {i}: "
+                                f"{entry or 'not computed (run pipeline.simulate)'}")
                 continue
             entry = dict(entry, trial=t["trial"], key=t["key"])
             c["seals"].append(entry["seal"])
@@ -207,21 +186,8 @@ def _read(cache_dir, t: dict, signature: str | None):
     return entry
 
 
-def _fill(cache_dir, entries: list[dict]) -> None:
-    """Read from the cache the entries that were to come from a previous aggregate that turned
-    out unreadable (their files are checked again)."""
-    for e in entries:
-        if "table" not in e:
-            fresh = _read(cache_dir, e, e["signature"])
-            if not isinstance(fresh, dict):
-                raise io.DamagedFile(f"trial {e['key']}: {fresh or 'gone'} while aggregating; "
-                                     "run the stage again")
-            e.update(fresh)
-
-
 def curves_table(conds: dict, previous: Previous) -> pa.Table:
-    """Every finished trial's curve in io.CURVE, in condition and trial order, with the labels
-    of its condition (set once per condition). Each entry's row range in it is recorded."""
+    """Every finished trial's curve in io.CURVE, with its labels; each entry's rows recorded."""
     parts, row = [], 0
     for c in conds.values():
         pieces, counts, trials = [], [], []
@@ -231,8 +197,8 @@ def curves_table(conds: dict, previous: Previous) -> pa.Table:
             else:  # consecutive rows of the previous aggregate are taken as one slice
                 piece = ("slice", e["row"], e["rows"])
                 if pieces and isinstance(pieces[-1], tuple) and sum(pieces[-1][1:]) == e["row"]:
-                    piece = ("slice", pieces[-1][1], pieces[-1][2] + e["rows"])
-                    pieces.pop()
+                    _, first, n = pieces.pop()
+                    piece = ("slice", first, n + e["rows"])
             pieces.append(piece)
             e["row"], e["rows"] = row, len(e["table"]) if "table" in e else e["rows"]
             row += e["rows"]
@@ -240,12 +206,11 @@ def curves_table(conds: dict, previous: Previous) -> pa.Table:
             trials.append(e["trial"])
         if not pieces:
             continue
-        old = previous.table().select(io.TRIAL_CURVE.names) if any(
+        old = previous.trials.select(io.TRIAL_CURVE.names) if any(
             isinstance(p, tuple) for p in pieces) else None
         body = pa.concat_tables([old.slice(p[1], p[2]) if isinstance(p, tuple) else p
                                  for p in pieces])
-        n = len(body)
-        same = pa.array(np.zeros(n, dtype=np.int64))  # each label's one value, n times: a take
+        same = pa.array(np.zeros(len(body), dtype=np.int64))  # each label n times: a take
         # (pa.repeat of a string scalar cost 19 ms per 11,000 rows: 1 s of a 10,000-trial figure)
         cols = {k: pa.array([v], io.CURVE.field(k).type).take(same)
                 for k, v in c["labels"].items()}
@@ -256,35 +221,18 @@ def curves_table(conds: dict, previous: Previous) -> pa.Table:
     return pa.concat_tables(parts) if parts else io.CURVE.empty_table()
 
 
-MODELS_HEAD = '{"conditions":{'
-
-
-def _checksum(text: str) -> str:
-    return hashlib.sha256(text.encode()).hexdigest()[:20]
-
-
-def _compact(obj) -> str:
-    return json.dumps(obj, sort_keys=True, separators=(",", ":"))
-
-
 def models(conds: dict, previous: Previous) -> tuple[dict[str, str], dict[str, str]]:
-    """Per condition, the JSON text of its spec, id and each finished trial's model (key, M,
-    snapshots, largest jump; model_line), from the trial's sidecar or the previous aggregate,
-    and the text's checksum (the manifest's). A condition whose id and finished trials are
-    those of the previous aggregate, none read again, keeps its text as it was, checked against
-    its checksum, which is then its checksum (not taken again: 10 MB of a 10,000-trial figure).
-    In a condition that changed, a trial not read again keeps its model's text (Previous.pieces):
-    only the models read are encoded."""
+    """Per condition its model_line and checksum: a condition whose id and trials are the previous
+    aggregate's, none read again, keeps both (not hashed again); in one that changed, only the
+    models read are encoded (the others: Previous.pieces)."""
     out, sums = {}, {}
     for k, c in conds.items():
-        before = previous.lines.get(k)
-        same = (before is not None and before[0] == c["id"]
-                and all("model" not in e for e in c["trials"].values())
-                and sorted(c["trials"]) == sorted(previous.trials_of(k)))
-        if same:
+        before, kept = previous.lines.get(k), [e for e in c["trials"].values() if "model" not in e]
+        if (before is not None and before[0] == c["id"] and len(kept) == len(c["trials"])
+                and sorted(c["trials"]) == sorted(previous.finished.get(k, []))):
             out[k], sums[k] = previous.text(k), before[1]
             continue
-        kept = previous.pieces(k) if any("model" not in e for e in c["trials"].values()) else {}
+        kept = previous.pieces(k) if kept else {}
         out[k] = model_line(c["spec"], c["id"], {
             i: _compact(e["model"]) if "model" in e else kept[i] for i, e in c["trials"].items()})
         sums[k] = _checksum(out[k])
@@ -292,25 +240,20 @@ def models(conds: dict, previous: Previous) -> tuple[dict[str, str], dict[str, s
 
 
 def model_line(spec: dict, cid: str, trials: dict[str, str]) -> str:
-    """_compact({"spec": spec, "id": cid, "trials": {trial: model}}) from each trial's model
-    already encoded (`trials`: trial -> its compact JSON): the same text, keys in the same
-    (sorted) order."""
+    """_compact({"spec": spec, "id": cid, "trials": trials}), each trial's model already encoded."""
     models = ",".join(f"{json.dumps(i)}:{trials[i]}" for i in sorted(trials))
     return f'{{"id":{_compact(cid)},"spec":{_compact(spec)},"trials":{{{models}}}}}'
 
 
 def models_text(fig: str, paper, texts: dict[str, str]) -> str:
-    """models.json: {"conditions": ..., "figure": ..., "paper": ...} as compact JSON with sorted
-    keys, each condition on a line of its own (whitespace JSON allows between values)."""
+    """models.json: compact JSON with sorted keys, each condition on a line of its own."""
     body = ",\n".join(f"{json.dumps(k)}:{texts[k]}" for k in sorted(texts))
     return (f"{MODELS_HEAD}\n{body}\n}},\"figure\":{json.dumps(fig)},"
             f"\"paper\":{_compact(paper)}}}\n")
 
 
 def refresh_index(conds: dict, previous: Previous) -> None:
-    """Inputs unchanged, but some trials' files were rewritten with the same content (their
-    seals match): record their new signatures, so that the next run does not read them again.
-    The index is replaced alone, in place: no other file of the set depends on signatures."""
+    """Inputs unchanged, trials rewritten with the same seals: their signatures into the index."""
     fresh = [e for c in conds.values() for e in c["entries"] if "table" in e]
     for e in fresh:
         known = previous.index.get(e["key"])
@@ -322,11 +265,7 @@ def refresh_index(conds: dict, previous: Previous) -> None:
 
 
 def index_table(conds: dict) -> pa.Table:
-    entries = [(name, e) for name, c in conds.items() for e in c["entries"]]
-    cols = {"condition": [name for name, _ in entries]}
-    for k in ("key", "trial", "status", "epoch", "seal", "signature"):
-        cols[k] = [e[k] for _, e in entries]
-    cols["largest_jump"] = [e.get("largest_jump") for _, e in entries]
-    cols["row"] = [e.get("row", -1) for _, e in entries]
-    cols["rows"] = [e.get("rows", 0) for _, e in entries]
-    return pa.Table.from_pydict({k: cols[k] for k in INDEX_SCHEMA.names}, schema=INDEX_SCHEMA)
+    entries = [dict(e, condition=name) for name, c in conds.items() for e in c["entries"]]
+    fill = dict(largest_jump=None, row=-1, rows=0)
+    return pa.Table.from_pydict({k: [e[k] if k not in fill else e.get(k, fill[k]) for e in entries]
+                                 for k in INDEX_SCHEMA.names}, schema=INDEX_SCHEMA)

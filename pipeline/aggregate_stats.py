@@ -1,19 +1,18 @@
-"""The statistics of an aggregate: per condition and epoch the curves over trials
-(curve_stats), per condition the summary (summarize: final errors, the peak during growth,
-failures, the body's reach), each condition's rows kept from the previous set where its inputs
-did not change (statistics)."""
+"""The aggregate's statistics: per condition and epoch the curves over trials (curve_stats), per
+condition the summary (summarize), each condition's rows kept from the previous set where its
+inputs did not change (statistics)."""
 from __future__ import annotations
 
-import hashlib
 import json
 from functools import lru_cache
+from itertools import islice, takewhile
 from typing import TYPE_CHECKING
 
 import numpy as np
 import pyarrow as pa
 
 from . import io
-from .aggregate_set import Previous, _compact
+from .aggregate_set import Previous, _checksum, _compact
 from .measures import finals, growth_peak
 
 if TYPE_CHECKING:  # pandas is imported where a figure is rebuilt (summarize): not when cached
@@ -37,28 +36,23 @@ def curve_stats(trials: pd.DataFrame) -> pd.DataFrame:
     return out.reset_index()
 
 
-def _by_condition(frame: pd.DataFrame) -> dict:
-    """condition -> its rows of `frame`, in their order."""
-    return {name: rows for name, rows in frame.groupby("condition", sort=False, observed=True)}
-
-
 def summarize(trials: pd.DataFrame, curves: pd.DataFrame, conds: dict, paper: dict,
               fail_factor: float) -> pd.DataFrame:
-    """One row per condition: final errors (mean, std over trials), the temporary increase of the
-    mean absolute error during growth (epochs 1 ... T_G + 1; growth_peak), trials that diverged
-    or are missing, trials that failed to bootstrap, and the paper's stated final accuracy."""
+    """One row per condition: final errors, the peak during growth (epochs 1 ... T_G + 1), trials
+    that diverged, are missing or failed to bootstrap, the body's reach, the paper's accuracy."""
+    import pandas as pd
+
     paper_abs = paper.get("final_abs_error")
     rows, last = [], finals(trials)
-    final_of, curve_of = _by_condition(last), _by_condition(curves)  # one pass, not one per condition
+    final_of, curve_of = (dict(iter(f.groupby("condition", sort=False, observed=True)))
+                          for f in (last, curves))  # one pass, not one per condition
     for name, c in conds.items():
-        final = final_of.get(name, last.iloc[:0])
-        v = c["variant"] or {}
+        final, v, spec = final_of.get(name, last.iloc[:0]), c["variant"] or {}, c["spec"]
         row = {k: c["labels"][k] for k in GROUP}
         row.update(variant=v.get("label", ""), choice=v.get("choice", ""),
                    chosen=bool(v.get("chosen", False)),
-                   start_size=c["spec"]["growth"]["start_size"],
-                   end_size=c["spec"]["growth"]["end_size"], epochs=c["spec"]["epochs"],
-                   n_trials=int(len(final)), n_diverged=len(c["diverged"]),
+                   start_size=spec["growth"]["start_size"], end_size=spec["growth"]["end_size"],
+                   epochs=spec["epochs"], n_trials=int(len(final)), n_diverged=len(c["diverged"]),
                    n_run_failures=len(c["missing"]),
                    diverged_epochs=",".join(str(e) for e in c["diverged"].values()))
         for col in (c for c in ERRORS if c in final):
@@ -76,93 +70,74 @@ def summarize(trials: pd.DataFrame, curves: pd.DataFrame, conds: dict, paper: di
         row["largest_jump_mean"] = float(np.mean(jumps)) if jumps else np.nan
         row["final_samples"] = int(final["samples"].max()) if len(final) else 0
         row["paper_final_abs_error"] = np.nan if paper_abs is None else float(paper_abs)
-        row["reach"] = reach_of(c["spec"])  # the final body's; the held-out error in % of it:
+        row["reach"] = reach_of(spec)  # the final body's; the held-out error in % of it:
         row["final_heldout_abs_error_pct_reach"] = (  # comparable across robots of any size
             100 * row["final_heldout_abs_error_mean"] / row["reach"] if row["reach"] > 0
             else np.nan)
         rows.append(row)
-    import pandas as pd
-
     return pd.DataFrame(rows)
 
 
 def stats_digest(name: str, c: dict, paper, fail_factor: float) -> str:
-    """What a condition's rows of curves.parquet and summary.parquet are made of: its name,
-    labels, id (spec and seed), variant, trials and their seals, the diverged and missing ones,
-    the paper block, the failure factor, and the versions of the libraries that compute them
-    (the code is the manifest's). The same digest, the same rows."""
+    """What a condition's rows of curves and summary are made of (with the libraries' versions)."""
     import pandas as pd
 
     body = [name, c["labels"], c["id"], c["variant"], sorted(c["trials"]), c["seals"],
             c["diverged"], c["missing"], paper, fail_factor, pd.__version__, np.__version__,
             pa.__version__]
-    return hashlib.sha256(_compact(body).encode()).hexdigest()[:20]
+    return _checksum(_compact(body))
 
 
 def statistics(table: pa.Table, conds: dict, paper: dict, fail_factor: float,
                previous: Previous) -> tuple[pa.Table, pa.Table, dict]:
-    """(curves, summary, stats) of the figure: curve_stats and summarize as tables, and per
-    condition [stats_digest, first row in curves, rows, row in summary] for the manifest. A
-    condition whose digest is that of the previous set keeps its rows from there (checked
-    files); only the others are computed (one changed trial of 10,000: one condition of ten).
-    The tables are those of computing every condition: where the computed rows' schema is not
-    the previous files' (another pandas), or the previous set is unreadable, all are computed.
-    `table`: every condition's trial curves (curves_table), converted to pandas where used."""
+    """(curves, summary, stats for the manifest) of the trial curves `table`: a condition whose
+    stats_digest is the previous set's keeps its rows, unless that set is unreadable or of
+    another schema (another pandas)."""
     digests = {k: stats_digest(k, c, paper, fail_factor) for k, c in conds.items()}
     kept = {k for k, d in digests.items() if previous.stats.get(k, (None,))[0] == d}
     if kept and len(kept) < len(conds):
         try:
-            return _statistics_of(table, conds, paper, fail_factor, previous, digests, kept)
+            return _computed(table, conds, paper, fail_factor, digests, kept, previous)
         except (OSError, ValueError, KeyError, IndexError, TypeError, pa.ArrowException):
             pass
-    trials = table.to_pandas()
-    curves = curve_stats(trials)
-    curves_t = io.frame_to_table(curves)
-    summary_t = io.frame_to_table(summarize(trials, curves, conds, paper, fail_factor))
-    return curves_t, summary_t, _stats_record(curves_t, conds, digests)
+    return _computed(table, conds, paper, fail_factor, digests)
 
 
-def _statistics_of(table, conds, paper, fail_factor, previous, digests, kept):
-    """statistics() with the conditions `kept` taken from the previous set."""
+def _computed(table, conds, paper, fail_factor, digests, kept=(), previous=None):
+    """statistics() with the conditions `kept` taken from `previous`."""
     computed = {k: c for k, c in conds.items() if k not in kept}
-    parts = [table.slice(min(e["row"] for e in c["trials"].values()),
-                         sum(e["rows"] for e in c["trials"].values()))
-             for c in computed.values() if c["trials"]]  # a condition's rows are consecutive
-    rows = pa.concat_tables(parts or [table.slice(0, 0)]).to_pandas()
-    if set(rows["condition"]) != {k for k, c in computed.items() if c["trials"]}:
-        raise ValueError("the computed conditions' rows are not theirs")
+    if kept:
+        parts = [table.slice(min(e["row"] for e in c["trials"].values()),
+                             sum(e["rows"] for e in c["trials"].values()))
+                 for c in computed.values() if c["trials"]]  # a condition's rows are consecutive
+        rows = pa.concat_tables(parts or [table.slice(0, 0)]).to_pandas()
+        if set(rows["condition"]) != {k for k, c in computed.items() if c["trials"]}:
+            raise ValueError("the computed conditions' rows are not theirs")
+    else:
+        rows = table.to_pandas()
     curves = curve_stats(rows)
-    new_curves = io.frame_to_table(curves)
-    new_summary = io.frame_to_table(summarize(rows, curves, computed, paper, fail_factor))
-    old_curves, old_summary = (previous.checked_table("curves.parquet"),
-                               previous.checked_table("summary.parquet"))
-    if not (new_curves.schema.equals(old_curves.schema, check_metadata=True)
-            and new_summary.schema.equals(old_summary.schema, check_metadata=True)):
+    new = (io.frame_to_table(curves),
+           io.frame_to_table(summarize(rows, curves, computed, paper, fail_factor)))
+    if not kept:
+        return (*new, _stats_record(new[0], conds, digests))
+    old = previous.checked_table("curves.parquet"), previous.checked_table("summary.parquet")
+    if not all(n.schema.equals(o.schema, check_metadata=True) for n, o in zip(new, old)):
         raise ValueError("the computed rows' schema is not the previous files'")
-    at = _stats_record(new_curves, computed, digests)
-    c_parts, s_parts = [], []
+    at, parts = _stats_record(new[0], computed, digests), ([], [])
     for k in conds:
-        if k in kept:
-            _, first, n, i = previous.stats[k]
-            c_parts.append(old_curves.slice(first, n))
-            s_parts.append(old_summary.slice(i, 1))
-        else:
-            _, first, n, i = at[k]
-            c_parts.append(new_curves.slice(first, n))
-            s_parts.append(new_summary.slice(i, 1))
-    curves_t = pa.concat_tables(c_parts).combine_chunks()
-    summary_t = pa.concat_tables(s_parts).combine_chunks()
+        (_, first, n, i), (curves_t, summary_t) = ((previous.stats[k], old) if k in kept
+                                                   else (at[k], new))
+        parts[0].append(curves_t.slice(first, n))
+        parts[1].append(summary_t.slice(i, 1))
+    curves_t, summary_t = (pa.concat_tables(p).combine_chunks() for p in parts)
     if summary_t.column("condition").to_pylist() != list(conds):
         raise ValueError("summary.parquet: the conditions are not the figure's")
     return curves_t, summary_t, _stats_record(curves_t, conds, digests)
 
 
 def trials_file_table(table: pa.Table) -> pa.Table:
-    """trials.parquet's table: what pa.Table.from_pandas(table.to_pandas(), schema=io.CURVE,
-    preserve_index=False) makes of `table` (one chunk, pandas' metadata, a float NaN stored as
-    null), without converting 110,000 rows twice: a table with no null and no NaN is its own
-    values in one chunk, under the metadata of its first row's conversion (the metadata names
-    the columns and types, not the rows); any other table is converted."""
+    """pa.Table.from_pandas(table.to_pandas(), schema=io.CURVE, preserve_index=False) without the
+    round trip where no value is null or NaN: one chunk, its first row's pandas metadata."""
     floats = [f.name for f in io.CURVE if pa.types.is_floating(f.type)]
     if table.num_rows and not any(table.column(n).null_count for n in table.column_names) and \
             not any(np.isnan(table.column(n).to_numpy()).any() for n in floats):
@@ -173,24 +148,19 @@ def trials_file_table(table: pa.Table) -> pa.Table:
 
 
 def _stats_record(curves: pa.Table, conds: dict, digests: dict) -> dict:
-    """condition -> [its stats digest, first row in `curves`, rows, row in the summary] (the
-    rows of a condition are consecutive, in the order of `conds`, one summary row each)."""
+    """condition -> [its stats digest, first row in `curves`, rows, row in the summary]."""
     names = curves.column("condition").to_pylist()
     first, out = 0, {}
     for i, k in enumerate(conds):
-        n = 0
-        while first + n < len(names) and names[first + n] == k:
-            n += 1
-        out[k] = [digests[k], first, n, i]
-        first += n
+        n = sum(1 for _ in takewhile(k.__eq__, islice(names, first, None)))
+        out[k], first = [digests[k], first, n, i], first + n
     if first != len(names):
         raise ValueError("curves: rows of no condition of the figure")
     return out
 
 
 def reach_of(spec: dict) -> float:
-    """The reach [m] of a condition's body at its final size (gbmodel.workspace.reach: half the
-    largest distance between two hand positions within the limits)."""
+    """The reach [m] of a condition's body at its final size (gbmodel.workspace.reach)."""
     return _reach(json.dumps(spec["body"], sort_keys=True),
                   json.dumps(spec["growth"], sort_keys=True))
 
@@ -209,9 +179,7 @@ def _reach(body_json: str, growth_json: str) -> float:
 
 @lru_cache(maxsize=256)
 def _reach_at(body_json: str, factors: tuple) -> float:
-    """workspace.reach of the body at per-segment `factors`: conditions that differ in their
-    growth's period only end at the same body, whose workspace is sampled once (20,000
-    postures: 20 ms each time)."""
+    """A body's reach at `factors`, sampled once for conditions that end at it (20 ms each)."""
     import gbmodel
     from gbmodel import workspace
 

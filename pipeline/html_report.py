@@ -1,13 +1,7 @@
-"""report.html beside every report.md, and outputs/index.html listing every report.
+"""report.html beside every report.md (its own Markdown subset, no dependency; the scorecard's
+cells link to their figure's condition table), and outputs/index.html listing every report.
 
-The report stage writes report.md; this renders the same text as HTML, figures by their relative
-names (the folder stays movable), each heading an anchor, each figure's condition table an
-anchor (`conditions-<figure>`) that the scorecard's cells link to. The Markdown is the report's
-own small subset (headings, paragraphs, lists, pipe tables with <br> in cells, images, links,
-emphasis, code spans, <details> blocks), so a converter of its own is a few dozen lines and the
-report stage gains no dependency. `python -m pipeline.html_report [ROOT]` renders every report.md
-under ROOT (default: outputs/) again and writes ROOT/index.html: each report with its first
-figure, its date and the settings in which its command differs from the others'.
+    python -m pipeline.html_report [ROOT]   # every report.md under ROOT (outputs/) and the index
 """
 from __future__ import annotations
 
@@ -28,14 +22,14 @@ INLINE = [(re.compile(r"!\[([^\]]*)\]\(([^)\s]+)\)"), r'<img src="\2" alt="\1">'
           (re.compile(r"(?<![\w*])\*([^*\s][^*]*?)\*(?![\w*])"), r"<em>\1</em>")]
 TAGS = re.compile(r"&lt;(/?(?:br|details|summary|sub|sup)\s*/?)&gt;")
 CODE = re.compile(r"`([^`]+)`")
+ITEM, RULE = re.compile(r"\s*[-*] "), re.compile(r"\|[-:| ]+\|$")
+DETAILS = re.compile(r"\s*</?(details|summary)")
 
 
 def inline(text: str) -> str:
-    """One line of Markdown as HTML: code spans kept verbatim, the few tags the report writes
-    passed through, the rest escaped."""
-    parts = CODE.split(text)
+    """One line as HTML: code spans verbatim, the few tags the report writes passed through."""
     out = []
-    for i, part in enumerate(parts):
+    for i, part in enumerate(CODE.split(text)):
         if i % 2:
             out.append(f"<code>{html.escape(part)}</code>")
             continue
@@ -54,30 +48,32 @@ def _cells(line: str) -> list[str]:
     return [c.strip() for c in line.strip().strip("|").split("|")]
 
 
-def _table(rows: list[str], links: dict) -> str:
-    """A pipe table; a figure's condition table (first column `figure`, then `condition`) gets
-    the anchor its figure's scorecard cells link to; the scorecard's cells (first column `claim
-    of the paper`) link to the condition table of their column's figure."""
+def _table(rows: list[str], tables: set, seen: set) -> str:
+    """A pipe table; a figure's first condition table is the anchor its scorecard cells link to."""
     head, body = _cells(rows[0]), [_cells(r) for r in rows[2:]]
     attr = ""
     if head[:2] == ["figure", "condition"] and body:
         anchor = f"conditions-{slug(body[0][0])}"
-        if anchor not in links.setdefault("_seen", set()):
-            links["_seen"].add(anchor)
-            attr = f' id="{anchor}"'
-    scorecard = head[0] == "claim of the paper"
+        attr = "" if anchor in seen else f' id="{anchor}"'
+        seen.add(anchor)
     out = [f"<table{attr}><thead><tr>" + "".join(f"<th>{inline(c)}</th>" for c in head)
            + "</tr></thead><tbody>"]
     for row in body:
         cells = []
         for j, c in enumerate(row):
-            text = inline(c)
-            target = f"conditions-{slug(head[j])}" if scorecard and j < len(head) else ""
-            if target in links.get("_tables", ()) and c not in ("", "—"):
-                text = f'<a href="#{target}">{text}</a>'
-            cells.append(f"<td>{text}</td>")
+            target = (f"conditions-{slug(head[j])}"
+                      if head[0] == "claim of the paper" and j < len(head) else "")
+            link = target in tables and c not in ("", "—")
+            cells.append(f'<td><a href="#{target}">{inline(c)}</a></td>' if link
+                         else f"<td>{inline(c)}</td>")
         out.append("<tr>" + "".join(cells) + "</tr>")
     return "\n".join(out + ["</tbody></table>"])
+
+
+def _page(title: str, body: str) -> str:
+    return (f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
+            f"<title>{html.escape(title)}</title><style>{STYLE}</style></head>"
+            f"<body>\n{body}\n</body></html>\n")
 
 
 def to_html(markdown: str, title: str | None = None) -> str:
@@ -85,8 +81,7 @@ def to_html(markdown: str, title: str | None = None) -> str:
     lines = markdown.splitlines()
     tables = {f"conditions-{slug(_cells(lines[i + 2])[0])}" for i in range(len(lines) - 2)
               if lines[i].startswith("| figure | condition |") and lines[i + 2].startswith("|")}
-    links: dict = {"_tables": tables}
-    out, i, para = [], 0, []
+    out, i, para, seen = [], 0, [], set()
 
     def flush():
         if para:
@@ -94,110 +89,92 @@ def to_html(markdown: str, title: str | None = None) -> str:
             para.clear()
 
     while i < len(lines):
-        line = lines[i]
+        line, j = lines[i], i + 1
         heading = re.match(r"(#{1,6}) (.*)", line)
-        if line.startswith("```"):
-            flush()
-            j = next((k for k in range(i + 1, len(lines)) if lines[k].startswith("```")),
-                     len(lines))
-            out.append("<pre><code>" + html.escape("\n".join(lines[i + 1:j])) + "</code></pre>")
-            i = j + 1
+        table = line.startswith("|") and j < len(lines) and RULE.match(lines[j].strip())
+        if not (line.startswith("```") or heading or table or ITEM.match(line)
+                or DETAILS.match(line)):
+            para.append(line) if line.strip() else flush()
+            i = j
             continue
-        if heading:
-            flush()
+        flush()
+        if line.startswith("```"):
+            j = next((k for k in range(i + 1, len(lines)) if lines[k].startswith("```")),
+                     len(lines)) + 1
+            out.append("<pre><code>" + html.escape("\n".join(lines[i + 1:j - 1]))
+                       + "</code></pre>")
+        elif heading:
             level, text = len(heading.group(1)), heading.group(2)
             title = title or re.sub(r"[`*]", "", text)
             out.append(f'<h{level} id="{slug(text)}">{inline(text)}</h{level}>')
-        elif line.startswith("|") and i + 1 < len(lines) and re.match(r"\|[-:| ]+\|$",
-                                                                         lines[i + 1].strip()):
-            flush()
+        elif table:
             j = i
             while j < len(lines) and lines[j].startswith("|"):
                 j += 1
-            out.append(_table(lines[i:j], links))
-            i = j
-            continue
-        elif re.match(r"\s*[-*] ", line):
-            flush()
-            items = []
-            while i < len(lines) and re.match(r"\s*[-*] |\s{2,}\S", lines[i]):
-                if re.match(r"\s*[-*] ", lines[i]):
-                    items.append(re.sub(r"^\s*[-*] ", "", lines[i]))
+            out.append(_table(lines[i:j], tables, seen))
+        elif ITEM.match(line):
+            items, j = [], i
+            while j < len(lines) and re.match(r"\s*[-*] |\s{2,}\S", lines[j]):
+                if ITEM.match(lines[j]):
+                    items.append(ITEM.sub("", lines[j], count=1))
                 else:
-                    items[-1] += " " + lines[i].strip()
-                i += 1
+                    items[-1] += " " + lines[j].strip()
+                j += 1
             out.append("<ul>" + "".join(f"<li>{inline(t)}</li>" for t in items) + "</ul>")
-            continue
-        elif re.match(r"\s*</?(details|summary)", line):
-            flush()
+        else:  # <details>, <summary>
             out.append(TAGS.sub(r"<\1>", inline(line)))
-        elif not line.strip():
-            flush()
-        else:
-            para.append(line)
-        i += 1
+        i = j
     flush()
-    return (f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
-            f"<title>{html.escape(title or 'report')}</title><style>{STYLE}</style></head>"
-            "<body>\n" + "\n".join(out) + "\n</body></html>\n")
+    return _page(title or "report", "\n".join(out))
 
 
 def write_html(report_md: Path) -> Path:
     """report.html beside report_md, rendered from it."""
-    report_md = Path(report_md)
-    target = report_md.with_name("report.html")
-    io.write_text(target, to_html(report_md.read_text()))
+    target = Path(report_md).with_name("report.html")
+    io.write_text(target, to_html(Path(report_md).read_text()))
     return target
 
 
-# ---- outputs/index.html ---------------------------------------------------------------------------
 MADE = re.compile(r"^- made (\d{4}-\d\d-\d\d \d\d:\d\d UTC)[^`]*`([^`]*)`", re.M)
-
-
-def describe(report_md: Path) -> dict:
-    """A report's title, first figure, date and command line (its Provenance section)."""
-    text = report_md.read_text()
-    title = next((ln[2:] for ln in text.splitlines() if ln.startswith("# ")), report_md.parent.name)
-    figure = re.search(r"!\[[^\]]*\]\(([^)\s]+)\)", text)
-    made = MADE.search(text)
-    return dict(title=title, figure=figure.group(1) if figure else None,
-                date=made.group(1) if made else "",  # the command's settings: its overrides
-                args=[a for a in made.group(2).split() if "=" in a] if made else [])
 
 
 def write_index(root: Path) -> Path:
     """root/index.html: every report.md under root, newest first, each with its first figure,
     date and the command-line settings not shared by every report."""
     root = Path(root)
-    reports = sorted(p for p in root.rglob("report.md")
-                     if not any(part.startswith(".") for part in p.relative_to(root).parts))
-    info = {p: describe(p) for p in reports}
+    info = {p: _describe(p.read_text(), p.parent.name) for p in sorted(root.rglob("report.md"))
+            if not any(part.startswith(".") for part in p.relative_to(root).parts)}
     common = (set.intersection(*(set(d["args"]) for d in info.values())) if len(info) > 1
               else set())  # one report: all its settings
     rows = []
     for p, d in sorted(info.items(), key=lambda kv: kv[1]["date"], reverse=True):
-        folder = p.parent.relative_to(root).as_posix()
-        page = f"{folder}/report.html" if p.with_name("report.html").exists() else f"{folder}/report.md"
-        img = (f'<img src="{html.escape(folder + "/" + d["figure"])}" alt="{html.escape(d["title"])}">'
+        folder, e = p.parent.relative_to(root).as_posix(), html.escape
+        page = f"{folder}/report.{'html' if p.with_name('report.html').exists() else 'md'}"
+        img = (f'<img src="{e(folder + "/" + d["figure"])}" alt="{e(d["title"])}">'
                if d["figure"] else "")
         settings = " ".join(a for a in d["args"] if a not in common) or "(the same as all)"
-        rows.append(f'<tr><td><a href="{html.escape(page)}">{html.escape(folder)}</a><br>'
-                    f"{html.escape(d['title'])}</td><td>{img}</td><td>{html.escape(d['date'])}</td>"
-                    f"<td><code>{html.escape(settings)}</code></td></tr>")
-    body = ("<h1>Reports</h1><table class=\"index\"><thead><tr><th>report</th><th>figure</th>"
-            "<th>made</th><th>settings that differ</th></tr></thead><tbody>\n"
-            + "\n".join(rows) + "\n</tbody></table>")
+        rows.append(f'<tr><td><a href="{e(page)}">{e(folder)}</a><br>{e(d["title"])}</td><td>'
+                    f"{img}</td><td>{e(d['date'])}</td><td><code>{e(settings)}</code></td></tr>")
     target = root / "index.html"
-    io.write_text(target, f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
-                  f"<title>Reports</title><style>{STYLE}</style></head><body>\n{body}\n"
-                  "</body></html>\n")
+    io.write_text(target, _page("Reports", (
+        '<h1>Reports</h1><table class="index"><thead><tr><th>report</th><th>figure</th>'
+        "<th>made</th><th>settings that differ</th></tr></thead><tbody>\n"
+        + "\n".join(rows) + "\n</tbody></table>")))
     return target
 
 
+def _describe(text: str, folder: str) -> dict:
+    """A report's title, first figure, date and command line (its Provenance section)."""
+    title = next((ln[2:] for ln in text.splitlines() if ln.startswith("# ")), folder)
+    figure, made = re.search(r"!\[[^\]]*\]\(([^)\s]+)\)", text), MADE.search(text)
+    return dict(title=title, figure=figure.group(1) if figure else None,
+                date=made.group(1) if made else "",  # the command's settings: its overrides
+                args=[a for a in made.group(2).split() if "=" in a] if made else [])
+
+
 def main(argv: list[str] | None = None) -> int:
-    """python -m pipeline.html_report [ROOT]: render every report.md under ROOT, write ROOT/index.html."""
-    args = sys.argv[1:] if argv is None else argv
-    root = Path(args[0] if args else "outputs")
+    """python -m pipeline.html_report [ROOT]: render every report.md under ROOT, write the index."""
+    root = Path((sys.argv[1:] if argv is None else argv or [None])[0] or "outputs")
     if not root.is_dir():
         print(f"error: {root} is not a folder", file=sys.stderr)
         return 2
