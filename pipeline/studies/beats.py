@@ -8,19 +8,12 @@ from scipy.optimize import brentq
 
 
 def p_beats(a, b) -> tuple[float, float, float]:
-    """(P, lo, hi): the probability that a trial of learner A ends below one of learner B, P(A <
-    B), estimated over all n m pairs of their trials (ties count half: the Mann-Whitney U / (n m)),
-    with its 95 % interval by Newcombe's method 5 (Newcombe 2006, Statist. Med. 25: 559-573): the
-    score-type interval {theta : (theta - P)^2 <= z^2 V(theta)} with Hanley and McNeil's variance
-    V(theta) = theta (1 - theta) / (n m) [1 + (N - 1)(1 - theta) / (2 - theta) + (N - 1) theta
-    / (1 + theta)], N = (n + m) / 2.
-
-    Why this method at the study's 5 trials a learner: it stays inside [0, 1], it does not collapse
-    to a point when the samples do not overlap (P = 1 still has an interval, whose lower end says
-    how far 5 against 5 trials can go), it needs no random numbers, and Newcombe measured its
-    coverage near 95 % down to small samples. A bootstrap over trials collapses there (every
-    resample of two separated samples is separated: [1, 1]) and is too narrow at n = 5; a Wald
-    interval leaves [0, 1]. NaN where either learner has no finite trial."""
+    """(P, lo, hi): P(A < B) over all n m pairs of trials (ties count half: Mann-Whitney U /
+    (n m)) and its 95 % interval by Newcombe's method 5 (Statist. Med. 25: 559-573, 2006): {theta
+    : (theta - P)^2 <= z^2 V(theta)}, Hanley and McNeil's V(theta) = theta (1 - theta) / (n m) [1 +
+    (N - 1)(1 - theta) / (2 - theta) + (N - 1) theta / (1 + theta)], N = (n + m) / 2. At 5 trials
+    a learner it stays in [0, 1] and keeps an interval at P = 1 (a bootstrap collapses to [1, 1],
+    a Wald interval leaves [0, 1]). NaN where either learner has no finite trial."""
     a, b = np.asarray(a, float), np.asarray(b, float)
     a, b = a[np.isfinite(a)], b[np.isfinite(b)]
     n, m = len(a), len(b)

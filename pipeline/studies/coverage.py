@@ -1,27 +1,8 @@
-"""A skew diagnostic: the coverage of the scorecard's intervals on samples resampled from a
-measure's own values, per measure and trial count (the command that writes coverage.csv:
-pipeline.tools.coverage). It resamples the same 20 values and asks whether t intervals cover
-their own mean: it shows skew (an outlier that a t interval misses), not the variation between
-independent runs. The calibration of the intervals is the replicate set's
-(pipeline/studies/replicate.py); this table only sets the t level a skewed measure needs.
-
-For every measure with at least FIT trials in a report (its per-trial values: measures.parquet,
-or scorecard.csv's per_trial column in a report written before it), a model of its distribution
-is fitted to those values, twice: the trials themselves (the plain bootstrap, which keeps a
-skewed measure's outlier as it is) and the shrunk smoothed bootstrap (Silverman & Young 1987: a
-value drawn from the trials plus Gaussian noise of Silverman's bandwidth h = 1.06 s N^(-1/5),
-shrunk about the mean so that the model's mean and variance are the trials'). From each,
-`draws` fresh sets of n trials are drawn per n in `trials`, each set's t interval at every level
-of LEVELS is scored on whether it covers the model's mean (the trials' mean), and the lower of
-the two coverages is kept. The table
-holds, per measure and n, the coverage of the 95 % t interval and the smallest level whose
-coverage is at least scorecard.MIN_COVERAGE (none: the interval is not calibrated at n, and such
-a cell says "inconclusive: interval not calibrated"). Measures are not pooled: each has its own
-row. The draws are seeded by the measure's name, so the same values give the same table.
-
-The scorecard reads the table here (calibration): a measure's t level comes from fresh samples
-of its own values (at least FIT trials) or from the table's rows of its measure at its trial
-count; the table is an input of the report, written by the tool, never by the report.
+"""A skew diagnostic (docs/scorecard.md): the coverage of t intervals on sets of n trials drawn
+from two models of a measure's values, the plain and the shrunk smoothed bootstrap (Silverman &
+Young 1987), seeded by the measure's name; the lower coverage counts. It sets the t level a
+skewed measure needs (the smallest of LEVELS covering MIN_COVERAGE); the calibration is
+replicate.py's. coverage.csv is written by pipeline.tools.coverage, never by the report.
 """
 from __future__ import annotations
 
@@ -43,16 +24,8 @@ TABLE = Path(__file__).parent / "coverage.csv"
 COLUMNS = ["figure", "claim", "where", "kind", "trials", "draws", "t95", "level", "coverage"]
 
 
-def _seed(*key) -> int:
-    return int.from_bytes(hashlib.sha256("|".join(map(str, key)).encode()).digest()[:8], "big")
-
-
 def fresh(values, n: int, draws: int = DRAWS, seed: int = 0) -> dict:
-    """level -> the fraction of `draws` fresh sets of n trials whose t interval at that level
-    covers the model's mean, under the less favourable of two models of the values'
-    distribution: the trials themselves (the plain bootstrap: a skewed measure's outlier kept
-    as it is) and the shrunk smoothed bootstrap (Silverman's bandwidth, the trials' mean and
-    variance kept)."""
+    """level -> the share of `draws` sets of n trials whose t interval covers the model's mean."""
     x = np.asarray(values, float)
     x = x[np.isfinite(x)]
     m, s0 = (float(x.mean()), float(x.std())) if len(x) else (np.nan, 0.0)
@@ -79,8 +52,6 @@ def _quantile(level: float, n: int) -> float:
 
 
 def calibrated(cov: dict) -> tuple[float | None, float]:
-    """(the smallest level whose coverage is >= MIN_COVERAGE, or None; its coverage, or the
-    95 % one's where there is none)."""
     for lv in LEVELS:
         if np.isfinite(cov.get(lv, np.nan)) and cov[lv] >= MIN_COVERAGE:
             return lv, cov[lv]
@@ -89,40 +60,33 @@ def calibrated(cov: dict) -> tuple[float | None, float]:
 
 def row(figure: str, claim: str, where: str, kind: str, values, n: int,
         draws: int = DRAWS) -> dict:
-    cov = fresh(values, n, draws, _seed(figure, claim, where, n))
+    key = "|".join(map(str, (figure, claim, where, n))).encode()
+    cov = fresh(values, n, draws, int.from_bytes(hashlib.sha256(key).digest()[:8], "big"))
     level, c = calibrated(cov)
     return dict(figure=figure, claim=claim, where=where, kind=kind, trials=n, draws=draws,
                 t95=cov[LEVELS[0]], level=np.nan if level is None else level, coverage=c)
 
 
 def per_trial_values(report: Path) -> pd.DataFrame:
-    """One row per measure of a report's figures (figure, claim, where, kind, values): from
-    measures.parquet (study "figures", the measures, not their controls), or from scorecard.csv's
-    per_trial column (the primary reading's values) in a report written before it."""
-    parquet = report / "measures.parquet"  # measures_table.NAME (which reads the scorecard)
-    if parquet.exists():
-        t = pd.read_parquet(parquet)
-        t = t[(t["study"] == "figures") & (t["role"] == "value") & ~t["exact"]
-              & ~t["diverged"]]
-        rows = [dict(figure=f, claim=c, where=w, kind=g["kind"].iloc[0],
-                     values=g.sort_values("trial")["value"].to_numpy())
-                for (f, c, w), g in t.groupby(["figure", "claim", "where"], sort=False)]
-        return pd.DataFrame(rows)
+    """A report's measures (figure, claim, where, kind, values): measures.parquet's, or in a
+    report written before it scorecard.csv's per_trial column (the primary reading's)."""
+    if (report / "measures.parquet").exists():
+        t = pd.read_parquet(report / "measures.parquet")
+        t = t[(t["study"] == "figures") & (t["role"] == "value") & ~t["exact"] & ~t["diverged"]]
+        return pd.DataFrame([dict(figure=f, claim=c, where=w, kind=g["kind"].iloc[0],
+                                  values=g.sort_values("trial")["value"].to_numpy())
+                             for (f, c, w), g in t.groupby(["figure", "claim", "where"],
+                                                           sort=False)])
     sc = pd.read_csv(report / "scorecard.csv", keep_default_na=False)
-    if "reading" in sc:
-        sc = sc[sc["reading"].astype(str) == ""]
-    rows = []
-    for r in sc.to_dict("records"):
-        if r["kind"] in ("", None) or not str(r["per_trial"]).strip():
-            continue
-        rows.append(dict(figure=r["figure"], claim=r.get("measure") or r["claim"],
-                         where=r["where"], kind=r["kind"],
-                         values=np.array([float(v) for v in str(r["per_trial"]).split()])))
-    return pd.DataFrame(rows)
+    sc = sc[sc["reading"].astype(str) == ""] if "reading" in sc else sc
+    return pd.DataFrame([dict(figure=r["figure"], claim=r.get("measure") or r["claim"],
+                              where=r["where"], kind=r["kind"],
+                              values=np.array([float(v) for v in str(r["per_trial"]).split()]))
+                         for r in sc.to_dict("records")
+                         if r["kind"] not in ("", None) and str(r["per_trial"]).strip()])
 
 
 def table(values: pd.DataFrame, counts=COUNTS, draws: int = DRAWS) -> pd.DataFrame:
-    """The coverage table: every measure with at least FIT trials, at every n of `counts`."""
     rows = [row(r["figure"], r["claim"], r["where"], r["kind"], r["values"], n, draws)
             for r in values.to_dict("records") if len(r["values"]) >= FIT for n in counts]
     return pd.DataFrame(rows, columns=COLUMNS)
@@ -139,79 +103,53 @@ def to_csv(t: pd.DataFrame) -> str:
     return t.to_csv(index=False, float_format="%.4f")
 
 
-# --- the t level of a measure, from fresh samples or this table (the scorecard's) ----------
+_READ: list = []  # [((path, the bytes of coverage.csv), the table parsed from them)]
+_FRESH: dict = {}  # the rows of the measures calibrated on fresh samples
+_LOOKUPS: dict = {}  # id(table) -> (table, {(n, measure, where, figure): answer}, its claims)
 
-_FRESH: dict = {}
+
+def current() -> pd.DataFrame:
+    data = (str(TABLE), TABLE.read_bytes() if TABLE.exists() else None)
+    if not _READ or _READ[0][0] != data:
+        _READ[:] = [(data, read_table(TABLE))]
+    return _READ[0][1]
 
 
 def calibration(t, n: int, table: pd.DataFrame | None = None) -> tuple[float | None, str]:
-    """(the t level to use, where its coverage comes from) for a measure on n trials, or (None,
-    why) where no level is calibrated. A measure with at least FIT trials is calibrated
-    on fresh samples of its own values; one with fewer takes the coverage table's rows of its
-    measure and condition at the largest measured n <= its own (those of its own figure
-    family, e.g. fig7_20trials for fig7, where there are any), the most demanding level of
-    them; failing that, those of its claim's measure."""
-    if t.calibrated is not None:  # measured when the report was written (measures.parquet)
+    """(the t level or None, why) of a measure on n trials: its stored one, else fresh samples of
+    its values (FIT trials or more), else the table's most demanding level of its measure and
+    condition (failing that, of its measure) at the largest n <= its own, its own figure
+    family's rows where there are any (fig7_20trials for fig7)."""
+    if t.calibrated is not None:
         return t.calibrated
     measure = t.measure or t.claim
     if n >= FIT:
         key = (t.figure, measure, t.where, n, np.asarray(t.values, float).tobytes())
         if key not in _FRESH:
             _FRESH[key] = row(t.figure, measure, t.where, t.kind, t.values, n)
-        r = _FRESH[key]
-        level = r["level"] if np.isfinite(r["level"]) else None
-        return level, f"fresh samples of its {n} trials"
+        level = _FRESH[key]["level"]
+        return (level if np.isfinite(level) else None), f"fresh samples of its {n} trials"
     tab = current() if table is None else table
     if not len(tab):
         return None, "no coverage measured"
-    return _from_table(tab, n, measure, t.where, str(t.figure))
-
-
-_COVERAGE_READ: list = []  # [(the bytes of coverage.csv, the table parsed from them)]
-
-
-def current() -> pd.DataFrame:
-    """read_table() of TABLE for calibration's lookups (which only read it): parsed again only when
-    the file's bytes change (read_csv took milliseconds, thousands of times per report)."""
-    try:
-        data = (str(TABLE), Path(TABLE).read_bytes())
-    except FileNotFoundError:
-        data = (str(TABLE), None)
-    if not _COVERAGE_READ or _COVERAGE_READ[0][0] != data:
-        _COVERAGE_READ[:] = [(data, read_table(TABLE))]
-    return _COVERAGE_READ[0][1]
-
-
-_LOOKUPS: dict = {}  # id(table) -> (table, {(n, measure, where, figure): calibration})
-
-
-def _from_table(tab: pd.DataFrame, n: int, measure: str, where, figure: str):
-    """calibration's answer from the coverage table `tab`, looked up once per table and
-    (n, measure, where, figure): a report asks for the same few thousands of times (3,566 in a
-    smoke report, each masking the table four times: a tenth of its CPU)."""
     memo = _LOOKUPS.get(id(tab))
     if memo is None or memo[0] is not tab:  # a new table (an id is reused only once freed)
         if len(_LOOKUPS) >= 8:
             _LOOKUPS.clear()
-        claims = ({c: rows for c, rows in tab.groupby("claim", sort=False)}
-                  if "claim" in tab else None)  # each claim's rows, in the table's order
-        memo = _LOOKUPS[id(tab)] = (tab, {}, claims)
-    key = (n, measure, where, figure)
-    try:
-        hash(key)
-    except TypeError:  # a `where` that is not a plain value: looked up each time
-        return _lookup(tab, n, measure, where, figure)
+        memo = _LOOKUPS[id(tab)] = (tab, {}, dict(iter(tab.groupby("claim", sort=False)))
+                                    if "claim" in tab else None)
+    key = (n, measure, t.where, str(t.figure))
     if key not in memo[1]:
-        memo[1][key] = _lookup(tab, n, measure, where, figure, memo[2])
+        memo[1][key] = _lookup(memo[2], *key)
     return memo[1][key]
 
 
-def _lookup(tab: pd.DataFrame, n: int, measure: str, where, figure: str, claims=None):
-    """claims: the rows of each claim of `tab` (groupby), else found here by masking."""
-    if "claim" not in tab:  # a table per measure type only
+def _lookup(claims: dict | None, n: int, measure: str, where: str, figure: str):
+    if claims is None:  # a table per measure type only
         return None, "no coverage per measure"
-    tab = tab[tab["claim"] == measure] if claims is None else claims.get(measure, tab.iloc[:0])
-    tab = tab[tab["trials"] <= n]
+    if measure not in claims:
+        return None, "no coverage measured for this measure"
+    tab = claims[measure][claims[measure]["trials"] <= n]
     for rows in (tab[tab["where"] == where], tab):
         if not len(rows):
             continue
@@ -224,27 +162,21 @@ def _lookup(tab: pd.DataFrame, n: int, measure: str, where, figure: str, claims=
     return None, "no coverage measured for this measure"
 
 
-
 def markdown(t: pd.DataFrame) -> str:
-    """The per-measure table as docs/scorecard.md shows it (the named value coverage.table,
-    pipeline/studies/values.py): per measure,
-    the 95 % t interval's coverage at each n, and the level used where it is below
-    MIN_COVERAGE ("not calibrated" where no level reaches it)."""
+    """The table as docs/scorecard.md shows it (the named value coverage.table)."""
     counts = sorted(int(n) for n in t["trials"].unique())
     lines = ["| figure | claim | measure | " + " | ".join(f"{n} trials" for n in counts) + " |",
              "|---|---|---|" + "---|" * len(counts)]
+
+    def cell(r):
+        text = f"{100 * r['t95']:.1f} %"
+        if not np.isfinite(r["level"]):
+            return text + " (not calibrated)"
+        if r["level"] > LEVELS[0]:
+            text += f" (t at {100 * r['level']:g} %: {100 * r['coverage']:.1f} %)"
+        return text
     for (f, c, w), g in t.groupby(["figure", "claim", "where"], sort=False):
         by = {int(r["trials"]): r for r in g.to_dict("records")}
-
-        def cell(n):
-            if n not in by:
-                return ""
-            r = by[n]
-            text = f"{100 * r['t95']:.1f} %"
-            if not np.isfinite(r["level"]):
-                return text + " (not calibrated)"
-            if r["level"] > LEVELS[0]:
-                text += f" (t at {100 * r['level']:g} %: {100 * r['coverage']:.1f} %)"
-            return text
-        lines.append(f"| {f} | {c} | {w} | " + " | ".join(cell(n) for n in counts) + " |")
+        lines.append(f"| {f} | {c} | {w} | "
+                     + " | ".join(cell(by[n]) if n in by else "" for n in counts) + " |")
     return "\n".join(lines)

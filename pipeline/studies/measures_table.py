@@ -1,17 +1,7 @@
-"""measures.parquet: every per-trial measure of every study of a report, in one compact table.
-
-One row per (study, figure, reading of the study, claim, condition, role, trial): the measure's
-value on that trial before any criterion (claims.Measure), with what a criterion needs to judge
-it (unit, kind, the condition's size and T_G, whether it is an exact count). role "value" is
-the measure, "control" the same measure on the constant full-size reference's trials over the
-same epochs. level and calibration: the t level the scorecard used for the measure (NaN: not
-calibrated) and where its coverage came from, so that rescoring draws no fresh samples. An exact
-count (the bootstrap claim) is two rows, trial 0 the failed trials and
-trial 1 the total. `scale` is the run's reduced scale (report.scale; "" at the paper's).
-`counted` marks the figures the headline counts, and `recommended` the
-readings-study rows of the reading recommended for their figure. Study "replicate": a replicate
-set's measures, under the figure it replicates (pipeline/studies/replicate.py).
-`python -m pipeline.tools.rescore` rebuilds the Measures from it and judges them under a register.
+"""measures.parquet: every per-trial measure of a report, one row per (study, figure, reading,
+claim, condition, role, trial), role "value" or "control", with what a criterion needs and the t
+level the scorecard used (NaN: not calibrated), so that pipeline.tools.rescore judges them
+again without fresh samples. An exact count is two rows (the failed trials, the total).
 """
 from __future__ import annotations
 
@@ -31,17 +21,13 @@ WHERE_MEASURED = dict(points="grid", span="end")  # a table written before these
 
 def frame(ms: list[Measure], study: str, reading: str = "", counted: bool = False,
           recommended: bool = False) -> pd.DataFrame:
-    """The rows of a list of Measures of one study (and one of its readings)."""
     from . import coverage
-    from .claims import Test
 
     rows = []
     for m in ms:
         level, why = np.nan, ""
         if not (m.exact or m.diverged):  # the t level the scorecard uses, stored for rescoring
-            lv, why = m.calibrated or coverage.calibration(
-                Test(m.figure, m.claim, m.where, m.values, kind=m.kind, measure=m.claim),
-                len(m.values))
+            lv, why = m.calibrated or coverage.calibration(m, len(m.values))
             level = np.nan if lv is None else lv
         meta = dict(study=study, figure=m.figure, reading=reading, counted=counted,
                     recommended=recommended, claim=m.claim, where=m.where, unit=m.unit,
@@ -52,19 +38,16 @@ def frame(ms: list[Measure], study: str, reading: str = "", counted: bool = Fals
             rows.append(dict(meta, role="value", trial=-1, value=np.nan))
             continue
         for role, vals in (("value", m.values), ("control", m.control)):
-            if vals is None:
-                continue
-            rows += [dict(meta, role=role, trial=i, value=float(v)) for i, v in enumerate(vals)]
+            rows += [dict(meta, role=role, trial=i, value=float(v))
+                     for i, v in enumerate(() if vals is None else vals)]
     return pd.DataFrame(rows, columns=COLUMNS)
 
 
 def write(path: Path, frames: list[pd.DataFrame], scale: str = "") -> Path:
-    """The table of `frames`; scale: the run's reduced scale (report.scale, "" at the paper's),
-    under which no cell is a verdict, rescored or not."""
     from .. import io
 
-    t = pd.concat([f for f in frames if len(f)], ignore_index=True) if any(
-        len(f) for f in frames) else pd.DataFrame(columns=COLUMNS)
+    frames = [f for f in frames if len(f)]
+    t = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=COLUMNS)
     t["scale"] = str(scale or "")
     t = t.astype(dict(trial="int32", period="int32", value="float64", size="float64"))
     io.write_table(Path(path), io.frame_to_table(t))
@@ -90,39 +73,34 @@ def measures(t: pd.DataFrame) -> dict:
     for key, g in t.groupby(["study", "reading", "figure", "claim", "where", "points", "span"],
                             sort=False):
         r = g.iloc[0]
-        vals = g[g["role"] == "value"].sort_values("trial")["value"].to_numpy()
-        ctrl = g[g["role"] == "control"].sort_values("trial")["value"].to_numpy()
-        m = Measure(r["figure"], r["claim"], r["where"],
-                    np.array([]) if r["diverged"] else
-                    (vals.astype(int) if r["exact"] else vals),
-                    unit=r["unit"], kind=r["kind"], size=float(r["size"]),
-                    period=int(r["period"]), control=ctrl if len(ctrl) else None,
-                    exact=bool(r["exact"]), diverged=bool(r["diverged"]),
-                    calibrated=None if r["exact"] or r["diverged"] else
-                    (None if pd.isna(r["level"]) else float(r["level"]), r["calibration"]),
-                    points=r["points"], span=r["span"])
-        out.setdefault(key[:3], []).append(m)
+        vals, ctrl = (g[g["role"] == role].sort_values("trial")["value"].to_numpy()
+                      for role in ("value", "control"))
+        skip = r["exact"] or r["diverged"]
+        out.setdefault(key[:3], []).append(Measure(
+            r["figure"], r["claim"], r["where"],
+            np.array([]) if r["diverged"] else (vals.astype(int) if r["exact"] else vals),
+            unit=r["unit"], kind=r["kind"], size=float(r["size"]), period=int(r["period"]),
+            control=ctrl if len(ctrl) else None, exact=bool(r["exact"]),
+            diverged=bool(r["diverged"]), points=r["points"], span=r["span"],
+            calibrated=None if skip else
+            (None if pd.isna(r["level"]) else float(r["level"]), r["calibration"])))
     return out
 
 
 def values_frame(study: str, figure: str, where: str, claim: str, unit: str, values,
                  trials=None) -> pd.DataFrame:
-    """The rows of one per-trial measure of a study no register judges (the baselines' held-out
-    errors, the choices' final errors): published, not scored."""
+    """The rows of one per-trial measure no register judges (published, not scored)."""
     values = np.asarray(values, float)
     trials = np.arange(len(values)) if trials is None else np.asarray(trials, int)
-    return pd.DataFrame([dict(study=study, figure=figure, reading="", counted=False,
-                              recommended=False, claim=claim, where=where, unit=unit, kind="",
-                              size=1.0, period=0, exact=False, diverged=False, level=np.nan,
-                              calibration="not judged", role="value",
-                              trial=int(t), value=float(v), **WHERE_MEASURED)
-                         for t, v in zip(trials, values)],
-                        columns=COLUMNS)
+    return pd.DataFrame(dict(study=study, figure=figure, reading="", counted=False,
+                             recommended=False, claim=claim, where=where, unit=unit, kind="",
+                             size=1.0, period=0, exact=False, diverged=False, level=np.nan,
+                             calibration="not judged", role="value", trial=trials.astype(int),
+                             value=values, **WHERE_MEASURED), columns=COLUMNS)
 
 
 def study_frames(baselines_aggs: dict, choices_aggs: dict) -> list[pd.DataFrame]:
-    """Every per-trial measure of the baselines study (held-out error, largest jump) and of the
-    choices study (final absolute error, per variant)."""
+    """The baselines' held-out errors and largest jumps, the choices' final errors, per trial."""
     from . import baselines
     from .claims import per_trial
 

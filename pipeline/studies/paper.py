@@ -152,7 +152,7 @@ class Paper:
             figure=js, spec=stages[0], trials=_trial_stages(aggs[js])) if judge_stages else None)
         measures = scorecard.judged(measured) if measured else []
         if cfg.report.scale:  # a reduced scale (the smoke profile): measured, never decided
-            measures = scorecard.no_verdicts(measures, scorecard.reduced_scale(cfg.report.scale))
+            measures = scorecard.no_verdicts(measures, cfg.report.scale)
         cards = scorecard.cells(measures) if measures else None
         claim_rows = scorecard.claims_table(cards).to_dict("records") if measures else []
         text = ""

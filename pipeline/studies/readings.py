@@ -1,13 +1,8 @@
-"""The readings x claims study: which readings of the paper's text reproduce which claim.
-
-The runs are experiments (conf/experiment/readings_fig4|fig5|fig7.yaml): each paper figure's
-conditions under every reading that can change a verdict, as variants with common random
-numbers. This module checks the paper's claims (pipeline.studies.claims) on each reading
-separately and lays them out as one table (rows: readings, columns: claims) and one figure. It
-also holds the compact readings x figures matrix (`matrix`, readings_matrix.csv, also shown in
-README.md as the named value readings.table, pipeline/studies/values.py) and the reading the project
-recommends per figure (the register's `recommended`, written by hand from the findings, checked
-against the verdicts by `contradictions`).
+"""The readings x claims study: the paper's claims judged on each reading of its text
+(conf/experiment/readings_*.yaml: each figure's conditions under every reading that can change a
+verdict), as a table per figure, the readings x figures matrix (README.md's readings.table) and
+a figure; and the reading recommended per figure (the register's `recommended`, written from the
+findings, checked against the verdicts by `contradictions`).
 """
 from __future__ import annotations
 
@@ -15,9 +10,11 @@ from pathlib import Path
 
 import pandas as pd
 
-from . import claims, figures, scorecard
+from . import claims, figures, register_schema, scorecard
 from .choices import escape
 from .sections import Context, declared, declares_claims, register
+from .quoted import QUOTED_RATIOS, QUOTED_RISE
+from .quoted import READINGS_SUMMARY as QUOTED
 from .values import printed
 
 SYMBOLS = {scorecard.REPRODUCED: "✓", scorecard.NOT: "✗", scorecard.INCONCLUSIVE: "?",
@@ -28,66 +25,42 @@ FIGURE_CHOICES = ("default", "learning rate", "solver")  # the readings readings
 
 
 def reading_studies() -> dict[str, str]:
-    """experiment -> the paper figure it reads, for the experiments of the readings study
-    (paper.study: readings; declares.reads in their files), in declared order."""
+    """experiment -> the paper figure it reads (declares.reads), in declared order."""
     return {n: e.declares.reads for n, e in declared().items()
             if e.study == "readings" and e.declares.reads}
 
 
-def split(agg: dict) -> dict:
-    """reading -> (curves, summary) with the conditions named as in the paper's figure."""
-    out = {}
-    s, c = agg["summary"], agg["curves"]
-    for label in s["variant"].drop_duplicates():
-        sv = s[s["variant"] == label].copy()
-        names = sv["condition"].tolist()
-        rename = {n: n.split(" | ", 1)[1] for n in names}
-        sv["condition"] = sv["condition"].map(rename)
-        cv = c[c["condition"].isin(names)].copy()
-        cv["condition"] = cv["condition"].map(rename)
-        out[label] = (cv, sv)
-    return out
-
-
-def _rename(frame: pd.DataFrame, names: list) -> pd.DataFrame:
-    f = frame[frame["condition"].isin(names)].copy()
-    f["condition"] = f["condition"].map({n: n.split(" | ", 1)[-1] for n in names})
-    return f
+def split(agg: dict, frame: str = "curves") -> dict:
+    """reading -> (agg[frame], summary), the conditions named as in the paper's figure."""
+    def rename(f, names):
+        f = f[f["condition"].isin(names)].copy()
+        f["condition"] = f["condition"].map({n: n.split(" | ", 1)[-1] for n in names})
+        return f
+    s = agg["summary"]
+    return {label: tuple(rename(f, s[s["variant"] == label]["condition"].tolist())
+                         for f in (agg[frame], s)) for label in s["variant"].drop_duplicates()}
 
 
 def readings_measures(read: dict) -> dict:
-    """(figure, reading) -> every measure of that reading of the readings study (read: its
-    aggregates, by experiment), as `intervals` judges them."""
-    out = {}
-    for study, fig in reading_studies().items():
-        if study not in read or "trials" not in read[study]:
-            continue
-        s = read[study]["summary"]
-        for label in s["variant"].drop_duplicates():
-            names = s[s["variant"] == label]["condition"].tolist()
-            out[(fig, label)] = claims.measures(
-                fig, _rename(read[study]["trials"], names), _rename(s, names))
-    return out
+    """(figure, reading) -> the measures of the readings study (read: its aggregates)."""
+    return {(fig, label): claims.measures(fig, trials, summary)
+            for study, fig in reading_studies().items()
+            if study in read and "trials" in read[study]
+            for label, (trials, summary) in split(read[study], "trials").items()}
 
 
 def intervals(aggs: dict, scale: str = "", measured: dict | None = None) -> pd.DataFrame:
-    """One row per (figure, reading, claim): the scorecard's verdict with its 95 % interval over
-    the reading's trials (pipeline/studies/scorecard.py), the measure that decides it. scale: the
-    run's reduced scale (report.scale): every verdict "not a verdict", as on the figures.
-    measured: readings_measures(aggs), where the caller has it already."""
+    """The scorecard's cells per (figure, reading, claim) (scale: the run's reduced scale;
+    measured: readings_measures(aggs), where the caller has it)."""
     rows = []
     for (_, label), ms in (readings_measures(aggs) if measured is None else measured).items():
-        results = scorecard.judged(ms)
-        if scale:
-            results = scorecard.no_verdicts(results, scorecard.reduced_scale(scale))
-        cards = scorecard.cells(results)
+        cards = scorecard.cells(scorecard.no_verdicts(scorecard.judged(ms), scale))
         rows += [dict(c, reading=label) for c in cards.to_dict("records")]
     return pd.DataFrame(rows)
 
 
 def finals(aggs: dict) -> pd.DataFrame:
-    """readings_summary.csv: per figure, reading and condition, the trials and the final errors
-    (mean over trials), the numbers the findings quote beside the verdicts."""
+    """readings_summary.csv: per figure, reading and condition, trials and final errors."""
     rows = []
     for study, fig in reading_studies().items():
         if study not in aggs:
@@ -131,9 +104,8 @@ def table(t: pd.DataFrame) -> pd.DataFrame:
 
 
 def matrix(cards: pd.DataFrame) -> pd.DataFrame:
-    """readings_matrix.csv: one row per reading; per figure its trials per condition ("n") and
-    the verdict on each of the paper's claims (no diagnostics), from the cells of `intervals`.
-    Every entry is text ("" where a reading did not run on a figure)."""
+    """readings_matrix.csv: per reading and figure its trials per condition ("n") and the verdict
+    on each of the paper's claims, as text ("" where a reading did not run on a figure)."""
     paper = cards[~cards["diagnostic"].astype(bool)]
     figs = list(dict.fromkeys(paper["figure"]))
     ids = {f: [c.id for c in claims.CLAIMS if c.id in set(paper[paper["figure"] == f]["claim"])]
@@ -175,13 +147,9 @@ def matrix_markdown(m: pd.DataFrame) -> str:
 
 
 def recommended(path: Path = claims.REGISTER) -> list[dict]:
-    """The reading of this study the project recommends per figure (the register's
-    `recommended`, written by hand from the findings): figure, reading, the claims it names as
-    reproduced and why; a ValueError names a figure this study does not read, a claim that is
-    not the paper's or a figure named twice."""
-    from .register_schema import load
-
-    recs = load(path).get("recommended", [])
+    """The register's `recommended` (figure, reading, reproduces, why); a ValueError names a
+    figure this study does not read, a claim not the paper's or a figure named twice."""
+    recs = register_schema.load(path).get("recommended", [])
     for r in recs:
         if r["figure"] not in reading_studies().values():
             raise ValueError(f"{path}: no readings figure {r['figure']!r}")
@@ -194,8 +162,8 @@ def recommended(path: Path = claims.REGISTER) -> list[dict]:
 
 
 def contradictions(cards: pd.DataFrame, recs: list[dict]) -> list[str]:
-    """Where the verdicts contradict a recommendation (on the figures this run holds): its
-    reading did not run, or a claim its reason names as reproduced is not reproduced."""
+    """Where the verdicts of this run's figures contradict a recommendation: its reading did not
+    run, or a claim it names as reproduced is not."""
     out = []
     for r in recs:
         f = cards[cards["figure"] == r["figure"]]
@@ -233,8 +201,7 @@ def recommendations_markdown(cards: pd.DataFrame, recs: list[dict]) -> str:
 
 
 def _figure_readings(per: dict) -> list:
-    """The readings the curves figure shows: the default, the rates and the solvers (all, if a
-    run has none of them)."""
+    """The readings the curves figure shows: FIGURE_CHOICES' (all, if a run has none)."""
     every = list(dict.fromkeys(r for p in per.values() for r in p))
 
     def shown(r):
@@ -246,8 +213,7 @@ def _figure_readings(per: dict) -> list:
 
 
 def figure(aggs: dict, title: str):
-    """The key curves side by side: absolute error of every condition, one panel per figure and
-    reading (rows: figures, columns: readings), the end of growth marked, one legend below."""
+    """The absolute error of every condition, a panel per figure (row) and reading (column)."""
     import textwrap
 
     reads = reading_studies()
@@ -286,10 +252,8 @@ def figure(aggs: dict, title: str):
 
 
 def _name_values(ctx: Context, cards: pd.DataFrame, summary: pd.DataFrame, read: dict) -> None:
-    """The numbers of this study the pages quote, named where computed (each as its table prints
-    it): final errors, their ratios to the paper's value, the rise of the readings named in
-    QUOTED_RISE (its worst condition's, in %, as the cell prints it), the matrix and the
-    recommended reading's headline."""
+    """The numbers of this study the pages quote (quoted.py), the matrix and the recommended
+    reading's headline."""
     ctx.quote(summary, ("figure", "reading", "condition"), QUOTED)
     paper = ctx.shared.get("paper values", {})  # summary.csv's, named by the figures' section
     for name, (fig, reading, cond) in QUOTED_RATIOS.items():
@@ -308,52 +272,13 @@ def _name_values(ctx: Context, cards: pd.DataFrame, summary: pd.DataFrame, read:
         ctx.value("headline.recommended", scorecard.headline_text(scorecard.headline(mine)))
 
 
-# the numbers of this study the pages quote: name -> the row's figure, reading and condition
-# in readings_summary.csv, its column and scale; the final error over the paper's value; the
-# rise of a reading's worst condition (its cell in readings.csv)
-QUOTED = {
-    'readings_summary.fig7.least_squares_solver_lstsq.const0.5.final_abs_error_mean_mm':
-        ('fig7', 'least squares (solver=lstsq)', 'const0.5', 'final_abs_error_mean', 1e3),
-    'readings_summary.fig7.eta_0.1_w.tg10.final_abs_error_mean_mm':
-        ('fig7', 'eta = 0.1 / W', 'TG10', 'final_abs_error_mean', 1e3),
-    'readings_summary.fig7.eta_0.1_w.const0.5.final_abs_error_mean_mm':
-        ('fig7', 'eta = 0.1 / W', 'const0.5', 'final_abs_error_mean', 1e3),
-    'readings_summary.fig7.eta_0.3_w.tg1000.final_abs_error_mean_mm':
-        ('fig7', 'eta = 0.3 / W', 'TG1000', 'final_abs_error_mean', 1e3),
-    'readings_summary.fig7.eta_0.3_w.const1.0.final_abs_error_mean_mm':
-        ('fig7', 'eta = 0.3 / W', 'const1.0', 'final_abs_error_mean', 1e3),
-    'readings_summary.fig7.least_squares_solver_lstsq.const1.0.final_abs_error_mean_mm':
-        ('fig7', 'least squares (solver=lstsq)', 'const1.0', 'final_abs_error_mean', 1e3),
-    'readings_summary.fig7.path_evaluation.tg1000.final_abs_error_mean_mm':
-        ('fig7', 'path evaluation', 'TG1000', 'final_abs_error_mean', 1e3),
-    'readings_summary.fig7.path_evaluation.tg100.final_abs_error_mean_mm':
-        ('fig7', 'path evaluation', 'TG100', 'final_abs_error_mean', 1e3),
-    'readings_summary.fig7.least_squares_solver_lstsq.tg1000.final_abs_error_mean_mm':
-        ('fig7', 'least squares (solver=lstsq)', 'TG1000', 'final_abs_error_mean', 1e3),
-    'readings_summary.fig7.least_squares_solver_lstsq.tg10000.final_abs_error_mean_mm':
-        ('fig7', 'least squares (solver=lstsq)', 'TG10000', 'final_abs_error_mean', 1e3),
-}
-QUOTED_RATIOS = {  # (the names are long: one per line, whole, so that a search finds them)
-    "readings_summary.fig4.eta_0.1_w.const1.0.final_abs_error_mean.over.summary.const1.0.paper_final_abs_error":
-        ("fig4", "eta = 0.1 / W", "const1.0"),
-    "readings_summary.fig4.eta_0.1_w.const0.5.final_abs_error_mean.over.summary.const0.5.paper_final_abs_error":
-        ("fig4", "eta = 0.1 / W", "const0.5"),
-    "readings_summary.fig5.eta_0.1_w.const0.5.final_abs_error_mean.over.summary.const0.5.paper_final_abs_error":
-        ("fig5", "eta = 0.1 / W", "const0.5"),
-}
-QUOTED_RISE = {"readings.fig4.eta_0.3_w.rise.measured.n3": ("fig4", "eta = 0.3 / W", "rise"),
-               "readings.fig5.eta_0.3_w.rise.measured.n3": ("fig5", "eta = 0.3 / W", "rise")}
-
-
 def shared_measures(ctx: Context, read: dict) -> dict:
-    """readings_measures(read) of the report `ctx`, computed once for all its sections (`read`:
-    the readings study's aggregates that declare the paper's claims)."""
+    """readings_measures(read), once per report."""
     return ctx.once("readings measures", lambda: readings_measures(read))
 
 
 def shared_cards(ctx: Context, read: dict, scale: str = "") -> pd.DataFrame:
-    """intervals(read, scale) of the report `ctx`, computed once per scale for all its
-    sections."""
+    """intervals(read, scale), once per report and scale."""
     return ctx.once(("readings cards", scale),
                     lambda: intervals(read, scale, shared_measures(ctx, read)))
 

@@ -1,16 +1,7 @@
-"""The declared schema of a register of criteria (register.yaml), checked before any of it is
-used: a register is data, and an edited copy is what `python -m pipeline.tools.rescore
---register FILE` reads.
-
-A register is a regular file of at most MAX_BYTES (checked before it is parsed), YAML of plain
-data (`yaml.safe_load`: no tag builds an object; nesting too deep for the parser is one line):
-a mapping {claims: [claim, ...], recommended: [...]}; each claim a mapping of CLAIM's keys, its
-readings mappings of READING's keys, its changelog mappings of CHANGELOG's, its our_reading of
-OUR_READING's (written_for: figure -> verdict); each recommendation a mapping of RECOMMENDED's
-keys (reproduces: a list of claims); each reading's params only PARAMS'
-keys (and the ones NEEDED_PARAMS says its claim reads), each value of its kind and range:
-numbers finite and within their bounds (a factor of 0, -1.5, .nan or .inf is refused, so it
-never becomes a verdict). Every fault is one ValueError naming the file and the key.
+"""The schema of a register of criteria (register.yaml, or an edited copy for rescore), checked
+before any of it is used: a regular file of at most MAX_BYTES of plain YAML, {claims: [CLAIM],
+recommended: [RECOMMENDED]}, each mapping of its schema's keys (NEEDED ones required), params
+of PARAMS, numbers finite and in range; each fault one ValueError naming the file and the key.
 """
 from __future__ import annotations
 
@@ -24,6 +15,7 @@ from pathlib import Path
 
 import yaml
 
+REGISTER = Path(__file__).parent / "register.yaml"
 MAX_BYTES = 2**20  # the committed register is 19 kB
 TEXT, FLAG, CHILDREN = "text", "true or false", "a list of mappings"
 TEXTS, MAPPING = "a list of texts", "a mapping"
@@ -32,7 +24,7 @@ CLAIM = dict(id=TEXT, words=TEXT, figures=TEXT, sentence=TEXT, measure=TEXT, dia
 OUR_READING = dict(text=TEXT, written_for=MAPPING)
 RECOMMENDED = dict(figure=TEXT, reading=TEXT, reproduces=TEXTS, why=TEXT)
 READING = dict(id=TEXT, label=TEXT, criterion=TEXT, why=TEXT, fixed_at=TEXT, primary=FLAG,
-               diagnostic=FLAG, always_shown=FLAG, first=FLAG, params="a mapping")
+               diagnostic=FLAG, always_shown=FLAG, first=FLAG, params=MAPPING)
 CHANGELOG = dict(date=TEXT, commit=TEXT, reason=TEXT, before=TEXT, after=TEXT, hash=TEXT)
 NEEDED = dict(claim=("id", "words", "figures", "measure", "readings"),
               reading=("id", "criterion"), changelog=(), our_reading=("text", "written_for"),
@@ -56,7 +48,6 @@ def _fail(path, where, value, why) -> ValueError:
 
 
 def read_text(path) -> str:
-    """The register's text: a regular file of at most MAX_BYTES, UTF-8 (ValueError, one line)."""
     try:
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)  # a FIFO: opened, never waited on
     except OSError as err:
@@ -75,7 +66,6 @@ def read_text(path) -> str:
 
 
 def load(path) -> dict:
-    """The register in `path`, checked against the schema (module docstring)."""
     try:
         data = yaml.safe_load(read_text(path))
     except (yaml.YAMLError, RecursionError) as err:  # RecursionError: nested too deeply
@@ -90,8 +80,8 @@ def load(path) -> dict:
         _entry(path, f"claims[{i}]", claim, CLAIM, "claim")
         for j, r in enumerate(claim["readings"]):
             _entry(path, f"claims[{i}].readings[{j}]", r, READING, "reading")
-            _params(path, f"claims[{i}].readings[{j}].params", r.get("params") or {},
-                    claim["id"])
+            _entry(path, f"claims[{i}].readings[{j}].params", r.get("params") or {}, PARAMS,
+                   "param", NEEDED_PARAMS.get(claim["id"], ()), f"a reading of {claim['id']}")
         for j, c in enumerate(claim.get("changelog") or ()):
             _entry(path, f"claims[{i}].changelog[{j}]", c, CHANGELOG, "changelog")
         if "our_reading" in claim:
@@ -105,35 +95,22 @@ def load(path) -> dict:
     return data
 
 
-def _entry(path, where, entry, schema: dict, kind: str) -> None:
+def _entry(path, where, entry, schema: dict, kind: str, needed=None, who=None) -> None:
     if not isinstance(entry, dict):
         raise _fail(path, where, entry, f"a {kind} is a mapping")
-    for key in NEEDED[kind]:
+    for key in NEEDED[kind] if needed is None else needed:
         if key not in entry:
-            raise _fail(path, f"{where}.{key}", None, f"a {kind} needs {key}")
+            raise _fail(path, f"{where}.{key}", None, f"{who or 'a ' + kind} needs {key}")
     for key, value in entry.items():
-        want = schema.get(key)
-        if want is None:
-            raise _fail(path, f"{where}.{key}", value, f"not a key of a {kind}; it has "
-                        f"{sorted(schema)}")
-        _value(path, f"{where}.{key}", value, want)
-
-
-def _params(path, where, params, claim) -> None:
-    if not isinstance(params, dict):
-        raise _fail(path, where, params, "a mapping of params")
-    for key in NEEDED_PARAMS.get(claim, ()):
-        if key not in params:
-            raise _fail(path, f"{where}.{key}", None, f"a reading of {claim} needs {key}")
-    for key, value in params.items():
-        if key not in PARAMS:
-            raise _fail(path, f"{where}.{key}", value, f"not a param; they are {sorted(PARAMS)}")
-        _value(path, f"{where}.{key}", value, PARAMS[key])
+        if key not in schema:
+            raise _fail(path, f"{where}.{key}", value, f"not a {kind}; they are {sorted(schema)}"
+                        if kind == "param" else f"not a key of a {kind}; it has {sorted(schema)}")
+        _value(path, f"{where}.{key}", value, schema[key])
 
 
 def _value(path, where, value, want) -> None:
-    """`value` of the kind `want`: TEXT (a string; a changelog's commit or date may read as a number or a date),
-    FLAG, CHILDREN (a list of mappings), 'a mapping', a tuple of choices or a range (lo, hi)."""
+    """`value` of the kind `want`: TEXT (a changelog's commit or date may read as a number or a
+    date), FLAG, CHILDREN, TEXTS, MAPPING, a tuple of choices or a range (lo, hi)."""
     if want == TEXT:
         ok = isinstance(value, str) or (where.endswith((".commit", ".date"))
                                         and isinstance(value, (int, datetime.date)))
@@ -170,18 +147,16 @@ HASHED_READING = ("id", "primary", "diagnostic", "params")
 
 
 def criterion_hash(entry: dict) -> str:
-    """The hash of a claim's criterion as the register holds it (its id, diagnostic flag,
-    min_trials and every reading's id, primary and diagnostic flags and params): what its latest
+    """The hash of a claim's criterion (HASHED, each reading's HASHED_READING): what its latest
     changelog entry must record."""
     keep = {k: entry.get(k) for k in HASHED}
     keep["readings"] = [{k: r.get(k) for k in HASHED_READING} for r in entry.get("readings", [])]
     return hashlib.sha256(json.dumps(keep, sort_keys=True).encode()).hexdigest()[:12]
 
 
-def unlogged(path) -> list[str]:
-    """The claims of a register whose criterion changed without a changelog entry (the latest
-    entry's hash is not the criterion's), and entries that lack a field: what the register's
-    test reports."""
+def unlogged(path=REGISTER) -> list[str]:
+    """What the register's test reports: the claims whose criterion changed without a changelog
+    entry (the latest entry's hash is not the criterion's), entries that lack a field."""
     data = yaml.safe_load(Path(path).read_text())
     out = []
     for e in data["claims"]:

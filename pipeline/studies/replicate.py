@@ -1,29 +1,7 @@
-"""Calibration from a replicate set: do the scorecard's intervals cover an independent run?
-
-The replicate experiments (conf/experiment/replicate_*.yaml, paper.study: replicate) rerun a
-figure's conditions with its trial count from another root seed. For every counted measure of
-the figure (a claim of the paper, not a diagnostic; not an exact count; its primary reading,
-which is never a controlled one: a difference from a control is out of scope here), the first
-set's n1 per-trial values give the PREDICTION INTERVAL of the replicate's mean of n2 trials, at
-the level the scorecard used for the measure's interval:
-
-    mean1 +- t((1 + level) / 2, n1 - 1) * s1 * sqrt(1 / n1 + 1 / n2)
-
-Why a prediction interval and not Welch's interval of the difference of the two means: it is a
-function of the first set alone, the very interval the scorecard publishes widened by
-sqrt(1 + n1 / n2) for the replicate's own noise, so the share of them that covers the
-replicate's mean tests exactly the intervals the scorecard reports; under a correct level and an
-equal spread in both sets it covers with probability `level`. (The plain t interval of the first
-set would cover a replicate mean of 20 trials only ~83 % of the time at 95 %: it ignores the
-replicate's noise.) The shares are pooled per claim over the figures and compared with the
-two-sided exact 95 % range of the number covered if every level is right (a binomial; a
-Poisson binomial where the levels differ). The resampling table (coverage.py) resamples the
-first set's own values: it shows skew, not between-run variation; this is the calibration.
-
-calibration.csv: one row per (figure, claim, where). `failing` names the scorecard cells whose
-claim fails the pooled check or whose own deciding condition is not covered. The replicate's
-per-trial measures go into measures.parquet (study "replicate", figure: the figure it
-replicates), through `frames`.
+"""Calibration from a replicate set (docs/scorecard.md): does the prediction interval of each
+counted measure (the scorecard's interval widened for the replicate's noise) cover the mean of
+an independent run from another root seed? The shares are pooled per claim against the exact
+95 % range; calibration.csv has one row per (figure, claim, where).
 """
 from __future__ import annotations
 
@@ -47,14 +25,12 @@ COLUMNS = ["figure", "claim", "where", "deciding", "n1", "n2", "level", "mean", 
 
 
 def replicated() -> dict[str, str]:
-    """replicate experiment -> the figure it replicates (declares.reads), in declared order."""
     return {n: e.declares.reads for n, e in declared().items()
             if e.study == STUDY and e.declares.reads}
 
 
 def prediction(values, n2: int, level: float) -> tuple[float, float, float]:
-    """(mean, low, high): the prediction interval at `level` of the mean of n2 new trials from
-    the first set's values (NaN bounds for fewer than 2 values)."""
+    """(mean, low, high): the prediction interval of the mean of n2 new trials."""
     v = np.asarray(values, float)
     mean = float(v.mean()) if len(v) else np.nan
     if len(v) < 2 or n2 < 1:
@@ -64,25 +40,19 @@ def prediction(values, n2: int, level: float) -> tuple[float, float, float]:
     return mean, mean - half, mean + half
 
 
-def _key(m: claims.Measure) -> tuple:
-    return (m.claim, m.where, getattr(m, "points", "grid"), getattr(m, "span", "end"))
-
-
 def rows(figure: str, first: list, second: list, scale: str = "",
          table: pd.DataFrame | None = None) -> list[dict]:
-    """calibration.csv's rows of one figure: first, second: its measures (claims.measures) and
-    the replicate's, paired by (claim, where, points, span); judged as the scorecard judges the
-    first (scale: the run's reduced scale, report.scale, under which the cells' deciding
-    conditions are those the scorecard shows there)."""
+    """calibration.csv's rows of one figure: its measures and the replicate's (`second`), paired
+    by (claim, where, points, span), the first judged as the scorecard judges it at `scale`."""
     table = coverage.current() if table is None else table
-    results = scorecard.judged(first, table)  # calibrates `first`: its Tests below reuse it
-    res = scorecard.no_verdicts(results, scorecard.reduced_scale(scale)) if scale else results
+    res = scorecard.no_verdicts(scorecard.judged(first, table), scale)  # calibrates `first`
     cards = scorecard.cells(res) if res else pd.DataFrame(columns=["claim", "where"])
     deciding = set(zip(cards["claim"], cards["where"]))
-    other = {_key(m): m for m in second if not (m.exact or m.diverged)}
+    key = lambda m: (m.claim, m.where, m.points, m.span)  # noqa: E731
+    other = {key(m): m for m in second if not (m.exact or m.diverged)}
     out = []
     for m1 in first:
-        m2 = other.get(_key(m1))
+        m2 = other.get(key(m1))
         if m2 is None or m1.exact or m1.diverged:
             continue
         for t1, t2 in zip(claims.judge([m1]), claims.judge([m2])):
@@ -101,8 +71,7 @@ def rows(figure: str, first: list, second: list, scale: str = "",
 
 
 def expected_range(levels) -> tuple[int, int]:
-    """(lo, hi): the two-sided exact 95 % (RANGE) range of the number covering if each interval
-    covers with its level (independently): the binomial's where the levels are equal."""
+    """(lo, hi): the two-sided RANGE of the number covering if each covers with its level."""
     pmf = np.ones(1)
     for p in levels:
         pmf = np.convolve(pmf, [1 - p, p])
@@ -113,8 +82,7 @@ def expected_range(levels) -> tuple[int, int]:
 
 
 def summary(table: pd.DataFrame) -> pd.DataFrame:
-    """Per claim, pooled over the figures: intervals, covered, share, the expected range of the
-    share (expected_range over n) and `fails`: the share below it."""
+    """Per claim, pooled over the figures: the share covering, its expected range, `fails`."""
     out = []
     for claim, g in table.groupby("claim", sort=False):
         n, k = len(g), int(g["covered"].sum())
@@ -127,10 +95,8 @@ def summary(table: pd.DataFrame) -> pd.DataFrame:
 
 
 def failing(table: pd.DataFrame, scale: str = "") -> set[tuple[str, str]]:
-    """The (figure, claim) cells of the scorecard whose calibration fails: their claim's pooled
-    share lies below its expected range, or their own deciding condition (the cell's worst
-    measure) is not covered. table: calibration.csv's rows (`calibrate`); none at a reduced
-    scale (no verdict there)."""
+    """The (figure, claim) cells whose claim's pooled share lies below its range or whose own
+    deciding condition is not covered (none at a reduced scale)."""
     if scale or not len(table):
         return set()
     bad = set(summary(table).query("fails")["claim"])
@@ -140,8 +106,7 @@ def failing(table: pd.DataFrame, scale: str = "") -> set[tuple[str, str]]:
 
 
 def _pairs(ctx: Context) -> dict:
-    """(replicate, figure) -> (figure's measures, replicate's measures), for each replicate
-    experiment whose figure this report holds (both with their trials); made once."""
+    """(replicate, figure) -> (the figure's measures, the replicate's), made once."""
     def make():
         figs, reps, out = ctx.of("figures"), ctx.of(STUDY), {}
         for r, f in replicated().items():
@@ -153,8 +118,7 @@ def _pairs(ctx: Context) -> dict:
 
 
 def calibrate(ctx: Context) -> pd.DataFrame:
-    """calibration.csv of the report `ctx` (empty without replicate experiments), made once:
-    what the scorecard's cells read through `failing`."""
+    """calibration.csv of the report `ctx`, made once."""
     scale = ctx.cfg.report.scale or ""
     return ctx.once("replicate calibration", lambda: pd.DataFrame(
         [x for (_, f), (a, b) in _pairs(ctx).items() for x in rows(f, a, b, scale)],
@@ -162,7 +126,7 @@ def calibrate(ctx: Context) -> pd.DataFrame:
 
 
 def frames(ctx: Context) -> list[pd.DataFrame]:
-    """measures.parquet's rows of the replicate sets (study "replicate", figure: the one read)."""
+    """measures.parquet's rows of the replicate sets."""
     from . import measures_table
 
     return [measures_table.frame(b, STUDY) for (_, f), (_, b) in _pairs(ctx).items()]

@@ -1,35 +1,9 @@
-"""The scorecard: every claim of the paper on every figure, with its interval over trials.
-
-Each claim's measure (pipeline/studies/claims.py) is a value per trial; a cell's value is its
-mean over the trials, and the interval is Student's t interval of that mean at a level set by a
-skew diagnostic:
-
-    mean +- t((1 + level) / 2, n - 1) * s / sqrt(n)
-
-The skew diagnostic (pipeline/studies/coverage.py) resamples the measure's own 20-trial values
-(a plain and a smoothed bootstrap) and asks how often a t interval covers their mean; the level
-is the smallest of LEVELS at which that share is at least MIN_COVERAGE. It resamples the same
-values, so it shows skew, not the variation between independent runs: the calibration is the
-replicate set's (pipeline/studies/replicate.py: does the interval of one set of trials predict
-the mean of an independent set?). A
-controlled reading (a difference from the constant full-size reference) uses Welch's interval
-of the difference at the measure's level.
-
-    reproduced      the interval lies within the criterion
-    not reproduced  the interval lies outside it
-    inconclusive    the interval straddles a bound of the criterion, or no level of LEVELS
-                    reaches MIN_COVERAGE ("interval not calibrated"), or fewer trials than the
-                    claim's min_trials
-    not a verdict   fewer than MIN_VERDICT trials (a smoke run): value and interval shown, no
-                    verdict
-
-A cell (claim x figure) holds one measure per condition under the claim's primary reading: it is
-not reproduced if any is, else inconclusive if any is, else reproduced; it shows its worst
-condition and how many of its measures are reproduced, and the verdict under every other
-registered reading where it differs. For an inconclusive measure, `trials_to_decide` is the
-trial count per condition at which an interval of the observed spread (its half-width shrinking
-as 1 / sqrt(n)) would no longer reach the bound.
-"""
+"""The scorecard (docs/scorecard.md): each measure's mean over trials, its t interval at the
+level the skew diagnostic sets (coverage.py; a control: Welch's interval of the difference) and
+its verdict: reproduced (within the criterion), not reproduced (outside), inconclusive
+(straddling a bound, no level calibrated, fewer than min_trials), not a verdict (fewer than
+MIN_VERDICT trials, a reduced scale); a cell (claim x figure) the first verdict in ORDER of its
+measures, showing the worst of them and k of n reproduced."""
 from __future__ import annotations
 
 import math
@@ -37,25 +11,22 @@ import math
 import numpy as np
 import pandas as pd
 from scipy import stats
-from scipy.optimize import brentq
 
 from . import coverage
-from .claims import BY_ID, CLAIMS, DIVERGED, Test, judge, stage_measures, title
+from .claims import BY_ID, CLAIMS, DIVERGED, Test, judge, stage_measures, title  # noqa: F401
 from .claims import measures as claims_measures
 
 LEVEL = 0.95  # the nominal level where the coverage allows it (coverage.LEVELS[0])
-LEVELS, MIN_COVERAGE = coverage.LEVELS, coverage.MIN_COVERAGE
 MIN_VERDICT = min(coverage.COUNTS)  # fewer trials: "not a verdict" (no skew diagnostic)
 MAX_DECIDE = 1000  # "trials to decide" beyond this is no estimate: not shown
 TITLES = {c.id: title(c.id) for c in CLAIMS}
 REPRODUCED, NOT, INCONCLUSIVE = "reproduced", "not reproduced", "inconclusive"
 NOT_A_VERDICT = "not a verdict"
 UNCALIBRATED = "interval not calibrated"
+ORDER = (DIVERGED, NOT_A_VERDICT, NOT, INCONCLUSIVE, REPRODUCED)  # a cell's: the first present
 
 
 def interval(values: np.ndarray, level: float = LEVEL) -> tuple[float, float, float]:
-    """(mean, low, high): the mean of the per-trial values and its t interval at `level` (no
-    interval for one trial)."""
     v = np.asarray(values, float)
     point = float(v.mean()) if len(v) else np.nan
     if len(v) < 2:
@@ -66,9 +37,6 @@ def interval(values: np.ndarray, level: float = LEVEL) -> tuple[float, float, fl
 
 def difference(values: np.ndarray, control: np.ndarray,
                level: float = LEVEL) -> tuple[float, float, float]:
-    """(difference of the means, low, high): Welch's interval at `level` of mean(values) -
-    mean(control), two independent samples (the trials of two conditions have their own
-    seeds)."""
     a, b = np.asarray(values, float), np.asarray(control, float)
     point = float(a.mean() - b.mean()) if len(a) and len(b) else np.nan
     if len(a) < 2 or len(b) < 2:
@@ -83,22 +51,17 @@ def difference(values: np.ndarray, control: np.ndarray,
 
 
 def verdict(low: float, high: float, lo: float, hi: float) -> str:
-    """reproduced if [low, high] lies within [lo, hi], not reproduced if outside, else (or with
-    no interval) inconclusive."""
     if not (np.isfinite(low) and np.isfinite(high)):
         return INCONCLUSIVE
     if lo <= low and high <= hi:
         return REPRODUCED
-    if high < lo or low > hi:
-        return NOT
-    return INCONCLUSIVE
+    return NOT if high < lo or low > hi else INCONCLUSIVE
 
 
 def flip(low: float, high: float, lo: float, hi: float, v: str) -> tuple[float, float]:
-    """The margin of a verdict: (bound, where it flips): the criterion's bound nearest to changing
-    the verdict and the value it would have to move to for the verdict to change (reproduced:
-    onto the interval's nearer end; not reproduced: onto the end facing it; inconclusive: past
-    the interval's end nearer to it, deciding it). (NaN, NaN) without an interval."""
+    """(bound, where it flips): the bound nearest to changing the verdict and the value it would
+    have to move to (reproduced: the interval's nearer end; not reproduced: the end facing it;
+    inconclusive: past the end nearer to it). (NaN, NaN) without an interval."""
     if v not in (REPRODUCED, NOT, INCONCLUSIVE) or not (np.isfinite(low) and np.isfinite(high)):
         return np.nan, np.nan
     moves = []
@@ -116,10 +79,9 @@ def flip(low: float, high: float, lo: float, hi: float, v: str) -> tuple[float, 
 
 def trials_to_decide(point: float, low: float, high: float, lo: float, hi: float,
                      n: int) -> int | None:
-    """Trials per condition at which an interval of the observed spread would clear the bound it
-    straddles: the half-width on that side times sqrt(n / n') below the distance from the point
-    to the bound. None when undefined (no interval, or the point on the bound) or beyond
-    MAX_DECIDE (no estimate at the observed spread)."""
+    """Trials per condition at which an interval of the observed spread (its half-width on the
+    side of the bound it straddles shrinking as 1 / sqrt(n)) would clear that bound; None when
+    undefined or beyond MAX_DECIDE."""
     if not (np.isfinite(low) and np.isfinite(high)):
         return None
     bounds = [b for b in (lo, hi) if np.isfinite(b) and low <= b <= high]
@@ -135,15 +97,14 @@ def trials_to_decide(point: float, low: float, high: float, lo: float, hi: float
 
 
 def run_test(t: Test, table: pd.DataFrame | None = None) -> dict:
-    """Measure a test and judge it; stores and returns its result."""
-    base = dict(figure=t.figure, claim=t.claim, diagnostic=_diagnostic(t), where=t.where,
-                reading=t.reading, primary=t.primary, measure=t.measure or t.claim,
+    """A judged measure's row of scorecard.csv."""
+    base = dict(figure=t.figure, claim=t.claim, diagnostic=bool(t.diagnostic), where=t.where,
+                reading=t.reading, primary=not t.reading, measure=t.measure or t.claim,
                 lo=t.lo, hi=t.hi, unit=t.unit, kind=t.kind)
     if t.diverged:  # nothing to measure: the cell says so
-        t.result = dict(base, value=np.nan, low=np.nan, high=np.nan, trials=0, verdict=DIVERGED,
-                        level=np.nan, note="", control_value=np.nan, trials_to_decide=None,
-                        per_trial="", bound=np.nan, flips_at=np.nan)
-        return t.result
+        return dict(base, value=np.nan, low=np.nan, high=np.nan, trials=0, verdict=DIVERGED,
+                    level=np.nan, note="", control_value=np.nan, trials_to_decide=None,
+                    per_trial="", bound=np.nan, flips_at=np.nan)
     note, level, control_value = "", np.nan, np.nan
     if t.exact:  # a count: the verdict is exact, the interval is the failure rate's
         k, n = (int(v) for v in t.values)
@@ -165,52 +126,30 @@ def run_test(t: Test, table: pd.DataFrame | None = None) -> dict:
             v, note = NOT_A_VERDICT, f"{n} trials; a verdict needs {MIN_VERDICT}"
         elif lv is None:
             v, note = INCONCLUSIVE, f"{UNCALIBRATED} ({why})"
-        elif n < (t.min_trials if t.min_trials is not None else BY_ID[t.claim].min_trials):
+        elif n < t.min_trials:
             v = INCONCLUSIVE
         need = (trials_to_decide(point, low, high, t.lo, t.hi, n)
                 if v == INCONCLUSIVE and not note else None)
         per_trial = " ".join(f"{x:.6g}" for x in t.values)
     bound, flips_at = flip(low, high, t.lo, t.hi, v) if not t.exact else (np.nan, np.nan)
-    t.result = dict(base, value=point, low=low, high=high, trials=n, verdict=v, level=level,
-                    note=note, control_value=control_value, trials_to_decide=need,
-                    per_trial=per_trial, bound=bound, flips_at=flips_at)
-    return t.result
+    return dict(base, value=point, low=low, high=high, trials=n, verdict=v, level=level,
+                note=note, control_value=control_value, trials_to_decide=need,
+                per_trial=per_trial, bound=bound, flips_at=flips_at)
 
 
-def reduced_scale(scale: str) -> str:
-    """Why a run at a reduced scale (report.scale, e.g. "smoke") decides nothing."""
-    return f"a {scale} run, not the paper's scale"
+def no_verdicts(results: list[dict], scale: str) -> list[dict]:
+    """The results of a run at a reduced scale (report.scale, e.g. "smoke"; "": the paper's),
+    every verdict but "diverged" "not a verdict"."""
+    return [r if r["verdict"] == DIVERGED or not scale else
+            dict(r, verdict=NOT_A_VERDICT, note=f"a {scale} run, not the paper's scale",
+                 trials_to_decide=None) for r in results]
 
-
-def no_verdicts(results: list[dict], why: str) -> list[dict]:
-    """The results with every verdict replaced by "not a verdict" (`why`: "a smoke run"): a run
-    at a reduced scale measures the claims and decides none of them."""
-    return [r if r["verdict"] == DIVERGED else
-            dict(r, verdict=NOT_A_VERDICT, note=why, trials_to_decide=None) for r in results]
-
-
-def _diagnostic(t: Test) -> bool:
-    if t.diagnostic is not None:
-        return bool(t.diagnostic)
-    c = BY_ID[t.claim]
-    return bool(c.diagnostic or next((r.diagnostic for r in c.readings
-                                      if r.id == t.reading), False))
-
-
-# --- cells, tables, figure -------------------------------------------------------------------------
 
 def fmt(value: float, unit: str) -> str:
     if not np.isfinite(value):
         return "n/a"
-    if unit == "%":
-        return f"{100 * value:+.0f} %"
-    if unit == "rate":
-        return f"{100 * value:.0f} %"
-    if unit == "m":  # a length, stored in metres, printed in mm
-        return f"{1000 * value:.1f} mm"
-    if unit == "rad":
-        return f"{value:.2f} rad"
-    return f"{value:.2f}x"
+    return {"%": f"{100 * value:+.0f} %", "rate": f"{100 * value:.0f} %",
+            "m": f"{1000 * value:.1f} mm", "rad": f"{value:.2f} rad"}.get(unit, f"{value:.2f}x")
 
 
 def fmt_interval(r: dict) -> str:
@@ -244,70 +183,50 @@ def criterion(r: dict) -> str:
     return (f"> {fmt(lo, r['unit'])}" if np.isfinite(lo) else f"< {fmt(hi, r['unit'])}")
 
 
-def _margin(g: pd.DataFrame) -> pd.Series:
-    """How far each measure's point lies inside its criterion, relative to the bound's size
-    (negative: outside); the worst condition of a cell has the smallest."""
+def all_cells(results: list[dict]) -> pd.DataFrame:
+    """One cell per (claim, figure, reading) ("": the primary) in the results' order, showing
+    the measure of the cell's verdict whose point lies least inside its criterion (relative to
+    the bound's size)."""
+    df = pd.DataFrame(results)
+    df["reading"] = df["reading"].fillna("") if "reading" in df else ""
+
     def rel(d, b):
         return d / np.maximum(np.abs(b.where(np.isfinite(b), 1.0)), 1e-2)
-    return np.minimum(rel(g["value"] - g["lo"], g["lo"]), rel(g["hi"] - g["value"], g["hi"]))
-
-
-ORDER = (DIVERGED, NOT_A_VERDICT, NOT, INCONCLUSIVE, REPRODUCED)  # a cell's: the first present
-
-
-def _cell(claim: str, figure: str, reading: str, df: pd.DataFrame, rows: list,
-          verdicts: np.ndarray, margin: np.ndarray) -> dict:
-    """The cell of the measures at positions `rows` of `df` (verdicts: its verdict column;
-    margin: _margin of every row, NaN as -inf)."""
-    vs = [verdicts[i] for i in rows]
-    v = next(x for x in ORDER if x in vs)
-    deciding = [i for i in rows if verdicts[i] == v]  # the measures that give the cell its verdict
-    pick = df.iloc[min(deciding, key=lambda i: margin[i])]  # the first of the smallest margin
-    need = pick["trials_to_decide"]
-    return dict(claim=claim, figure=figure, reading=reading,
-                diagnostic=bool(pick["diagnostic"]) if "diagnostic" in pick else
-                bool(BY_ID[claim].diagnostic),
-                verdict=v, where=pick["where"], value=pick["value"], low=pick["low"],
-                high=pick["high"], unit=pick["unit"], trials=int(pick["trials"]),
-                trials_to_decide=None if need is None or pd.isna(need) else int(need),
-                reproduced=vs.count(REPRODUCED), measures=len(rows),
-                per_trial=pick.get("per_trial", ""), lo=pick["lo"], hi=pick["hi"],
-                level=pick.get("level", LEVEL), note=pick.get("note", "") or "",
-                control_value=pick.get("control_value", np.nan),
-                bound=pick.get("bound", np.nan), flips_at=pick.get("flips_at", np.nan))
-
-
-def all_cells(results: list[dict]) -> pd.DataFrame:
-    """One cell per (claim, figure, reading of its criterion), the primary reading's reading
-    ""."""
-    df = pd.DataFrame(results)
-    if "reading" not in df:
-        df["reading"] = ""
-    df["reading"] = df["reading"].fillna("")
-    margin = _margin(df).fillna(-np.inf).to_numpy()  # per row: once for the table, not per cell
+    margin = np.minimum(rel(df["value"] - df["lo"], df["lo"]),
+                        rel(df["hi"] - df["value"], df["hi"])).fillna(-np.inf).to_numpy()
     verdicts = df["verdict"].to_numpy()
     groups: dict = {}  # (claim, figure, reading) -> row positions, as groupby(sort=False) has them
     for i, key in enumerate(zip(df["claim"], df["figure"], df["reading"])):
         if not any(pd.isna(k) for k in key):
             groups.setdefault(key, []).append(i)
-    return pd.DataFrame([_cell(*key, df, rows, verdicts, margin) for key, rows in groups.items()])
+    out = []
+    for (claim, figure, reading), rows in groups.items():
+        vs = [verdicts[i] for i in rows]
+        v = next(x for x in ORDER if x in vs)
+        pick = df.iloc[min((i for i in rows if verdicts[i] == v), key=lambda i: margin[i])]
+        need = pick["trials_to_decide"]
+        out.append(dict(
+            claim=claim, figure=figure, reading=reading, diagnostic=bool(pick["diagnostic"]),
+            verdict=v, where=pick["where"], value=pick["value"], low=pick["low"],
+            high=pick["high"], unit=pick["unit"], trials=int(pick["trials"]),
+            trials_to_decide=None if need is None or pd.isna(need) else int(need),
+            reproduced=vs.count(REPRODUCED), measures=len(rows), per_trial=pick["per_trial"],
+            lo=pick["lo"], hi=pick["hi"], level=pick["level"], note=pick["note"] or "",
+            **{k: pick[k] for k in ("control_value", "bound", "flips_at")}))
+    return pd.DataFrame(out)
 
 
 def cells(results: list[dict], register=None) -> pd.DataFrame:
-    """One cell per (claim, figure) under the claim's primary reading: the verdict of all its
-    measures (not reproduced if any is, else inconclusive if any is, else reproduced), how many
-    are reproduced (k of n), the worst measure that gives the cell its verdict (the smallest
-    margin to the criterion among them), which the cell shows, and `others`: the cells of the other registered readings whose verdict differs
-    ("reading: verdict (worst ...)", "; "-joined), and those the register always shows
-    (`register`: a list of claims, claims.load_register's; default this one's)."""
+    """One cell per (claim, figure) under the primary reading, with `others`: the cells of the
+    other readings whose verdict differs, and those the register (`register`: claims, default
+    this one's) always shows, "; "-joined."""
     by_id = BY_ID if register is None else {c.id: c for c in register}
     every = all_cells(results)
     if not len(every):
         return every
     primary = every[every["reading"] == ""].copy()
-    other = every[every["reading"] != ""]
     others = {k: g.to_dict("records")  # each (claim, figure)'s, grouped once, in table order
-              for k, g in other.groupby(["claim", "figure"], sort=False)}
+              for k, g in every[every["reading"] != ""].groupby(["claim", "figure"], sort=False)}
     notes = []
     for r in primary.to_dict("records"):
         shown = {rd.id for rd in by_id[r["claim"]].readings if rd.always_shown}
@@ -319,15 +238,13 @@ def cells(results: list[dict], register=None) -> pd.DataFrame:
 
 
 def _need(r: dict) -> int | None:
-    """The trials to decide, as an int (pandas turns a column with gaps into floats)."""
+    # pandas turns a column with gaps into floats
     n = r.get("trials_to_decide")
     return None if n is None or pd.isna(n) else int(n)
 
 
 def cell_text(c, newline: str = " ") -> str:
-    """'not reproduced', k of n, the worst measure: its value and interval (+ trials to
-    decide, why it is not a verdict, the verdicts under the other readings where they
-    differ)."""
+    """A cell's text (its lines joined by `newline`)."""
     r = dict(c)
     note = r.get("note") or ""
     text = f"**{r['verdict']}" + (f": {UNCALIBRATED}" if UNCALIBRATED in note else "") + "**"
@@ -339,7 +256,10 @@ def cell_text(c, newline: str = " ") -> str:
     if r["verdict"] == INCONCLUSIVE and _need(r):
         text += f"{newline}~{_need(r)} trials would decide"
     if np.isfinite(r.get("flips_at", np.nan)):
-        text += f"{newline}margin: {margin_text(r)}"
+        b, to, unit = r["bound"], r["flips_at"], r["unit"]
+        by = f"{100 * (to - b):+.1f} points" if unit == "%" else (
+            f"{to - b:+.2f}x" if unit == "x" else fmt(to - b, unit))
+        text += f"{newline}margin: its bound {fmt(b, unit)} at {fmt(to, unit)} ({by}) would change it"
     if r.get("others"):
         text += f"{newline}other readings: {r['others']}"
     if r.get("replicate") is True:
@@ -347,18 +267,9 @@ def cell_text(c, newline: str = " ") -> str:
     return text
 
 
-def margin_text(r: dict) -> str:
-    """How far the shown measure's criterion would have to move to change the cell's verdict."""
-    b, to, unit = r["bound"], r["flips_at"], r["unit"]
-    by = f"{100 * (to - b):+.1f} points" if unit == "%" else (
-        f"{to - b:+.2f}x" if unit == "x" else fmt(to - b, unit))
-    return f"its bound {fmt(b, unit)} at {fmt(to, unit)} ({by}) would change it"
-
-
 def first_cells(results: list[dict], register=None) -> tuple[pd.DataFrame, list[str]]:
-    """The cells under each claim's criterion as first fixed, before the first run's data (its
-    reading marked `first` in the register), and the claims that have none (first fixed after
-    some data: not in that count)."""
+    """The cells under each claim's reading marked `first` (fixed before the first run's data),
+    and the paper's claims that have none."""
     claims = CLAIMS if register is None else register
     first = {c.id: ("" if r.primary else r.id) for c in claims for r in c.readings if r.first}
     every = all_cells(results)
@@ -370,8 +281,7 @@ def first_cells(results: list[dict], register=None) -> tuple[pd.DataFrame, list[
 
 
 def headline(cards: pd.DataFrame, counted=None) -> dict:
-    """Cells per verdict over the paper's claims (no diagnostics) on the counted figures (None:
-    every figure): each claim of the paper once per figure it is judged on."""
+    """Cells per verdict over the paper's claims (no diagnostics) on the `counted` figures."""
     c = cards[~cards["diagnostic"].astype(bool)]
     if counted is not None:
         c = c[c["figure"].isin(counted)]
@@ -380,7 +290,6 @@ def headline(cards: pd.DataFrame, counted=None) -> dict:
 
 
 def headline_text(n: dict) -> str:
-    """"10 reproduced, 3 not reproduced, 3 inconclusive" (+ diverged, not a verdict if any)."""
     if n[NOT_A_VERDICT] and not (n[REPRODUCED] or n[NOT] or n[INCONCLUSIVE]):
         return f"no verdict ({n[NOT_A_VERDICT]} cells measured, none decided)"
     text = f"{n[REPRODUCED]} reproduced, {n[NOT]} not reproduced, {n[INCONCLUSIVE]} inconclusive"
@@ -389,62 +298,40 @@ def headline_text(n: dict) -> str:
 
 
 def claims_table(cards: pd.DataFrame, register=None) -> pd.DataFrame:
-    """claims.csv: one row per cell, the claim's words, criterion and measure from the table of
-    claims, and the cell's verdict, worst condition and k of n, from the same results as
-    scorecard.csv, and the verdicts under the other readings where they differ (`register`: as
-    in cells)."""
+    """claims.csv."""
     by_id = BY_ID if register is None else {c.id: c for c in register}
-    rows = []
-    for r in cards.to_dict("records"):
-        c = by_id[r["claim"]]
-        rows.append(dict(figure=r["figure"], claim=r["claim"], words=c.words,
-                         diagnostic=c.diagnostic, criterion=c.criterion, measure=c.measure,
-                         verdict=r["verdict"], reproduced=r["reproduced"],
-                         measures=r["measures"], worst=r["where"],
-                         measured=fmt_measure(r), trials=r["trials"],
-                         other_readings=r.get("others", "")))
-    return pd.DataFrame(rows)
+    return pd.DataFrame([dict(
+        figure=r["figure"], claim=r["claim"], words=c.words, diagnostic=c.diagnostic,
+        criterion=c.criterion, measure=c.measure, verdict=r["verdict"],
+        reproduced=r["reproduced"], measures=r["measures"], worst=r["where"],
+        measured=fmt_measure(r), trials=r["trials"], other_readings=r.get("others", ""))
+        for r, c in ((r, by_id[r["claim"]]) for r in cards.to_dict("records"))])
 
 
 def figure_measures(aggs: dict, stages: dict | None = None) -> list:
-    """Every measure (claims.Measure) of every figure that declares the paper's claims (aggs:
-    figure -> aggregate with its trials), and of Fig. 2's stages (`stages`: figure, spec,
-    per-trial Ms)."""
-    ms = []
-    for name, agg in aggs.items():
-        if (agg["summary"]["growth"] != "none").any():
-            ms += claims_measures(name, agg["trials"], agg["summary"])
-    if stages:
-        ms += stage_measures(stages["figure"], stages["spec"], stages["trials"])
-    return ms
-
-
-def calibrate(ms: list, table: pd.DataFrame | None = None) -> list:
-    """Each measure's t level (m.calibrated), found once for all its readings (the coverage of a
-    t interval is the same for a measure and its multiples, as a reading per unit size is)."""
-    table = coverage.current() if table is None else table
-    for m in ms:
-        if m.calibrated is None and not (m.exact or m.diverged):
-            m.calibrated = coverage.calibration(Test(m.figure, m.claim, m.where, m.values,
-                                                     kind=m.kind, measure=m.claim),
-                                                len(m.values), table)
-    return ms
+    """Every measure of the growth figures in `aggs` and of Fig. 2's `stages` (figure, spec, Ms)."""
+    ms = [m for name, agg in aggs.items() if (agg["summary"]["growth"] != "none").any()
+          for m in claims_measures(name, agg["trials"], agg["summary"])]
+    return ms + (stage_measures(stages["figure"], stages["spec"], stages["trials"])
+                 if stages else [])
 
 
 def judged(ms: list, table: pd.DataFrame | None = None, register=None) -> list[dict]:
-    """Every measure judged under every reading of `register` (default: this one's)."""
+    """Every measure's t level found once (m.calibrated, the same for a measure and its
+    multiples), then judged under every reading of `register` (default: this one's)."""
     table = coverage.current() if table is None else table  # one table: its look-ups are kept
-    return [run_test(t, table) for t in judge(calibrate(ms, table), register)]
+    for m in ms:
+        if m.calibrated is None and not (m.exact or m.diverged):
+            m.calibrated = coverage.calibration(m, len(m.values), table)
+    return [run_test(t, table) for t in judge(ms, register)]
 
 
 def results(aggs: dict, stages: dict | None = None, table: pd.DataFrame | None = None) -> list[dict]:
-    """Every test of every figure that declares the paper's claims, measured and judged."""
     return judged(figure_measures(aggs, stages), table)
 
 
 def recommended_cells(cards: pd.DataFrame, recs: list[dict]) -> pd.DataFrame:
-    """The readings study's cells (one per figure, reading and claim) of the recommended reading
-    of each figure (`recs`: the register's `recommended`), in its order."""
+    """The readings study's cells of each figure's recommended reading (`recs`)."""
     keep = [cards[(cards["figure"] == x["figure"]) & (cards["reading"] == x["reading"])]
             for x in recs if len(cards)]
     keep = [k for k in keep if len(k)]
@@ -452,9 +339,7 @@ def recommended_cells(cards: pd.DataFrame, recs: list[dict]) -> pd.DataFrame:
 
 
 def recommended_headline(cards: pd.DataFrame, recs: list[dict]) -> str:
-    """The headline of the recommended reading (the register's `recommended`) over the readings
-    study's cells (cards: one per figure, reading and claim), beside the default's: "" when the
-    run has none of its readings."""
+    """The recommended readings' headline over the readings study's cells ("" without them)."""
     mine = recommended_cells(cards, recs)
     if not len(mine):
         return ""

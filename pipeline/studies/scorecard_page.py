@@ -1,6 +1,5 @@
-"""The scorecard as the report shows it: its Markdown table (claims x figures, then every
-measure with its interval) and its figure (scorecard.png, cells coloured by verdict); the
-verdicts themselves are pipeline/studies/scorecard.py's."""
+"""The scorecard as report.md shows it: its table (claims x figures, then every measure) and
+its figure (scorecard.png); the verdicts are scorecard.py's."""
 from __future__ import annotations
 
 import textwrap
@@ -15,18 +14,13 @@ from .scorecard import (INCONCLUSIVE, MIN_VERDICT, NOT, NOT_A_VERDICT, REPRODUCE
 
 
 def _order(cards: pd.DataFrame) -> tuple[list, list]:
-    claims = [c.id for c in CLAIMS if c.id in set(cards["claim"])]
-    figs = sorted(set(cards["figure"]))
-    return claims, figs
+    return [c.id for c in CLAIMS if c.id in set(cards["claim"])], sorted(set(cards["figure"]))
 
 
 def markdown(cards: pd.DataFrame, results: list[dict], counted=None, readings=None,
              recommended: str = "", first: str = "") -> str:
-    """The scorecard (claims x figures) and, below it, every measure with its interval.
-    counted: the figures the headline counts; readings: claim -> our reading (written text),
-    the column shown only where given (the committed run's discussion); recommended: the
-    headline of the recommended reading, first: the count under the criteria as first fixed
-    (first_headline), both shown beside the primary's."""
+    """The scorecard and every measure below it. counted: the headline's figures; readings:
+    claim -> our reading (a column only where given); recommended, first: the other headlines."""
     from .choices import escape
 
     claims, figs = _order(cards)
@@ -69,7 +63,6 @@ def markdown(cards: pd.DataFrame, results: list[dict], counted=None, readings=No
 
 
 def first_headline(results: list[dict], counted=None) -> str:
-    """The count under each claim's criterion as first fixed, before the first run's data."""
     cards, none = first_cells(results)
     if not len(cards):
         return ""
@@ -85,8 +78,8 @@ COLOURS = {REPRODUCED: "#b7e1b0", NOT: "#f4b6b0", INCONCLUSIVE: "#fbe3a0", DIVER
 
 
 def _trials_strip(ax, x0: float, y: float, c: dict) -> None:
-    """Each trial's value of the cell's worst measure as a dot on a strip across the cell, the
-    criterion's bounds as ticks and the 95 % interval as a bar: the spread the verdict judges."""
+    """The worst measure's trials as dots across the cell, its bounds as ticks, its interval as
+    a bar."""
     values = np.array([float(v) for v in str(c.get("per_trial") or "").split()])
     if len(values) < 2 or c["unit"] == "rate":
         return

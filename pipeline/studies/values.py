@@ -1,20 +1,10 @@
-"""Named values: every number the prose quotes from the report, named where it is computed.
-
-A report section names a number as it computes it (sections.Context.value, e.g.
-`ctx.value("summary.fig4.const1.0.final_abs_error_mean_mm", printed(x) * 1e3)`); the report stage
-writes them all to values.csv (name, value) beside its tables. The pages that quote the report
-(README.md, docs/choices.md, docs/scorecard.md, docs/baselines.md: their templates under
-docs/templates/, rendered by `python -m pipeline.tools.render`) and the report's discussion
-(findings.md) reference a value by its name, `{{ fig4.const0.5.final_mm:.1f }}`, and never write
-it by hand; every other page is plain Markdown. Numbers that are not the report's (the paper's
-text, a setting, a timing) are plain text. A value is kept as its table prints it (`printed`: 6
-significant digits), so the page, the table and values.csv agree.
-
-A reference is `{{ name }}` (a table, or a number as values.csv holds it) or `{{ name:FORMAT }}`,
-FORMAT being `[+][,].Nf`: N decimals (rounded half away from zero, as a reader rounds 74.5 to
-75), a sign always (+), thousands commas (,); `\\{{` is a literal `{{`. A reference to an
-unknown name, a bad format or a `{{` that opens no reference is a BadValue naming the page and
-line.
+"""Named values: every number the prose quotes from the report, named where it is computed
+(sections.Context.value) and written to values.csv (name, value) as its table prints it
+(`printed`: 6 significant digits). The pages rendered from docs/templates/ and the report's
+discussion (findings.md) reference a value as `{{ name }}` (a table, or a number as values.csv
+holds it) or `{{ name:FORMAT }}`, FORMAT `[+][,].Nf` (N decimals rounded half away from zero, a
+sign always, thousands commas); `\\{{` is a literal `{{`. An unknown name, a bad format or a `{{`
+that opens no reference is a BadValue naming the page and line.
 """
 from __future__ import annotations
 
@@ -43,13 +33,12 @@ def printed(x: float) -> float:
 
 
 def name_ok(name: str) -> None:
-    """A ValueError unless `name` is a name (letters, digits, _ . + -)."""
     if not NAME.match(name):
         raise ValueError(f"value {name!r}: a name is letters, digits, _ . + -")
 
 
 def to_csv(values: dict) -> str:
-    """values.csv: name, value (a number as its shortest exact decimal, a table as its text)."""
+    """values.csv: a number as its shortest exact decimal, a table as its text."""
     buf = _io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(["name", "value"])
@@ -59,7 +48,6 @@ def to_csv(values: dict) -> str:
 
 
 def read(path: Path) -> dict:
-    """name -> value of a values.csv (a number as a float, anything else as its text)."""
     with open(path, newline="", encoding="utf-8") as fh:
         rows = list(csv.reader(fh))
     if not rows or rows[0] != ["name", "value"] or any(len(r) != 2 for r in rows[1:]):
@@ -74,7 +62,6 @@ def read(path: Path) -> dict:
 
 
 def formatted(x: float, fmt: str) -> str:
-    """x written in FORMAT `[+][,].Nf`, rounded half away from zero on its shortest decimal."""
     m = FORMAT.match(fmt)
     if m is None:
         raise BadValue(f"format {fmt!r}: write [+][,].Nf (.1f, +.0f, ,.0f)")
@@ -89,8 +76,6 @@ def formatted(x: float, fmt: str) -> str:
 
 
 def render(text: str, values: dict, where: str) -> str:
-    """`text` with every reference replaced by its value (BadValue `where:line: ...` on the first
-    bad one)."""
     out = []
     for i, line in enumerate(text.split("\n"), 1):
         def one(m, i=i):
@@ -122,10 +107,8 @@ LEFT_OUT = ("## Discussion\n\n`pipeline/studies/findings.md` quotes {name}, whic
 
 
 def rendered_part(part: str, values: dict) -> str:
-    """A part of report.md rendered with the report's values: the discussion (findings.md, the
-    only part that references names), or the note that it is left out when it references a
-    value this report does not hold (a report of fewer studies). A reference this report could
-    never render (a bad format) is a BadValue."""
+    """A part of report.md (the discussion, findings.md) rendered, or the note that it is left
+    out where it references a value this report does not hold (a report of fewer studies)."""
     if "{{" not in part:
         return part
     lacking = sorted(references(part) - set(values))
@@ -135,5 +118,4 @@ def rendered_part(part: str, values: dict) -> str:
 
 
 def references(text: str) -> set[str]:
-    """The names `text` references."""
     return {m["name"] for m in REFERENCE.finditer(text)}

@@ -2,13 +2,12 @@
 
     python -m pipeline.tools.rescore [REPORT_DIR] [--register FILE]
 
-Reads REPORT_DIR/measures.parquet (every per-trial measure the report stage wrote; default
-outputs/report), judges every measure under every reading of the register (default
-pipeline/studies/register.yaml; pass an edited copy), and prints the two headlines (the default
-reading on the counted figures; the recommended reading over the readings study) and every cell
-whose verdict differs from the report's claims.csv. Intervals and coverage are the scorecard's
-(pipeline/studies/scorecard.py); the measures themselves (smoothing, windows) are fixed when
-the trials are measured and cannot change here. Exit 2 with one line on bad input.
+Judges REPORT_DIR/measures.parquet (default outputs/report) under every reading of a register
+(default pipeline/studies/register.yaml, or an edited copy) as the scorecard does, and prints the
+two headlines (the default reading on the counted figures; the recommended reading over the
+readings study) and every cell whose verdict differs from the report's claims.csv. The measures
+themselves (smoothing, windows) are fixed when the trials are measured. Exit 2 with one line on
+bad input.
 """
 from __future__ import annotations
 
@@ -24,9 +23,9 @@ from ..studies import claims, measures_table, scorecard
 
 
 def rescore(report: Path, register) -> dict:
-    """{"default": headline, "recommended": headline or None, "cells": the primary cells of the
-    figures (figure, claim, verdict, ...), "changed": rows (figure, claim, before, after)}.
-    register: a register file, or its claims (claims.load_register's)."""
+    """{"default": headline, "counted", "cells": the figures' primary cells, "recommended":
+    headline or None, "recommended_on", "unmeasured": readings the report has no measure for,
+    "changed": (figure, claim, before, after)}. register: a file, or claims.load_register's."""
     t = measures_table.read(report / measures_table.NAME)
     reg = register if isinstance(register, list) else claims.load_register(register)
     groups = measures_table.measures(t)
@@ -34,12 +33,10 @@ def rescore(report: Path, register) -> dict:
     counted = sorted(set(t.loc[(t["study"] == "figures") & t["counted"], "figure"]))
     scale = str(t["scale"].iloc[0]) if len(t) else ""
 
-    def judged(ms):
-        res = [scorecard.run_test(x) for x in claims.judge(ms, reg)]
-        return scorecard.no_verdicts(res, scorecard.reduced_scale(scale)) if scale \
-            else res
-    res = judged(fig_ms)
-    cards = scorecard.cells(res, reg) if res else pd.DataFrame()
+    def cells(ms):
+        res = scorecard.no_verdicts(scorecard.judged(ms, register=reg), scale)
+        return scorecard.cells(res, reg) if res else pd.DataFrame()
+    cards = cells(fig_ms)
     # a reading measured where the report has no measure (a report made before its points were
     # scored) judges nothing: named, not dropped without a word
     served = {c: m for m, cs in claims.SERVES.items() for c in cs}  # rise_none: rise's measure
@@ -49,27 +46,21 @@ def rescore(report: Path, register) -> dict:
                   if served.get(c.id, c.id) in have
                   and (served.get(c.id, c.id), r.params.get("points", "grid"),
                        r.params.get("span", "end")) not in places]
-    out = dict(default=scorecard.headline(cards, counted) if len(cards) else None,
-               counted=counted, cells=cards, recommended=None, recommended_on=[],
-               unmeasured=unmeasured)
     rec = [(fig, reading) for (study, reading, fig) in groups
            if study == "readings" and t.loc[(t["study"] == "readings") & (t["figure"] == fig)
                                             & (t["reading"] == reading), "recommended"].any()]
-    if rec:
-        rc = pd.concat([scorecard.cells(judged(groups[("readings", reading, fig)]), reg)
-                        for fig, reading in rec])
-        out.update(recommended=scorecard.headline(rc), recommended_on=rec)
-    before = report / "claims.csv"
     changed = []
-    if before.exists() and len(cards):
-        old = pd.read_csv(before, keep_default_na=False)
+    if (report / "claims.csv").exists() and len(cards):
+        old = pd.read_csv(report / "claims.csv", keep_default_na=False)
         was = dict(zip(zip(old["figure"], old["claim"]), old["verdict"]))
         changed = [dict(figure=r["figure"], claim=r["claim"],
                         before=was.get((r["figure"], r["claim"]), "not judged"),
                         after=r["verdict"]) for r in cards.to_dict("records")
                    if was.get((r["figure"], r["claim"])) != r["verdict"]]
-    out["changed"] = changed
-    return out
+    return dict(default=scorecard.headline(cards, counted) if len(cards) else None,
+                counted=counted, cells=cards, recommended=scorecard.headline(pd.concat(
+                    [cells(groups[("readings", reading, fig)]) for fig, reading in rec]))
+                if rec else None, recommended_on=rec, unmeasured=unmeasured, changed=changed)
 
 
 def main(argv=None) -> int:

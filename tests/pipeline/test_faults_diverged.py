@@ -40,7 +40,7 @@ def test_the_claims_of_a_figure_without_a_reference_curve_are_marked_not_crashed
     aggs = report.load_aggregates(Path(run.paths.aggregate))
     summary = aggs["f4"]["summary"]
     assert claims.diverged_conditions(summary) == ["const1.0"]
-    tests = claims.tests("f4", aggs["f4"]["trials"], summary)
+    tests = claims.judge(claims.measures("f4", aggs["f4"]["trials"], summary))
     dead = [t for t in tests if t.diverged]
     assert dead and all(t.where == "const1.0" for t in dead)
     assert not any(t.claim in ("above_refs", "above_start") for t in tests)  # no reference pair

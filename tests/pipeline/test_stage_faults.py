@@ -96,7 +96,7 @@ def _diverged_summary():
 
 
 def test_diverged_trials_fail_the_bootstrapping_claim():
-    tests = claims.tests("figX", *_diverged_summary())
+    tests = claims.judge(claims.measures("figX", *_diverged_summary()))
     boot = next(t for t in tests if t.claim == "bootstrap")
     assert scorecard.run_test(boot)["verdict"] == "not reproduced"
 

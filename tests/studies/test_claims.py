@@ -241,7 +241,8 @@ def _stages(spread):
 @pytest.mark.parametrize("spread, verdict", [(0.06, "reproduced"), (0.5, "not reproduced")])
 def test_fig2_stages_start_near_home(spread, verdict):
     spec, ms = _stages(spread)
-    res = [sc.run_test(t, _covered()) for t in claims.stage_tests("fig2", spec, [ms] * 3)]
+    tests = claims.judge(claims.stage_measures("fig2", spec, [ms] * 3))
+    res = [sc.run_test(t, _covered()) for t in tests]
     home = next(r for r in res if r["claim"] == "stages_home")
     assert home["verdict"] == verdict and home["diagnostic"]
     extremes = next(r for r in res if r["claim"] == "stages")
@@ -251,7 +252,8 @@ def test_fig2_stages_start_near_home(spread, verdict):
 
 def test_fig2_extremes_need_three_trials():
     spec, ms = _stages(0.06)
-    res = [sc.run_test(t, _covered()) for t in claims.stage_tests("fig2", spec, [ms] * 2)]
+    tests = claims.judge(claims.stage_measures("fig2", spec, [ms] * 2))
+    res = [sc.run_test(t, _covered()) for t in tests]
     assert next(r for r in res if r["claim"] == "stages")["verdict"] == sc.NOT_A_VERDICT
 
 

@@ -129,7 +129,7 @@ def test_diagnostics_see_a_rise_above_the_start_body_and_a_rebound_during_growth
         *[dict(figure="f", condition=c, growth="none", growth_period=0, end_size=s, n_trials=2,
                n_bootstrap_failures=0, n_run_failures=0, paper_final_abs_error=np.nan)
           for c, s in (("const0.5", 0.5), ("const1.0", 1.0))]])
-    tests = {t.claim: t for t in claims.tests("f", trials, summary)}
+    tests = {t.claim: t for t in claims.judge(claims.measures("f", trials, summary))}
     assert tests["above_start"].values == pytest.approx([0.16 / 0.07 - 1] * 2)
     assert tests["during"].values == pytest.approx([0.6] * 2)  # 0.16 over the minimum 0.10
 

@@ -150,7 +150,7 @@ def test_no_estimate_of_trials_to_decide_beyond_a_thousand():
 
 
 def test_a_reduced_scale_run_decides_nothing():
-    res = sc.no_verdicts(sc.results({"figX": _figure(20, 0.01)}, table=COVERED), "a smoke run")
+    res = sc.no_verdicts(sc.results({"figX": _figure(20, 0.01)}, table=COVERED), "smoke")
     cards = sc.cells(res)
     assert set(cards["verdict"]) == {sc.NOT_A_VERDICT}
     md = page.markdown(cards, res, counted=["figX"])
