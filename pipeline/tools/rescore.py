@@ -2,13 +2,11 @@
 
     python -m pipeline.tools.rescore [REPORT_DIR] [--register FILE]
 
-Reads REPORT_DIR/measures.parquet (every per-trial measure the report stage wrote; default
-outputs/report), judges every measure under every reading of the register (default
-pipeline/studies/register.yaml; pass an edited copy), and prints the two headlines (the default
-reading on the counted figures; the recommended reading over the readings study) and every cell
-whose verdict differs from the report's claims.csv. Intervals and coverage are the scorecard's
-(pipeline/studies/scorecard.py); the measures themselves (smoothing, windows) are fixed when
-the trials are measured and cannot change here. Exit 2 with one line on bad input.
+Judges every measure of REPORT_DIR/measures.parquet (default outputs/report) under every reading
+of the register (default pipeline/studies/register.yaml; pass an edited copy) with the
+scorecard's intervals, and prints the two headlines (the default reading on the counted figures;
+the recommended reading over the readings study) and every cell whose verdict differs from the
+report's claims.csv. The measures themselves (smoothing, windows) cannot change here.
 """
 from __future__ import annotations
 
@@ -21,6 +19,7 @@ import pandas as pd
 
 from ..config import REPO_ROOT
 from ..studies import claims, measures_table, scorecard
+from . import fail
 
 
 def rescore(report: Path, register) -> dict:
@@ -79,20 +78,17 @@ def main(argv=None) -> int:
     p.add_argument("--register", type=Path, default=claims.REGISTER)
     a = p.parse_args(argv)
     if not (a.report / measures_table.NAME).exists():
-        print(f"error: {a.report}: no {measures_table.NAME} (a report written before it has "
-              "none: regenerate the report)", file=sys.stderr)
-        return 2
+        return fail(f"{a.report}: no {measures_table.NAME} (a report written before it has none: "
+                    "regenerate the report)")
     start = time.perf_counter()
     try:  # the register first: its schema checked before any of it is used (one line)
         register = claims.load_register(a.register)
     except ValueError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
+        return fail(e)
     try:
         out = rescore(a.report, register)
     except (OSError, ValueError, KeyError, TypeError) as e:
-        print(f"error: {a.report}: {e}", file=sys.stderr)
-        return 2
+        return fail(f"{a.report}: {e}")
     if out["default"] is not None:
         print(f"default reading on {', '.join(out['counted'])}: "
               f"{scorecard.headline_text(out['default'])}")
