@@ -1,17 +1,11 @@
 """A body as the pipeline sees it, before a first run: its chain, joints, limits and reach, the
-workspace its hand can reach within the limits, whether its target grid lies in it, and a grid
-that does (gbmodel.workspace: sampled postures, not a guess from the link lengths).
+workspace its hand reaches within the limits (gbmodel.workspace: sampled postures), whether its
+target grid lies in it, and a grid around home that does (paste its `grid:` line into the body
+file); it writes nothing. After a run, --within PCT: each trial's held-out error at the last
+epoch in % of the reach, the trials above PCT named (exit 1).
 
     python -m pipeline.tools.body body=arm5
     python -m pipeline.tools.body 'hydra.searchpath=[file:///abs/my_conf]' body=my_arm
-
-The proposed grid is a box around the hand's home position (where Goal Babbling starts), which
-it contains, whose every target a posture within the limits reaches, at full and at half size
-(propose_grid): paste its `grid:` line into the body file. It prints to stdout and writes nothing.
-
-After a run, `--within PCT` checks every trial of a figure instead: its held-out error at the
-last epoch in % of the body's reach, one line per trial, and the trials above PCT named (exit 1):
-
     python -m pipeline.tools.body figure=my_arm --within 1.5
 """
 from __future__ import annotations
@@ -30,6 +24,7 @@ from gbmodel import workspace
 
 from .. import cli, io
 from ..config import CONFIG_PATH, ConfigError
+from . import fail
 
 AXES = "xyz"
 WITHIN = "--within"
@@ -117,16 +112,11 @@ def describe(desc: dict) -> list[str]:
 
 def propose_grid(body, num=None, near: float = 0.5, tail: float = 5.0, side: float = 0.8,
                  seed: int = workspace.SEED) -> dict | None:
-    """A target grid (dict(lo, hi, num), as a body file's `grid:`) around the hand's home
-    position h, which it contains, whose every target some posture within the limits reaches
-    (gbmodel.bodies.unreachable, at full and half size). From the sampled hand positions within
-    `near` x the reach of h (gbmodel.workspace): per axis their `tail` ... 100 - `tail`
-    percentiles, widened to hold h, each side at most `side` x the reach (cut about h); then
-    shrunk towards h until every target is reached; bounds rounded outwards to the millimetre.
-    A home on the edge of the workspace (a stretched arm) has no such box: then the same about
-    the middle of those samples instead (a grid beside home, which describe() says). num:
-    points per axis (the body's own grid's when it has as many axes; else 4). None when neither
-    is found."""
+    """A grid (a body file's `grid:`) holding the hand's home h, every target reached at full and
+    half size: the `tail` ... 100 - `tail` percentiles of the sampled hand positions within
+    `near` x the reach of h, widened to hold h, each side at most `side` x the reach, shrunk
+    towards h until every target is reached; or, home on the workspace's edge, the same about
+    those samples' middle. num: points per axis (the body's grid's, else 4). None: neither."""
     x = workspace.hand_samples(body, seed=seed)
     n = x.shape[1]
     num = [int(k) for k in num] if num is not None and len(num) == n else [4] * n
@@ -145,8 +135,8 @@ def propose_grid(body, num=None, near: float = 0.5, tail: float = 5.0, side: flo
 
 
 def _box(body, anchor, lo, hi, longest: float, num: list, seed: int) -> dict | None:
-    """The box lo ... hi (which holds anchor), each side cut to `longest` about anchor, shrunk
-    towards anchor until every target of its grid is reached at full and half size."""
+    """The box lo ... hi, each side cut to `longest` about anchor, shrunk towards it until every
+    target of its grid is reached at full and half size (bounds rounded out to the millimetre)."""
     from dataclasses import replace
 
     cut = np.minimum(1.0, longest / np.maximum(hi - lo, 1e-12))
@@ -166,8 +156,8 @@ def _box(body, anchor, lo, hi, longest: float, num: list, seed: int) -> dict | N
 
 
 def trials_within(folder, figure: str, pct: float) -> tuple[list[str], int]:
-    """(the lines, the trials above pct): each trial of an aggregated figure, its held-out error
-    at its last epoch in % of its condition's reach (trials.parquet, summary.parquet)."""
+    """(the lines, the trials above pct): each trial's held-out error at its last epoch in % of
+    its condition's reach."""
     d = io.set_of(folder)
     trials = io.read_table(d / "trials.parquet").to_pandas()
     reach = dict(zip(*io.read_table(d / "summary.parquet").select(
@@ -200,19 +190,16 @@ def run(cfg: DictConfig) -> int:
 
 
 def take_flags(argv: list[str]) -> list[str]:
-    """argv without `--within PCT` (Hydra's parser would refuse it), noted; a bad PCT is one
-    line and exit 2."""
+    """argv without `--within PCT` (Hydra's parser would refuse it), noted; a bad PCT exits 2."""
     if WITHIN not in argv:
         return argv
     k = argv.index(WITHIN)
     try:
         _WITHIN[0] = float(argv[k + 1])
-        if not _WITHIN[0] > 0:
-            raise ValueError
     except (IndexError, ValueError):
-        print(f"error: {WITHIN} takes a percentage of the reach above 0 (--within 1.5)",
-              file=sys.stderr)
-        sys.exit(2)
+        _WITHIN[0] = 0.0
+    if not _WITHIN[0] > 0:
+        sys.exit(fail(f"{WITHIN} takes a percentage of the reach above 0 (--within 1.5)"))
     return argv[:k] + argv[k + 2:]
 
 

@@ -1,14 +1,9 @@
-"""The skew diagnostic of the scorecard's intervals: their coverage on samples resampled from each
-measure's own values (pipeline.studies.coverage; not the calibration, which is the replicate
-set's), written to pipeline/studies/coverage.csv, which the scorecard reads; its table is
-printed.
+"""The skew diagnostic of the scorecard's intervals (pipeline.studies.coverage): their coverage on
+samples resampled from each measure's own values, written to pipeline/studies/coverage.csv (the
+scorecard reads it) and printed; docs/scorecard.md shows it as the named value coverage.table.
 
     python -m pipeline.tools.coverage REPORT_DIR [--trials 3 5 10 20] [--draws 4000]
         [--out pipeline/studies/coverage.csv]
-
-docs/scorecard.md shows the table as the named value coverage.table (pipeline/studies/values.py):
-the report's next run writes it into values.csv, and `python -m pipeline.tools.render` (make
-docs) renders the page.
 """
 from __future__ import annotations
 
@@ -17,8 +12,8 @@ import sys
 from pathlib import Path
 
 from .. import io
-from ..studies.coverage import (COUNTS, DRAWS, FIT, TABLE, markdown,
-                                per_trial_values, table, to_csv)
+from ..studies.coverage import COUNTS, DRAWS, FIT, TABLE, markdown, per_trial_values, table, to_csv
+from . import fail
 
 
 def main(argv=None) -> int:
@@ -30,12 +25,10 @@ def main(argv=None) -> int:
     p.add_argument("--out", type=Path, default=TABLE)
     a = p.parse_args(argv)
     if not ((a.report / "scorecard.csv").exists() or (a.report / "measures.parquet").exists()):
-        print(f"error: {a.report}: no measures.parquet or scorecard.csv", file=sys.stderr)
-        return 2
+        return fail(f"{a.report}: no measures.parquet or scorecard.csv")
     t = table(per_trial_values(a.report), a.trials, a.draws)
     if not len(t):
-        print(f"error: {a.report}: no measure has {FIT} trials", file=sys.stderr)
-        return 2
+        return fail(f"{a.report}: no measure has {FIT} trials")
     io.write_text(a.out, to_csv(t))
     print(markdown(t))
     return 0

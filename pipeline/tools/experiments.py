@@ -13,6 +13,7 @@ from __future__ import annotations
 import sys
 
 from ..experiments import GROUPS, config_folders, declared, listed
+from . import fail
 
 
 def main(argv=None) -> int:
@@ -27,13 +28,10 @@ def main(argv=None) -> int:
             return 0
         bad = [a for a in args if a not in GROUPS]
         if bad:
-            print(f"error: {bad[0]}: choose groups of {', '.join(GROUPS)}, or --make",
-                  file=sys.stderr)
-            return 2
+            return fail(f"{bad[0]}: choose groups of {', '.join(GROUPS)}, or --make")
         print(" ".join(listed(config_folders(), *args)))
     except (OSError, ValueError) as err:
-        print(f"error: {err}".splitlines()[0], file=sys.stderr)
-        return 2
+        return fail(f"{err}".partition("\n")[0])
     return 0
 
 

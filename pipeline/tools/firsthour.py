@@ -4,14 +4,11 @@
     python -m pipeline.tools.firsthour --no-test       # set-up and smoke only (~5 min)
     python -m pipeline.tools.firsthour --keep          # keep the clone (its path is printed)
 
-The clone is of the committed HEAD (uncommitted edits are not measured), in a temporary folder.
-Each command runs as a new user types it (`make setup`, `make smoke`, `make test`) and is
-recorded with its wall time and CPU time (the make and every process under it); make smoke also
-with the trials it ran, make test with pytest's counts (passed, skipped). The machine's state goes
-beside them (cores, load average before and after, date, commit): on a shared machine the wall
-times are longer in proportion. The results go to --out (outputs/bench/first_hour.json), which
-the README and docs/results.md quote as named values `first_hour.*` (pipeline.tools.render:
-`{{ first_hour.smoke.cpu_min:.1f }}`): the pages' times are this file's, never typed by hand.
+The clone is of the committed HEAD, in a temporary folder; each command runs as a new user types
+it, timed (wall, and CPU of the make and every process under it), make smoke with the trials it
+ran, make test with pytest's counts, beside the machine's state (cores, load average before and
+after, date, commit). The results go to --out (outputs/bench/first_hour.json), which the pages
+quote as named values `first_hour.*` (pipeline.tools.render: `{{ first_hour.smoke.cpu_min:.1f }}`).
 """
 from __future__ import annotations
 
@@ -26,24 +23,21 @@ import tempfile
 import time
 from pathlib import Path
 
+from .. import io
+from . import timed
+
 REPO = Path(__file__).resolve().parents[2]
 OUT = Path("outputs") / "bench" / "first_hour.json"
 COUNTS = re.compile(r"(\d+) (passed|skipped|failed|errors?)\b")
 
 
 def run(cwd: Path, *cmd: str) -> tuple[dict, str]:
-    """`cmd` in `cwd`: its wall and CPU time (the process and all it waited for), and its output."""
-    env = {k: v for k, v in os.environ.items()  # as typed in a shell, not as make's child
+    """`cmd` in `cwd`, as typed in a shell (not as make's child): its times and its output."""
+    env = {k: v for k, v in os.environ.items()
            if k not in ("MAKEFLAGS", "MFLAGS", "MAKELEVEL", "MAKEOVERRIDES")}
-    start = time.perf_counter()
-    proc = subprocess.Popen(cmd, cwd=cwd, env=env, stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT)
-    text = proc.stdout.read().decode(errors="replace")
-    _, status, usage = os.wait4(proc.pid, 0)
-    wall, cpu = time.perf_counter() - start, usage.ru_utime + usage.ru_stime
-    rc = os.waitstatus_to_exitcode(status)
+    wall, cpu, _, rc, text = timed(list(cmd), cwd, env, merged=True)
     return dict(wall_s=round(wall, 1), wall_min=round(wall / 60, 2), cpu_s=round(cpu, 1),
-                cpu_min=round(cpu / 60, 2), rc=rc), text
+                cpu_min=round(cpu / 60, 2), rc=rc), text.decode(errors="replace")
 
 
 def pytest_counts(text: str) -> dict:
@@ -58,8 +52,7 @@ def pytest_counts(text: str) -> dict:
     return dict(out, failures=failures) if failures else out
 
 
-def trials_in(cache: Path) -> int:
-    """The trials a cache holds (one sidecar each)."""
+def trials_in(cache: Path) -> int:  # one sidecar each
     return sum(1 for p in cache.glob("trials/*/*.json") if not p.name.endswith(".state.json"))
 
 
@@ -69,7 +62,7 @@ def machine() -> dict:
 
 
 def measure(clone: Path, test: bool) -> dict:
-    """set-up, smoke (and test) in the fresh clone `clone`, each failing command's tail printed."""
+    """set-up, smoke (and test) in `clone`; a failing command's tail printed, the rest skipped."""
     out = {}
     steps = [("setup", "make setup"), ("smoke", "make smoke")] + (
         [("test", "make test")] if test else [])
@@ -87,11 +80,6 @@ def measure(clone: Path, test: bool) -> dict:
     return out
 
 
-def commit(code: Path) -> str:
-    return subprocess.run(["git", "rev-parse", "HEAD"], cwd=code, capture_output=True,
-                          text=True, check=True).stdout.strip()
-
-
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m pipeline.tools.firsthour",
                                  description=__doc__.split("\n")[0])
@@ -102,7 +90,8 @@ def main(argv: list[str] | None = None) -> int:
     tmp = Path(tempfile.mkdtemp(prefix="gbgrowth-first-hour-"))
     clone = tmp / "clone"
     subprocess.run(["git", "clone", "--quiet", str(REPO), str(clone)], check=True)
-    head = commit(REPO)  # measured as committed now, whatever the checkout does meanwhile
+    head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=REPO, capture_output=True, text=True,
+                          check=True).stdout.strip()  # as committed now, whatever comes after
     subprocess.run(["git", "checkout", "--quiet", head], cwd=clone, check=True)
     before = machine()
     try:
@@ -115,8 +104,6 @@ def main(argv: list[str] | None = None) -> int:
     after = machine()
     doc = dict(commit=head[:7], machine=dict(before, load_average_after=after["load_average"]),
                **results)
-    from .. import io
-
     io.write_text(args.out, json.dumps(doc, indent=1) + "\n")
     failed = [name for name, r in results.items() if r["rc"] != 0]
     print(f"{args.out}: written" + (f" (failed: {', '.join(failed)}; its output above)"
@@ -125,9 +112,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def values(path: Path) -> dict:
-    """The named values of a first_hour.json: `first_hour.<command>.<measure>` (its numbers),
-    first_hour.date, first_hour.commit and first_hour.test.counts ("1,156 passed, 34 skipped")
-    as text; none without the file."""
+    """The named values of a first_hour.json: `first_hour.<command>.<measure>`, the machine's,
+    and as text date, commit, test.counts ("1,156 passed, 34 skipped") and test.failures."""
     if not path.is_file():
         return {}
     doc = json.loads(path.read_text())

@@ -7,11 +7,9 @@ stuck far above their condition's median, and where the inverse commands a joint
     python -m pipeline.tools.lstsq_study arm2 --epochs 1000 --trials 3    # the 2-DOF arm
     python -m pipeline.tools.lstsq_study fig7 --epochs 2000 -- learner.ridge=0.1   # any override
 
-The seeds are the committed report's (the plan's streams depend on the body and the growth, not
-on the epochs, and the draws come in blocks of gbmodel.trial.DRAW_BLOCK = 1,000 epochs, so a run
-of a multiple of 1,000 epochs is the first epochs of the committed trials; a shorter run draws
-its one block at its own length, and differs). One process, trials
-in turn; prints one line per condition and, with --curve, the condition's median curve.
+The seeds are the committed report's: the draws come in blocks of gbmodel.trial.DRAW_BLOCK =
+1,000 epochs, so a run of a multiple of 1,000 epochs is the first epochs of the committed trials
+(a shorter one draws its one block at its own length). One process, the trials in turn.
 """
 from __future__ import annotations
 
@@ -28,8 +26,7 @@ from pipeline.plan import plan
 
 
 def saturated(M, spec, size) -> float:
-    """The share of the targets (at the final size) at which g commands a joint past its limit
-    (normalised bodies; 0 for a body without limits)."""
+    """The share of the targets at which g commands a joint past its limit (0 without limits)."""
     body = spec.make_body()
     if not (body.normalized and body.saturates):
         return 0.0
@@ -39,9 +36,8 @@ def saturated(M, spec, size) -> float:
 
 
 def drift(M1, M2, spec, size) -> float:
-    """How far the inverse's postures moved between two models: the mean over the targets (at
-    the final size) of |g2(x*) - g1(x*)| (command units): the redundancy resolution wandering
-    shows here, while the hand's error may stay put."""
+    """The mean over the targets of |g2(x*) - g1(x*)| (command units): the redundancy resolution
+    wandering shows here, while the hand's error may stay put."""
     body = spec.make_body()
     _, params = spec.make_learner()
     x = body.target_set(size)
@@ -55,51 +51,40 @@ def run(figure: str, epochs: int, trials: int, overrides: list[str], only=(), cu
     cfg = compose([*base, "learner.solver=lstsq", f"learner.epochs={epochs}",
                    f"trials.count={trials}", *overrides])
     rows: dict[str, list] = {}
-    t0 = time.process_time()
+    t0, mark = time.process_time(), min(1000, epochs)
     for t in plan(cfg):
-        label = t["growth_label"]
-        if only and label not in only:
+        if only and t["growth_label"] not in only:
             continue
-        mark = 1000 if epochs > 1000 else epochs
         spec = gbmodel.TrialSpec.from_dict({**t["spec"], "snapshots": [mark]})
         r = gbmodel.run_trial(spec, np.random.default_rng(np.random.SeedSequence(**t["seed"])))
-        rows.setdefault(label, []).append(
+        rows.setdefault(t["growth_label"], []).append(
             (r.abs_error[-1], r.heldout_abs_error[-1], saturated(r.M, spec, r.size[-1]),
              r.epoch, r.abs_error, drift(r.snapshots[mark], r.M, spec, r.size[-1])))
     cpu = time.process_time() - t0
     out = {}
     for label, rs in rows.items():
-        err = np.array([r[0] for r in rs])
-        held = np.array([r[1] for r in rs])
-        sat = np.array([r[2] for r in rs])
-        moved = np.array([r[5] for r in rs])
-        med = float(np.median(err))
-        curves = np.array([r[4] for r in rs])
-        best = float(np.median(curves, axis=0).min())
+        err, held, sat, _, curves, moved = (np.array([r[i] for r in rs]) for i in range(6))
+        med, m = float(np.median(err)), np.median(curves, axis=0)
         out[label] = dict(median=med, worst_ratio=float(err.max() / med),
                           stuck=int((err > 3 * med).sum()), heldout_median=float(np.median(held)),
                           heldout_max=float(held.max()), saturated_max=float(sat.max()),
-                          end_over_best=float(np.median(err) / best),
-                          moved=float(np.median(moved)))
+                          end_over_best=float(med / m.min()), moved=float(np.median(moved)))
         print(f"{label:>10}: n={len(rs)} median {1e3 * med:.2f} mm, worst/median "
               f"{err.max() / med:.2f}, >3x median {out[label]['stuck']}, end/best "
               f"{out[label]['end_over_best']:.2f}, held out median {1e3 * np.median(held):.2f} "
               f"max {1e3 * held.max():.2f} mm, past a limit max {100 * sat.max():.0f} % of "
-              f"targets, postures moved since epoch {min(1000, epochs)} "
-              f"{np.median(moved):.3f}", flush=True)
+              f"targets, postures moved since epoch {mark} {np.median(moved):.3f}", flush=True)
         if curve:
-            m = np.median(curves, axis=0)
-            pts = [i for i, e in enumerate(rs[0][3]) if e in (10, 100, 1000, 2000, 5000, 10000,
-                                                                20000, 50000, 100000)
-                   or i == len(m) - 1]
-            print("            median curve: " + ", ".join(
-                f"{rs[0][3][i]}: {1e3 * m[i]:.2f}" for i in pts))
-    refs = {k: v["median"] for k, v in out.items() if k.startswith("const1")}
-    if refs:
-        ref = next(iter(refs.values()))
-        grown = {k: v["median"] / ref for k, v in out.items() if not k.startswith("const")}
-        if grown:
-            print("grown / const1.0: " + ", ".join(f"{k} {v:.2f}" for k, v in grown.items()))
+            ep = rs[0][3]
+            pts = [i for i, e in enumerate(ep) if e in (10, 100, 1000, 2000, 5000, 10000, 20000,
+                                                       50000, 100000) or i == len(m) - 1]
+            print("            median curve: " + ", ".join(f"{ep[i]}: {1e3 * m[i]:.2f}"
+                                                           for i in pts))
+    refs = [v["median"] for k, v in out.items() if k.startswith("const1")]
+    grown = {k: v["median"] / refs[0] for k, v in out.items()
+             if refs and not k.startswith("const")}
+    if grown:
+        print("grown / const1.0: " + ", ".join(f"{k} {v:.2f}" for k, v in grown.items()))
     print(f"CPU {cpu:.0f} s", flush=True)
     return out
 

@@ -2,22 +2,18 @@
 
     python -m pipeline.tools.rate body=icub                       # W and eta = 1 / W for the iCub
     python -m pipeline.tools.rate body=arm5 learner.variations=40 # at other V, K, L, R
-
-W is the median sum of the weights per epoch at full size after 20,000 epochs of the normalised
-step at rate 1.0 (3 seeds; weight_sum): the plain step at
-eta = 1 / W equals the normalised step at full-size convergence. It prints the body's learner
-settings file (body_learner/<body>_goal_babbling.yaml of the config folder that holds the
-body's file, conf/ or a folder of hydra.searchpath: the command names it): the package line,
-the settings given on the command line that differ from the core's defaults, and eta and the
-samples it holds for. With --write it writes that file itself (as one rename: a failed run
-leaves no empty file behind, as `> file` would). With learner.solver=lstsq there is no rate, and no W to compute:
-
     python -m pipeline.tools.rate 'hydra.searchpath=[file:///my/conf]' body=my_arm \
-        learner.solver=lstsq learner.radius=0.1 learner.targets_per_epoch=30 learner.steps=10 --write
+      learner.solver=lstsq learner.radius=0.1 learner.targets_per_epoch=30 learner.steps=10 --write
+
+It prints the body's learner settings file (body_learner/<body>_goal_babbling.yaml beside the
+body's file: conf/ or a folder of hydra.searchpath): the package line, the settings given on the
+command line that differ from the core's defaults, and eta = 1 / W with the samples it holds
+for; --write writes that file itself, in one rename. With solver=lstsq there is no rate.
 """
 from __future__ import annotations
 
 import dataclasses
+import os
 import sys
 from pathlib import Path
 
@@ -31,42 +27,32 @@ from gbmodel.learners.goal_babbling import reference
 from gbmodel.trial import TrialSpec, run_trial
 
 from .. import cli
-from ..config import CONF_DIR, CONFIG_PATH, IN_CHECKOUT
+from ..config import CONF_DIR, CONFIG_PATH, IN_CHECKOUT, ConfigError
 
 EPOCHS, SEEDS, PROBE = 20_000, (0, 1, 2), 50  # the rule, as it was fixed before the runs
+WRITE = "--write"  # write the settings file where it goes, instead of printing it
+_WRITE = [False]
 
 
 def weight_sum(body: dict, params: dict, seeds=SEEDS, epochs: int = EPOCHS,
                probe: int = PROBE) -> float:
-    """W, the rule that fixed the plain step's rates (eta = 1 / W): the median sum of the weights
-    per epoch at full size after `epochs` epochs of the normalised step at rate 1.0 (one trial per
-    seed, then `probe` epochs each of new draws, not learned from). It makes the plain step equal
-    to the normalised one at full-size convergence (arm5 W = 1142, iCub W = 1791, arm2 W = 1931
-    when the rates were fixed). body: a body description (make_body); params: Goal Babbling's
-    Params fields (V, R, K, L ...)."""
+    """W: the median sum of the weights per epoch at full size after `epochs` epochs of the
+    normalised step at rate 1.0 (a trial per seed, then `probe` epochs of new draws, not learned
+    from): the plain step at eta = 1 / W equals the normalised one at full-size convergence
+    (arm5 W = 1142, iCub W = 1791, arm2 W = 1931 when the rates were fixed)."""
     params = {**params, "step": "normalised", "learning_rate": 1.0}
     sums = []
     for seed in seeds:
         spec = TrialSpec(body=body, learner={"name": "goal_babbling", **params}, epochs=epochs)
         M = run_trial(spec, np.random.default_rng(seed)).M
         b, p = spec.make_body(), gb.Params(**params)
-        rng = np.random.default_rng(1000 + seed)
-        idx, raw = gb.draw(p, b, probe, rng)[:2]
+        idx, raw = gb.draw(p, b, probe, np.random.default_rng(1000 + seed))[:2]
         exps = exponents(b.n, p.degree)
         for e in range(probe):
             _, (_, _, _, w) = reference.epoch(M, b, 1.0, np.ones(b.m), exps, idx[e], raw[e],
                                               p.radius, p.steps, 0.0)
             sums.append(float(w.sum()))
     return float(np.median(sums))
-
-
-def goal_babbling_only(cfg: DictConfig) -> None:
-    """ConfigError (one line) unless cfg's learner is Goal Babbling, whose rule this is."""
-    if cfg.learner.name != "goal_babbling":
-        from ..config import ConfigError
-
-        raise ConfigError(f"learner={cfg.learner.name}: the rate rule is Goal Babbling's plain "
-                          "step (learner=goal_babbling)")
 
 
 def rate(cfg: DictConfig, epochs: int = EPOCHS, seeds=SEEDS) -> dict:
@@ -77,22 +63,19 @@ def rate(cfg: DictConfig, epochs: int = EPOCHS, seeds=SEEDS) -> dict:
         params.pop(k)
     W = weight_sum(OmegaConf.to_container(cfg.body), params, seeds, epochs, PROBE)
     p = gb.Params(**params)
-    samples = p.variations * (p.targets_per_epoch * p.steps + 1)
-    return dict(body=cfg.body.name, W=W, learning_rate=1.0 / W, rate_samples=samples,
-                current=p.rate())
+    return dict(body=cfg.body.name, W=W, learning_rate=1.0 / W, current=p.rate(),
+                rate_samples=p.variations * (p.targets_per_epoch * p.steps + 1))
 
 
-def own_settings(cfg: DictConfig) -> dict:
-    """cfg's Goal Babbling settings that differ from the core's defaults (Params), rate aside."""
-    defaults = dataclasses.asdict(gb.Params())
-    return {k: v for k, v in OmegaConf.to_container(cfg.learner).items()
-            if k in defaults and v != defaults[k] and k not in ("learning_rate", "rate_samples")}
+def goal_babbling_only(cfg: DictConfig) -> None:
+    if cfg.learner.name != "goal_babbling":
+        raise ConfigError(f"learner={cfg.learner.name}: the rate rule is Goal Babbling's plain "
+                          "step (learner=goal_babbling)")
 
 
 def destination(cfg: DictConfig) -> Path:
-    """Where the body's learner settings go: body_learner/<body>_goal_babbling.yaml in the
-    config folder that holds the body's file (a folder of hydra.searchpath, or conf/: the
-    checkout's, or, installed, the working directory's)."""
+    """body_learner/<body>_goal_babbling.yaml in the config folder that holds the body's file (a
+    folder of hydra.searchpath, or conf/: the checkout's, or installed, the working directory's)."""
     from hydra.core.hydra_config import HydraConfig
 
     folders = [Path(s.path) for s in HydraConfig.get().runtime.config_sources
@@ -103,30 +86,23 @@ def destination(cfg: DictConfig) -> Path:
 
 
 def settings_file(cfg: DictConfig, path: Path, r: dict | None) -> str:
-    """The file to paste at `path`: the package line, cfg's own settings and (r given, the
-    plain step) its rate."""
+    """The file at `path`: the package line, cfg's settings that differ from the core's defaults
+    (Params; the rate aside) and (r given: the plain step) its rate."""
+    defaults = dataclasses.asdict(gb.Params())
     lines = ["# @package learner", f"# {path}: Goal Babbling's settings for {cfg.body.name}"]
-    lines += [f"{k}: {v}" for k, v in own_settings(cfg).items()]
+    lines += [f"{k}: {v}" for k, v in OmegaConf.to_container(cfg.learner).items()
+              if k in defaults and v != defaults[k] and k not in ("learning_rate", "rate_samples")]
     if r is not None:
         lines += [f"learning_rate: {r['learning_rate']:.3g}   # 1 / W, W = {r['W']:.0f}",
                   f"rate_samples: {r['rate_samples']}"]
     return "\n".join(lines) + "\n"
 
 
-WRITE = "--write"  # write the settings file where it goes, instead of printing it
-_WRITE = [False]
-
-
 def write_settings(path: Path, text: str) -> Path | None:
-    """Put the settings file at `path` as one rename (a failed run leaves what was there, never
-    an empty file); refuse a file without a setting (ConfigError): nothing to write. A file that
-    was there with other settings is kept beside it as `.<name>.previous` (Hydra reads no such
-    file), which is returned; an empty one (left by `rate > file`) is simply replaced."""
-    import os
-
+    """Put the settings file at `path` in one rename; ConfigError for a file without a setting.
+    A file that was there with other settings is kept as `.<name>.previous` (Hydra reads no
+    such file), which is returned; an empty one (left by `rate > file`) is simply replaced."""
     if not [ln for ln in text.splitlines() if ln.strip() and not ln.startswith("#")]:
-        from ..config import ConfigError
-
         raise ConfigError(f"{path}: no setting to write (these are the core's defaults); give "
                           "the learner's settings on the command line, e.g. learner.solver=lstsq")
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -143,32 +119,24 @@ def write_settings(path: Path, text: str) -> Path | None:
     return kept
 
 
-def cpu_estimate(cfg: DictConfig) -> str:
-    """The rule's CPU time by the cost model (pipeline.plan.cost): its trials are the config's
-    first trial at EPOCHS epochs, once per seed."""
+def run(cfg: DictConfig, write: bool | None = None) -> int:
+    """Print the body's learner settings file, or (`--write`) write it where it goes."""
     from ..plan import SECONDS_PER_COST, cost, plan
     from ..progress import fmt_duration
 
-    spec = {**plan(cfg)[0]["spec"], "epochs": EPOCHS}
-    return fmt_duration(len(SEEDS) * cost(dict(spec=spec)) * SECONDS_PER_COST)
-
-
-def run(cfg: DictConfig, write: bool | None = None) -> int:
-    """Print the body's learner settings file, or (`--write`) write it where it goes."""
-    write = _WRITE[0] if write is None else write
     goal_babbling_only(cfg)  # before its settings are read: another learner has no `solver`
-    path = destination(cfg)
-    r = None
+    path, r = destination(cfg), None
     if cfg.learner.solver == "gradient":
+        cpu = len(SEEDS) * cost(dict(spec={**plan(cfg)[0]["spec"], "epochs": EPOCHS}))
         print(f"computing W for {cfg.body.name}: {len(SEEDS)} trials of {EPOCHS:,} epochs of "
-              f"the normalised step, about {cpu_estimate(cfg)} of CPU time (the cost model) ...",
-              file=sys.stderr, flush=True)
+              f"the normalised step, about {fmt_duration(cpu * SECONDS_PER_COST)} of CPU time "
+              "(the cost model) ...", file=sys.stderr, flush=True)
         r = rate(cfg)
         print(f"{r['body']}: W = {r['W']:.0f}, eta = 1 / W = {r['learning_rate']:.6g} at "
               f"{r['rate_samples']} samples per epoch (this config's eta: {r['current']:.6g})",
               file=sys.stderr)
     text = settings_file(cfg, path, r)
-    if write:
+    if _WRITE[0] if write is None else write:
         kept = write_settings(path, text)
         print(f"wrote {path}" + (f" (its previous settings kept in {kept})" if kept else "")
               + ":", file=sys.stderr)
@@ -184,9 +152,8 @@ def main(cfg: DictConfig) -> None:
 
 
 def take_flags(argv: list[str]) -> list[str]:
-    """argv without the tool's own flag (--write, which Hydra's parser would refuse), noted."""
-    if WRITE in argv:
-        _WRITE[0] = True
+    """argv without --write (Hydra's parser would refuse it), noted."""
+    _WRITE[0] = _WRITE[0] or WRITE in argv
     return [a for a in argv if a != WRITE]
 
 

@@ -3,20 +3,12 @@
     python -m pipeline.tools.render            # write every page that differs (make docs)
     python -m pipeline.tools.render --check    # exit 1, one line per page that differs
 
-A page with numbers of the report (README.md, docs/*.md) has its template under docs/templates/ at
-the same path (docs/templates/docs/results.md -> docs/results.md): its text with a reference
-`{{ name:.1f }}` where each number of the report stands, `{{ name }}` where a generated table
-does (pipeline/studies/values.py: the names, the formats). The values are the committed report's,
-outputs/report/values.csv (written by the report stage: each section names the numbers it
-computes). Edit the template, never the page; numbers that are not the report's are plain text,
-except the first-hour times (set-up, make smoke, make test: `{{ first_hour.smoke.cpu_min:.1f }}`),
-which are outputs/bench/first_hour.json's (`make first-hour`, pipeline/tools/firsthour.py); a page
-that quotes none is plain Markdown with no template.
-
-Exit status: 0 every page equals its rendering (or is written); 1 (--check) one line per page
-that differs; 2 a bad reference, a missing values table, or a template or page reached through
-a link (one line, `error: ...`), and nothing is written. A page is replaced in one rename (a
-kill leaves the old page or the new one).
+A page with the report's numbers (README.md, docs/*.md) has its template at the same path under
+docs/templates/: its text with `{{ name:.1f }}` where a number stands, `{{ name }}` where a table
+does (pipeline/studies/values.py), from the committed report's outputs/report/values.csv, and the
+first-hour times from outputs/bench/first_hour.json (pipeline/tools/firsthour.py). Edit the
+template, never the page. Exit 2 (one line, nothing written): a bad reference, no values table,
+or a template or page reached through a link. A page is replaced in one rename.
 """
 from __future__ import annotations
 
@@ -25,7 +17,7 @@ import sys
 from pathlib import Path
 
 from ..studies import values as named
-from . import firsthour
+from . import fail, firsthour
 
 REPO_ROOT = Path(__file__).resolve().parents[2]  # the checkout (pipeline.config's, without Hydra)
 
@@ -34,7 +26,7 @@ VALUES = Path("outputs") / "report" / named.FILE
 
 
 def templates(root: Path) -> list[Path]:
-    """Every template, as its path under docs/templates/ (the page's path from the root)."""
+    """Every template's path under docs/templates/: its page's from the root."""
     base = root / TEMPLATES
     return sorted(p.relative_to(base) for p in base.rglob("*.md")) if base.is_dir() else []
 
@@ -58,8 +50,8 @@ def rendered(root: Path, values_path: Path | None = None) -> dict[Path, str]:
 
 
 def unlinked(root: Path, rel: Path) -> Path:
-    """root / rel; BadValue if it or a folder on its way from root is a link (a template that
-    is a link would copy another file into a page, a linked folder put a page elsewhere)."""
+    """root / rel; BadValue if it or a folder on its way is a link (a linked template would copy
+    another file into a page, a linked folder put a page elsewhere)."""
     p = root
     for part in rel.parts:
         p = p / part
@@ -70,7 +62,6 @@ def unlinked(root: Path, rel: Path) -> Path:
 
 
 def differing(root: Path, pages: dict[Path, str]) -> list[Path]:
-    """The pages whose committed text is not their rendering."""
     return [rel for rel, text in pages.items()
             if not (root / rel).is_file() or (root / rel).read_bytes() != text.encode()]
 
@@ -87,8 +78,7 @@ def main(argv=None, root: Path | None = None) -> int:
     try:
         pages = rendered(root, args.values)
     except (named.BadValue, OSError) as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
+        return fail(e)
     stale = differing(root, pages)
     if args.check:
         for rel in stale:

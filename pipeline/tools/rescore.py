@@ -20,6 +20,7 @@ import pandas as pd
 
 from ..config import REPO_ROOT
 from ..studies import claims, measures_table, scorecard
+from . import fail
 
 
 def rescore(report: Path, register) -> dict:
@@ -70,20 +71,17 @@ def main(argv=None) -> int:
     p.add_argument("--register", type=Path, default=claims.REGISTER)
     a = p.parse_args(argv)
     if not (a.report / measures_table.NAME).exists():
-        print(f"error: {a.report}: no {measures_table.NAME} (a report written before it has "
-              "none: regenerate the report)", file=sys.stderr)
-        return 2
+        return fail(f"{a.report}: no {measures_table.NAME} (a report written before it has none: "
+                    "regenerate the report)")
     start = time.perf_counter()
     try:  # the register first: its schema checked before any of it is used (one line)
         register = claims.load_register(a.register)
     except ValueError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
+        return fail(e)
     try:
         out = rescore(a.report, register)
     except (OSError, ValueError, KeyError, TypeError) as e:
-        print(f"error: {a.report}: {e}", file=sys.stderr)
-        return 2
+        return fail(f"{a.report}: {e}")
     if out["default"] is not None:
         print(f"default reading on {', '.join(out['counted'])}: "
               f"{scorecard.headline_text(out['default'])}")

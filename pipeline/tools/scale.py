@@ -1,5 +1,7 @@
-"""Benchmarks of the pipeline at scale: sweeps of many short trials from nothing, stage by stage
-(`make scale`); a cold report against another checkout; the cached Makefile stages.
+"""Benchmarks of the pipeline at scale (`make scale`; docs/scale.md): sweeps of short arm5 trials
+(ten conditions) from nothing, each stage timed as the command a user types (simulate, cached,
+aggregate, cached, after one trial changed), wall, CPU, peak memory and files; cold reports and
+the kernel (`bench compare`) against another checkout; the cached stages.
 
     python -m pipeline.tools.scale                           # 1,000 and 10,000 trials
     python -m pipeline.tools.scale --sizes 100000            # the large one (about an hour)
@@ -8,27 +10,6 @@
     python -m pipeline.tools.scale report --baseline /tmp/base [--rounds 3] [--profile full]
                                           [--experiments E1,E2] [--aggregates this|own]
     python -m pipeline.tools.scale stages [--profile full] [--repeats 3]
-
-A sweep: arm5 trials of --epochs (10) epochs over ten conditions (growth periods 1 ... 10), in
-a temporary root; each stage runs as the command a user types, in the checkout under test, with
-its wall and CPU time (its processes and workers), peak memory and the cache's files: simulate
-(from nothing), simulate_cached, aggregate, aggregate_cached, aggregate_one (after one trial
-changed: its sidecar's content, sealed again). --sampled N plans all N as simulate does (then
-from the saved plan) and runs the stages on --sample trials (1,000), whose costs per trial times
-N estimate the stages at N (`estimated_cpu_s`). --smoke-experiments (make scale passes make
-smoke's) also times a fully cached make smoke, --repeat times after bringing it up to date. The
-last lines: the cached smoke's CPU (target SMOKE_TARGET_S) and aggregate's after one changed
-trial of 10,000 (target ONE_TRIAL_TARGET_S), each the median of --repeat runs. With --baseline,
-every size runs on the baseline right after this one, the start-up runs alternating (a shared
-machine's load falls on both alike). Results: --out (JSON) and a table (ms CPU per trial).
-
-report: a cold report (every figure drawn), this checkout against BASELINE (`git worktree add
-/tmp/base <commit>`) in CPU time, A B then B A ...; both on this checkout's aggregates (make
-smoke, or make reproduce for --profile full, first), or with --aggregates own each on its own
-outputs/ (an older checkout). A report that fails or writes no report.md stops it with its error.
-It prints each pair's ratio this / baseline, their median (the figure to quote) and the files
-whose bytes differ in the last pair. stages: the three stage commands of every make list's
-experiments on a fully cached tree (cached_smoke), --repeats times: each one's median.
 """
 from __future__ import annotations
 
@@ -46,6 +27,8 @@ from pathlib import Path
 
 from pipeline import io
 
+from . import fail, timed, turns
+
 REPO = Path(__file__).resolve().parents[2]
 CONDITIONS = 10  # growth periods 1 ... 10: trials.count = size / CONDITIONS
 STAGES = ("simulate", "simulate_cached", "aggregate", "aggregate_cached", "aggregate_one")
@@ -53,46 +36,35 @@ SMOKE_STAGES = ("simulate", "aggregate", "report")  # make smoke's commands
 SMOKE_TARGET_S, ONE_TRIAL_TARGET_S = 8.0, 2.0  # CPU seconds (issue 43)
 
 
-def overrides(root: Path, size: int, epochs: int, workers: int) -> list[str]:
+def overrides(root: Path, size: int, epochs: int, workers: int | None) -> list[str]:
     periods = ",".join(str(p) for p in range(1, CONDITIONS + 1))
     return [f"paths.root={root}", "figure=scale", "body=arm5", f"learner.epochs={epochs}",
             f"conditions.periods=[{periods}]", f"trials.count={size // CONDITIONS}",
-            f"workers={workers}"]
+            *([f"workers={workers}"] if workers else [])]
+
+
+def run_command(code: Path, stage: str, args: list[str]) -> tuple[dict, int, bytes]:
+    """`python -m pipeline.<stage> args` in checkout `code`: (times, exit status, stderr)."""
+    wall, cpu, mb, rc, err = timed([sys.executable, "-m", f"pipeline.{stage}", *args], code,
+                                   dict(os.environ, PYTHONPATH=str(code)))
+    return dict(wall_s=round(wall, 3), cpu_s=round(cpu, 3), peak_mb=round(mb, 1)), rc, err
 
 
 def run_stage(code: Path, stage: str, args: list[str]) -> dict:
-    """Run `python -m pipeline.<stage> args` in checkout `code`: wall, CPU (the process and the
-    children it waited for) and peak resident memory of its largest process."""
     out, rc, err = run_command(code, stage, args)
     if rc not in (0, 1):
         raise RuntimeError(f"{stage} in {code} exited {rc}: {err.decode(errors='replace')[-2000:]}")
     return out
 
 
-def run_command(code: Path, stage: str, args: list[str]) -> tuple[dict, int, bytes]:
-    """run_stage's measures, the exit status and what the stage wrote to stderr."""
-    env = dict(os.environ, PYTHONPATH=str(code))
-    start = time.perf_counter()
-    proc = subprocess.Popen([sys.executable, "-m", f"pipeline.{stage}", *args], cwd=code,
-                            env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    err = proc.stderr.read()
-    _, status, usage = os.wait4(proc.pid, 0)
-    wall = time.perf_counter() - start
-    return (dict(wall_s=round(wall, 3), cpu_s=round(usage.ru_utime + usage.ru_stime, 3),
-                 peak_mb=round(usage.ru_maxrss / 1024, 1)),
-            os.waitstatus_to_exitcode(status), err)
-
-
 def smoke_once(code: Path, experiments: str, profile: str = "smoke") -> dict:
-    """make smoke's three commands (or make reproduce's: profile full) in checkout `code`: each
-    stage's wall, CPU and peak memory."""
+    """make smoke's three commands (make reproduce's: profile full) in checkout `code`."""
     args = [f"experiments=[{experiments}]", f"profile={profile}"]
     out = {stage: run_stage(code, stage, args) for stage in SMOKE_STAGES}
     return dict(out, cpu_s=round(sum(out[s]["cpu_s"] for s in SMOKE_STAGES), 3))
 
 
 def median_of(runs: list[dict]) -> dict:
-    """Each measure's median over `runs` (dicts of wall_s, cpu_s, peak_mb), and the runs' CPU."""
     out = {k: round(statistics.median(r[k] for r in runs), 3) for k in runs[0]
            if isinstance(runs[0][k], (int, float))}
     return dict(out, runs_cpu_s=[r["cpu_s"] for r in runs])
@@ -100,9 +72,8 @@ def median_of(runs: list[dict]) -> dict:
 
 def cached_smoke(codes: list[Path], experiments: str, repeat: int,
                  profile: str = "smoke") -> list[dict]:
-    """A fully cached make smoke in each checkout: brought up to date (the cache, the aggregates
-    and the report, unmeasured), then `repeat` measured runs, the checkouts alternating; per
-    checkout each stage's median and the median total."""
+    """A fully cached make smoke in each checkout: brought up to date (unmeasured), then `repeat`
+    runs, the checkouts alternating; per checkout each stage's median and the median total."""
     for code in codes:
         smoke_once(code, experiments, profile)
     runs = {code: [] for code in codes}
@@ -115,21 +86,18 @@ def cached_smoke(codes: list[Path], experiments: str, repeat: int,
 
 
 def headline(results: list[dict], smokes: list[dict]) -> list[str]:
-    """The start-up numbers against their targets: a cached make smoke's CPU, and aggregate's
-    after one changed trial of a 10,000-trial sweep, per checkout."""
+    """The start-up numbers against their targets, per checkout."""
+    def median(r: dict) -> str:
+        runs = r.get("runs_cpu_s", [])
+        return (f" (median of {len(runs)}: {', '.join(f'{c:.2f}' for c in runs)})"
+                if len(runs) > 1 else "")
     lines = [f"cached make smoke ({r['code'][-28:]}): {r['cpu_s']:.2f} s CPU ("
              + ", ".join(f"{s} {r[s]['cpu_s']:.2f}" for s in SMOKE_STAGES)
-             + f"){_median(r)}; target at most {SMOKE_TARGET_S:g} s" for r in smokes]
-    lines += [f"aggregate after one changed trial of {r['size']:,} ({r['code'][-28:]}): "
-              f"{r['aggregate_one']['cpu_s']:.2f} s CPU{_median(r['aggregate_one'])}; "
-              f"target at most {ONE_TRIAL_TARGET_S:g} s"
-              for r in results if r["size"] == 10_000 and "sampled" not in r]
-    return lines
-
-
-def _median(r: dict) -> str:
-    runs = r.get("runs_cpu_s", [])
-    return f" (median of {len(runs)}: {', '.join(f'{c:.2f}' for c in runs)})" if len(runs) > 1 else ""
+             + f"){median(r)}; target at most {SMOKE_TARGET_S:g} s" for r in smokes]
+    return lines + [f"aggregate after one changed trial of {r['size']:,} ({r['code'][-28:]}): "
+                    f"{r['aggregate_one']['cpu_s']:.2f} s CPU{median(r['aggregate_one'])}; "
+                    f"target at most {ONE_TRIAL_TARGET_S:g} s"
+                    for r in results if r["size"] == 10_000 and "sampled" not in r]
 
 
 def change_one_trial(cache: Path) -> str:
@@ -146,20 +114,19 @@ def files_under(folder: Path) -> int:
     return sum(len(files) for _, _, files in os.walk(folder))
 
 
+def megabytes(folder: Path) -> float:
+    return sum(p.stat().st_size for p in folder.rglob("*") if p.is_file()) / 2**20
+
+
 def prepare(code: Path, size: int, epochs: int, workers: int) -> tuple[dict, Path]:
-    """Every stage of a sweep of `size` trials on checkout `code` but the last (aggregate_one),
-    in a new temporary root: (the results, the root)."""
+    """Every stage of a sweep but aggregate_one in a new temporary root: (results, the root)."""
     root = Path(tempfile.mkdtemp(prefix=f"scale-{size}-"))
     try:
-        args = overrides(root, size, epochs, workers)
-        out = dict(code=str(code), size=size)
-        out["simulate"] = run_stage(code, "simulate", args)
-        cache = root / "outputs" / "cache"
-        out["files"] = files_under(cache / "trials")
-        out["cache_mb"] = round(sum(p.stat().st_size for p in (cache / "trials").rglob("*")
-                                    if p.is_file()) / 2**20, 1)
+        args, agg = overrides(root, size, epochs, workers), overrides(root, size, epochs, None)
+        out = dict(code=str(code), size=size, simulate=run_stage(code, "simulate", args))
+        trials = root / "outputs" / "cache" / "trials"
+        out.update(files=files_under(trials), cache_mb=round(megabytes(trials), 1))
         out["simulate_cached"] = run_stage(code, "simulate", args)
-        agg = aggregate_args(root, size, epochs)
         out["aggregate"] = run_stage(code, "aggregate", agg)
         out["aggregate_cached"] = run_stage(code, "aggregate", agg)
     except BaseException:
@@ -168,32 +135,16 @@ def prepare(code: Path, size: int, epochs: int, workers: int) -> tuple[dict, Pat
     return out, root
 
 
-def aggregate_args(root: Path, size: int, epochs: int) -> list[str]:
-    return [a for a in overrides(root, size, epochs, 1) if not a.startswith("workers=")]
-
-
 def changed_once(code: Path, root: Path, size: int, epochs: int) -> dict:
     """aggregate after one trial of the sweep in `root` changed (change_one_trial)."""
     change_one_trial(root / "outputs" / "cache")
-    return run_stage(code, "aggregate", aggregate_args(root, size, epochs))
-
-
-def finish(out: dict, runs: list[dict]) -> dict:
-    """`out` with aggregate_one the median of `runs`, and each stage's CPU per trial."""
-    out["aggregate_one"] = median_of(runs)
-    for stage in STAGES:
-        out[stage]["cpu_ms_per_trial"] = round(1000 * out[stage]["cpu_s"] / out["size"], 3)
-    return out
-
-
-def sweep(code: Path, size: int, epochs: int, workers: int, keep: bool) -> dict:
-    """Every stage of one sweep of `size` trials on checkout `code`, in a new temporary root."""
-    return paired([code], size, epochs, workers, keep, 1)[0]
+    return run_stage(code, "aggregate", overrides(root, size, epochs, None))
 
 
 def paired(codes: list[Path], size: int, epochs: int, workers: int, keep: bool,
            repeat: int) -> list[dict]:
-    """sweep() of each checkout, the `repeat` runs of aggregate_one alternating between them."""
+    """A sweep of each checkout, the `repeat` runs of aggregate_one alternating between them;
+    each stage's CPU per trial."""
     prepared = []
     try:
         for code in codes:
@@ -202,7 +153,11 @@ def paired(codes: list[Path], size: int, epochs: int, workers: int, keep: bool,
         for _ in range(repeat):
             for code, _, root in prepared:
                 runs[code].append(changed_once(code, root, size, epochs))
-        return [finish(out, runs[code]) for code, out, _ in prepared]
+        for code, out, _ in prepared:
+            out["aggregate_one"] = median_of(runs[code])
+            for stage in STAGES:
+                out[stage]["cpu_ms_per_trial"] = round(1000 * out[stage]["cpu_s"] / size, 3)
+        return [out for _, out, _ in prepared]
     finally:
         for _, _, root in prepared if not keep else ():
             shutil.rmtree(root, ignore_errors=True)
@@ -224,27 +179,28 @@ print(json.dumps(out))
 """
 
 
+def child(code, script: str, *args: str, env: dict | None = None) -> dict:
+    """The JSON that `python -c script args` prints last in checkout `code`."""
+    proc = subprocess.run([sys.executable, "-c", script, *args], cwd=code, capture_output=True,
+                          text=True, env=env or dict(os.environ, PYTHONPATH=str(code)))
+    if proc.returncode:
+        raise RuntimeError(f"a child in {code} exited {proc.returncode}: {proc.stderr[-2000:]}")
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
 def planning(code: Path, size: int, epochs: int, workers: int) -> dict:
     """Plan a sweep of `size` trials in checkout `code` as simulate does, twice (the second
     time from the saved plan), in a temporary root: wall and CPU of each, peak memory."""
     root = Path(tempfile.mkdtemp(prefix=f"scale-plan-{size}-"))
     try:
-        args = json.dumps(overrides(root, size, epochs, workers))
-        proc = subprocess.run([sys.executable, "-c", PLANNING, args], cwd=code,
-                              env=dict(os.environ, PYTHONPATH=str(code)), capture_output=True,
-                              text=True)
-        if proc.returncode:
-            raise RuntimeError(f"planning in {code} exited {proc.returncode}: "
-                               f"{proc.stderr[-2000:]}")
-        return json.loads(proc.stdout.strip().splitlines()[-1])
+        return child(code, PLANNING, json.dumps(overrides(root, size, epochs, workers)))
     finally:
         shutil.rmtree(root, ignore_errors=True)
 
 
 def sampled(code: Path, size: int, sample: int, epochs: int, workers: int, keep: bool) -> dict:
-    """A sweep of `size` trials measured on a sample: planning all of them (planning), every
-    stage on `sample` trials (sweep), and each stage's CPU per trial times `size`."""
-    out = sweep(code, sample, epochs, workers, keep)
+    """A sweep of `size` trials planned, run on `sample` of them (`estimated_cpu_s`)."""
+    out = paired([code], sample, epochs, workers, keep, 1)[0]
     out.update(sampled=sample, size=size, **planning(code, size, epochs, workers))
     out["estimated_cpu_s"] = {stage: round(out[stage]["cpu_ms_per_trial"] * size / 1000, 1)
                               for stage in STAGES}
@@ -253,7 +209,7 @@ def sampled(code: Path, size: int, sample: int, epochs: int, workers: int, keep:
 
 def packing(n: int, rows: int = 11) -> dict:
     """The cache's layout (per_trial: a Parquet curve and a JSON sidecar each) against a packed
-    one (one Parquet of every curve, a key column, and one JSON of every sidecar), on `n`
+    one (one Parquet of every curve with a key column, one JSON of every sidecar), on `n`
     synthetic curves of `rows` epochs: files, MB, ms per trial to write and to read back."""
     import hashlib
 
@@ -265,42 +221,45 @@ def packing(n: int, rows: int = 11) -> dict:
         f.type) else rng.random(rows), f.type) for f in io.TRIAL_CURVE}) for _ in range(n)]
     keys = [f"{i:020x}" for i in range(n)]
     sides = [dict(key=k, M=rng.random((2, 5)).tolist(), status="ok") for k in keys]
-    out = {}
-    with tempfile.TemporaryDirectory() as tmp:
-        one = Path(tmp) / "per_trial"
-        t0 = time.process_time()
+
+    def read(curve: Path, side: Path, name: str, digest: str) -> None:
+        data = curve.read_bytes()
+        side = io.check_seal(io.parse_json(side.read_bytes(), name))
+        assert hashlib.sha256(data).hexdigest() == side[digest]
+        io.parse_table(data, name)
+
+    def per_trial(folder: Path, write: bool) -> None:
         for k, c, side in zip(keys, curves, sides):
-            side = dict(side, curve_sha256=io.write_table(one / k[:2] / f"{k}.parquet", c))
-            io.write_json(one / k[:2] / f"{k}.json", io.seal(side), compact=True)
-        t1 = time.process_time()
-        for k in keys:
-            data = (one / k[:2] / f"{k}.parquet").read_bytes()
-            side = io.check_seal(io.parse_json((one / k[:2] / f"{k}.json").read_bytes(), k))
-            assert hashlib.sha256(data).hexdigest() == side["curve_sha256"]
-            io.parse_table(data, k)
-        t2 = time.process_time()
-        out["per_trial"] = dict(files=files_under(one), write_ms=1e3 * (t1 - t0) / n,
-                                read_ms=1e3 * (t2 - t1) / n)
-        packed = Path(tmp) / "packed"
-        t0 = time.process_time()
+            curve, side_file = folder / k[:2] / f"{k}.parquet", folder / k[:2] / f"{k}.json"
+            if not write:
+                read(curve, side_file, k, "curve_sha256")
+                continue
+            side = dict(side, curve_sha256=io.write_table(curve, c))
+            io.write_json(side_file, io.seal(side), compact=True)
+
+    def packed(folder: Path, write: bool) -> None:
+        if not write:
+            return read(folder / "curves.parquet", folder / "sidecars.json", "pack",
+                        "curves_sha256")
         table = pa.concat_tables([c.append_column("key", pa.array([k] * rows))
                                   for k, c in zip(keys, curves)])
-        digest = io.write_table(packed / "curves.parquet", table)
-        io.write_json(packed / "sidecars.json", io.seal(dict(curves_sha256=digest, trials=sides)),
+        digest = io.write_table(folder / "curves.parquet", table)
+        io.write_json(folder / "sidecars.json", io.seal(dict(curves_sha256=digest, trials=sides)),
                       compact=True)
-        t1 = time.process_time()
-        data = (packed / "curves.parquet").read_bytes()
-        side = io.check_seal(io.parse_json((packed / "sidecars.json").read_bytes(), "pack"))
-        assert hashlib.sha256(data).hexdigest() == side["curves_sha256"]
-        io.parse_table(data, "pack")
-        t2 = time.process_time()
-        out["packed"] = dict(files=files_under(packed), write_ms=1e3 * (t1 - t0) / n,
-                             read_ms=1e3 * (t2 - t1) / n)
-        for name, folder in (("per_trial", one), ("packed", packed)):
-            out[name]["mb"] = round(sum(p.stat().st_size for p in folder.rglob("*")
-                                        if p.is_file()) / 2**20, 2)
-            out[name] = {k: round(v, 4) if isinstance(v, float) else v
-                         for k, v in out[name].items()}
+
+    out = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for layout in (per_trial, packed):
+            folder = Path(tmp) / layout.__name__
+            t0 = time.process_time()
+            layout(folder, True)
+            t1 = time.process_time()
+            layout(folder, False)
+            t2 = time.process_time()
+            out[layout.__name__] = dict(files=files_under(folder),
+                                        write_ms=round(1e3 * (t1 - t0) / n, 4),
+                                        read_ms=round(1e3 * (t2 - t1) / n, 4),
+                                        mb=round(megabytes(folder), 2))
     return out
 
 
@@ -310,16 +269,13 @@ def table(results: list[dict]) -> str:
     lines = [head, "-" * len(head)]
     for r in results:
         size = f"{r['sampled']}/{r['size']}" if "sampled" in r else str(r["size"])
-        for stage in STAGES:
-            s = r[stage]
-            lines.append(f"{r['code'][-28:]:<28} {size:>7} {stage:<17} {s['wall_s']:>8.2f} "
-                         f"{s['cpu_s']:>8.2f} {s['cpu_ms_per_trial']:>12.3f} "
-                         f"{s['peak_mb']:>8.1f} {r['files'] if stage == 'simulate' else '':>7}")
-        for stage in ("plan", "plan_saved") if "sampled" in r else ():
-            s = r[stage]
-            lines.append(f"{r['code'][-28:]:<28} {r['size']:>7} {stage:<17} {s['wall_s']:>8.2f} "
-                         f"{s['cpu_s']:>8.2f} {1000 * s['cpu_s'] / r['size']:>12.3f} "
-                         f"{r['peak_mb']:>8.1f} {'':>7}")
+        rows = [(size, stage, r[stage], r[stage]["cpu_ms_per_trial"], r[stage]["peak_mb"],
+                 r["files"] if stage == "simulate" else "") for stage in STAGES]
+        rows += [(str(r["size"]), stage, r[stage], 1000 * r[stage]["cpu_s"] / r["size"],
+                  r["peak_mb"], "") for stage in (("plan", "plan_saved") if "sampled" in r else ())]
+        lines += [f"{r['code'][-28:]:<28} {n:>7} {stage:<17} {s['wall_s']:>8.2f} "
+                  f"{s['cpu_s']:>8.2f} {ms:>12.3f} {mb:>8.1f} {files:>7}"
+                  for n, stage, s, ms, mb, files in rows]
     return "\n".join(lines)
 
 
@@ -330,8 +286,7 @@ def load() -> str:
 
 # ---- report: a cold report against a baseline; stages: the cached Makefile stages ----------------
 def report_args(experiments: list[str], profile: str, out: Path, root: Path = REPO) -> list[str]:
-    """The Makefile's report command of `experiments` (pipeline.report's arguments), on the
-    aggregates under `root` (this checkout's), into `out` (inside `root`)."""
+    """The Makefile's report command on the aggregates under `root`, into `out` (under it)."""
     return [f"experiments=[{','.join(experiments)}]", f"profile={profile}", f"paths.root={root}",
             f"paths.report={out}"]
 
@@ -348,8 +303,7 @@ def cold_report(code: Path, args: list[str], out: Path) -> float:
 
 def differing(a: Path, b: Path) -> list[str]:
     """The files of report folder `a` whose bytes differ from `b`'s (or that only one has)."""
-    files = {p.relative_to(a).as_posix() for p in a.rglob("*") if p.is_file()}
-    files |= {p.relative_to(b).as_posix() for p in b.rglob("*") if p.is_file()}
+    files = {p.relative_to(d).as_posix() for d in (a, b) for p in d.rglob("*") if p.is_file()}
     return sorted(f for f in files if not ((a / f).is_file() and (b / f).is_file()
                                            and filecmp.cmp(a / f, b / f, shallow=False)))
 
@@ -364,7 +318,7 @@ def report_pairs(trees: dict, roots: dict, exps: list[str], profile: str, rounds
             tmps[t] = Path(tempfile.mkdtemp(prefix=f".bench_report_{t}_",
                                             dir=roots[t] / "outputs"))
         for r in range(rounds):
-            for t in (list(trees) if r % 2 == 0 else list(trees)[::-1]):
+            for t in turns(trees, r):
                 out = tmps[t] / f"{t}{r}"
                 cpu[t].append(cold_report(trees[t], report_args(exps, profile, out, roots[t]),
                                           out))
@@ -378,31 +332,20 @@ def report_pairs(trees: dict, roots: dict, exps: list[str], profile: str, rounds
             shutil.rmtree(tmp, ignore_errors=True)
 
 
-def report_main(argv: list[str]) -> int:
-    from ..experiments import listed
-    from ..experiments import config_folders
+def report_main(a) -> int:
+    from ..experiments import config_folders, listed
 
-    ap = argparse.ArgumentParser(prog="python -m pipeline.tools.scale report")
-    ap.add_argument("--baseline", type=Path, required=True, help="another checkout")
-    ap.add_argument("--rounds", type=int, default=3, help="pairs of reports (default 3)")
-    ap.add_argument("--profile", default="smoke", choices=("smoke", "full"))
-    ap.add_argument("--experiments", help="comma-separated (default: every make list's)")
-    ap.add_argument("--aggregates", choices=("this", "own"), default="this",
-                    help="whose aggregates each checkout reports (own: each its own outputs/)")
-    a = ap.parse_args(argv)
-    bad = ((not (a.baseline / "pipeline" / "report.py").is_file(),
-            f"--baseline={a.baseline}: not a checkout of this project"),
-           (a.rounds < 1, f"--rounds={a.rounds}: at least 1"))
-    for why in (why for is_bad, why in bad if is_bad):
-        print(f"error: {why}", file=sys.stderr)
-        return 2
+    if not (a.baseline / "pipeline" / "report.py").is_file():
+        return fail(f"--baseline={a.baseline}: not a checkout of this project")
+    if a.rounds < 1:
+        return fail(f"--rounds={a.rounds}: at least 1")
     exps = a.experiments.split(",") if a.experiments else listed(config_folders())
     trees = {"this": REPO, "baseline": a.baseline.resolve()}
     roots = {t: (trees[t] if a.aggregates == "own" else REPO) for t in trees}
     try:
         cpu, diff = report_pairs(trees, roots, exps, a.profile, a.rounds)
     except RuntimeError as err:
-        return print(f"error: {err}", file=sys.stderr) or 2
+        return fail(err)
     ratios = [x / y for x, y in zip(cpu["this"], cpu["baseline"])]
     print(f"cold {a.profile} report ({len(exps)} experiments), {a.rounds} interleaved pairs: "
           f"this {statistics.median(cpu['this']):.2f} s CPU, baseline "
@@ -413,14 +356,9 @@ def report_main(argv: list[str]) -> int:
     return 0
 
 
-def stages_main(argv: list[str]) -> int:
-    from ..experiments import listed
-    from ..experiments import config_folders
+def stages_main(a) -> int:
+    from ..experiments import config_folders, listed
 
-    ap = argparse.ArgumentParser(prog="python -m pipeline.tools.scale stages")
-    ap.add_argument("--profile", default="smoke", choices=("smoke", "full"))
-    ap.add_argument("--repeats", type=int, default=3)
-    a = ap.parse_args(argv)
     r = cached_smoke([REPO], ",".join(listed(config_folders())), a.repeats, a.profile)[0]
     print(f"fully cached stages, profile={a.profile}, {a.repeats} repeats (medians):")
     for name in SMOKE_STAGES:
@@ -429,53 +367,116 @@ def stages_main(argv: list[str]) -> int:
     return 0
 
 
-def main(argv: list[str] | None = None) -> int:
-    argv = sys.argv[1:] if argv is None else argv
-    if argv[:1] in (["report"], ["stages"]):
-        return (report_main if argv[0] == "report" else stages_main)(argv[1:])
-    ap = argparse.ArgumentParser(prog="python -m pipeline.tools.scale", description=__doc__,
+# ---- bench compare: the kernel of another checkout beside this one's ----------------------------
+CHILD = r'''
+import json, sys, time
+import numpy as np, gbmodel
+from pipeline.tools.bench import EPOCHS, paper_spec
+
+
+def time_trial(spec, seed=0):
+    t0 = time.process_time()
+    gbmodel.run_trial(gbmodel.TrialSpec.from_dict(spec), np.random.default_rng(seed))
+    return (time.process_time() - t0) / spec["epochs"]
+
+
+out, learner = {}, sys.argv[2]
+path = "online" if learner == "online_goal_babbling" else "fast"
+for body in ("arm5", "icub"):
+    spec = paper_spec(body, EPOCHS[path][body], True, learner)
+    time_trial(paper_spec(body, 10, True, learner))
+    out[body] = [time_trial(spec, s) * 1e6 for s in range(int(sys.argv[1]))]
+print(json.dumps(out))
+'''
+
+
+def compare(baseline: str, rounds: int = 4, reps: int = 3, learner: str = "goal_babbling") -> dict:
+    """`python -m pipeline.tools.bench compare`: each round `reps` trials per body in a child
+    process of `baseline` and of this checkout in turn; prints the medians (us per trial-epoch,
+    CPU) and their ratio."""
+    trees = {"baseline": str(Path(baseline).resolve()), "this": str(REPO)}
+    res = {t: {"arm5": [], "icub": []} for t in trees}
+    for r in range(rounds):
+        for t, path in turns(trees.items(), r):
+            for b, times in child(path, CHILD, str(reps), learner,
+                                  env={"PYTHONPATH": path, "PATH": "/usr/bin:/bin"}).items():
+                res[t][b] += times
+    for b in ("arm5", "icub"):
+        m = {t: statistics.median(res[t][b]) for t in trees}
+        print(f"{b}: baseline {m['baseline']:.1f} us/trial-epoch, this {m['this']:.1f} "
+              f"us/trial-epoch, ratio this/baseline {m['this'] / m['baseline']:.3f} "
+              f"(medians of {len(res['baseline'][b])})")
+    return res
+
+
+def parser(command: str | None) -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog=f"python -m pipeline.tools.scale {command or ''}".strip(),
+                                 description=None if command else __doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--sizes", default="1000,10000", help="trials per sweep, comma-separated")
-    ap.add_argument("--epochs", type=int, default=10, help="epochs per trial (default 10)")
-    ap.add_argument("--workers", type=int, default=2, help="simulate's workers (default 2)")
-    ap.add_argument("--baseline", type=Path, help="another checkout to run beside this one")
-    ap.add_argument("--out", type=Path, default=REPO / "outputs" / "bench" / "scale.json")
-    ap.add_argument("--keep", action="store_true", help="keep the temporary roots")
-    ap.add_argument("--sampled", type=int, metavar="N",
-                    help="instead of --sizes: plan N trials, run a sample of --sample of them")
-    ap.add_argument("--sample", type=int, default=1000, help="trials run for --sampled (1000)")
-    ap.add_argument("--smoke-experiments", metavar="E1,E2,...",
-                    help="also time a fully cached make smoke of these experiments")
-    ap.add_argument("--repeat", type=int, default=3,
-                    help="runs of aggregate_one and of the cached smoke, medians (default 3)")
-    ap.add_argument("--packing", type=int, metavar="N",
-                    help="instead: the cache's files against one packed file, for N trials")
-    a = ap.parse_args(argv)
-    if a.packing is not None:
-        if a.packing < 1:
-            return print(f"error: --packing={a.packing}: at least 1 trial", file=sys.stderr) or 2
-        print(json.dumps(dict(trials=a.packing, **packing(a.packing), machine=load()), indent=1))
-        return 0
+    add = ap.add_argument
+    if command == "report":
+        add("--baseline", type=Path, required=True, help="another checkout")
+        add("--rounds", type=int, default=3, help="pairs of reports (default 3)")
+        add("--experiments", help="comma-separated (default: every make list's)")
+        add("--aggregates", choices=("this", "own"), default="this",
+            help="whose aggregates each checkout reports (own: each its own outputs/)")
+    if command:
+        add("--profile", default="smoke", choices=("smoke", "full"))
+        if command == "stages":
+            add("--repeats", type=int, default=3)
+        return ap
+    add("--sizes", default="1000,10000", help="trials per sweep, comma-separated")
+    add("--epochs", type=int, default=10, help="epochs per trial (default 10)")
+    add("--workers", type=int, default=2, help="simulate's workers (default 2)")
+    add("--baseline", type=Path, help="another checkout to run beside this one")
+    add("--out", type=Path, default=REPO / "outputs" / "bench" / "scale.json")
+    add("--keep", action="store_true", help="keep the temporary roots")
+    add("--sampled", type=int, metavar="N",
+        help="instead of --sizes: plan N trials, run a sample of --sample of them")
+    add("--sample", type=int, default=1000, help="trials run for --sampled (1000)")
+    add("--smoke-experiments", metavar="E1,E2,...",
+        help="also time a fully cached make smoke of these experiments")
+    add("--repeat", type=int, default=3,
+        help="runs of aggregate_one and of the cached smoke, medians (default 3)")
+    add("--packing", type=int, metavar="N",
+        help="instead: the cache's files against one packed file, for N trials")
+    return ap
+
+
+def bad_input(a) -> str | None:
+    """What is wrong with a sweep's options, in one line; None when nothing is."""
     try:
         sizes = [int(s) for s in a.sizes.split(",")]
     except ValueError:
         sizes = []
-    if not sizes or any(s < CONDITIONS or s % CONDITIONS for s in sizes):
-        print(f"error: --sizes={a.sizes}: positive multiples of {CONDITIONS}", file=sys.stderr)
-        return 2
-    if a.baseline is not None and not (a.baseline / "pipeline" / "simulate.py").is_file():
-        return print(f"error: --baseline={a.baseline}: not a checkout of this project",
-                     file=sys.stderr) or 2
-    if a.epochs < 1 or a.workers < 1 or a.repeat < 1:
-        return print("error: --epochs, --workers and --repeat: at least 1", file=sys.stderr) or 2
-    if a.sampled is not None and not (CONDITIONS <= a.sample <= a.sampled and a.sample % CONDITIONS == 0
-                                      and a.sampled % CONDITIONS == 0):
-        print(f"error: --sampled={a.sampled} --sample={a.sample}: multiples of {CONDITIONS}, "
-              "the sample at most the sweep", file=sys.stderr)
-        return 2
+    sample_ok = CONDITIONS <= a.sample <= (a.sampled or 0) and not (a.sample % CONDITIONS
+                                                                   or a.sampled % CONDITIONS)
+    return next((why for is_bad, why in (
+        (not sizes or any(s < CONDITIONS or s % CONDITIONS for s in sizes),
+         f"--sizes={a.sizes}: positive multiples of {CONDITIONS}"),
+        (a.baseline is not None and not (a.baseline / "pipeline" / "simulate.py").is_file(),
+         f"--baseline={a.baseline}: not a checkout of this project"),
+        (min(a.epochs, a.workers, a.repeat) < 1, "--epochs, --workers and --repeat: at least 1"),
+        (a.sampled is not None and not sample_ok, f"--sampled={a.sampled} --sample={a.sample}: "
+         f"multiples of {CONDITIONS}, the sample at most the sweep")) if is_bad), None)
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] in (["report"], ["stages"]):
+        a = parser(argv[0]).parse_args(argv[1:])
+        return (report_main if argv[0] == "report" else stages_main)(a)
+    a = parser(None).parse_args(argv)
+    if a.packing is not None:
+        if a.packing < 1:
+            return fail(f"--packing={a.packing}: at least 1 trial")
+        print(json.dumps(dict(trials=a.packing, **packing(a.packing), machine=load()), indent=1))
+        return 0
+    if (why := bad_input(a)) is not None:
+        return fail(why)
     codes = [REPO] + ([a.baseline.resolve()] if a.baseline else [])
     results, loads = [], [load()]
-    for size in sizes if a.sampled is None else [a.sampled]:
+    for size in [int(s) for s in a.sizes.split(",")] if a.sampled is None else [a.sampled]:
         done = (paired(codes, size, a.epochs, a.workers, a.keep, a.repeat) if a.sampled is None
                 else [sampled(code, size, a.sample, a.epochs, a.workers, a.keep)
                       for code in codes])
@@ -486,10 +487,8 @@ def main(argv: list[str] | None = None) -> int:
     if smokes:
         loads.append(load())
     record = dict(epochs=a.epochs, workers=a.workers, conditions=CONDITIONS, repeat=a.repeat,
-                  loads=loads,
-                  results=results, cached_smoke=smokes)
-    a.out.parent.mkdir(parents=True, exist_ok=True)
-    a.out.write_text(json.dumps(record, indent=1) + "\n")
+                  loads=loads, results=results, cached_smoke=smokes)
+    io.write_text(a.out, json.dumps(record, indent=1) + "\n")
     print(table(results))
     print("\n".join(headline(results, smokes)))
     print(f"machine: {loads[0]} before, {loads[-1]} after; written to {a.out}")

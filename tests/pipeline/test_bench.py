@@ -152,6 +152,6 @@ def test_counted_floor_is_the_busiest_unit():
 
 def test_every_priced_class_is_probed():
     """The probes price every class the counts use (logic as an add), each a positive time."""
-    ns = floor.probe_ns(iters=2_000, tries=1)
+    ns = bench.probe_ns(iters=2_000, tries=1)
     assert set(ns) | {"logic"} == set(floor.CLASSES)
     assert all(0 < v < float("inf") for v in ns.values())
