@@ -145,7 +145,9 @@ def test_report_regenerates_byte_for_byte_and_publishes_the_committed_reports_fi
     report.report(pub_cfg)
     assert files_of(published) == files_of(Path(cfg.paths.report))
     written = listed_files(published / "report.md")
-    assert set(listed) <= set(written), set(listed) - set(written)
+    # calibration.csv needs a replicate set beside its figure, which the tiny tree does not run
+    # (its writing: tests/studies/test_replicate.py)
+    assert set(listed) - {"calibration.csv"} <= set(written), set(listed) - set(written)
     # The code writes more than the committed report holds: the studies that are not paper
     # experiments (readings, baselines: never published at full scale, as the report stands) and
     # explanations.csv, which the committed report predates.
