@@ -1,11 +1,6 @@
-"""The config's schema: dataclasses registered in Hydra's ConfigStore.
-
-The YAML files under conf/ extend these dataclasses, so a misspelt key or a value of the wrong type
-fails when the config is composed, before any stage starts. The sections that describe a trial
-(body, growth, learner, evaluation) are generated from gbmodel's own dataclasses, so every value
-of the numerical core has one source: its default in gbmodel, or the YAML file that changes it.
-A learner's schema is read from its source (learner_params) where it is plain, so composing a
-config imports no learner (numba, scipy: 0.7 s CPU) and keeps no record of it anywhere.
+"""The config's schema, registered in Hydra's ConfigStore: a misspelt key or a wrong type fails
+when composed. A trial's sections are generated from gbmodel's dataclasses (one source per
+value); a plain learner's is read from its source (learner_params: composing imports no learner).
 """
 from __future__ import annotations
 
@@ -27,24 +22,20 @@ from ..experiments import Declares
 
 
 def defaults_of(cls) -> list[tuple[str, Any, Any]]:
-    """(name, type, default) of each field of dataclass `cls` that has a default."""
     hints = typing.get_type_hints(cls)
     return [(f.name, hints[f.name], f.default) for f in dataclasses.fields(cls)
             if f.default is not dataclasses.MISSING]
 
 
 def schema_of(cls, name: str, extra: tuple = (), defaults: list | None = None) -> type:
-    """A Hydra schema with the fields (types and defaults) of gbmodel dataclass `cls` (or the
-    `defaults` of defaults_of(cls) given), plus `extra` (name, type, default) fields."""
+    """A schema of `extra` fields and those of defaults_of(cls) (or the `defaults` given)."""
     fields = [(k, kind, field(default=v))
               for k, kind, v in (defaults_of(cls) if defaults is None else defaults)]
     return dataclasses.make_dataclass(name, list(extra) + fields)
 
 
 def conf_of(cls, name: str) -> type:
-    """A Hydra schema with every field of gbmodel dataclass `cls`, its type and its default (a
-    field without one is MISSING: it must be given); a field whose type is a dataclass gets that
-    class's schema, generated the same way."""
+    """A schema of every field of `cls` (MISSING without a default; a dataclass field: its own)."""
     hints = typing.get_type_hints(cls)
     out = []
     for f in dataclasses.fields(cls):
@@ -60,8 +51,6 @@ def conf_of(cls, name: str) -> type:
     return dataclasses.make_dataclass(name, out)
 
 
-# body: gbmodel.bodies.Description's fields (conf/body/<name>.yaml). It goes into every trial's
-# spec, so editing one body's file recomputes that body's trials only.
 BodyConf = conf_of(gbmodel.bodies.Description, "BodyConf")
 # growth: gbmodel.Growth's fields; pattern `none` is a body of constant size end_size
 GrowthConf = schema_of(gbmodel.Growth, "GrowthConf")
@@ -90,8 +79,6 @@ class PathsConf:
 
 @dataclass
 class VariantConf:
-    """One variant of an experiment: a label and the dotted overrides that make it."""
-
     label: str = MISSING
     choice: str = ""  # what is varied (a row group of the choices table)
     chosen: bool = False  # the value this project uses
@@ -100,8 +87,6 @@ class VariantConf:
 
 @dataclass
 class ConditionsConf:
-    """What an experiment sweeps. Empty lists: the single condition of the growth group."""
-
     periods: list[int] = field(default_factory=list)  # growth periods T_G, one condition each
     references: list[float] = field(default_factory=list)  # constant sizes run as references
     snapshots: list[int] = field(default_factory=list)  # epochs after which M is stored
@@ -191,9 +176,7 @@ class Config:
 
 
 def register_schemas() -> None:
-    """The primary schema, and one schema per learner (`learner/<name>_schema`) that its YAML
-    file extends: the learner's Params fields with their defaults, plus name and epochs. A
-    shipped learner not imported yet is described by learner_params (no import of its kernels)."""
+    """The primary schema, and `learner/<name>_schema` per learner (its Params' fields)."""
     cs = ConfigStore.instance()
     cs.store(name="base_config", node=Config)
     for name in gbmodel.learners.available():
@@ -209,8 +192,7 @@ _PLAIN_TYPES = {t.__name__: t for t in (int, float, str, bool)}
 
 
 def _plain_type(node):
-    """The type an annotation names when it is int, float, str, bool or one of them `| None`;
-    None for any other."""
+    """int, float, str, bool (or one `| None`) that an annotation names; else None."""
     if isinstance(node, ast.Name):
         return _PLAIN_TYPES.get(node.id)
     if isinstance(node, ast.BinOp) and isinstance(node.op, ast.BitOr):
@@ -223,9 +205,8 @@ def _plain_type(node):
 
 
 def learner_params(name: str) -> list | None:
-    """defaults_of(the Params of shipped learner `name`), read from its source file: the fields
-    of its top-level dataclass `Params` with a plain type (_plain_type) and a literal default.
-    None where the class is not that plain (a base class, a computed default): it is imported."""
+    """defaults_of(learner `name`'s Params) read from its source, None where not plain (a base
+    class, a computed default, a class attribute): it is then imported."""
     folder = Path(gbmodel.learners.__file__).parent
     path = folder / f"{name}.py"
     path = path if path.is_file() else folder / name / "__init__.py"
