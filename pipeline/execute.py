@@ -10,9 +10,10 @@ import sys
 import types
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from contextlib import contextmanager
+from unittest.mock import patch
 
-from .worker import (THREAD_VARS, quiet_worker, run_batch, run_one,  # noqa: F401
-                     single_threaded_children)
+from .engines import THREAD_VARS  # noqa: F401 (execute.THREAD_VARS)
+from .worker import quiet_worker, run_batch, run_one
 
 _POOLS: set = set()  # the pools of this process that are running
 
@@ -87,26 +88,25 @@ def local(todo: list[dict], workers: int, fn=run_one):
         _stop(pool)  # after the last result; on a signal, an error or a dropped generator
 
 
+def single_threaded_children():
+    """Children inherit the environment: one BLAS/OpenMP/numba thread each."""
+    return patch.dict(os.environ, {k: "1" for k in THREAD_VARS})
+
+
 @contextmanager
 def _starting_workers(fn):
-    """Around the submits, where the pool spawns workers: one thread each, a bare __main__."""
-    with single_threaded_children(), _no_main_module(fn):
-        yield
-
-
-@contextmanager
-def _no_main_module(fn):
-    """Workers started with a bare __main__ (not the stage, Hydra and the config: 0.3 s CPU
-    each), unless `fn` itself lives in __main__."""
+    """Around the submits, where the pool spawns workers: one thread each, and a bare __main__
+    (not the stage, Hydra and the config: 0.3 s CPU each) unless `fn` lives in __main__."""
     main = sys.modules.get("__main__")
-    if main is None or getattr(fn, "__module__", None) == "__main__":
-        yield
-        return
-    sys.modules["__main__"] = types.ModuleType("__main__")
-    try:
-        yield
-    finally:
-        sys.modules["__main__"] = main
+    bare = main is not None and getattr(fn, "__module__", None) != "__main__"
+    with single_threaded_children():
+        if bare:
+            sys.modules["__main__"] = types.ModuleType("__main__")
+        try:
+            yield
+        finally:
+            if bare:
+                sys.modules["__main__"] = main
 
 
 BATCH_SHARE = 16  # a batch holds at most 1/BATCH_SHARE of one worker's share of the work

@@ -13,7 +13,7 @@ import numpy as np
 
 import gbmodel
 import gbmodel.bodies
-from gbmodel.spec import check_int
+from gbmodel.spec import SpecError, check_int
 from omegaconf import DictConfig, OmegaConf
 
 from .config import ConfigError, check_limits, check_run
@@ -21,10 +21,6 @@ from .fingerprint import code_fingerprint
 from .keys import canonical, condition_id, stable_hash32, trial_key
 
 log = logging.getLogger(__name__)
-
-
-def _bad(key, value, why):
-    raise ConfigError(f"{key}={value!r}: {why}")
 
 
 def _sized(pattern, size):
@@ -36,13 +32,7 @@ def conditions(cfg: DictConfig) -> list[dict]:
     dict(condition, growth, growth_period, spec) each."""
     g = OmegaConf.to_container(cfg.growth)
     pattern = g.pop("pattern")
-    periods = list(cfg.conditions.periods)
-    for p in periods:
-        check_int("conditions.periods", p, 0)
-    refs = list(cfg.conditions.references)
-    for s in refs:
-        if isinstance(s, bool) or not isinstance(s, (int, float)) or not s > 0:
-            _bad("conditions.references", s, "a body size must be > 0")
+    periods, refs = list(cfg.conditions.periods), list(cfg.conditions.references)
     # A reference shrinks the body the way the figure's growth does (Fig. 5: non-proportionally).
     ref_pattern = "proportional" if pattern == "none" else pattern
     out = []
@@ -71,27 +61,25 @@ def variants(cfg: DictConfig) -> list[tuple[dict | None, DictConfig]]:
     OmegaConf.set_struct(base, True)
     base.conditions.variants = []
     for v in cfg.conditions.variants or [None]:
-        if v is None:
-            vcfg = base.copy()
-            apply_budget(vcfg)
-            out.append((None, vcfg))
-            continue
         vcfg = base.copy()
-        groups = [o for o in v.set if "=" in o and "." not in o.split("=", 1)[0]]
+        groups = [o for o in ([] if v is None else v.set) if "=" in o and "." not in o.split("=", 1)[0]]
         try:
             for o in groups:  # `learner=<name>`: that learner's config, for this body
                 group, name = o.split("=", 1)
                 if group != "learner":
                     raise ValueError(f"{o}: a variant can choose a learner, not a {group}")
                 vcfg.learner = OmegaConf.create(_learner_for(cfg.body.name, o))
-            vcfg.merge_with(OmegaConf.from_dotlist([o for o in v.set if o not in groups]))
+            if v is not None:
+                vcfg.merge_with(OmegaConf.from_dotlist([o for o in v.set if o not in groups]))
         except Exception as err:  # an unknown key or a wrong type in the variant
-            _bad("conditions.variants", v.label, f"set {list(v.set)}: {err}".splitlines()[0])
+            raise SpecError("conditions.variants", v.label,
+                            f"set {list(v.set)}: {err}".splitlines()[0]) from None
         apply_budget(vcfg)
-        out.append((dict(label=v.label, choice=v.choice, chosen=bool(v.chosen)), vcfg))
+        out.append((None if v is None else dict(label=v.label, choice=v.choice,
+                                                 chosen=bool(v.chosen)), vcfg))
     labels = [v["label"] for v, _ in out if v]
     if len(set(labels)) != len(labels):
-        _bad("conditions.variants", labels, "labels must differ")
+        raise SpecError("conditions.variants", labels, "labels must differ")
     return out
 
 
@@ -139,8 +127,6 @@ def trial_spec(cfg: DictConfig, growth: dict) -> gbmodel.TrialSpec:
         learner = getattr(gbmodel.learners.get(learner["name"]), "keyed", dict)(learner)
     except ValueError as err:
         raise ConfigError(str(err)) from None
-    for e in cfg.conditions.snapshots:
-        check_int("conditions.snapshots", e, 1)
     frames = frame_epochs(epochs, cfg.conditions.frames) if isinstance(epochs, int) else []
     snaps = tuple(sorted({e for e in [*cfg.conditions.snapshots, *frames]
                           if isinstance(e, int) and e <= epochs}))
@@ -285,12 +271,15 @@ def base_spec(cfg: DictConfig, vcfg: DictConfig, variant, cond: dict, spec: dict
         return None
     from gbmodel.trial import DRAW_BLOCK
 
+    def bad(why):
+        return SpecError("conditions.continues", n, why)
+
     check_int("conditions.continues", n, 1)
     if n % DRAW_BLOCK:
-        _bad("conditions.continues", n, f"a continuation starts after a multiple of {DRAW_BLOCK} "
-             "epochs (the draws come in blocks of that many)")
+        raise bad(f"a continuation starts after a multiple of {DRAW_BLOCK} epochs (the draws "
+                  "come in blocks of that many)")
     if cfg.conditions.budget is not None:
-        _bad("conditions.continues", n, "a continuation counts epochs, not a sample budget")
+        raise bad("a continuation counts epochs, not a sample budget")
     if not isinstance(spec["epochs"], int) or n >= spec["epochs"]:
         return None
     bcfg = OmegaConf.masked_copy(cfg, list(TRIAL_SECTIONS))
@@ -300,10 +289,10 @@ def base_spec(cfg: DictConfig, vcfg: DictConfig, variant, cond: dict, spec: dict
     where = f"variant {variant['label']!r}" if variant else "the experiment"
     for k in ("body", "growth", "evaluation", "evals_per_decade"):
         if base[k] != spec[k]:
-            _bad("conditions.continues", n, f"{where} changes {k}: a continuation may change the "
-                 "rate after its base's epochs, nothing else")
+            raise bad(f"{where} changes {k}: a continuation may change the rate after its "
+                      "base's epochs, nothing else")
     if not set(e for e in spec["snapshots"] if e <= n) <= set(base["snapshots"]):
-        _bad("conditions.continues", n, f"{where} stores a snapshot its base does not")
+        raise bad(f"{where} stores a snapshot its base does not")
     a, b = base["learner"], spec["learner"]
     changed = {k for k in set(a) | set(b) if a.get(k) != b.get(k)}
     if changed:
@@ -312,8 +301,8 @@ def base_spec(cfg: DictConfig, vcfg: DictConfig, variant, cond: dict, spec: dict
         rates = [module.Params(**{k: v for k, v in x.items() if k != "name"}).rates(epochs)
                  if hasattr(module.Params, "rates") else None for x in (a, b)]
         if not changed <= set(RATE_FIELDS) or not np.array_equal(*rates):
-            _bad("conditions.continues", n, f"{where} changes learner.{sorted(changed)[0]} before "
-                 f"epoch {n}: a continuation may change the rate after its base's epochs only")
+            raise bad(f"{where} changes learner.{sorted(changed)[0]} before epoch {n}: a "
+                      "continuation may change the rate after its base's epochs only")
     return base
 
 

@@ -6,15 +6,12 @@ import os
 import signal
 import time
 import traceback
-from contextlib import contextmanager
-
-from .engines import THREAD_VARS
 
 
 def run_one(trial: dict) -> dict:
     """status ok, diverged (a result, with the epoch) or failed (an error as text, not cached)."""
     start, cpu = time.perf_counter(), time.process_time()
-    import numpy as np  # here: naming an engine should not load the numerical core
+    import numpy as np  # here: importing the pool loads no numerical core
 
     import gbmodel
 
@@ -70,17 +67,3 @@ def quiet_worker(parent: int | None = None) -> None:
     if parent is not None and os.getppid() != parent:  # it died before prctl took effect
         os._exit(1)
 
-
-@contextmanager
-def single_threaded_children():
-    """Children inherit the environment: one BLAS/OpenMP/numba thread each."""
-    old = {k: os.environ.get(k) for k in THREAD_VARS}
-    os.environ.update({k: "1" for k in THREAD_VARS})
-    try:
-        yield
-    finally:
-        for k, v in old.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v

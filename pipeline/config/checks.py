@@ -11,7 +11,7 @@ from omegaconf import DictConfig, OmegaConf
 
 import gbmodel
 from gbmodel.growth import LIMITS as growth_limits
-from gbmodel.spec import MAX_EPOCHS, MAX_INT64, MAX_SIZE, Int, Number, check_int
+from gbmodel.spec import MAX_EPOCHS, Int, Number, check_int
 
 from ..errors import ConfigError
 from .schema import Config
@@ -21,7 +21,6 @@ def _bad(key, value, why):
     raise ConfigError(f"{key}={value!r}: {why}")
 
 
-# ---- limits, checked by plan() before it plans a variant's trials ---------------------------------
 MAX_TRIALS = 10_000  # trials.count: independent trials per condition (the paper's figures use 20)
 MAX_PLANNED = 100_000  # trials of one run in all (conditions x variants x trials.count)
 MAX_FRAMES = 100  # conditions.frames: the report draws each condition's frames (~0.12 s each)
@@ -34,6 +33,9 @@ RANGES = {"aggregate.fail_factor": Number(1.0, 1e3, lo_open=True),  # x the medi
                                    "condition)"),
           "report.dpi": Number(10, 1200),
           **{f"growth.{k}": growth_limits[k] for k in ("start_size", "end_size", "fixed_scale")}}
+EACH = {"conditions.periods": growth_limits["period"],  # list keys: the range of each value
+        "conditions.references": growth_limits["end_size"],
+        "conditions.snapshots": Int(1, MAX_EPOCHS)}
 
 
 def declared(key: str, cfg):
@@ -59,36 +61,21 @@ STAGE_SECTIONS = ("aggregate", "report")  # check_run's; a trial's are check_lim
 
 def check_ranges(cfg, stages: bool = False) -> None:
     """A value outside RANGES: the stages' sections' (stages) or the trial's."""
-    for key, constraint in RANGES.items():
-        if (key.split(".")[0] in STAGE_SECTIONS) != stages:
-            continue
-        value = OmegaConf.select(cfg, key, default=None)
+    values = [(k, v, OmegaConf.select(cfg, k, default=None)) for k, v in RANGES.items()
+              if (k.split(".")[0] in STAGE_SECTIONS) == stages]
+    if not stages:
+        values += [(k, v, x) for k, v in EACH.items() for x in OmegaConf.select(cfg, k)]
+    for key, constraint, value in values:
         if value is not None and not constraint.ok(value):
             raise ConfigError(f"{key}={value!r}: must be {constraint.describe()}")
-    if stages:
-        return
-    for s in cfg.conditions.references:
-        if isinstance(s, (int, float)) and not isinstance(s, bool) and not s <= MAX_SIZE:
-            raise ConfigError(f"conditions.references={s!r}: a size factor of at most "
-                              f"{MAX_SIZE:g}")
-
-
-def _too_big(key, value, limit, unit, shown=None):
-    if isinstance(value, int) and not isinstance(value, bool) and value > limit:
-        raise ConfigError(f"{key}={value!r}: at most {shown or f'{limit:,}'} {unit}")
 
 
 def check_limits(cfg) -> None:
-    """What would exhaust memory or overflow before planning (counts, epochs, periods, the run's
-    size) and the trial's RANGES, on each variant's copy."""
-    check_int("trials.count", cfg.trials.count, 1)
-    _too_big("trials.count", cfg.trials.count, MAX_TRIALS, "trials per condition")
-    _too_big("learner.epochs", cfg.learner.epochs, MAX_EPOCHS, "epochs per trial",
-             f"{MAX_EPOCHS:.0e}")  # before planning multiplies the trials
+    """The trial's ranges and what would overflow or exhaust memory, on each variant's copy
+    (a SpecError: plan makes it a ConfigError); the epochs: TrialSpec.validate."""
+    Int(1, MAX_TRIALS, " trials per condition").check("trials.count", cfg.trials.count)
     check_ranges(cfg)
-    _too_big("growth.period", cfg.growth.get("period"), MAX_INT64, "epochs (int64)")
-    for p in cfg.conditions.periods:
-        _too_big("conditions.periods", p, MAX_INT64, "epochs (int64)")
+    growth_limits["period"].check("growth.period", cfg.growth.get("period"))
     count = cfg.trials.count
     conditions = max(len(cfg.conditions.periods) + len(cfg.conditions.references), 1)
     total = count * conditions * max(len(cfg.conditions.variants), 1)

@@ -19,26 +19,15 @@ LOG_STREAMS = ("ext://sys.stdout", "ext://sys.stderr")
 LOG_FORMATTER_KEYS = {"format", "datefmt", "style", "validate"}
 LOG_HANDLER_KEYS = {"class", "formatter", "stream", "level"}
 LOG_LOGGER_KEYS = {"level", "handlers", "propagate"}
-# what each allowed key is (the message of a refused one lists them); None: filled by Hydra
-HYDRA_KEYS = {
-    "searchpath": "where config groups live (a body or an experiment of one's own)",
-    "mode": "RUN or MULTIRUN", "verbose": "Hydra's debug logging",
-    "job.chdir": "change into the run's folder (inside paths.root)",
-    "job.name": "a plain name (it names the sweep's folder)",
-    "job.config.override_dirname": "how override_dirname is spelt",
-    "launcher": "Hydra's own launchers (hydra/launcher=basic|joblib), not their temp_folder",
-    "sweeper": "Hydra's own sweepers",
-    "job_logging": "to the terminal: StreamHandler to sys.stdout/stderr or NullHandler, "
-                   "formatters by format, no factory ('()', class, ext://) of any kind",
-    "hydra_logging": "the same as job_logging",
-    "run.dir": "a folder inside paths.root (or the project's '.', where nothing is written)",
-    "sweep.dir": "a folder inside paths.root", "sweep.subdir": "a relative name, no '..'",
-    "output_subdir": "null, or a relative name inside a run folder under paths.root",
-    "help": "the text of --help", "hydra_help": "the text of --hydra-help",
-    "job.env_copy": "empty (an environment variable of every job runs code)",
-    **dict.fromkeys(("runtime", "overrides", "job.override_dirname", "job.id", "job.num",
-                     "job.config_name")),
-}
+# the keys a config may set under hydra (a refused key's message lists them), each checked below
+# where it could run code or write: launcher and sweeper (Hydra's own), the loggings (to the
+# terminal), job.env_copy (empty), the folders (inside paths.root); HYDRA_FILLED: Hydra's own
+HYDRA_KEYS = ("searchpath", "mode", "verbose", "job.chdir", "job.name",
+              "job.config.override_dirname", "launcher", "sweeper", "job_logging", "hydra_logging",
+              "run.dir", "sweep.dir", "sweep.subdir", "output_subdir", "help", "hydra_help",
+              "job.env_copy")
+HYDRA_FILLED = ("runtime", "overrides", "job.override_dirname", "job.id", "job.num",
+                "job.config_name")
 
 
 def _flat(node, where: str = "") -> dict:
@@ -81,10 +70,9 @@ def check_hydra(cfg) -> None:
         raise ConfigError(f"hydra.job.env_set.{name}: sets an environment variable of every job "
                           "(PYTHONPATH, LD_PRELOAD: code the workers run); the stages take none")
     for key, value in sorted(_flat(hydra).items()):
-        if not any(key == k or key.startswith(k + ".") for k in HYDRA_KEYS):
+        if not any(key == k or key.startswith(k + ".") for k in HYDRA_KEYS + HYDRA_FILLED):
             raise ConfigError(f"hydra.{key}={value!r}: not a setting the stages take from Hydra "
-                              f"(allowed under hydra: {', '.join(k for k, v in HYDRA_KEYS.items() if v)}"
-                              "; docs/faults.md)")
+                              f"(allowed under hydra: {', '.join(HYDRA_KEYS)}; docs/faults.md)")
     for section in ("launcher", "sweeper"):
         target = (hydra.get(section) or {}).get("_target_")
         if target is not None and not (isinstance(target, str)
