@@ -67,16 +67,11 @@ def _one_line(err: BaseException) -> str:
     return f"{key}: {message}" if key else message
 
 
-def missing_folder(searchpath) -> str | None:
-    """One line for a missing `file://` folder of hydra.searchpath (Hydra skips it silently)."""
-    for entry in searchpath if isinstance(searchpath, list) else [searchpath]:
-        entry = str(entry)
-        if entry.startswith("file://"):
-            folder = Path(entry[len("file://"):])
-            if not folder.is_dir():
-                return (f"hydra.searchpath: {folder} is not a folder; give the absolute path of "
-                        "your config folder (the one that holds body/)")
-    return None
+def _folders(searchpath) -> list[Path]:
+    """The `file://` folders of a hydra.searchpath value."""
+    return [Path(str(e)[len("file://"):]) for e in
+            (searchpath if isinstance(searchpath, list) else [searchpath])
+            if str(e).startswith("file://")]
 
 
 def renamed_group(override: str) -> str | None:
@@ -112,9 +107,8 @@ _UNCHECKED_FLAGS = {"--config-path", "-cp", "--config-name", "-cn", "--config-di
 
 
 def searchpath_folders(overrides: list[str]) -> list[Path]:
-    return [Path(str(e)[len("file://"):]) for o in overrides if o.startswith("hydra.searchpath=")
-            for e in OverridesParser.create().parse_override(o).value()
-            if str(e).startswith("file://")]
+    return [f for o in overrides if o.startswith("hydra.searchpath=")
+            for f in _folders(OverridesParser.create().parse_override(o).value())]
 
 
 def check(argv: list[str], stage=None) -> str | None:
@@ -197,9 +191,11 @@ def _choices(parsed, multirun: bool) -> tuple[list[list[str]], list, list[str]]:
     for o in parsed:
         if o.is_hydra_override():
             if o.get_key_element() == "hydra.searchpath":  # where config groups (a body) live
-                missing = missing_folder(o.value())
-                if missing:
-                    raise ConfigError(missing)
+                for folder in _folders(o.value()):  # (Hydra skips a missing one silently)
+                    if not folder.is_dir():
+                        raise ConfigError(f"hydra.searchpath: {folder} is not a folder; give the "
+                                          "absolute path of your config folder (the one that "
+                                          "holds body/)")
                 choices.append([o.input_line])
             continue  # hydra/launcher=... and hydra.*: checked on the composed config
         if o.is_sweep_override():
