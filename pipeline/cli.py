@@ -36,7 +36,9 @@ def hydra_run() -> tuple[list[str], str | None, int]:
 
 
 # what a full disk, a read-only folder or a missing permission raise: a fault of the place, named
-DISK_ERRNOS = (errno.ENOSPC, errno.EROFS, errno.EACCES, errno.EPERM, errno.EDQUOT)
+DISK = {errno.ENOSPC: "no space left on the device", errno.EDQUOT: "disk quota exceeded",
+        errno.EROFS: "read-only file system", errno.EACCES: "permission denied",
+        errno.EPERM: "operation not permitted"}
 
 
 def finish(run, cfg, record: bool = True) -> None:
@@ -52,7 +54,7 @@ def finish(run, cfg, record: bool = True) -> None:
             print(f"error: {err}", file=sys.stderr)
             rc = 2
         except OSError as err:
-            if err.errno not in DISK_ERRNOS:
+            if err.errno not in DISK:
                 raise
             print(f"error: {disk_message(err)}", file=sys.stderr)
             rc = 2
@@ -107,10 +109,7 @@ def snapshot(cfg):
 
 def disk_message(err: OSError) -> str:
     where = err.filename if err.filename is not None else "a file"
-    why = {errno.ENOSPC: "no space left on the device", errno.EDQUOT: "disk quota exceeded",
-           errno.EROFS: "read-only file system", errno.EACCES: "permission denied",
-           errno.EPERM: "operation not permitted"}[err.errno]
-    return f"{where}: {why}; free space or choose a writable paths.root"
+    return f"{where}: {DISK[err.errno]}; free space or choose a writable paths.root"
 
 
 def main(hydra_main) -> None:

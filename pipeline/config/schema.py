@@ -90,19 +90,13 @@ class ConditionsConf:
     periods: list[int] = field(default_factory=list)  # growth periods T_G, one condition each
     references: list[float] = field(default_factory=list)  # constant sizes run as references
     snapshots: list[int] = field(default_factory=list)  # epochs after which M is stored
-    # more epochs after which M is stored: this many, log-spaced over 1 ... epochs (the report's
-    # animation of each condition, pipeline/studies/animation.py); 0: none
-    frames: int = 0
+    frames: int = 0  # M also stored after this many log-spaced epochs (the report's animation)
     variants: list[VariantConf] = field(default_factory=list)  # each: all of the above again
-    # a budget of reaching movements (forward-kinematics samples) per trial instead of epochs:
-    # each learner gets budget / its samples per epoch epochs, growing over growth_share of them
-    budget: Optional[int] = None
+    budget: Optional[int] = None  # samples per trial instead of epochs (growth: growth_share)
     growth_share: float = 0.5
     budget_scale: float = 1.0  # profiles shrink the budget (smoke)
-    # a continuation: each trial starts from the saved state after this many epochs of the trial
-    # of its condition and index under the experiment's settings without its variants
-    # (pipeline.checkpoint); a multiple of 1000 (the draw block), ignored where the run has no
-    # more epochs (the smoke profile); null: every trial starts at epoch 1
+    # each trial continues the saved state after this many epochs (a multiple of 1000) of its
+    # trial without the variants (pipeline.checkpoint); ignored in a shorter run; null: none
     continues: Optional[int] = None
 
 
@@ -110,15 +104,9 @@ class ConditionsConf:
 class PaperConf:
     title: str = ""
     final_abs_error: Optional[float] = None  # the paper's stated final accuracy [m], if any
-    # whether the report checks the paper's claims on this experiment: its figures and studies
-    # declare it; a custom experiment does not, and is reported by its curves alone
-    claims: bool = False
-    # the report section that reports it (pipeline/studies/sections.py): figures, readings,
-    # baselines, explain, choices, or a study of one's own
-    study: str = "figures"
-    # the figure whose cells the scorecard's headline counts instead of this one's, when both
-    # are reported (Fig. 7 on fig7_20trials); this one's are shown beside
-    judged_on: Optional[str] = None
+    claims: bool = False  # the report checks the paper's claims on it (a custom one: curves)
+    study: str = "figures"  # its report section (pipeline/studies/sections.py)
+    judged_on: Optional[str] = None  # the figure the scorecard counts instead, when both ran
 
 
 @dataclass
@@ -142,8 +130,7 @@ class ReportConf:
     # a learning-curve figure for a paper (pipeline.studies.paper.figure_options, docs/figures.md):
     title: str = ""  # its title line; "" keeps the figure's name and its trial count
     error_unit: str = "m"  # the errors' unit: m or mm (curves, bands, the paper's line, labels)
-    log_epoch_axis: bool = True  # the epoch axis on a log scale; false: linear (log_error_axis:
-    # the error axis)
+    log_epoch_axis: bool = True  # the epoch axis on a log scale; false: linear
 
 
 @dataclass
@@ -170,8 +157,7 @@ class Config:
     bench: BenchConf = field(default_factory=BenchConf)
     figure: str = MISSING
     workers: int = MISSING
-    # simulate: plan these experiments in one process (make smoke / make reproduce); the
-    # other overrides of the command line apply to each
+    # simulate: these experiments in one process, each with the other overrides (make smoke)
     experiments: list[str] = field(default_factory=list)
 
 
