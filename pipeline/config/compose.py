@@ -36,13 +36,10 @@ def sweep_tag() -> str:
     return hashlib.sha256(who.encode()).hexdigest()[:8]
 
 
-if not OmegaConf.has_resolver("experiments"):  # report.paper_experiments: ${experiments:}
-    OmegaConf.register_new_resolver("experiments", lambda *groups: listed(config_folders(),
-                                                                          *groups))
-if not OmegaConf.has_resolver("default_root"):
-    OmegaConf.register_new_resolver("default_root", default_root)
-if not OmegaConf.has_resolver("sweep_tag"):
-    OmegaConf.register_new_resolver("sweep_tag", sweep_tag, use_cache=True)
+for _name, _fn in (("experiments", lambda *groups: listed(config_folders(), *groups)),
+                   ("default_root", default_root), ("sweep_tag", sweep_tag)):
+    if not OmegaConf.has_resolver(_name):  # ${experiments:}: report.paper_experiments
+        OmegaConf.register_new_resolver(_name, _fn, use_cache=_name == "sweep_tag")
 register_schemas()
 engines.register_configs()  # the config group `engine`: one node per engine
 searchpath.register(CONFIG_PATH)
