@@ -1,9 +1,5 @@
 """The pipeline around gbmodel: simulate -> aggregate -> report, configured by Hydra (conf/).
-
-Importing the package loads nothing heavy (`gbgrowth --version` is a few imports): the config
-schema and the engines' config group (one node per registered engine) are registered with
-Hydra's ConfigStore by pipeline.config, which every stage imports (tests/pipeline/test_imports.py).
-"""
+Importing it loads nothing heavy (tests/pipeline/test_imports.py)."""
 import os
 import sys
 
@@ -16,8 +12,7 @@ if sys.argv[:1] == ["-m"]:  # `python -m pipeline.<stage>` (argv[0] is "-m" whil
 
 
 def _runs_the_report(orig_argv: list, argv: list) -> bool:
-    """Whether this process is the report stage: python -m pipeline.report, python -m pipeline
-    report, gbgrowth report."""
+    """python -m pipeline.report, python -m pipeline report, gbgrowth report."""
     if "-m" in orig_argv[:-1]:
         i = orig_argv.index("-m") + 1
         return orig_argv[i] == "pipeline.report" or orig_argv[i:i + 2] == ["pipeline", "report"]
@@ -25,9 +20,8 @@ def _runs_the_report(orig_argv: list, argv: list) -> bool:
 
 
 if _runs_the_report(getattr(sys, "orig_argv", []), sys.argv):
-    # the report's linear algebra is small (least squares over at most a few hundred
-    # parameters): a second BLAS thread only spins, at up to 35x the CPU on a loaded machine.
-    # Set before numpy loads its BLAS; a user's own setting wins.
+    # the report's least squares are small: a second BLAS thread only spins (up to 35x the
+    # CPU on a loaded machine); set before numpy loads, a user's own setting wins
     for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS",
                  "VECLIB_MAXIMUM_THREADS"):
         os.environ.setdefault(_var, "1")

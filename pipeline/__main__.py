@@ -1,17 +1,5 @@
-"""The `gbgrowth` command (and `python -m pipeline`): one subcommand per stage, Hydra's overrides
-after it, as `python -m pipeline.<stage>` takes them.
-
-    gbgrowth simulate experiment=fig4 profile=smoke     # = python -m pipeline.simulate ...
-    gbgrowth aggregate experiment=fig4 profile=smoke
-    gbgrowth report experiment=fig4 profile=smoke
-    gbgrowth rate body=my_arm                           # = python -m pipeline.tools.rate ...
-    gbgrowth bench                                      # = python -m pipeline.tools.bench ...
-    gbgrowth models fig4                                # the trained models of a figure (or a path)
-    gbgrowth --version
-
-Outside a checkout every output goes under the working directory (paths.root), and a conf/
-folder there adds the user's own configs (docs/install.md).
-"""
+"""The `gbgrowth` command (= python -m pipeline): `gbgrowth simulate experiment=fig4` is
+`python -m pipeline.simulate experiment=fig4`; also `gbgrowth models fig4`, `--version`."""
 from __future__ import annotations
 
 import importlib
@@ -61,8 +49,7 @@ Example:
 
 
 def models(args: list[str]) -> int:
-    """`gbgrowth models FIGURE|PATH [AGGREGATE_DIR]`: one line per condition of the figure;
-    `gbgrowth models seal FILE...` is `python -m pipeline.models seal FILE...`."""
+    """`gbgrowth models` (MODELS_HELP); `models seal` is `python -m pipeline.models seal`."""
     from . import models as loader
 
     if args[:1] == ["seal"]:  # python -m pipeline.models seal FILE...

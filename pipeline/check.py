@@ -1,10 +1,6 @@
-"""The command line's check: compose and plan every configuration it can produce.
-
-Hydra reports a bad override (an unknown option, a value of the wrong type, an unknown key) in
-several lines with hints about stack traces, and a bad value in the second job of a sweep only
-after the first job ran. Each stage therefore first composes and plans every configuration its
-command line can produce (each value of a sweep) with the compose API; a failure is reported as
-one line, `error: ...`, with exit status 2, before Hydra or the stage has written anything.
+"""The command line's check: every configuration it can produce (each value of a sweep) is
+composed and planned first, and a failure is one line (exit 2) before anything is written, where
+Hydra would print several lines, or fail a sweep's second job after the first ran.
 """
 from __future__ import annotations
 
@@ -25,39 +21,26 @@ from .plan import plan, plan_conditions
 from .planned import checked_marker, was_checked
 from .searchpath import shadowed
 
-# a sweep's jobs composed and planned up front: the first job, then each other value of each
-# swept key in turn (the others at their first), at most this many (each compose takes about a
-# second); every value of a swept key with a declared range (config.declared) is checked by it
+# a sweep's jobs planned up front: the first, then each other value of each swept key (the
+# others at their first), at most this many; every value with a declared range is checked
 _MAX_COMBINATIONS = 8
 MAX_SWEEP_JOBS = 10_000  # jobs of one multirun: each is a Hydra job with its own folder
-PASSED: list = []  # (note, trials, root) of the one-job command line check() planned, for the
-# stage's end (cli.finish) to keep: the same command line again plans nothing (planned.py)
-SWEEP: list = []  # [(the jobs of a sweep, the trials of each job check() planned, its cache,
-# its workers)]: what the sweep will run, said before its first job (simulate.before_sweep)
-
-
-def sweep_size(override) -> int | None:
-    """How many values a sweep override has, counted without building them (a range of 10^8
-    values would fill the memory); None for a glob (its size depends on the config)."""
-    from hydra.core.override_parser.types import ChoiceSweep, RangeSweep
-
-    v = override.value()
-    if isinstance(v, RangeSweep):
-        if not v.step:
-            return 0
-        return max(0, math.ceil((v.stop - v.start) / v.step))
-    if isinstance(v, ChoiceSweep):
-        return len(v.list)
-    return None
+PASSED: list = []  # [(marker, trials, root)] of a one-job command line, kept by cli.finish
+SWEEP: list = []  # [(n_jobs, each planned job's trials, cache, workers)]: simulate.before_sweep
 
 
 def check_sweep_size(parsed) -> str | None:
-    """One line when the sweeps of a command line make more than MAX_SWEEP_JOBS jobs."""
+    """One line when the sweeps make too many jobs (counted without building their values)."""
+    from hydra.core.override_parser.types import ChoiceSweep, RangeSweep
+
     total = 1
     for o in parsed:
         if o.is_sweep_override():
-            n = sweep_size(o)
-            total *= 1 if n is None else n
+            v = o.value()  # a glob's size depends on the config: counted as 1
+            if isinstance(v, RangeSweep):
+                total *= max(0, math.ceil((v.stop - v.start) / v.step)) if v.step else 0
+            elif isinstance(v, ChoiceSweep):
+                total *= len(v.list)
             if total > MAX_SWEEP_JOBS:
                 return (f"{o.input_line}: the sweep makes more than {MAX_SWEEP_JOBS:,} jobs; "
                         "sweep fewer values (or list the conditions in one experiment)")
@@ -65,7 +48,7 @@ def check_sweep_size(parsed) -> str | None:
 
 
 def _one_line(err: BaseException) -> str:
-    """The innermost message of an exception chain, folded into one line that names the key."""
+    """The innermost message of an exception chain, in one line naming the key."""
     while err.__cause__ is not None and str(err.__cause__):
         err = err.__cause__
     text = str(err)
@@ -84,22 +67,15 @@ def _one_line(err: BaseException) -> str:
     return f"{key}: {message}" if key else message
 
 
-def missing_folder(searchpath) -> str | None:
-    """One line when a `file://` folder of hydra.searchpath does not exist (Hydra skips it, and
-    the body it should hold surfaces as `body=my_arm: unknown option`)."""
-    for entry in searchpath if isinstance(searchpath, list) else [searchpath]:
-        entry = str(entry)
-        if entry.startswith("file://"):
-            folder = Path(entry[len("file://"):])
-            if not folder.is_dir():
-                return (f"hydra.searchpath: {folder} is not a folder; give the absolute path of "
-                        "your config folder (the one that holds body/)")
-    return None
+def _folders(searchpath) -> list[Path]:
+    """The `file://` folders of a hydra.searchpath value."""
+    return [Path(str(e)[len("file://"):]) for e in
+            (searchpath if isinstance(searchpath, list) else [searchpath])
+            if str(e).startswith("file://")]
 
 
 def renamed_group(override: str) -> str | None:
-    """One line for an override of the group `executor`, which is `engine` now (one name for
-    one thing), saying what to write instead; None for any other override."""
+    """One line for an override of the group `executor` (now `engine`): what to write instead."""
     bare = override.lstrip("+~")
     key, _, value = bare.partition("=")
     if key.split(".", 1)[0] != "executor":
@@ -111,9 +87,7 @@ def renamed_group(override: str) -> str | None:
 
 
 def empty_config_file(err: BaseException, overrides: list[str]) -> str | None:
-    """One line when composing failed on a config file that is empty (a body's learner settings
-    from a shell redirect `tool > file` whose command failed: Hydra then says "Key
-    'body_learner' not in 'Config'")."""
+    """One line when composing failed on an empty config file (a failed `tool > file`)."""
     found = re.search(r"In '([\w./-]+)'", str(err))
     if not found:
         return None
@@ -127,24 +101,20 @@ def empty_config_file(err: BaseException, overrides: list[str]) -> str | None:
     return None
 
 
-# Hydra's flags that would read config files the check does not compose (a config dir or
-# name of one's own: hydra.searchpath is the checked way) or a pickled config (code)
+# Hydra's flags that read config files the check does not compose, or a pickled config (code)
 _UNCHECKED_FLAGS = {"--config-path", "-cp", "--config-name", "-cn", "--config-dir", "-cd",
                     "--experimental-rerun"}
 
 
 def searchpath_folders(overrides: list[str]) -> list[Path]:
-    """The `file://` folders of hydra.searchpath among `overrides`."""
-    return [Path(str(e)[len("file://"):]) for o in overrides if o.startswith("hydra.searchpath=")
-            for e in OverridesParser.create().parse_override(o).value()
-            if str(e).startswith("file://")]
+    return [f for o in overrides if o.startswith("hydra.searchpath=")
+            for f in _folders(OverridesParser.create().parse_override(o).value())]
 
 
 def check(argv: list[str], stage=None) -> str | None:
     """None when every configuration of the command line composes and plans, else one line
-    saying why. `stage`: the stage's @hydra.main function; a one-job command line is then
-    composed as Hydra's run of it composes it (compose_as_run), and the run is given that
-    config instead of composing it again (config.hydra_run.composed_once)."""
+    saying why. `stage`: the @hydra.main function, whose run is then given the config composed
+    here (config.hydra_run)."""
     PASSED.clear()
     SWEEP.clear()
     try:
@@ -188,9 +158,7 @@ def check(argv: list[str], stage=None) -> str | None:
 
 
 def _parsed(argv: list[str]) -> tuple[list[str], list, bool]:
-    """(the overrides, Hydra's parse of them, whether -m): ConfigError for a flag that reads
-    unchecked files, characters Hydra cannot read, a syntax error, too large a sweep, a sweep
-    of Hydra's own settings or of a renamed group."""
+    """(the overrides, Hydra's parse of them, whether -m), or a ConfigError."""
     for arg in argv:
         if arg.split("=", 1)[0] in _UNCHECKED_FLAGS:
             raise ConfigError(f"{arg}: the stages read the project's config and the folders of "
@@ -217,15 +185,17 @@ def _parsed(argv: list[str]) -> tuple[list[str], list, bool]:
 
 
 def _choices(parsed, multirun: bool) -> tuple[list[list[str]], list, list[str]]:
-    """(each override's values as overrides, the sweep overrides, Hydra's own overrides but the
-    searchpath): ConfigError for a sweep without -m or a searchpath folder that is missing."""
+    """(each override's values as overrides, the sweeps, Hydra's own overrides but the
+    searchpath), or a ConfigError."""
     choices, sweeps = [], []
     for o in parsed:
         if o.is_hydra_override():
             if o.get_key_element() == "hydra.searchpath":  # where config groups (a body) live
-                missing = missing_folder(o.value())
-                if missing:
-                    raise ConfigError(missing)
+                for folder in _folders(o.value()):  # (Hydra skips a missing one silently)
+                    if not folder.is_dir():
+                        raise ConfigError(f"hydra.searchpath: {folder} is not a folder; give the "
+                                          "absolute path of your config folder (the one that "
+                                          "holds body/)")
                 choices.append([o.input_line])
             continue  # hydra/launcher=... and hydra.*: checked on the composed config
         if o.is_sweep_override():
@@ -243,9 +213,8 @@ def _choices(parsed, multirun: bool) -> tuple[list[list[str]], list, list[str]]:
 
 
 def _first(given: list[str], hydra_own: list[str], stage, overrides: list[str]):
-    """The first job's config, composed once with Hydra's section (as Hydra's run composes it
-    where `stage` is given and the job is the whole command line), Hydra's section checked
-    (check_hydra) and then dropped."""
+    """The first job's config, composed once with Hydra's section, which is checked, then
+    dropped."""
     full = None
     if stage is not None and given + hydra_own == overrides:
         full = compose_as_run(stage, overrides)
@@ -253,17 +222,13 @@ def _first(given: list[str], hydra_own: list[str], stage, overrides: list[str]):
         full = compose(given + hydra_own, hydra=True)
     check_hydra(full)
     MODE[:] = [full.hydra.mode]  # a sweep's values leave it as it is
-    # without Hydra's own overrides the config is that composition without its section (what
-    # Hydra's compose API returns): one compose, not two (each about 0.2 s CPU)
     return without_hydra(full) if not hydra_own else compose(given)
 
 
 def _planned(cfg, given: list[str], notes: list[str], one_job: bool,
              hydra_own: list[str]) -> list[dict]:
-    """The trials of one job's config, its keys and its choices checked; its notes added to
-    `notes`. one_job: its stage takes this plan instead of planning again (plan), and a note
-    of a run of the same command line, config files and code (planned.checked_marker) skips
-    the planning: the run's own settings are checked (check_run), [] returned."""
+    """The trials of one job's config, its notes added to `notes`. one_job: the stage takes this
+    plan, and a command line checked before (planned.checked_marker) plans nothing: []."""
     check_keys(cfg)
     notes += [n for n in config_notes(cfg) if n not in notes]
     marker = checked_marker(cfg, given + hydra_own) if one_job else None
@@ -281,9 +246,7 @@ def _planned(cfg, given: list[str], notes: list[str], one_job: bool,
 
 
 def _one_at_a_time(choices: list[list[str]]):
-    """The first combination, then each other value of each choice with the rest at their
-    first: every value is in some combination (the product's first ones hold one value of the
-    first key only)."""
+    """The first combination, then each other value of each choice, the rest at their first."""
     first = [c[0] for c in choices]
     yield tuple(first)
     for i, c in enumerate(choices):
@@ -292,7 +255,6 @@ def _one_at_a_time(choices: list[list[str]]):
 
 
 def _sweep_values(o):
-    """The typed values of sweep override `o`, lazily (a range's numbers are computed)."""
     from hydra.core.override_parser.types import ChoiceSweep, RangeSweep
 
     v = o.value()
@@ -306,8 +268,7 @@ def _sweep_values(o):
 
 
 def check_sweep_values(sweeps, cfg) -> None:
-    """ConfigError for the first value of a sweep outside its key's declared range
-    (config.declared): every job's value is checked, not only the composed ones'."""
+    """ConfigError for the first value of any sweep outside its key's declared range."""
     groups = {o.get_key_element() for o in sweeps}
     for o in sweeps:
         key = o.get_key_element().lstrip("+~")
@@ -328,8 +289,7 @@ _KEEPS_CONDITIONS = ("profile", "paths.", "workers", "engine", "trials.count", "
 
 
 def keeps_experiment(overrides: list[str], trials: list[dict]) -> None:
-    """ConfigError when `experiment=E` with other settings would replace E's figure: the run
-    must then name its own figure (figure=NAME), so that E's stays as the experiment made it."""
+    """ConfigError when `experiment=E` with other settings would replace E's figure."""
     keys = {o.lstrip("+~").split("=", 1)[0]: o for o in overrides}
     if "experiment" not in keys or "figure" in keys or not trials:
         return

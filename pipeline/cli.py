@@ -1,6 +1,5 @@
-"""The front door of every stage: check the command line (pipeline.check), run the stage on
-the config that was checked, and end in one line where the input or the place is at fault.
-"""
+"""Every stage's front door: check the command line, run the stage on the checked config, end
+in one line where the input or the place is at fault."""
 from __future__ import annotations
 
 import errno
@@ -19,9 +18,7 @@ __all__ = ["check", "finish", "main", "hydra_run", "snapshot", "disk_message"]
 
 
 def hydra_run() -> tuple[list[str], str | None, int]:
-    """(the command line's overrides, the multirun group, the job's number) of the running Hydra
-    job; ([], None, 0) outside @hydra.main. A multirun's jobs share its sweep folder, so their
-    plan records make one figure together."""
+    """(overrides, multirun group, job number) of the running Hydra job; ([], None, 0) outside."""
     import hashlib
 
     from hydra.core.hydra_config import HydraConfig
@@ -39,30 +36,25 @@ def hydra_run() -> tuple[list[str], str | None, int]:
 
 
 # what a full disk, a read-only folder or a missing permission raise: a fault of the place, named
-DISK_ERRNOS = (errno.ENOSPC, errno.EROFS, errno.EACCES, errno.EPERM, errno.EDQUOT)
+DISK = {errno.ENOSPC: "no space left on the device", errno.EDQUOT: "disk quota exceeded",
+        errno.EROFS: "read-only file system", errno.EACCES: "permission denied",
+        errno.EPERM: "operation not permitted"}
 
 
 def finish(run, cfg, record: bool = True) -> None:
-    """Run a stage on its composed config and exit with its status (record=False: a tool that
-    only reads and prints leaves no config snapshot and no checked-plan note behind). What every stage can meet
-    is one line: a bad value (ConfigError), missing or damaged input (FileNotFoundError,
-    pipeline.io's BadInput: DamagedFile, UnsafeName), gbmodel code edited since the import
-    (CodeChanged) or a full, read-only or forbidden folder (OSError) exits 2; Ctrl-C, SIGTERM and SIGHUP stop the workers, release the claims (the stage's
-    `finally`) and exit 130, 143, 129 (finished trials are cached: the same command resumes)."""
+    """Run a stage and exit with its status: bad input, edited code or a faulty folder is one
+    line, exit 2; a signal stops the workers, exit 130, 143, 129 (record=False: no snapshot)."""
     with stop.armed():
         try:  # no write or delete through a link leading elsewhere
             io.confine(cfg.paths.root if cfg is not None else None)
             rc = run(cfg)
             if rc in (0, 1) and record:  # it ran (1: some trials failed or inputs are missing)
                 snapshot(cfg)
-        except (ConfigError, FileNotFoundError, NotADirectoryError) as err:
-            print(f"error: {err}", file=sys.stderr)
-            rc = 2
-        except (BadInput, CodeChanged) as err:  # a damaged file or unsafe name; edited code
+        except (ConfigError, FileNotFoundError, NotADirectoryError, BadInput, CodeChanged) as err:
             print(f"error: {err}", file=sys.stderr)
             rc = 2
         except OSError as err:
-            if err.errno not in DISK_ERRNOS:
+            if err.errno not in DISK:
                 raise
             print(f"error: {disk_message(err)}", file=sys.stderr)
             rc = 2
@@ -88,10 +80,8 @@ def finish(run, cfg, record: bool = True) -> None:
 
 
 def snapshot(cfg):
-    """Keep the config this run composed (resolved: every path as used) and its command-line
-    overrides, Hydra's layout: .hydra/config.yaml and .hydra/overrides.yaml under
-    paths.out/logs/<stage>/<time>_<tag>/, a multirun job's in its folder of the sweep. Written
-    after the stage ran, so a refused run writes nothing; None outside @hydra.main (the API)."""
+    """The resolved config and overrides as Hydra lays them out (.hydra/) under
+    paths.out/logs/<stage>/<time>_<tag>/ or the sweep's job folder, after the stage ran."""
     import time
 
     from hydra.core.hydra_config import HydraConfig
@@ -118,18 +108,12 @@ def snapshot(cfg):
 
 
 def disk_message(err: OSError) -> str:
-    """One line for an OSError of the file system, naming the path."""
     where = err.filename if err.filename is not None else "a file"
-    why = {errno.ENOSPC: "no space left on the device", errno.EDQUOT: "disk quota exceeded",
-           errno.EROFS: "read-only file system", errno.EACCES: "permission denied",
-           errno.EPERM: "operation not permitted"}[err.errno]
-    return f"{where}: {why}; free space or choose a writable paths.root"
+    return f"{where}: {DISK[err.errno]}; free space or choose a writable paths.root"
 
 
 def main(hydra_main) -> None:
-    """Run a stage's @hydra.main function after checking its command line. A signal before the
-    stage runs ends the process with one line (pipeline.stop). `--help` prints help_text
-    (`--help-all`: with the whole config)."""
+    """Run a stage's @hydra.main function after checking its command line; --help: help_text."""
     stop.install()
     if {"--help", "-h", "--help-all"} & set(sys.argv[1:]):
         import __main__

@@ -1,14 +1,6 @@
-"""Running trials on this machine: the local pool that spreads them (one trial in a worker:
-pipeline.worker).
-
-The pool takes plain-data trials, runs them longest first and yields each result as soon as
-it is there, so the driver can write it to the cache at once: an interrupted run loses only the
-trials in flight. Short trials travel to a worker in batches (batches), long ones alone. Locally it is a `concurrent.futures.ProcessPoolExecutor` of spawned workers with
-one BLAS/OpenMP/numba thread each. Ctrl-C, SIGTERM and SIGHUP reach the driver only (workers
-ignore them, pipeline.worker.quiet_worker), which kills every worker at once (stop_pools), so
-neither a worker nor multiprocessing's resource tracker outlives it; a worker whose driver died
-(kill -9) is killed by the kernel (PR_SET_PDEATHSIG). It is engine=local's run
-(pipeline.engines.local); the cluster engines are the other modules of pipeline.engines.
+"""engine=local's pool: spawned worker processes (one thread each) that run trials longest
+first, short ones in batches, and yield each result as it comes. Signals reach the driver only,
+which kills every worker at once (stop_pools); a worker whose driver died is killed by the kernel.
 """
 from __future__ import annotations
 
@@ -18,16 +10,16 @@ import sys
 import types
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from contextlib import contextmanager
+from unittest.mock import patch
 
-from .worker import (THREAD_VARS, quiet_worker, run_batch, run_one,  # noqa: F401
-                     single_threaded_children)
+from .engines import THREAD_VARS  # noqa: F401 (execute.THREAD_VARS)
+from .worker import quiet_worker, run_batch, run_one
 
 _POOLS: set = set()  # the pools of this process that are running
 
 
 def stop_pools() -> None:
-    """Kill the workers of every running pool of this process and wait for them: what a stage
-    does when it is stopped (pipeline.cli.finish), wherever the signal found the driver."""
+    """Kill the workers of every running pool of this process (a stopped stage: cli.finish)."""
     for pool in list(_POOLS):
         _stop(pool)
 
@@ -40,7 +32,6 @@ def _stop(pool) -> None:
 
 
 def cpus() -> int:
-    """The CPUs this process may run on (its affinity mask: a cluster job's share)."""
     try:
         return len(os.sched_getaffinity(0))
     except AttributeError:  # not Linux
@@ -48,8 +39,7 @@ def cpus() -> int:
 
 
 def capped(workers: int, trials: int) -> int:
-    """Local workers: at most one per trial and one per CPU (more would only share the CPUs and
-    cost each worker's memory); a note says so when the CPUs cap what was asked."""
+    """Local workers: at most one per trial and one per CPU (a note when the CPUs cap them)."""
     n = max(1, min(workers, trials))
     if n > cpus():
         print(f"note: workers={workers}: this machine has {cpus()} CPUs; running {cpus()} "
@@ -59,26 +49,20 @@ def capped(workers: int, trials: int) -> int:
 
 
 def in_launcher_worker() -> bool:
-    """True in a process that a launcher's pool started (joblib's loky workers under
-    `hydra/launcher=joblib`): the launcher runs the jobs in parallel already, and such a worker
-    cannot start a pool of its own (its start method, `loky`, is unknown to its children), so its
-    trials run one after the other in it."""
+    """True in a process a launcher's pool started (joblib's loky under hydra/launcher=joblib):
+    it cannot start a pool of its own, so its trials run in it one after the other."""
     return multiprocessing.parent_process() is not None or \
         multiprocessing.get_start_method(allow_none=True) not in (None, "spawn", "fork", "forkserver")
 
 
 def pooled(trials: int, workers: int) -> bool:
-    """Whether local() runs `trials` trials on a pool of worker processes (else in this one)."""
     return min(workers, trials, cpus()) > 1 and not in_launcher_worker()
 
 
 def local(todo: list[dict], workers: int, fn=run_one):
-    """Yield (trial, fn(trial)) as trials finish, on `workers` spawned processes (at most one per
-    CPU; in this process when one worker suffices). `todo` is run in its order (longest first).
-    With fn=run_one, every kernel the trials need is loaded (or compiled) first, by warm_up's
-    tiny trials: on a pool in its first worker, before the others start (they then load them
-    from numba's cache, and the driver, which only writes results, loads none); in this process
-    here (a trial's measured CPU time then holds no compile)."""
+    """Yield (trial, fn(trial)) as trials finish, on `workers` spawned processes (or this one),
+    in the order of `todo`. With fn=run_one the kernels are loaded first (warm_trials) in the
+    pool's first worker before the others start, or here."""
     workers = capped(workers, len(todo))
     if not pooled(len(todo), workers):
         if fn is run_one:
@@ -90,7 +74,7 @@ def local(todo: list[dict], workers: int, fn=run_one):
                                initializer=quiet_worker, initargs=(os.getpid(),))
     _POOLS.add(pool)
     try:
-        if fn is run_one:  # one worker is started for it; the others when the batches come
+        if fn is run_one:
             with _starting_workers(fn):
                 warm = pool.submit(run_batch, fn, warm_trials(todo))
             warm.result()
@@ -101,37 +85,28 @@ def local(todo: list[dict], workers: int, fn=run_one):
             for fut in done:
                 yield from zip(pending.pop(fut), fut.result())
     finally:
-        # idle workers after the last result; on a signal, an error or a dropped generator: now
-        _stop(pool)
+        _stop(pool)  # after the last result; on a signal, an error or a dropped generator
+
+
+def single_threaded_children():
+    """Children inherit the environment: one BLAS/OpenMP/numba thread each."""
+    return patch.dict(os.environ, {k: "1" for k in THREAD_VARS})
 
 
 @contextmanager
 def _starting_workers(fn):
-    """Around the submits, where the pool starts its spawned workers (not where it is made):
-    each worker inherits one BLAS/OpenMP/numba thread (single_threaded_children; two workers
-    with a BLAS thread per CPU each would share two CPUs four ways) and a bare __main__
-    (_no_main_module)."""
-    with single_threaded_children(), _no_main_module(fn):
-        yield
-
-
-@contextmanager
-def _no_main_module(fn):
-    """A spawned worker imports the driver's __main__ module before it runs anything
-    (multiprocessing's preparation): for `python -m pipeline.simulate` the whole stage, Hydra,
-    OmegaConf and the config (about 0.3 s of CPU per worker more than what a trial imports),
-    none of which a worker uses. Within this block workers are started with a bare __main__
-    instead, unless `fn` itself lives in __main__ (a script's own function, which a worker
-    finds there)."""
+    """Around the submits, where the pool spawns workers: one thread each, and a bare __main__
+    (not the stage, Hydra and the config: 0.3 s CPU each) unless `fn` lives in __main__."""
     main = sys.modules.get("__main__")
-    if main is None or getattr(fn, "__module__", None) == "__main__":
-        yield
-        return
-    sys.modules["__main__"] = types.ModuleType("__main__")
-    try:
-        yield
-    finally:
-        sys.modules["__main__"] = main
+    bare = main is not None and getattr(fn, "__module__", None) != "__main__"
+    with single_threaded_children():
+        if bare:
+            sys.modules["__main__"] = types.ModuleType("__main__")
+        try:
+            yield
+        finally:
+            if bare:
+                sys.modules["__main__"] = main
 
 
 BATCH_SHARE = 16  # a batch holds at most 1/BATCH_SHARE of one worker's share of the work
@@ -139,10 +114,8 @@ MAX_BATCH = 64  # trials
 
 
 def batches(todo: list[dict], workers: int) -> list[list[dict]]:
-    """`todo` in order, cut into batches that one worker task runs: consecutive trials while
-    their estimated cost (pipeline.plan.cost) stays within 1/BATCH_SHARE of a worker's share,
-    at most MAX_BATCH. Short trials then share one task's pickling and round trip; a long trial
-    is a batch of its own, so the workers stay balanced and a stopped run loses little."""
+    """`todo` in order, cut into worker tasks: consecutive trials while their cost stays within
+    1/BATCH_SHARE of a worker's share, at most MAX_BATCH (a long trial alone)."""
     costs = _costs(todo)
     limit = sum(costs) / (workers * BATCH_SHARE)
     out, batch, total = [], [], 0.0
@@ -156,13 +129,11 @@ def batches(todo: list[dict], workers: int) -> list[list[dict]]:
 
 
 def costs_of(trials: list[dict]) -> dict:
-    """Trial key -> pipeline.plan.cost of each trial (_costs)."""
     return dict(zip((t["key"] for t in trials), _costs(trials)))
 
 
 def _costs(trials: list[dict]) -> list[float]:
-    """pipeline.plan.cost of each trial, computed once per spec object and start (cost hashes
-    the whole spec, about 60 us; the trials of a condition share their spec)."""
+    """pipeline.plan.cost of each trial, once per spec object and start."""
     from .plan import cost
 
     out, seen = [], {}
@@ -177,15 +148,13 @@ def _costs(trials: list[dict]) -> list[float]:
 
 
 def warm_up(trials: list[dict]) -> None:
-    """Compile (or load from numba's cache) each learner's kernels once, in this process, before
-    fanning out: a tiny trial per distinct body and learner (warm_trials)."""
+    """Load (or compile) the trials' kernels in this process (warm_trials)."""
     for t in warm_trials(trials):
         run_one(t)
 
 
 def warm_trials(trials: list[dict]) -> list[dict]:
-    """A tiny trial (two epochs, no growth, no snapshot) per distinct body and learner of
-    `trials`: running them loads every kernel the trials need. Their results are not kept."""
+    """A tiny trial (two epochs, no growth) per distinct body and learner: its kernels."""
     seen, out = set(), []
     for t in trials:
         spec = t["spec"]

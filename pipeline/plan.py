@@ -1,14 +1,7 @@
-"""From a composed config to the list of trials to run: variants x conditions x trial index.
-
-Everything a trial needs is plain data (a dict), so it can be sent to a worker process or a
-cluster and hashed into the cache key. Every value is checked here, before any stage writes
-anything: the trial's own values by gbmodel (TrialSpec.validate, whose SpecError names the config
-key), the plan's by this module; either way a ConfigError with one line naming the key.
-
-A condition is its settings (the hash of its trial spec and root seed: pipeline.keys.condition_id),
-never a label. It grows a body by a pattern from a start to an end size over T_G epochs, or keeps
-it at a constant size (a reference). Labels are derived from what differs between the conditions
-of a figure (pipeline.labels); a fully planned command plans nothing again (pipeline.planned).
+"""A composed config -> its trials as plain data (variants x conditions x trial index), each
+value checked once before anything is written (a trial's by gbmodel's TrialSpec.validate, the
+plan's here): a ConfigError naming the key. A condition is its settings (keys.condition_id:
+spec and root seed), never a label; a reference keeps the body at one size.
 """
 from __future__ import annotations
 
@@ -20,7 +13,7 @@ import numpy as np
 
 import gbmodel
 import gbmodel.bodies
-from gbmodel.spec import check_int
+from gbmodel.spec import SpecError, check_int
 from omegaconf import DictConfig, OmegaConf
 
 from .config import ConfigError, check_limits, check_run
@@ -30,27 +23,16 @@ from .keys import canonical, condition_id, stable_hash32, trial_key
 log = logging.getLogger(__name__)
 
 
-def _bad(key, value, why):
-    raise ConfigError(f"{key}={value!r}: {why}")
-
-
 def _sized(pattern, size):
     return dict(pattern=pattern, start_size=float(size), end_size=float(size), period=0)
 
 
 def conditions(cfg: DictConfig) -> list[dict]:
-    """The conditions of one (variant of a) config: the growth group's (or the experiment's
-    periods), then the constant-size references, each a dict(condition, growth label, period,
-    growth spec)."""
+    """The growth conditions (the growth group's, or conditions.periods), then the references:
+    dict(condition, growth, growth_period, spec) each."""
     g = OmegaConf.to_container(cfg.growth)
     pattern = g.pop("pattern")
-    periods = list(cfg.conditions.periods)
-    for p in periods:
-        check_int("conditions.periods", p, 0)
-    refs = list(cfg.conditions.references)
-    for s in refs:
-        if isinstance(s, bool) or not isinstance(s, (int, float)) or not s > 0:
-            _bad("conditions.references", s, "a body size must be > 0")
+    periods, refs = list(cfg.conditions.periods), list(cfg.conditions.references)
     # A reference shrinks the body the way the figure's growth does (Fig. 5: non-proportionally).
     ref_pattern = "proportional" if pattern == "none" else pattern
     out = []
@@ -74,41 +56,36 @@ TRIAL_SECTIONS = ("body", "growth", "learner", "evaluation", "conditions", "tria
 
 def variants(cfg: DictConfig) -> list[tuple[dict | None, DictConfig]]:
     """(variant, its config) for each variant of the experiment, or [(None, cfg)] without any."""
-    out = []
-    # a copy of what a trial depends on (planning never changes the caller's config), without
-    # the variants themselves: each variant's copy is then small (a config copy is a deep copy)
+    out = []  # from a copy of the trial's sections without the variants (small deep copies)
     base = OmegaConf.masked_copy(cfg, list(TRIAL_SECTIONS))
     OmegaConf.set_struct(base, True)
     base.conditions.variants = []
     for v in cfg.conditions.variants or [None]:
-        if v is None:
-            vcfg = base.copy()
-            apply_budget(vcfg)
-            out.append((None, vcfg))
-            continue
         vcfg = base.copy()
-        groups = [o for o in v.set if "=" in o and "." not in o.split("=", 1)[0]]
+        groups = [o for o in ([] if v is None else v.set) if "=" in o and "." not in o.split("=", 1)[0]]
         try:
             for o in groups:  # `learner=<name>`: that learner's config, for this body
                 group, name = o.split("=", 1)
                 if group != "learner":
                     raise ValueError(f"{o}: a variant can choose a learner, not a {group}")
                 vcfg.learner = OmegaConf.create(_learner_for(cfg.body.name, o))
-            vcfg.merge_with(OmegaConf.from_dotlist([o for o in v.set if o not in groups]))
+            if v is not None:
+                vcfg.merge_with(OmegaConf.from_dotlist([o for o in v.set if o not in groups]))
         except Exception as err:  # an unknown key or a wrong type in the variant
-            _bad("conditions.variants", v.label, f"set {list(v.set)}: {err}".splitlines()[0])
+            raise SpecError("conditions.variants", v.label,
+                            f"set {list(v.set)}: {err}".splitlines()[0]) from None
         apply_budget(vcfg)
-        out.append((dict(label=v.label, choice=v.choice, chosen=bool(v.chosen)), vcfg))
+        out.append((None if v is None else dict(label=v.label, choice=v.choice,
+                                                 chosen=bool(v.chosen)), vcfg))
     labels = [v["label"] for v, _ in out if v]
     if len(set(labels)) != len(labels):
-        _bad("conditions.variants", labels, "labels must differ")
+        raise SpecError("conditions.variants", labels, "labels must differ")
     return out
 
 
 @lru_cache(maxsize=None)
 def _learner_for(body: str, choice: str) -> dict:
-    """The learner section `learner=<name>` composes to for a body (its body_learner settings
-    too): composed once per process, since composing costs a third of a second."""
+    """The learner section `learner=<name>` composes to for a body (cached: a third of a s)."""
     from .config import compose
 
     return OmegaConf.to_container(compose([f"body={body}", choice]).learner)
@@ -134,9 +111,7 @@ def apply_budget(cfg: DictConfig) -> None:
 
 
 def frame_epochs(epochs: int, frames: int) -> list[int]:
-    """`frames` epochs spread evenly on a log scale over 1 ... epochs (fewer where two round to
-    the same epoch), the last one `epochs`: where the learning curve changes, it changes on a
-    log scale."""
+    """`frames` epochs log-spaced over 1 ... epochs (fewer where two round alike)."""
     if frames <= 0:
         return []
     if frames == 1:
@@ -145,7 +120,6 @@ def frame_epochs(epochs: int, frames: int) -> list[int]:
 
 
 def trial_spec(cfg: DictConfig, growth: dict) -> gbmodel.TrialSpec:
-    """The TrialSpec of one condition, validated (ConfigError naming the config key)."""
     learner = OmegaConf.to_container(cfg.learner)
     epochs, per_decade = learner.pop("epochs"), learner.pop("evals_per_decade")
     # a learner may leave fields out of the key that change nothing at their defaults
@@ -153,8 +127,6 @@ def trial_spec(cfg: DictConfig, growth: dict) -> gbmodel.TrialSpec:
         learner = getattr(gbmodel.learners.get(learner["name"]), "keyed", dict)(learner)
     except ValueError as err:
         raise ConfigError(str(err)) from None
-    for e in cfg.conditions.snapshots:
-        check_int("conditions.snapshots", e, 1)
     frames = frame_epochs(epochs, cfg.conditions.frames) if isinstance(epochs, int) else []
     snaps = tuple(sorted({e for e in [*cfg.conditions.snapshots, *frames]
                           if isinstance(e, int) and e <= epochs}))
@@ -176,14 +148,9 @@ SAME_SIZE = 8 * np.finfo(np.float64).eps  # relative: factors this close to S ar
 
 @lru_cache(maxsize=256)
 def constant_growth(body_json: str, growth_json: str) -> dict:
-    """The growth as its factors act: a body that never grows, every segment at the one size S
-    in every epoch, is the one constant growth (proportional at S, period 0, every other field at
-    its default), whatever pattern, schedule or table named it: Fig. 5's full-size reference is
-    Fig. 4's (the same trials, computed once). Any other growth is returned as it is: a
-    non-proportional body at half size, whose held segments stay at full length, is another body.
-    "Every segment at S" allows the rounding of the factors' formulas (SAME_SIZE): the
-    non-proportional factor at S = fixed_scale, (S L - held) / L_grow, lands 2e-16 off S on arm5
-    (the canonical body is then the exact one, on both paths)."""
+    """A growth whose every segment stays at one size S (within SAME_SIZE) is the one constant
+    growth (proportional at S, period 0), whatever named it: Fig. 5's full-size reference is
+    Fig. 4's trials. Any other growth (a held segment off S) is returned as it is."""
     growth = json.loads(growth_json)
     try:
         g = gbmodel.Growth(**growth)
@@ -199,13 +166,8 @@ def constant_growth(body_json: str, growth_json: str) -> dict:
 
 
 def stream(spec: dict) -> int:
-    """The random stream of a condition: a 32-bit hash of its body (by name) and its growth's
-    pattern, start and end size and period after constant_growth, so that the same condition
-    draws the same numbers in every experiment (never by the figure's name). Not the learner,
-    the evaluation, the epochs, the schedule, the segment settings (fixed_scale, leads, rates, a
-    table) or a body's variant fields (home, grid, saturate): the variants of an experiment that
-    change those share their draws (common random numbers), and a shorter run draws the first
-    blocks of a longer one (the first epochs of it at a multiple of gbmodel.trial.DRAW_BLOCK)."""
+    """A condition's random stream: a hash of its body's name and growth pattern, sizes and
+    period only, so variants changing anything else share their draws (common random numbers)."""
     g = spec["growth"]
     return stable_hash32(dict(body=spec["body"]["name"], pattern=g["pattern"],
                               start_size=g["start_size"], end_size=g["end_size"],
@@ -213,10 +175,8 @@ def stream(spec: dict) -> int:
 
 
 def body_content(body: dict) -> dict:
-    """The body's description with the SHA-256 of every file it reads (a URDF's bytes, as
-    `urdf.sha256`; an MJCF model's and its includes'; a body in the loop's function source and
-    files, gbmodel.bodies.source_digest): an edited file is another body, so its trials get
-    other keys. `credits` is left out where the body has none."""
+    """The body with the SHA-256 of every file it reads (source_digest: an edited file is another
+    body); `credits` left out where it has none."""
     if body.get("credits") is None:  # a body without credits: its key as before the field
         body = {k: v for k, v in body.items() if k != "credits"}
     for section in gbmodel.bodies.READS:
@@ -231,8 +191,7 @@ def body_content(body: dict) -> dict:
 
 @lru_cache(maxsize=64)
 def check_reach(body_json: str) -> None:
-    """Warn (once per body description and process) when some targets of the body's grid are
-    reached by no posture within its limits (gbmodel.bodies.unreachable, at full size)."""
+    """Warn (once per body) of grid targets no posture reaches (gbmodel.bodies.unreachable)."""
     body = gbmodel.make_body(json.loads(body_json))
     missed = gbmodel.bodies.unreachable(body, np.random.default_rng(0))
     if len(missed):
@@ -252,15 +211,9 @@ def _config_key(cfg: DictConfig) -> str | None:
 
 
 def plan(cfg: DictConfig, remember: bool = False) -> list[dict]:
-    """Every trial of the config as plain data, in order (variant, condition, trial index).
-
-    Each trial carries its content (key, spec, seed, code), content-derived labels (body,
-    learner, growth pattern, period, trial index) and where this config uses it: the figure, the
-    condition's id, its growth label (TG<period> / const<size>) and its variant, if any.
-
-    remember: keep the plan for the next plan() of the same config in this process, once (the
-    command-line check plans before Hydra starts the stage, which then takes that plan instead
-    of planning again: the config is checked once per stage)."""
+    """Every trial (key, spec, seed, code, labels, figure, condition, growth_label, variant) in
+    order. remember: the next plan() of the same config in this process takes this one (the
+    command line's check plans before Hydra starts the stage)."""
     key = _config_key(cfg) if (remember or _CHECKED) else None
     if key is not None and key in _CHECKED:
         check_run(cfg)  # the place may have changed since (a folder made a file): cheap
@@ -304,30 +257,29 @@ def _plan(cfg: DictConfig) -> list[dict]:
     return trials
 
 
-# learner fields that act only through the rate of each epoch (Goal Babbling's Params.rates): a
-# continuation's variant may change them where the rates of its base's epochs stay the same
+# learner fields acting only through each epoch's rate (Params.rates): a continuation may change them
 RATE_FIELDS = ("learning_rate", "rate_samples", "rate_schedule", "anneal_epochs",
                "rate_step_epoch", "rate_step_factor")
 
 
 def base_spec(cfg: DictConfig, vcfg: DictConfig, variant, cond: dict, spec: dict) -> dict | None:
-    """The spec of the trials a continuation's trials continue (conditions.continues): its
-    condition under the experiment's settings without the variants, for `continues` epochs, the
-    same trial as any other experiment's at those settings (Fig. 7's const1.0 for
-    explain_fig7_continuation). None where there is nothing to continue: no conditions.continues,
-    or not fewer epochs than the run's (the smoke profile). ConfigError for a variant that changes
-    the trial before those epochs (anything but the rate after them)."""
+    """The spec a continuation continues (conditions.continues epochs of its condition without the
+    variants), None without one or with fewer epochs; ConfigError for a variant that changes
+    anything but the rate after those epochs."""
     n = cfg.conditions.continues
     if n is None:
         return None
     from gbmodel.trial import DRAW_BLOCK
 
+    def bad(why):
+        return SpecError("conditions.continues", n, why)
+
     check_int("conditions.continues", n, 1)
     if n % DRAW_BLOCK:
-        _bad("conditions.continues", n, f"a continuation starts after a multiple of {DRAW_BLOCK} "
-             "epochs (the draws come in blocks of that many)")
+        raise bad(f"a continuation starts after a multiple of {DRAW_BLOCK} epochs (the draws "
+                  "come in blocks of that many)")
     if cfg.conditions.budget is not None:
-        _bad("conditions.continues", n, "a continuation counts epochs, not a sample budget")
+        raise bad("a continuation counts epochs, not a sample budget")
     if not isinstance(spec["epochs"], int) or n >= spec["epochs"]:
         return None
     bcfg = OmegaConf.masked_copy(cfg, list(TRIAL_SECTIONS))
@@ -337,10 +289,10 @@ def base_spec(cfg: DictConfig, vcfg: DictConfig, variant, cond: dict, spec: dict
     where = f"variant {variant['label']!r}" if variant else "the experiment"
     for k in ("body", "growth", "evaluation", "evals_per_decade"):
         if base[k] != spec[k]:
-            _bad("conditions.continues", n, f"{where} changes {k}: a continuation may change the "
-                 "rate after its base's epochs, nothing else")
+            raise bad(f"{where} changes {k}: a continuation may change the rate after its "
+                      "base's epochs, nothing else")
     if not set(e for e in spec["snapshots"] if e <= n) <= set(base["snapshots"]):
-        _bad("conditions.continues", n, f"{where} stores a snapshot its base does not")
+        raise bad(f"{where} stores a snapshot its base does not")
     a, b = base["learner"], spec["learner"]
     changed = {k for k in set(a) | set(b) if a.get(k) != b.get(k)}
     if changed:
@@ -349,14 +301,13 @@ def base_spec(cfg: DictConfig, vcfg: DictConfig, variant, cond: dict, spec: dict
         rates = [module.Params(**{k: v for k, v in x.items() if k != "name"}).rates(epochs)
                  if hasattr(module.Params, "rates") else None for x in (a, b)]
         if not changed <= set(RATE_FIELDS) or not np.array_equal(*rates):
-            _bad("conditions.continues", n, f"{where} changes learner.{sorted(changed)[0]} before "
-                 f"epoch {n}: a continuation may change the rate after its base's epochs only")
+            raise bad(f"{where} changes learner.{sorted(changed)[0]} before epoch {n}: a "
+                      "continuation may change the rate after its base's epochs only")
     return base
 
 
 def plan_conditions(trials: list[dict]) -> list[dict]:
-    """The conditions of planned trials, in order: id, spec, root seed, growth label, variant and
-    their trials' keys (one entry per variant and condition id)."""
+    """One entry per variant and condition id of planned trials, with their trials' keys."""
     out = {}
     for t in trials:
         v = t.get("variant")
@@ -368,27 +319,21 @@ def plan_conditions(trials: list[dict]) -> list[dict]:
     return list(out.values())
 
 
-# CPU seconds per unit of cost(), and a trial's fixed work (its body, draws, evaluation grid and
-# files), calibrated on whole trials: the report's measured CPU per experiment (21 experiments,
-# 2,595 trials, outputs/report/report.md's provenance, measured on a shared 2-core AMD EPYC with
-# up to seven other processes beside it) falls within 0.73 to 1.35 x cpu_seconds
-# (tests/pipeline/test_sweeps.py). The previous report's quieter run gave 2.2 ns per unit: every
-# experiment ran 1.2-1.5 x slower in this one (its evaluation of the path targets costs about
-# 0.01 s of a trial). The kernel alone: 1.9 ns per unit on arm5 (`python -m pipeline.tools.bench
-# costs`, its first row); a whole trial costs about 1.15 times that on a quiet machine.
+# CPU seconds per unit of cost() and per trial, calibrated on whole trials: the committed
+# report's measured CPU per experiment (2,595 trials on a shared 2-core AMD EPYC, up to seven
+# other processes beside it) is 0.73 to 1.35 x cpu_seconds (tests/pipeline/test_sweeps.py); the
+# previous, quieter report gave 2.2 ns per unit (the path targets' evaluation: ~0.01 s a trial)
 SECONDS_PER_COST = 3.1e-9
 SECONDS_PER_TRIAL = 0.05
 
 
 def cpu_seconds(units: float, trials: int) -> float:
-    """The CPU seconds the cost model gives `trials` trials of `units` of cost() in all."""
     return SECONDS_PER_COST * units + SECONDS_PER_TRIAL * trials
 
 
 def cost(trial: dict) -> float:
-    """Rough relative run time of a trial: samples per epoch x joints x epochs x the learner's
-    cost per sample and joint (its sample_cost; 1 for a learner without one). A continuation
-    costs its own epochs (after its base's)."""
+    """Relative run time: epochs x samples per epoch x joints x the learner's sample_cost (a
+    continuation: its own epochs)."""
     start = trial.get("start")
     done = start["epoch"] / trial["spec"]["epochs"] if start else 0.0
     return _cost(canonical(trial["spec"])) * (1.0 - done)

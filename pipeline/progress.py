@@ -1,11 +1,5 @@
-"""The simulate driver's progress lines: done/total, elapsed, ETA, and a heartbeat on a cluster.
-
-One line per finished trial, as locally. On a cluster trials finish in bursts (a SLURM shard's
-job spends ~15 s importing before its first trial; a queue can hold a job for hours), so when
-nothing has finished for `heartbeat_s` a thread adds a line saying the driver is alive, how long
-it has waited and how many trials are still out. Lines are plain text ending in a newline either
-way: a SLURM log or `tee` gets readable lines; on a terminal the heartbeat overwrites itself
-(carriage return) instead of filling the screen.
+"""Progress lines: one per finished trial (done/total, elapsed, ETA), and a heartbeat when none
+finished for `heartbeat_s` (a cluster's bursts); on a terminal the heartbeat overwrites itself.
 """
 from __future__ import annotations
 
@@ -27,12 +21,8 @@ ESTIMATE_ABOVE_S = 60.0  # a run estimated to take longer than this says so befo
 
 def estimate(trials: list[dict], workers: int, costs: dict | None = None,
              jobs: tuple[int, int] | None = None) -> str | None:
-    """One line before a run longer than ESTIMATE_ABOVE_S of CPU: its trials, their epochs and
-    the CPU time the cost model gives (pipeline.plan.cpu_seconds: calibrated on whole trials;
-    startup, compilation and the other stages not counted), and the wall
-    time on `workers`; None for a shorter run. jobs=(planned, all): `trials` are those of the
-    `planned` jobs of a sweep of `all` jobs, the others counted at their mean (one line before
-    the sweep's first job)."""
+    """One line before a run above ESTIMATE_ABOVE_S of CPU (plan.cpu_seconds), else None.
+    jobs=(planned, all): `trials` are those of `planned` jobs of a sweep, the rest at the mean."""
     from .plan import cost, cpu_seconds
 
     if not trials:
@@ -56,9 +46,7 @@ def estimate(trials: list[dict], workers: int, costs: dict | None = None,
 
 
 class Progress:
-    """done/total, elapsed and ETA (by the trials' estimated cost), one line per finished trial,
-    and a heartbeat line after `heartbeat_s` without one. `summary` is pipeline.simulate's
-    Summary (figure, total, cached, ran, failed, labels); close() stops the heartbeat."""
+    """The lines of a run; `summary`: pipeline.simulate's Summary; close() stops the heartbeat."""
 
     def __init__(self, summary, todo: list[dict], heartbeat_s: float = HEARTBEAT_S,
                  stream=None, cost=None):
@@ -125,9 +113,7 @@ class Progress:
 
 
 class Steps:
-    """A line per step of a stage that has no trials to count (the report's sections, one
-    figure's curves): `[report] 3/9 readings | elapsed 0m41s`, so a stage of minutes is never
-    silent. Plain lines to stderr."""
+    """A line per step of a stage without trials: `[report] 3/9 readings | elapsed 0m41s`."""
 
     def __init__(self, stage: str, total: int, stream=None):
         self.stage, self.total, self.done = stage, total, 0

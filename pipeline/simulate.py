@@ -1,13 +1,8 @@
-"""Stage 1, simulate: run every trial of the config that is not cached yet.
+"""Stage 1, simulate: every trial of the config not cached yet, longest first on the engine,
+each written to the cache as it finishes; a trial another run claimed is waited for; a failed or
+diverged one is recorded and the others go on (exit 1 with a summary).
 
-    python -m pipeline.simulate experiment=fig4                 # one paper figure
-    python -m pipeline.simulate -m growth.period=10,100 trials.count=2   # a Hydra sweep
-    python -m pipeline.simulate 'experiments=[fig2,fig4]'      # several figures, one process
-
-Trials run longest first on the engine (pipeline.engines), and each finished trial is written
-to the cache at once, so an interrupted run loses only the trials in flight. A trial another run
-is computing (its claim is held) is left to that run and waited for. A failing or diverging
-trial is recorded with its error, the others go on, and the stage exits non-zero with a summary.
+    python -m pipeline.simulate experiment=fig4     (-m growth.period=10,100; 'experiments=[a,b]')
 """
 from __future__ import annotations
 
@@ -25,9 +20,8 @@ from omegaconf import DictConfig, OmegaConf
 
 from . import cache, checkpoint, cli, engines, execute, io
 from .check import keeps_experiment
-from .config import CONFIG_PATH
+from .config import CONFIG_PATH, check_run
 from .fingerprint import code_fingerprint
-from .config import check_run
 from .plan import cost, plan, plan_conditions
 from .planned import PLANNED, misplanned, plan_digest
 from .progress import Progress, estimate
@@ -51,9 +45,8 @@ class Summary:
     kept_at: float = field(default_factory=time.monotonic)
 
     def keep_times(self, now: bool = False) -> None:
-        """Write the measured times not yet written (pipeline.cache.write_times: a file per
-        call), at most every TIMES_EVERY_S unless now: a run killed without a chance to clean
-        up (SIGKILL, a lost node) loses at most that much of its provenance."""
+        """Write the times not yet written, at most every TIMES_EVERY_S unless now (a killed run
+        loses at most that much of its provenance)."""
         if self.times_dir is None or not self.unkept:
             return
         if now or time.monotonic() - self.kept_at >= TIMES_EVERY_S:
@@ -90,8 +83,6 @@ def record(cache_dir, trial: dict, result: dict, summary: Summary) -> None:
 
 @dataclass
 class Job:
-    """One figure of a simulate run: its name, paper section and planned trials (plain data)."""
-
     figure: str
     paper: dict
     trials: list
@@ -99,14 +90,9 @@ class Job:
 
 
 def jobs_of(cfg: DictConfig, overrides: list[str] = (), notes: list | None = None) -> list[Job]:
-    """The figures this run plans: the config's own, or with `experiments=[a, b]` each of those
-    experiments composed with the same other overrides (make smoke / make reproduce plan every
-    experiment in one process). A command planned before (the same plan_digest: config,
-    overrides, config files and code) takes its jobs from paths.out/planned/ instead of
-    composing and planning again; the run's own settings are checked either way. notes: a list
-    given is filled with the trials' learner_notes, kept in the saved plan beside its jobs (they
-    follow from the specs and the code, which its digest holds): a planned run imports no
-    learner to print them."""
+    """The figures this run plans (`experiments=[a, b]`: each composed with the other overrides),
+    from paths.out/planned/ where the same plan_digest was planned before. notes: filled with
+    the learner_notes, kept in the saved plan (a planned run imports no learner)."""
     engines.check(cfg.engine.name)  # this stage submits: the engine's package is needed
     experiment = None if cfg.get("experiments") else _experiment_of(cfg)
     saved = Path(cfg.paths.out) / PLANNED / f"{plan_digest(cfg, [overrides, experiment])}.json"
@@ -123,25 +109,21 @@ def jobs_of(cfg: DictConfig, overrides: list[str] = (), notes: list | None = Non
     except (OSError, ValueError, TypeError, KeyError, IndexError, AttributeError) as err:
         log.warning("warning: %s: damaged (%s); planned again", saved,
                     str(err).splitlines()[0] if str(err) else type(err).__name__)
-    if jobs is not None:
+    if jobs is None:
+        jobs = plan_jobs(cfg, overrides, experiment)
+        packed = {**pack_jobs(jobs), "notes": learner_notes(t for j in jobs for t in j.trials)}
+        io.write_json(saved, packed, compact=True)
+    else:
         check_run(cfg)
-        kept = packed.get("notes")
-        if notes is not None:
-            notes[:] = (kept if isinstance(kept, list) and all(isinstance(n, str) for n in kept)
-                        else learner_notes(t for j in jobs for t in j.trials))
-        return jobs
-    jobs = plan_jobs(cfg, overrides, experiment)
-    packed = pack_jobs(jobs)
-    packed["notes"] = learner_notes(t for j in jobs for t in j.trials)
-    io.write_json(saved, packed, compact=True)
+    kept = packed.get("notes")
     if notes is not None:
-        notes[:] = packed["notes"]
+        notes[:] = (kept if isinstance(kept, list) and all(isinstance(n, str) for n in kept)
+                    else learner_notes(t for j in jobs for t in j.trials))
     return jobs
 
 
 def pack_jobs(jobs: list[Job]) -> dict:
-    """Jobs as plain data, each distinct trial spec once (a condition's trials share theirs):
-    a sweep of 100,000 trials stores its few conditions' specs, not 100,000 copies."""
+    """Jobs as plain data, each distinct trial spec stored once."""
     specs, index, seen = [], {}, {}  # seen: by object (a plan shares a condition's spec)
     out = []
     for j in jobs:
@@ -159,10 +141,8 @@ def pack_jobs(jobs: list[Job]) -> dict:
 
 
 def still_planned(saved: dict) -> bool:
-    """Whether saved jobs are what planning would give now, beyond what plan_digest covers:
-    every file a body reads (a URDF, outside the project's folders) has the bytes it was
-    planned with, and every trial's code fingerprint is that of the code this process runs
-    (code_fingerprint: cached per learner, and it refuses a file edited after the import)."""
+    """Whether saved jobs hold beyond plan_digest: every file a body reads has its planned bytes,
+    every trial's code fingerprint is this process's."""
     specs = saved["specs"]
     for spec in specs:
         for section in gbmodel.bodies.READS:
@@ -211,10 +191,8 @@ def _experiment_of(cfg: DictConfig) -> str | None:
 
 def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = None,
              job: int = 0) -> Summary:
-    """Run the config's trials that are not cached; return what was done.
-
-    group: the Hydra multirun this run is a job of (job: its number), whose records make one
-    figure together; None: this run's records make the figure alone."""
+    """Run the config's trials that are not cached. group: the Hydra multirun whose jobs' plan
+    records make one figure together (job: this one's number)."""
     notes = []
     jobs = jobs_of(cfg, overrides, notes)  # raises ConfigError before anything is written
     for note in notes:
@@ -244,7 +222,6 @@ def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = Non
     log.info("[%s] %d trials: %d cached, %d to run on %d worker(s)%s", figure, len(trials),
              summary.cached, len(mine), workers,
              f", {len(elsewhere)} being computed by another run" if elsewhere else "")
-    # a heartbeat line when nothing finishes for a while
     progress = Progress(summary, todo, cost=lambda t: costs[t["key"]])
     ahead = estimate(mine, workers, progress.costs)  # a long run says what it costs first
     if ahead:
@@ -263,9 +240,7 @@ def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = Non
 
 
 def unique_trials(jobs: list[Job]) -> list[dict]:
-    """Every trial of the jobs once (the same trial under two figures is computed once), with
-    the bases of the continuations among them, to be run (or taken from the cache) with their
-    state."""
+    """Every trial of the jobs once, with the bases of their continuations (keep_state)."""
     unique = {}
     for j in jobs:
         for t in j.trials:
@@ -278,8 +253,7 @@ def unique_trials(jobs: list[Job]) -> list[dict]:
 
 
 def to_run(cache_dir, trials: list[dict]) -> tuple[list[dict], dict]:
-    """(the trials not in the cache, key -> error of those cached as diverged); a damaged
-    cached trial is said in one line and run again."""
+    """(the trials not cached, key -> error of those cached as diverged); a damaged one reruns."""
     todo, diverged = [], {}
     for t in trials:
         done, damaged = finished(cache_dir, t)
@@ -295,8 +269,7 @@ def to_run(cache_dir, trials: list[dict]) -> tuple[list[dict], dict]:
 
 def run_mine(cfg: DictConfig, mine: list[dict], claims: dict, summary: Summary,
              progress: Progress) -> None:
-    """Run the trials this run claimed on the chosen engine, with its own settings only; the
-    continuations after every other trial (their bases are then in the cache)."""
+    """The claimed trials on the engine; continuations after the others (their bases first)."""
     cache_dir = Path(cfg.paths.cache)
     for wave in ([t for t in mine if "base" not in t], [t for t in mine if "base" in t]):
         ready = []
@@ -340,8 +313,7 @@ def wait_for(elsewhere: list[dict], cache_dir, claims: dict, summary: Summary,
 
 
 def finished(cache_dir, trial: dict) -> tuple[dict | None, str | None]:
-    """cache.check, where the base of a continuation is finished only with its saved state (one
-    cached without it runs again, before its continuations)."""
+    """cache.check; a continuation's base is finished only with its saved state."""
     done, damaged = cache.check(cache_dir, trial)
     if done is not None and trial.get("keep_state") and done["status"] == "ok" \
             and not checkpoint.has(cache_dir, trial):
@@ -350,9 +322,8 @@ def finished(cache_dir, trial: dict) -> tuple[dict | None, str | None]:
 
 
 def resumed(cache_dir, trial: dict) -> tuple[dict, dict | None]:
-    """(the trial as a worker runs it, None), or (trial, a failed result) for a continuation
-    whose base is not there to continue (not run, failed, diverged: it is tried again next
-    time). A continuation carries its base's checkpoint (pipeline.checkpoint) as plain data."""
+    """(the trial as a worker runs it, a continuation with its base's checkpoint, None), or
+    (trial, a failed result) where the base has none (tried again next time)."""
     if "base" not in trial:
         return trial, None
     data, why = checkpoint.load(cache_dir, trial["base"])
@@ -363,8 +334,7 @@ def resumed(cache_dir, trial: dict) -> tuple[dict, dict | None]:
 
 
 def learner_notes(trials) -> list[str]:
-    """What the trials' learners say about their settings on their bodies (the learner's
-    optional `notes`), each note once, in the order of the trials."""
+    """The learners' optional `notes` on their settings and bodies, each once, in order."""
     out, seen, specs = {}, set(), {}
     for t in trials:
         if id(t["spec"]) in specs:  # a condition's trials share their spec (plan, unpack_jobs)
@@ -388,7 +358,7 @@ def _where(t: dict) -> str:
 
 
 def write_figure(cache_dir, j: Job, group: str | None, job: int) -> None:
-    """The plan record of one figure; says so when it replaces the figure's earlier group."""
+    """The plan record of one figure; says so when it replaces an earlier run's."""
     record = cache.plan_record(j.figure, plan_conditions(j.trials), j.paper, j.experiment)
     record["job"] = job
     _, replaced = cache.write_plan(cache_dir, record, group)
@@ -399,10 +369,8 @@ def write_figure(cache_dir, j: Job, group: str | None, job: int) -> None:
 
 
 def before_sweep(n_jobs: int, jobs: list[list[dict]], cache_dir, workers: int) -> None:
-    """One line before the first job of a sweep of `n_jobs` estimated above a minute of CPU in
-    all (progress.estimate): the trials of the `jobs` the check planned that are not in
-    `cache_dir`, the jobs it did not plan counted at their mean (Hydra composes each job when
-    it starts)."""
+    """The estimate of a sweep of `n_jobs` (progress.estimate) before its first job: the
+    uncached trials of the `jobs` the check planned, the others counted at their mean."""
     todo = [t for job in jobs for t in job if finished(Path(cache_dir), t)[0] is None]
     ahead = estimate(todo, workers, jobs=(len(jobs), n_jobs))
     if ahead:
@@ -410,7 +378,6 @@ def before_sweep(n_jobs: int, jobs: list[list[dict]], cache_dir, workers: int) -
 
 
 def run(cfg: DictConfig) -> int:
-    """simulate() for the command line: the summary, and exit status 1 if a trial failed."""
     summary = simulate(cfg, *cli.hydra_run())
     print("\n".join(summary.lines()), file=sys.stderr)
     return 1 if summary.failed else 0

@@ -1,6 +1,4 @@
-"""What runs in a worker process, whichever engine started it: one trial, plain data in and out,
-with one BLAS/OpenMP/numba thread. The local pool (pipeline.execute) and the engines
-(pipeline.engines) run it; it imports only the engines' THREAD_VARS."""
+"""One trial in a worker process, whichever engine started it: plain data in and out."""
 from __future__ import annotations
 
 import ctypes
@@ -8,20 +6,14 @@ import os
 import signal
 import time
 import traceback
-from contextlib import contextmanager
-
-from .engines import THREAD_VARS
 
 
 def run_one(trial: dict) -> dict:
-    """Run one trial: plain data in, plain data out, errors returned as text.
-
-    status: ok (a learning curve), diverged (the error became non-finite: a result, with the
-    epoch), or failed (an exception; not cached, so the next run tries again)."""
+    """status ok, diverged (a result, with the epoch) or failed (an error as text, not cached)."""
     start, cpu = time.perf_counter(), time.process_time()
-    import numpy as np  # here: the engines import this module, and naming an engine (every
+    import numpy as np  # here: importing the pool loads no numerical core
 
-    import gbmodel  # stage's config) should not load the numerical core
+    import gbmodel
 
     try:
         from .fingerprint import code_fingerprint
@@ -34,17 +26,12 @@ def run_one(trial: dict) -> dict:
         spec = gbmodel.TrialSpec.from_dict(trial["spec"])
         seed = np.random.SeedSequence(trial["seed"]["entropy"],
                                       spawn_key=tuple(trial["seed"]["spawn_key"]))
-        # a damaged numba cache is removed and the trial run again, from the same seed
-        from .warm import recovering  # here, not at the top: importing the package imports
-        # this module (the engines), and `python -m pipeline.warm` warns when it finds itself imported
-        from . import checkpoint  # a continuation starts from its base's state (plain data)
-        resume = trial.get("resume")  # passed only to a continuation: a plain trial calls
-        # run_trial(spec, rng) as any caller does (a stand-in for it needs no resume argument)
+        from . import checkpoint
+        from .warm import recovering  # a damaged numba cache is removed, the trial rerun
+        resume = trial.get("resume")  # a continuation's only (a stand-in run_trial takes none)
         extra = {} if resume is None else {"resume": checkpoint.checkpoint(resume)}
         res = recovering(lambda: gbmodel.run_trial(spec, np.random.default_rng(seed), **extra))
-        code_fingerprint(trial["spec"]["learner"]["name"])  # the modules the trial imported
-        # (its learner's, on a process's first trial) are the code that was hashed: else
-        # CodeChanged, and the trial fails rather than be cached under the other code's key
+        code_fingerprint(trial["spec"]["learner"]["name"])  # what it imported was hashed
         out = dict(status="ok", epoch=res.epoch, samples=res.epoch * res.samples_per_epoch,
                    size=res.size, abs_error=res.abs_error, rel_error=res.rel_error, M=res.M,
                    heldout_abs_error=res.heldout_abs_error,
@@ -62,7 +49,6 @@ def run_one(trial: dict) -> dict:
 
 
 def run_batch(fn, trials: list[dict]) -> list[dict]:
-    """fn (run_one) on each trial of a batch, in order: one task of a worker."""
     return [fn(t) for t in trials]
 
 
@@ -70,9 +56,7 @@ PR_SET_PDEATHSIG = 1  # linux/prctl.h
 
 
 def quiet_worker(parent: int | None = None) -> None:
-    """A pool worker's start: Ctrl-C, SIGTERM and SIGHUP are left to the driver, which stops every
-    worker at once (pipeline.execute.stop_pools); and on Linux the kernel kills the worker if the
-    driver dies without doing so (kill -9), so no worker waits forever for work."""
+    """A pool worker ignores the signals the driver handles, and dies with it (Linux)."""
     for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(s, signal.SIG_IGN)
     try:
@@ -83,17 +67,3 @@ def quiet_worker(parent: int | None = None) -> None:
     if parent is not None and os.getppid() != parent:  # it died before prctl took effect
         os._exit(1)
 
-
-@contextmanager
-def single_threaded_children():
-    """Children inherit the environment: one BLAS/OpenMP/numba thread each."""
-    old = {k: os.environ.get(k) for k in THREAD_VARS}
-    os.environ.update({k: "1" for k in THREAD_VARS})
-    try:
-        yield
-    finally:
-        for k, v in old.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v

@@ -3,12 +3,11 @@ is composed (compose), the checks of its values (checks) and of Hydra's own sett
 (hydra_keys); the run given the composed config (hydra_run) and --help (help)."""
 from ..errors import ConfigError  # noqa: F401
 from ..experiments import config_folders  # noqa: F401
-from .checks import (MAX_FRAMES, MAX_PLANNED, MAX_TRIALS, RANGES, check_choices,  # noqa: F401
-                     check_keys, check_limits, check_names, check_paths, check_root, check_run,
+from .checks import (RANGES, check_choices, check_keys, check_limits, check_run,  # noqa: F401
                      check_stamp, config_notes, declared)
 from .compose import (CONF_DIR, CONFIG_PATH, IN_CHECKOUT, REPO_ROOT,  # noqa: F401
-                      check_experiments, compose, default_root, group_options, initialized,
-                      overrides_of, sweep_tag, without_hydra)
+                      check_experiments, compose, default_root, initialized, overrides_of,
+                      sweep_tag, without_hydra)
 from .hydra_keys import check_hydra  # noqa: F401
 from .schema import (BodyConf, Config, VariantConf, defaults_of, learner_params,  # noqa: F401
                      register_schemas)

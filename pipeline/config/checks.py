@@ -1,8 +1,6 @@
-"""The checks of a config's values, each made once, where the value enters: the run's own
-settings (check_run: paths, names, workers, the stages' ranges) on every run, a variant's trial
-settings (check_limits) when it is planned, a trial's own values by gbmodel (TrialSpec.validate
-and the LIMITS tables of gbmodel.spec), each a ConfigError of one line naming the key.
-"""
+"""Each value checked once, where it enters: the run's settings (check_run) on every run, a
+variant's (check_limits) when planned, a trial's by gbmodel (TrialSpec.validate, LIMITS); a
+ConfigError of one line naming the key."""
 from __future__ import annotations
 
 import dataclasses
@@ -13,7 +11,7 @@ from omegaconf import DictConfig, OmegaConf
 
 import gbmodel
 from gbmodel.growth import LIMITS as growth_limits
-from gbmodel.spec import MAX_EPOCHS, MAX_INT64, MAX_SIZE, Int, Number, check_int
+from gbmodel.spec import MAX_EPOCHS, Int, Number, check_int
 
 from ..errors import ConfigError
 from .schema import Config
@@ -23,7 +21,6 @@ def _bad(key, value, why):
     raise ConfigError(f"{key}={value!r}: {why}")
 
 
-# ---- limits, checked by plan() before it plans a variant's trials ---------------------------------
 MAX_TRIALS = 10_000  # trials.count: independent trials per condition (the paper's figures use 20)
 MAX_PLANNED = 100_000  # trials of one run in all (conditions x variants x trials.count)
 MAX_FRAMES = 100  # conditions.frames: the report draws each condition's frames (~0.12 s each)
@@ -36,12 +33,13 @@ RANGES = {"aggregate.fail_factor": Number(1.0, 1e3, lo_open=True),  # x the medi
                                    "condition)"),
           "report.dpi": Number(10, 1200),
           **{f"growth.{k}": growth_limits[k] for k in ("start_size", "end_size", "fixed_scale")}}
+EACH = {"conditions.periods": growth_limits["period"],  # list keys: the range of each value
+        "conditions.references": growth_limits["end_size"],
+        "conditions.snapshots": Int(1, MAX_EPOCHS)}
 
 
 def declared(key: str, cfg):
-    """The declared range of a config key (a gbmodel.spec constraint), or None: RANGES, the
-    limits of growth (gbmodel.growth.LIMITS), of the config's learner (its LIMITS) and the
-    counts of check_limits."""
+    """The declared range of a config key (a gbmodel.spec constraint), or None."""
     section, _, name = key.partition(".")
     if key in RANGES:
         return RANGES[key]
@@ -62,40 +60,22 @@ STAGE_SECTIONS = ("aggregate", "report")  # check_run's; a trial's are check_lim
 
 
 def check_ranges(cfg, stages: bool = False) -> None:
-    """Refuse (one line naming the key and its range) a value outside RANGES: those of the
-    stages' sections (stages) or of the trial's (a variant's copy holds those only)."""
-    for key, constraint in RANGES.items():
-        if (key.split(".")[0] in STAGE_SECTIONS) != stages:
-            continue
-        value = OmegaConf.select(cfg, key, default=None)
+    """A value outside RANGES: the stages' sections' (stages) or the trial's."""
+    values = [(k, v, OmegaConf.select(cfg, k, default=None)) for k, v in RANGES.items()
+              if (k.split(".")[0] in STAGE_SECTIONS) == stages]
+    if not stages:
+        values += [(k, v, x) for k, v in EACH.items() for x in OmegaConf.select(cfg, k)]
+    for key, constraint, value in values:
         if value is not None and not constraint.ok(value):
             raise ConfigError(f"{key}={value!r}: must be {constraint.describe()}")
-    if stages:
-        return
-    for s in cfg.conditions.references:
-        if isinstance(s, (int, float)) and not isinstance(s, bool) and not s <= MAX_SIZE:
-            raise ConfigError(f"conditions.references={s!r}: a size factor of at most "
-                              f"{MAX_SIZE:g}")
-
-
-def _too_big(key, value, limit, unit, shown=None):
-    if isinstance(value, int) and not isinstance(value, bool) and value > limit:
-        raise ConfigError(f"{key}={value!r}: at most {shown or f'{limit:,}'} {unit}")
 
 
 def check_limits(cfg) -> None:
-    """Refuse (ConfigError naming the key and its unit) what would exhaust memory or overflow
-    before a trial is planned: the trial count, the epochs, growth periods beyond int64, and the
-    whole run's size; and a trial setting outside its range (RANGES). Made on each variant's
-    copy (a variant's `set` may change what the command line did not)."""
-    check_int("trials.count", cfg.trials.count, 1)
-    _too_big("trials.count", cfg.trials.count, MAX_TRIALS, "trials per condition")
-    _too_big("learner.epochs", cfg.learner.epochs, MAX_EPOCHS, "epochs per trial",
-             f"{MAX_EPOCHS:.0e}")  # before planning multiplies the trials
+    """The trial's ranges and what would overflow or exhaust memory, on each variant's copy
+    (a SpecError: plan makes it a ConfigError); the epochs: TrialSpec.validate."""
+    Int(1, MAX_TRIALS, " trials per condition").check("trials.count", cfg.trials.count)
     check_ranges(cfg)
-    _too_big("growth.period", cfg.growth.get("period"), MAX_INT64, "epochs (int64)")
-    for p in cfg.conditions.periods:
-        _too_big("conditions.periods", p, MAX_INT64, "epochs (int64)")
+    growth_limits["period"].check("growth.period", cfg.growth.get("period"))
     count = cfg.trials.count
     conditions = max(len(cfg.conditions.periods) + len(cfg.conditions.references), 1)
     total = count * conditions * max(len(cfg.conditions.variants), 1)
@@ -106,7 +86,6 @@ def check_limits(cfg) -> None:
 
 
 def config_notes(cfg) -> list[str]:
-    """Notes about legitimate but unusual values (a shrinking body)."""
     growth, notes = cfg.growth, []
     start, end, period = growth.get("start_size"), growth.get("end_size"), growth.get("period")
     if (isinstance(start, (int, float)) and isinstance(end, (int, float)) and start > end
@@ -123,12 +102,8 @@ def config_notes(cfg) -> list[str]:
 
 
 def check_choices(cfg, overrides, sweep: bool = False) -> str | None:
-    """Refuse (one line) what a command line would otherwise accept in silence: a body file
-    whose `name:` differs from its file name (`body=my_arm` loading `name: other`), a growth
-    period with growth=none (it would become 0), and a growth period given on the command line
-    that is longer than the run (the body would never reach its end size). In a `sweep` whose
-    other jobs grow (`-m growth=none,proportional growth.period=300`), growth=none's period is
-    ignored, as planning does (its condition is the constant body): a note, returned."""
+    """Refuse what a command line would otherwise pass in silence: a body file named unlike its
+    body, a period with growth=none (in a `sweep`: a note, returned), one longer than the run."""
     given = {o.lstrip("+~").split("=", 1)[0]: o.split("=", 1)[1] for o in overrides if "=" in o}
     body = given.get("body")
     if body is not None and "body.name" not in given and cfg.body.name != body:
@@ -153,7 +128,7 @@ def check_choices(cfg, overrides, sweep: bool = False) -> str | None:
 
 
 def check_keys(cfg) -> None:
-    """Refuse a top-level key the schema does not know (`+foo=1` is composed without a word)."""
+    """Refuse a top-level key the schema does not know (`+foo=1` composes without a word)."""
     known = {f.name for f in dataclasses.fields(Config)}
     unknown = sorted(set(cfg.keys()) - known - {"hydra"})
     if unknown:
@@ -162,9 +137,7 @@ def check_keys(cfg) -> None:
 
 
 def check_root(cfg) -> None:
-    """paths.root must be an absolute folder, and every output folder must lie under it or be
-    the committed report (`published`, `bench`): an empty root would write at the file system's
-    root, a relative one wherever the command happens to run."""
+    """paths.root is absolute, and every output folder lies under it."""
     root = cfg.paths.root
     if not isinstance(root, str) or not root.strip():
         raise ConfigError(f"paths.root={root!r}: must be a folder (an absolute path)")
@@ -182,9 +155,7 @@ def check_root(cfg) -> None:
 
 
 def check_names(cfg) -> None:
-    """Every name of the config that becomes part of a path (pipeline.io.safe_name): the figure,
-    the posture figures and their panels' figure names, the joint-space figure. A name like
-    `../../esc` would write outside paths.root."""
+    """Every name of the config that becomes part of a path (pipeline.io.safe_name)."""
     from ..io import UnsafeName, safe_name
 
     try:
@@ -200,21 +171,16 @@ def check_names(cfg) -> None:
 
 
 def check_stamp(cfg) -> None:
-    """report.stamp_findings rewrites the committed pipeline/studies/findings_numbers.csv: only
-    the publishing run (make reproduce: report.publish=true) may, never a smoke or custom run."""
+    """report.stamp_findings (the committed numbers) only with report.publish."""
     if cfg.report.stamp_findings and not cfg.report.publish:
         raise ConfigError("report.stamp_findings=true: only with report.publish=true (make "
                           "stamp, after make studies); this run's numbers are not "
                           "the committed report's")
 
 
-
-
 def check_paths(cfg: DictConfig) -> None:
-    """Every output folder is a folder (or can become one), and writable, except the cache: a
-    read-only cache where every trial is cached is read, never written (aggregate, report, and
-    simulate with nothing to run); a write it would need fails there in one line (a disk error,
-    pipeline.cli.finish) before any trial runs: the claims come first."""
+    """Every output folder is (or can become) a folder, writable but the cache (a read-only
+    cache is read; a write it needs fails in one line in cli.finish)."""
     for key in ("root", "out", "cache", "aggregate", "report", "published", "bench"):
         path = Path(cfg.paths[key])
         for p in [path, *path.parents]:
@@ -227,7 +193,7 @@ def check_paths(cfg: DictConfig) -> None:
 
 
 def check_run(cfg: DictConfig) -> None:
-    """The checks of a run's own settings (not of its trials': check_limits), on every run."""
+    """The run's own settings (not its trials': check_limits)."""
     check_int("trials.root_seed", cfg.trials.root_seed, 0)
     check_int("workers", cfg.workers, 1)
     check_ranges(cfg, stages=True)

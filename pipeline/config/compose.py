@@ -1,8 +1,5 @@
-"""Where the config lives and how a command line becomes one (Hydra's compose API).
-
-Importing it registers what Hydra composes from: the schema (pipeline.config.schema), the
-engines' config group, the resolvers and the conf/ of the working directory (searchpath).
-"""
+"""Where the config lives and how a command line becomes one (Hydra's compose API); importing
+it registers the schema, the engines' group, the resolvers and the search path."""
 from __future__ import annotations
 
 import hashlib
@@ -23,44 +20,33 @@ from .schema import register_schemas
 REPO_ROOT = Path(__file__).resolve().parents[2]  # the checkout (installed: site-packages)
 CONF_DIR = gbmodel.bodies.CONF_DIR  # conf/ of the checkout, else the installed gbgrowth_conf
 IN_CHECKOUT = CONF_DIR == REPO_ROOT / "conf"
-# every stage's @hydra.main takes config_path=CONFIG_PATH: the checkout's folder, else the
-# installed package through Hydra's package search path; a conf/ of the working directory is
-# added after it (pipeline/searchpath.py), hydra.searchpath after that
+# every stage's @hydra.main config_path: the checkout's conf/, else the installed package
 CONFIG_PATH = str(CONF_DIR) if IN_CHECKOUT else f"pkg://{gbmodel.bodies.CONF_PACKAGE}"
 
 
 def default_root() -> str:
-    """paths.root unless given: the checkout (make and every documented command write into its
-    outputs/, wherever they are started), else the working directory (an installed package)."""
+    """paths.root unless given: the checkout, else (installed) the working directory."""
     return str(REPO_ROOT) if IN_CHECKOUT else os.getcwd()
 
 
 def sweep_tag() -> str:
-    """A name part no other sweep gets (this host, process and nanosecond, hashed): two sweeps
-    started in the same second get their own folder, so their plan records make two groups
-    (pipeline.cli.hydra_run). Resolved once per sweep: Hydra caches it like `now` and copies the
-    cache to every job's config, in any launcher."""
+    """A name part no other sweep gets (host, process, nanosecond, hashed); resolved once per
+    sweep (Hydra caches it like `now` for every job)."""
     who = f"{socket.gethostname()}/{os.getpid()}/{time.time_ns()}"
     return hashlib.sha256(who.encode()).hexdigest()[:8]
 
 
-if not OmegaConf.has_resolver("experiments"):  # report.paper_experiments: ${experiments:}
-    OmegaConf.register_new_resolver("experiments", lambda *groups: listed(config_folders(),
-                                                                          *groups))
-if not OmegaConf.has_resolver("default_root"):
-    OmegaConf.register_new_resolver("default_root", default_root)
-if not OmegaConf.has_resolver("sweep_tag"):
-    OmegaConf.register_new_resolver("sweep_tag", sweep_tag, use_cache=True)
+for _name, _fn in (("experiments", lambda *groups: listed(config_folders(), *groups)),
+                   ("default_root", default_root), ("sweep_tag", sweep_tag)):
+    if not OmegaConf.has_resolver(_name):  # ${experiments:}: report.paper_experiments
+        OmegaConf.register_new_resolver(_name, _fn, use_cache=_name == "sweep_tag")
 register_schemas()
 engines.register_configs()  # the config group `engine`: one node per engine
 searchpath.register(CONFIG_PATH)
 
 
 def compose(overrides: list[str] | tuple = (), hydra: bool = False) -> DictConfig:
-    """The config `python -m pipeline.<stage> OVERRIDES` would get (Hydra's compose API); with
-    `hydra`, Hydra's own section too (callbacks, launcher, logging: check_hydra).
-
-    Used by the tests and by callers that want a config without the command line."""
+    """The config `python -m pipeline.<stage> OVERRIDES` gets; with `hydra`, Hydra's section."""
     from hydra import compose as hydra_compose
 
     with initialized():
@@ -69,16 +55,13 @@ def compose(overrides: list[str] | tuple = (), hydra: bool = False) -> DictConfi
 
 
 def without_hydra(full: DictConfig) -> DictConfig:
-    """`full` (composed with hydra=True) without Hydra's section, in place: what compose() returns
-    for the same overrides (Hydra's compose API drops the section just so), with no second
-    compose."""
+    """`full` (compose(hydra=True)) without Hydra's section, in place: compose()'s result."""
     with open_dict(full):
         del full["hydra"]
     return full
 
 
 def initialized():
-    """Hydra's compose API on the stages' config (CONFIG_PATH), a fresh one each time."""
     from hydra import initialize_config_dir, initialize_config_module
     from hydra.core.global_hydra import GlobalHydra
 
@@ -89,8 +72,7 @@ def initialized():
 
 
 def group_options(group: str, overrides: list[str] | tuple = ()) -> list[str]:
-    """The options of config group `group` (conf/ and the folders of hydra.searchpath among
-    `overrides`)."""
+    """The options of config group `group` (with the hydra.searchpath among `overrides`)."""
     from hydra import compose as hydra_compose
     from hydra.core.global_hydra import GlobalHydra
 
@@ -102,8 +84,7 @@ def group_options(group: str, overrides: list[str] | tuple = ()) -> list[str]:
 
 
 def check_experiments(cfg, overrides: list[str] | tuple = ()) -> None:
-    """Every name of `experiments=[...]` is an experiment (conf/experiment/, or a folder on
-    hydra.searchpath given in `overrides`)."""
+    """Every name of `experiments=[...]` is an experiment."""
     names = list(cfg.get("experiments") or [])
     if not names:
         return
@@ -121,7 +102,6 @@ FLAGS_WITH_VALUE = {"--cfg", "-c", "--config-path", "-cp", "--config-name", "-cn
 
 
 def overrides_of(argv: list[str]) -> list[str]:
-    """The overrides of a command line: every argument that is not a flag or a flag's value."""
     out, skip = [], False
     for arg in argv:
         if skip:

@@ -1,5 +1,4 @@
-"""What `--help` prints for a stage: what it does, its main options, an example, its groups and
-their options; `--help-all` adds the whole config the command line composes to."""
+"""What a stage's `--help` prints (`--help-all`: with the whole config it composes to)."""
 from __future__ import annotations
 
 import textwrap
@@ -73,8 +72,7 @@ STAGES = {
 
 
 def user_groups(overrides: list[str] = ()) -> dict[str, list[str]]:
-    """group -> the options a user can choose (conf/ and the folders of hydra.searchpath among
-    `overrides`): no internal group, no generated `<learner>_schema` a learner's file extends."""
+    """group -> the options a user can choose (no internal group, no generated schema)."""
     from hydra import compose as hydra_compose
     from hydra.core.global_hydra import GlobalHydra
 
@@ -91,9 +89,6 @@ def _wrapped(text: str, indent: str = "") -> list[str]:
 
 
 def help_text(stage: str, argv: list[str]) -> str:
-    """What `--help` prints: the stage's usage, what it does, its main options, an example, the
-    groups and their options a user can choose; with `--help-all` (argv), the config the
-    command line composes to as well (Hydra's own help listed the internal schemas too)."""
     overrides = overrides_of(argv)
     what, options, example = STAGES.get(stage, ("", [], f"python -m {stage}"))
     sweep = " [-m for a sweep]" if stage.count(".") == 1 else ""  # a stage's, not a tool's

@@ -1,12 +1,6 @@
-"""What a config may set under `hydra`: an allow-list of Hydra's keys, each checked on its
-resolved value (the command line and every config file on the search path alike).
-
-Hydra's section of the composed config is read key by key: a key is allowed only where HYDRA_KEYS
-names it (or a folder above it), and then its value must pass that key's check. Everything else
-(a key Hydra may add, hydra.env, a launcher's or sweeper's own code) is one line, exit 2: a
-logging factory, a callback or an environment variable (PYTHONPATH, LD_PRELOAD) runs code, a folder
-outside paths.root is written outside it. The folders are checked as they resolve, so
-`hydra.output_subdir=${oc.env:X}` is checked as the folder it names, not as the text.
+"""What a config may set under `hydra`: an allow-list of keys (HYDRA_KEYS), each checked on its
+resolved value; anything else is one line, exit 2 (a logging factory, a callback or an
+environment variable runs code; a folder outside paths.root is written outside it).
 """
 from __future__ import annotations
 
@@ -25,30 +19,18 @@ LOG_STREAMS = ("ext://sys.stdout", "ext://sys.stderr")
 LOG_FORMATTER_KEYS = {"format", "datefmt", "style", "validate"}
 LOG_HANDLER_KEYS = {"class", "formatter", "stream", "level"}
 LOG_LOGGER_KEYS = {"level", "handlers", "propagate"}
-# what each allowed key is (the message of a refused one lists them); None: filled by Hydra
-HYDRA_KEYS = {
-    "searchpath": "where config groups live (a body or an experiment of one's own)",
-    "mode": "RUN or MULTIRUN", "verbose": "Hydra's debug logging",
-    "job.chdir": "change into the run's folder (inside paths.root)",
-    "job.name": "a plain name (it names the sweep's folder)",
-    "job.config.override_dirname": "how override_dirname is spelt",
-    "launcher": "Hydra's own launchers (hydra/launcher=basic|joblib), not their temp_folder",
-    "sweeper": "Hydra's own sweepers",
-    "job_logging": "to the terminal: StreamHandler to sys.stdout/stderr or NullHandler, "
-                   "formatters by format, no factory ('()', class, ext://) of any kind",
-    "hydra_logging": "the same as job_logging",
-    "run.dir": "a folder inside paths.root (or the project's '.', where nothing is written)",
-    "sweep.dir": "a folder inside paths.root", "sweep.subdir": "a relative name, no '..'",
-    "output_subdir": "null, or a relative name inside a run folder under paths.root",
-    "help": "the text of --help", "hydra_help": "the text of --hydra-help",
-    "job.env_copy": "empty (an environment variable of every job runs code)",
-    **dict.fromkeys(("runtime", "overrides", "job.override_dirname", "job.id", "job.num",
-                     "job.config_name")),
-}
+# the keys a config may set under hydra (a refused key's message lists them), each checked below
+# where it could run code or write: launcher and sweeper (Hydra's own), the loggings (to the
+# terminal), job.env_copy (empty), the folders (inside paths.root); HYDRA_FILLED: Hydra's own
+HYDRA_KEYS = ("searchpath", "mode", "verbose", "job.chdir", "job.name",
+              "job.config.override_dirname", "launcher", "sweeper", "job_logging", "hydra_logging",
+              "run.dir", "sweep.dir", "sweep.subdir", "output_subdir", "help", "hydra_help",
+              "job.env_copy")
+HYDRA_FILLED = ("runtime", "overrides", "job.override_dirname", "job.id", "job.num",
+                "job.config_name")
 
 
 def _flat(node, where: str = "") -> dict:
-    """Dotted key -> leaf value of a plain config tree (lists are leaves, an empty dict none)."""
     if isinstance(node, dict):
         out = {}
         for k, v in node.items():
@@ -58,7 +40,6 @@ def _flat(node, where: str = "") -> dict:
 
 
 def _targets(node, where: str):
-    """(key, value) of every `_target_` in a plain config tree."""
     if isinstance(node, dict):
         for k, v in node.items():
             key = f"{where}.{k}" if where else str(k)
@@ -72,11 +53,9 @@ def _targets(node, where: str):
 
 
 def check_hydra(cfg) -> None:
-    """Refuse what would make Hydra call or write something the project did not choose. `cfg` is
-    composed with hydra=True: the command line and every config file (a body YAML on
-    hydra.searchpath) count. Outside `hydra`: a `_target_` that is not the project's own. Under
-    it: a key that HYDRA_KEYS does not allow, or an allowed key whose resolved value fails its
-    check."""
+    """Refuse what would make Hydra call or write something the project did not choose (`cfg`:
+    composed with hydra=True): a foreign `_target_`, a key HYDRA_KEYS does not allow, a value
+    failing its check."""
     tree = OmegaConf.to_container(cfg, resolve=False)
     hydra = tree.pop("hydra", None) or {}
     for key, target in _targets(tree, ""):
@@ -91,10 +70,9 @@ def check_hydra(cfg) -> None:
         raise ConfigError(f"hydra.job.env_set.{name}: sets an environment variable of every job "
                           "(PYTHONPATH, LD_PRELOAD: code the workers run); the stages take none")
     for key, value in sorted(_flat(hydra).items()):
-        if not any(key == k or key.startswith(k + ".") for k in HYDRA_KEYS):
+        if not any(key == k or key.startswith(k + ".") for k in HYDRA_KEYS + HYDRA_FILLED):
             raise ConfigError(f"hydra.{key}={value!r}: not a setting the stages take from Hydra "
-                              f"(allowed under hydra: {', '.join(k for k, v in HYDRA_KEYS.items() if v)}"
-                              "; docs/faults.md)")
+                              f"(allowed under hydra: {', '.join(HYDRA_KEYS)}; docs/faults.md)")
     for section in ("launcher", "sweeper"):
         target = (hydra.get(section) or {}).get("_target_")
         if target is not None and not (isinstance(target, str)
@@ -120,9 +98,7 @@ def _check_launcher(launcher: dict) -> None:
 
 
 def _check_logging(section: str, conf: dict) -> None:
-    """A logging config (logging.config.dictConfig) that builds nothing but terminal handlers:
-    no factory ('()') anywhere, no filters, a class only on a handler and only LOG_HANDLERS, a
-    stream only sys.stdout or sys.stderr (ext:// imports any object), formatters by format."""
+    """A logging config that builds nothing but terminal handlers (LOG_HANDLERS, LOG_STREAMS)."""
     where = f"hydra.{section}"
     for key, value in _flat(conf).items():
         if "()" in key.split(".") or (isinstance(value, str) and "ext://" in value
@@ -153,8 +129,7 @@ def _check_logging(section: str, conf: dict) -> None:
 
 
 def _resolved(cfg, key: str):
-    """The value of hydra.<key> as the run will see it (a job's number: 0); ConfigError where
-    it cannot be resolved before the run."""
+    """hydra.<key> as the run sees it (job 0); ConfigError where it cannot be resolved."""
     node = OmegaConf.masked_copy(cfg, ["hydra", "paths"])
     OmegaConf.set_readonly(node, False)
     for k, v in (("job.num", 0), ("job.id", "0")):
@@ -175,10 +150,8 @@ def _relative(key: str, value) -> None:
 
 
 def _check_dirs(cfg) -> None:
-    """Hydra's folders lie inside paths.root, as they resolve: run.dir (made at every run; `.`,
-    where nothing is written while output_subdir is null), sweep.dir and its subdir, and the
-    output_subdir its config files go to (relative, inside the run's folder); job.name (it
-    names the sweep's folder) is a plain name."""
+    """Hydra's folders, resolved, lie inside paths.root (run.dir `.` writes nothing while
+    output_subdir is null); job.name is a plain name."""
     from ..io import UnsafeName, safe_name
 
     root = OmegaConf.select(cfg, "paths.root", default=None)

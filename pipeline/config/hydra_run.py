@@ -1,7 +1,5 @@
-"""Hydra's run of a stage, given the config the command line's check composed: one compose
-per stage, not three (about 0.2 s CPU each), and the run works on the very config that was
-checked (before, a file saved between two composes was run unchecked).
-"""
+"""Hydra's run of a stage given the config the check composed: one compose, not three (0.2 s
+CPU each), and the run works on the very config that was checked."""
 from __future__ import annotations
 
 from contextlib import contextmanager
@@ -13,9 +11,8 @@ MODE: list = []  # [hydra.mode] of the command line the check composed with Hydr
 
 
 def _load_key(loader, config_name, overrides, run_mode, from_shell, validate) -> tuple:
-    """Everything a Hydra config loader's load_configuration reads that may differ between two
-    calls in one process: its arguments, its search path, the job's name, the version base,
-    the working directory and the environment (hydra.job.env_copy)."""
+    """What a loader's load_configuration reads that may differ between calls: arguments, search
+    path, job name, version base, working directory, environment."""
     import os
 
     from hydra import version
@@ -28,11 +25,8 @@ def _load_key(loader, config_name, overrides, run_mode, from_shell, validate) ->
 
 
 def compose_as_run(stage, overrides: list[str]):
-    """The config (with Hydra's section) that Hydra's run of `stage` (a @hydra.main function)
-    composes for `overrides`: the same Hydra, search path, job name and loader call as
-    hydra.main's, so that the run can be given this config instead of a second compose
-    (composed_once; about 0.2 s CPU). None where the stage's module cannot be told (then
-    compose() is used and the run composes again)."""
+    """The config (with Hydra's section) Hydra's run of `stage` composes, kept for the run
+    (composed_once); None where the stage's module cannot be told."""
     import copy
 
     from hydra._internal.hydra import Hydra
@@ -72,10 +66,8 @@ def compose_as_run(stage, overrides: list[str]):
 
 @contextmanager
 def composed_once(composed: list):
-    """Hydra's run is given the config check() composed (compose_as_run) when its loader is
-    asked for the same thing (_load_key: arguments, search path, job name, working directory,
-    environment), once; any other load composes as Hydra does. The run then works on the very
-    config that was checked (before, a file saved between the two composes was run unchecked)."""
+    """Hydra's loader returns the config compose_as_run kept when asked for the same thing
+    (_load_key), once; any other load composes as Hydra does."""
     from hydra._internal.config_loader_impl import ConfigLoaderImpl
 
     if not composed:
@@ -101,10 +93,7 @@ def composed_once(composed: list):
 
 @contextmanager
 def known_mode(mode: list):
-    """Hydra's start composes the whole config once only to read hydra.mode (Hydra.get_mode),
-    then again to run it. check() composed the same command line with Hydra's section (hydra.*
-    overrides included; a sweep's values cannot change the mode): Hydra is given that mode
-    instead of a third compose (about 0.2 s CPU per stage). `mode` empty: Hydra composes."""
+    """Hydra.get_mode (a whole compose) answered by the mode the check composed, where known."""
     from hydra._internal.hydra import Hydra
 
     if not mode:

@@ -1,11 +1,6 @@
-"""The config's schema: dataclasses registered in Hydra's ConfigStore.
-
-The YAML files under conf/ extend these dataclasses, so a misspelt key or a value of the wrong type
-fails when the config is composed, before any stage starts. The sections that describe a trial
-(body, growth, learner, evaluation) are generated from gbmodel's own dataclasses, so every value
-of the numerical core has one source: its default in gbmodel, or the YAML file that changes it.
-A learner's schema is read from its source (learner_params) where it is plain, so composing a
-config imports no learner (numba, scipy: 0.7 s CPU) and keeps no record of it anywhere.
+"""The config's schema, registered in Hydra's ConfigStore: a misspelt key or a wrong type fails
+when composed. A trial's sections are generated from gbmodel's dataclasses (one source per
+value); a plain learner's is read from its source (learner_params: composing imports no learner).
 """
 from __future__ import annotations
 
@@ -27,24 +22,20 @@ from ..experiments import Declares
 
 
 def defaults_of(cls) -> list[tuple[str, Any, Any]]:
-    """(name, type, default) of each field of dataclass `cls` that has a default."""
     hints = typing.get_type_hints(cls)
     return [(f.name, hints[f.name], f.default) for f in dataclasses.fields(cls)
             if f.default is not dataclasses.MISSING]
 
 
 def schema_of(cls, name: str, extra: tuple = (), defaults: list | None = None) -> type:
-    """A Hydra schema with the fields (types and defaults) of gbmodel dataclass `cls` (or the
-    `defaults` of defaults_of(cls) given), plus `extra` (name, type, default) fields."""
+    """A schema of `extra` fields and those of defaults_of(cls) (or the `defaults` given)."""
     fields = [(k, kind, field(default=v))
               for k, kind, v in (defaults_of(cls) if defaults is None else defaults)]
     return dataclasses.make_dataclass(name, list(extra) + fields)
 
 
 def conf_of(cls, name: str) -> type:
-    """A Hydra schema with every field of gbmodel dataclass `cls`, its type and its default (a
-    field without one is MISSING: it must be given); a field whose type is a dataclass gets that
-    class's schema, generated the same way."""
+    """A schema of every field of `cls` (MISSING without a default; a dataclass field: its own)."""
     hints = typing.get_type_hints(cls)
     out = []
     for f in dataclasses.fields(cls):
@@ -60,8 +51,6 @@ def conf_of(cls, name: str) -> type:
     return dataclasses.make_dataclass(name, out)
 
 
-# body: gbmodel.bodies.Description's fields (conf/body/<name>.yaml). It goes into every trial's
-# spec, so editing one body's file recomputes that body's trials only.
 BodyConf = conf_of(gbmodel.bodies.Description, "BodyConf")
 # growth: gbmodel.Growth's fields; pattern `none` is a body of constant size end_size
 GrowthConf = schema_of(gbmodel.Growth, "GrowthConf")
@@ -90,8 +79,6 @@ class PathsConf:
 
 @dataclass
 class VariantConf:
-    """One variant of an experiment: a label and the dotted overrides that make it."""
-
     label: str = MISSING
     choice: str = ""  # what is varied (a row group of the choices table)
     chosen: bool = False  # the value this project uses
@@ -100,24 +87,16 @@ class VariantConf:
 
 @dataclass
 class ConditionsConf:
-    """What an experiment sweeps. Empty lists: the single condition of the growth group."""
-
     periods: list[int] = field(default_factory=list)  # growth periods T_G, one condition each
     references: list[float] = field(default_factory=list)  # constant sizes run as references
     snapshots: list[int] = field(default_factory=list)  # epochs after which M is stored
-    # more epochs after which M is stored: this many, log-spaced over 1 ... epochs (the report's
-    # animation of each condition, pipeline/studies/animation.py); 0: none
-    frames: int = 0
+    frames: int = 0  # M also stored after this many log-spaced epochs (the report's animation)
     variants: list[VariantConf] = field(default_factory=list)  # each: all of the above again
-    # a budget of reaching movements (forward-kinematics samples) per trial instead of epochs:
-    # each learner gets budget / its samples per epoch epochs, growing over growth_share of them
-    budget: Optional[int] = None
+    budget: Optional[int] = None  # samples per trial instead of epochs (growth: growth_share)
     growth_share: float = 0.5
     budget_scale: float = 1.0  # profiles shrink the budget (smoke)
-    # a continuation: each trial starts from the saved state after this many epochs of the trial
-    # of its condition and index under the experiment's settings without its variants
-    # (pipeline.checkpoint); a multiple of 1000 (the draw block), ignored where the run has no
-    # more epochs (the smoke profile); null: every trial starts at epoch 1
+    # each trial continues the saved state after this many epochs (a multiple of 1000) of its
+    # trial without the variants (pipeline.checkpoint); ignored in a shorter run; null: none
     continues: Optional[int] = None
 
 
@@ -125,15 +104,9 @@ class ConditionsConf:
 class PaperConf:
     title: str = ""
     final_abs_error: Optional[float] = None  # the paper's stated final accuracy [m], if any
-    # whether the report checks the paper's claims on this experiment: its figures and studies
-    # declare it; a custom experiment does not, and is reported by its curves alone
-    claims: bool = False
-    # the report section that reports it (pipeline/studies/sections.py): figures, readings,
-    # baselines, explain, choices, or a study of one's own
-    study: str = "figures"
-    # the figure whose cells the scorecard's headline counts instead of this one's, when both
-    # are reported (Fig. 7 on fig7_20trials); this one's are shown beside
-    judged_on: Optional[str] = None
+    claims: bool = False  # the report checks the paper's claims on it (a custom one: curves)
+    study: str = "figures"  # its report section (pipeline/studies/sections.py)
+    judged_on: Optional[str] = None  # the figure the scorecard counts instead, when both ran
 
 
 @dataclass
@@ -157,8 +130,7 @@ class ReportConf:
     # a learning-curve figure for a paper (pipeline.studies.paper.figure_options, docs/figures.md):
     title: str = ""  # its title line; "" keeps the figure's name and its trial count
     error_unit: str = "m"  # the errors' unit: m or mm (curves, bands, the paper's line, labels)
-    log_epoch_axis: bool = True  # the epoch axis on a log scale; false: linear (log_error_axis:
-    # the error axis)
+    log_epoch_axis: bool = True  # the epoch axis on a log scale; false: linear
 
 
 @dataclass
@@ -185,15 +157,12 @@ class Config:
     bench: BenchConf = field(default_factory=BenchConf)
     figure: str = MISSING
     workers: int = MISSING
-    # simulate: plan these experiments in one process (make smoke / make reproduce); the
-    # other overrides of the command line apply to each
+    # simulate: these experiments in one process, each with the other overrides (make smoke)
     experiments: list[str] = field(default_factory=list)
 
 
 def register_schemas() -> None:
-    """The primary schema, and one schema per learner (`learner/<name>_schema`) that its YAML
-    file extends: the learner's Params fields with their defaults, plus name and epochs. A
-    shipped learner not imported yet is described by learner_params (no import of its kernels)."""
+    """The primary schema, and `learner/<name>_schema` per learner (its Params' fields)."""
     cs = ConfigStore.instance()
     cs.store(name="base_config", node=Config)
     for name in gbmodel.learners.available():
@@ -209,8 +178,7 @@ _PLAIN_TYPES = {t.__name__: t for t in (int, float, str, bool)}
 
 
 def _plain_type(node):
-    """The type an annotation names when it is int, float, str, bool or one of them `| None`;
-    None for any other."""
+    """int, float, str, bool (or one `| None`) that an annotation names; else None."""
     if isinstance(node, ast.Name):
         return _PLAIN_TYPES.get(node.id)
     if isinstance(node, ast.BinOp) and isinstance(node.op, ast.BitOr):
@@ -223,9 +191,8 @@ def _plain_type(node):
 
 
 def learner_params(name: str) -> list | None:
-    """defaults_of(the Params of shipped learner `name`), read from its source file: the fields
-    of its top-level dataclass `Params` with a plain type (_plain_type) and a literal default.
-    None where the class is not that plain (a base class, a computed default): it is imported."""
+    """defaults_of(learner `name`'s Params) read from its source, None where not plain (a base
+    class, a computed default, a class attribute): it is then imported."""
     folder = Path(gbmodel.learners.__file__).parent
     path = folder / f"{name}.py"
     path = path if path.is_file() else folder / name / "__init__.py"

@@ -1,6 +1,4 @@
-"""engine=local (the default): `workers` processes on this machine, one BLAS/numba thread each,
-longest trial first; short trials travel in batches. The pool is the stage's (pipeline.execute,
-given as `pool`): naming the engine (the config group) imports no pool."""
+"""engine=local (the default): the stage's pool of processes (pipeline.execute, given as `pool`)."""
 from __future__ import annotations
 
 from . import engine

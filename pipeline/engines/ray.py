@@ -1,17 +1,8 @@
-"""engine=ray: one Ray task per trial (one CPU, one BLAS/numba thread each), longest first.
-
-    python -m pipeline.simulate experiment=fig4 engine=ray                      # a local Ray
-    python -m pipeline.simulate experiment=fig4 engine=ray engine.address=auto  # a cluster
-
-All trials are submitted longest first and collected with ray.wait as they finish. Without an
-address a local Ray instance of `workers` CPUs is started for the run and shut down after it;
-`auto` joins the cluster this machine is part of (after `ray start`), `ray://<head>:10001` a
-remote one (Ray Client). Every node needs this repository installed (.venv) at the same code: a
-worker whose gbmodel differs fails its trials. A task whose worker died (killed, out of memory,
-node lost) is not retried by Ray (max_retries=0, never pinned to a node, so nothing waits for a
-node that is gone): it comes back as a failed result, which the driver records and the next run
-of the same command computes again. When no node with a CPU is left for RAY_LOST_S, the trials
-left fail instead of waiting forever. Needs `pip install -e '.[ray]'`.
+"""engine=ray: one Ray task per trial (one CPU, one thread), submitted longest first, collected
+with ray.wait. No address: a local Ray of `workers` CPUs for this run; `auto` or `ray://host:10001`
+joins a cluster (every node with this repository at the same code). A dead worker's task is not
+retried (max_retries=0): it fails, and the next run computes it. No node with a CPU for RAY_LOST_S:
+the trials left fail. Needs `pip install -e '.[ray]'`.
 """
 from __future__ import annotations
 
@@ -35,7 +26,6 @@ class RaySettings:
 
 @engine("ray", RaySettings, package="ray", extra="ray")
 def run(todo: list[dict], workers: int, fn, settings: RaySettings, logs=None):
-    """One Ray task per trial, submitted in the order of `todo`, yielded as they finish."""
     address = settings.address
     import ray
     from ray.exceptions import RayError

@@ -1,12 +1,6 @@
-"""engine=slurm: the trials in `workers` SLURM array jobs through submitit (one CPU each),
-balanced by estimated cost (pipeline.engines.submitit_jobs).
-
-    python -m pipeline.simulate experiment=fig4 engine=slurm workers=64 engine.partition=short
-
-The driver (run it on the login node, e.g. in tmux, or as a batch job of its own:
-docs/engines.md) submits the jobs, waits and writes the cache. Job files and logs:
-<paths.out>/logs/submitit/. The repository and its .venv must be on a file system the nodes
-share. Needs `pip install -e '.[slurm]'`.
+"""engine=slurm: the trials in SLURM array jobs through submitit (one CPU each), balanced by
+estimated cost (submitit_jobs); run the driver on a login node (docs/engines.md). Needs the
+repository on a shared file system and `pip install -e '.[slurm]'`.
 """
 from __future__ import annotations
 

@@ -1,13 +1,7 @@
-"""submitit's jobs, shared by engine=slurm and engine=submitit_local: the trials packed into
-shards (one array job each), balanced by their estimated cost; `workers` jobs run at once.
-
-A job spools each finished trial (Shard), so results arrive one by one, a requeued job
-(preempted or timed out) skips what it finished, and a lost job still hands over its finished
-trials. With SLURM the driver asks sacct every `poll_s` and squeue too: a job that ended without
-a result, or that SLURM no longer lists for `lost_s` (a cluster without accounting), fails its
-unfinished trials instead of hanging the run. Job files, logs and the spool:
-<paths.out>/logs/submitit/. This module registers no engine itself.
-"""
+"""submitit's jobs for engine=slurm and engine=submitit_local: the trials in shards (an array
+job each) balanced by estimated cost, `workers` at once. A job spools each finished trial (Shard);
+a job that ended without a result, or that squeue no longer lists for `lost_s`, fails its
+unfinished trials instead of hanging the run. Files: <paths.out>/logs/submitit/."""
 from __future__ import annotations
 
 import getpass
@@ -20,7 +14,8 @@ import time
 import traceback
 from pathlib import Path
 
-from . import THREAD_VARS, _error, call, failed
+from ..errors import ConfigError
+from . import THREAD_VARS, call, failed
 
 LOCAL_POLL_S = 0.5
 # a job that ended without its result file: how long to look for the file before calling the
@@ -29,15 +24,9 @@ RESULT_GRACE_S = 5.0
 
 
 class Shard:
-    """A submitit job: the trials of one shard, one after the other.
-
-    Each finished result (ok or diverged) is also put into `spool` (one file per trial key, by
-    an atomic rename) the moment it is there. So the driver sees trials finish one by one rather
-    than a whole shard at its end; a job that is killed or lost still hands over what it
-    finished; and a job that is requeued (preempted: SIGTERM, then requeue; or timed out:
-    SIGUSR2, checkpoint() below) skips those trials and loses only the one in flight. A spooled
-    result is named by the trial's key, which holds its inputs and code fingerprint, so it is
-    the result whichever job computed it."""
+    """A submitit job: one shard's trials in turn, each finished result (ok or diverged) spooled
+    at once under its key (an atomic rename): the driver sees trials one by one, a lost job hands
+    over what it finished, a requeued one (SIGTERM, or SIGUSR2: checkpoint) skips them."""
 
     def __init__(self, fn, spool: str):
         self.fn, self.spool = fn, spool
@@ -55,8 +44,7 @@ class Shard:
         return out
 
     def checkpoint(self, trials: list[dict]):
-        """submitit calls this on SIGUSR2 (time limit near): requeue the same shard; the trials
-        already in the spool are not computed again."""
+        """submitit calls this on SIGUSR2 (time limit near): requeue the same shard."""
         from submitit.helpers import DelayedSubmission
 
         return DelayedSubmission(self, trials)
@@ -89,11 +77,8 @@ def spooled(folder, key: str) -> dict | None:
 # --- sharding ----------------------------------------------------------------------------------
 
 def shards(todo: list[dict], n: int, cost=None) -> list[list[dict]]:
-    """Split `todo` into at most n shards of about equal total cost (pipeline.plan.cost).
-
-    Longest first, each trial goes to the shard with the least cost so far (LPT), so the costs
-    of any two shards differ by at most one trial's cost. Every trial is in exactly one shard,
-    within a shard in the order of `todo`; no shard is empty; the first shard is the costliest."""
+    """`todo` in at most n non-empty shards of about equal cost (LPT: longest first, to the
+    least loaded shard), each in the order of `todo`, the costliest first."""
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise ValueError(f"shards: n={n!r} must be an int >= 1")
     cost = cost or (lambda t: 1.0)  # (the stage gives pipeline.plan.cost)
@@ -111,11 +96,8 @@ def shards(todo: list[dict], n: int, cost=None) -> list[list[dict]]:
 # --- submitting and watching -------------------------------------------------------------------
 
 def signal_delay(opts: dict) -> int:
-    """Seconds before --time at which SLURM sends SIGUSR2 (engine.signal_delay_s).
-
-    submitit asks for 90 s, and SLURM may send the signal up to 60 s before that; with
-    timeout_min=2 a healthy shard was cut at ~38 s. The default is therefore at most a tenth of
-    the time limit (12 s for 2 minutes, 90 s from 15 minutes on)."""
+    """Seconds before --time at which SLURM sends SIGUSR2: engine.signal_delay_s, else at most a
+    tenth of the limit (SLURM may signal 60 s early: timeout_min=2 was cut at ~38 s)."""
     if opts.get("signal_delay_s") is not None:
         return int(opts["signal_delay_s"])
     return max(1, min(90, int(opts["timeout_min"]) * 6))
@@ -139,8 +121,7 @@ def job_parameters(opts: dict, workers: int, cluster: str, figure: str) -> dict:
 
 
 def queued_jobs() -> set[str] | None:
-    """The ids of this user's jobs SLURM still lists (pending, running, completing; array tasks
-    one by one), or None when squeue does not answer. Unlike sacct it needs no accounting."""
+    """The ids of this user's jobs squeue lists (array tasks one by one); None if it fails."""
     try:
         out = subprocess.run(["squeue", "-h", "-r", "-o", "%i", "-u", getpass.getuser()],
                              capture_output=True, text=True, timeout=60, check=True).stdout
@@ -151,16 +132,12 @@ def queued_jobs() -> set[str] | None:
 
 def results(todo: list[dict], workers: int, fn, cluster: str, opts: dict, logs=None,
             cost=None):
-    """The trials in shards, one array job each, `workers` at a time; yield each trial's result
-    as its job spools it, and a failed or lost job's unfinished trials as failed results.
-    cluster: slurm or local (submitit's); opts: the engine's settings (SlurmSettings' fields;
-    submitit_local: timeout_min, shards, setup); logs: the folder of the job files (the
-    stage's <paths.out>/logs/submitit; else ./outputs/logs/submitit); cost: a trial's
-    estimated cost (pipeline.plan.cost, given by the stage)."""
+    """Yield each trial's result as its job spools it, a failed or lost job's others as failed.
+    cluster: slurm or local (submitit's); opts: the engine's settings as a dict."""
     import submitit
 
     if cluster == "slurm" and shutil.which("sbatch") is None:
-        raise _error("engine=slurm: sbatch not found; submit from a SLURM login node, or use "
+        raise ConfigError("engine=slurm: sbatch not found; submit from a SLURM login node, or use "
                           "engine=submitit_local (or ray) on this machine")
     n = opts["shards"] or workers
     if cluster == "local":
@@ -187,7 +164,6 @@ def results(todo: list[dict], workers: int, fn, cluster: str, opts: dict, logs=N
 
 class OnceFilter(logging.Filter):
     """Lets the first log record containing `text` through, drops the ones after it."""
-
     def __init__(self, text: str):
         super().__init__()
         self.text, self.seen = text, False
@@ -200,13 +176,9 @@ class OnceFilter(logging.Filter):
 
 
 def watch(jobs, parts, spool_dir, poll: float, lost_s: float, queued=None, refresh=None):
-    """Yield (trial, result) for the trials of submitit `jobs` (one per part) until every job
-    has ended, been lost, or handed over all its trials.
-
-    Every `poll` seconds: `refresh` (one sacct for all jobs; submitit's own watcher waits up to
-    10 minutes between calls), the spooled results, and, with `queued` (squeue), the jobs SLURM no
-    longer lists. A job not listed for `lost_s` seconds that left no result is lost: without
-    accounting submitit never calls it done, and the driver would wait forever."""
+    """Yield (trial, result) of `jobs` (one per part) until each ended, was lost or handed over
+    all its trials. Every `poll` s: `refresh` (sacct), the spool, and `queued` (squeue): a job
+    not listed for `lost_s` s is lost (without accounting submitit never calls it done)."""
     pending = {job: {t["key"]: t for t in part} for job, part in zip(jobs, parts)}
     keys = {job: list(left) for job, left in pending.items()}
     gone_since: dict = {}

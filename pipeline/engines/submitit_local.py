@@ -1,7 +1,5 @@
 """engine=submitit_local: the slurm engine's code path on this machine, its shards as `workers`
-local submitit jobs (each a process with one BLAS/numba thread). For tests and for trying a
-SLURM setup without a cluster. Job files and logs: <paths.out>/logs/submitit/. Needs
-`pip install -e '.[slurm]'`.
+local submitit jobs (tests; a SLURM setup tried without a cluster). Needs the extra [slurm].
 """
 from __future__ import annotations
 

@@ -1,11 +1,6 @@
-"""Gymnasium environments over gbmodel's bodies and growth (docs/gym.md); needs the extra [gym].
-
-Importing this package registers gbgrowth/GrowingReach-v0. Gymnasium 1.x dropped the loading of
-`gymnasium.envs` entry points (0.26 to 0.29 call them when gymnasium is imported), so with it an
-id names its module: gym.make("pipeline.envs:gbgrowth/GrowingReach-v0", ...), or `import
-pipeline.envs` before gym.make("gbgrowth/GrowingReach-v0", ...). The entry point in
-pyproject.toml is register_envs, which registers into the namespace gymnasium gives it.
-"""
+"""Gymnasium environments (docs/gym.md; extra [gym]): importing it registers
+gbgrowth/GrowingReach-v0 (Gymnasium 1.x: gym.make("pipeline.envs:gbgrowth/GrowingReach-v0"));
+register_envs is also pyproject.toml's entry point (into the namespace gymnasium gives it)."""
 from gymnasium.envs import registration
 
 ID = "gbgrowth/GrowingReach-v0"

@@ -1,26 +1,11 @@
-"""gbgrowth/GrowingReach-v0: reaching with a body that grows across episodes, as a Gymnasium
-environment (docs/gym.md).
+"""gbgrowth/GrowingReach-v0: reaching with a body that grows across episodes (docs/gym.md).
 
-Any body of the project (a shipped name, conf/body/<name>.yaml, or a whole description: DH, URDF,
-MJCF, a Python function) grows along gbmodel's schedules, with `period` counted in episodes: the
-size of episode e is gbmodel.Growth.sizes([e]), exactly the pipeline's size of epoch e, and the
-hand is gbmodel's Body.forward at the per-segment factors Growth.scales gives. Nothing here
-computes kinematics or growth of its own.
-
-- action: a posture in the normalised joint range, a in [-1, 1]^m; the body's command is a
-  (normalised bodies: [-1, 1] spans the joint limits) or pi a (joint angles in radians), the
-  range gbmodel.workspace samples a body's reach in. mode="incremental": the action moves the
-  posture by at most `max_step` per step, for `horizon` steps.
-- observation (goal-conditioned, for hindsight relabelling): observation = the posture and the
-  body size, achieved_goal = the hand, desired_goal = the target.
-- reward: dense, minus the distance [m]; sparse, 0 within `tolerance` x the full body's reach,
-  else -1. compute_reward works on batches.
-- goals: the body's target grid at its current size (what Goal Babbling is told to reach);
-  heldout_goals() is the pipeline's held-out set at the current size (gbmodel.evaluation), never
-  drawn as a goal.
-- growth: an episode counts once it took a step; a reset after it starts the next, older one.
-  A seed given to reset starts the environment anew, its generator and a newborn body (as
-  Gymnasium's seeding goes: a seed once, at the first reset; then reset() continues growing).
+Any body of the project grows along gbmodel's schedules with `period` in episodes (episode e has
+the pipeline's size of epoch e); kinematics and growth are gbmodel's. action: a posture in [-1,
+1]^m (mode=incremental: a move of at most `max_step`, `horizon` steps); observation: posture and
+size, achieved_goal the hand, desired_goal the target; reward dense (-distance) or sparse
+(within `tolerance` x reach); goals: the target grid at the current size. A reset after a step
+starts the next, older episode; a seed starts anew with a newborn body.
 """
 from __future__ import annotations
 
@@ -40,9 +25,7 @@ GOALS = ("grid", "box")
 
 
 def make_growth(growth, period: int, schedule: str, start_size: float, end_size: float) -> Growth:
-    """gbmodel.Growth from a pattern's name (conf/growth's names: proportional, nonproportional,
-    proximal_first, none) and the arguments, or from a dict of Growth's fields (a per_segment
-    pattern's leads, a schedule's table); `period` in episodes."""
+    """gbmodel.Growth from a pattern's name (conf/growth's) or a dict of Growth's fields."""
     if isinstance(growth, dict):
         return Growth(**{"period": period, "schedule": schedule, "start_size": start_size,
                          "end_size": end_size, **growth})
@@ -101,14 +84,12 @@ class GrowingReach(gym.Env):
         self.factors = self.growth.scales(self.body, np.array([self.size]))[0]
 
     def hand(self, postures) -> np.ndarray:
-        """The hand (n,) or (N, n) [m] at postures in action units, the body at its current size
-        (not counted as the agent's forward evaluations: for scoring)."""
+        """The hand [m] at postures in action units, at the current size (not counted)."""
         q = np.clip(np.asarray(postures, np.float64), -1.0, 1.0) * self.command_scale
         return self.body.forward(q, self.factors)
 
     def heldout_goals(self) -> np.ndarray:
-        """The pipeline's held-out set at the current size (N, n): cell centres of the grid and
-        200 uniform points in its box (gbmodel.evaluation.heldout_points)."""
+        """The pipeline's held-out set at the current size (gbmodel.evaluation.heldout_points)."""
         return heldout_points(self.body, self.size)
 
     def observe(self, goals) -> dict:
@@ -132,8 +113,7 @@ class GrowingReach(gym.Env):
 
     # ---- the Gymnasium API -----------------------------------------------------------------------
     def compute_reward(self, achieved_goal, desired_goal, info=None):
-        """The reward of reaching achieved_goal for desired_goal, for single goals or batches
-        (..., n) -> (...) (hindsight relabelling calls it on batches)."""
+        """The reward, for single goals or batches (..., n) -> (...)."""
         d = np.linalg.norm(np.asarray(achieved_goal, np.float64)
                            - np.asarray(desired_goal, np.float64), axis=-1)
         if self.reward_type == "dense":
