@@ -53,13 +53,15 @@ def test_a_period_no_job_uses_keeps_its_one_line_refusal(tmp_path, argv):
 
 
 # ---- 2. a sweep's estimate, and the cost model against measured CPU ----------------------------
-_ROW = re.compile(r"^\| (\w+) \| (\d+) \| ([\d.]+) (s|min)(?: \((\d+) of \d+ trials\))? \| "
-                  r"[\d.]+ (?:s|min) \|$", re.M)
+ALL = "all, each shared trial once"  # the provenance's last row
+_ROW = re.compile(rf"^\| (\w+|{ALL}) \| (\d+) \| ([\d.]+) (s|min)"
+                  r"(?: \((\d+) of \d+ trials\))? \| [\d.]+ (?:s|min) \|$", re.M)
 
 
 def measured_per_experiment() -> dict[str, tuple[int, float]]:
-    """experiment -> (trials, measured CPU seconds) from the committed report's provenance; a row
-    measured on k of its n trials (the others cached before times were kept) scaled by n / k."""
+    """experiment (and ALL) -> (trials, measured CPU seconds) from the committed report's
+    provenance; a row measured on k of its n trials (the others cached before times were kept)
+    scaled by n / k."""
     text = (REPO_ROOT / "outputs" / "report" / "report.md").read_text()
     return {name: (int(n), float(v) * (60 if unit == "min" else 1) * int(n) / int(k or n))
             for name, n, v, unit, k in _ROW.findall(text)}
@@ -72,6 +74,7 @@ def test_the_cost_model_is_within_1_5x_of_the_committed_measured_cpu():
     growth.period=100 figure=grid workers=1`: 53.5 s of CPU in its 20 trials, 56.1 s in all;
     with `learner.variations=10 growth=none figure=vsweep`: 34.5 s, 37.0 s in all)."""
     measured = measured_per_experiment()
+    every, every_seconds = measured.pop(ALL)
     assert len(measured) >= 16, sorted(measured)
     ratios, distinct = {}, {}
     for name, (n, seconds) in measured.items():
@@ -79,13 +82,8 @@ def test_the_cost_model_is_within_1_5x_of_the_committed_measured_cpu():
         assert len(trials) == n, name
         ratios[name] = seconds / cpu_seconds(sum(map(cost, trials)), n)
         distinct.update((t["key"], cost(t)) for t in trials)
-    every = re.search(r"^\| all, each shared trial once \| (\d+) \| ([\d.]+) min"
-                      r"(?: \((\d+) of \d+ trials\))? \|",
-                      (REPO_ROOT / "outputs/report/report.md").read_text(), re.M)
-    n = int(every.group(1))
-    assert n == len(distinct)
-    ratios["all"] = (float(every.group(2)) * 60 * n / int(every.group(3) or n)
-                     / cpu_seconds(sum(distinct.values()), n))
+    assert every == len(distinct)
+    ratios["all"] = every_seconds / cpu_seconds(sum(distinct.values()), every)
     job = plan(compose(["learner.radius=0.1", "growth.period=100", "figure=grid"]))
     ratios["README sweep job"] = 53.5 / cpu_seconds(sum(map(cost, job)), len(job))
     job = plan(compose(["learner.variations=10", "growth=none", "figure=vsweep"]))
