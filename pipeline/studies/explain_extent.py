@@ -10,11 +10,11 @@ import re
 import numpy as np
 
 from .. import measures
-from . import scorecard
+from . import claims, scorecard
 
 FIGURE = {"extent": "fig7", "extent_arm5": "fig4"}  # explanation (declares.explains) -> figure
-POINTS = {"grid": "abs_error", "path targets": "path_abs_error",
-          "uniform points": "uniform_abs_error"}  # where the error is averaged -> its column
+WORDS = {"grid": "grid", "path": "path targets", "uniform": "uniform points"}  # as the texts say
+POINTS = {WORDS[p]: col for p, col in claims.POINTS.items()}  # where it is averaged -> column
 TOLERANCE = 0.2  # k within this of 1: "in proportion"; of 0: "does not change"
 
 
