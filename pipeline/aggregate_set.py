@@ -100,13 +100,8 @@ class Previous:
                               None if schema is None else schema.names)
 
     @cached_property
-    def _texts(self) -> dict[str, str]:  # condition -> its line of models.json
-        lines, out = (self.where / "models.json").read_text().split("\n"), {}
-        for line in lines[1:-2] if lines[0] == MODELS_HEAD else ():
-            if line:
-                name, end = _DECODER.raw_decode(line)
-                out[name] = line[end + 1:].rstrip(",")
-        return out
+    def _texts(self) -> dict[str, str]:
+        return model_lines((self.where / "models.json").read_text())
 
     def text(self, condition: str) -> str:
         """The condition's line of models.json, checked against the manifest (else ValueError)."""
@@ -243,6 +238,16 @@ def model_line(spec: dict, cid: str, trials: dict[str, str]) -> str:
     """_compact({"spec": spec, "id": cid, "trials": trials}), each trial's model already encoded."""
     models = ",".join(f"{json.dumps(i)}:{trials[i]}" for i in sorted(trials))
     return f'{{"id":{_compact(cid)},"spec":{_compact(spec)},"trials":{{{models}}}}}'
+
+
+def model_lines(text: str) -> dict[str, str]:
+    """Condition -> its line of a models.json text (models_text), as written."""
+    lines, out = text.split("\n"), {}
+    for line in lines[1:-2] if lines[0] == MODELS_HEAD else ():
+        if line:
+            name, end = _DECODER.raw_decode(line)
+            out[name] = line[end + 1:].rstrip(",")
+    return out
 
 
 def models_text(fig: str, paper, texts: dict[str, str]) -> str:

@@ -4,7 +4,8 @@ changes and only then. Files are read, not imported, and each text is parsed onc
 (_facts). The text of every gbmodel file is kept as this module's import found it (_AT_IMPORT);
 a file of an imported module whose syntax (comments and docstrings aside) differs between that
 text, the text hashed and the file now was edited while the process ran: CodeChanged, a one-line
-error naming the definition that differs: run the command again.
+error naming the definition that differs: run the command again. (A file saved before this
+module's import, after its module's, is not seen: the stages import it within a second.)
 """
 from __future__ import annotations
 

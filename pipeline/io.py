@@ -371,10 +371,6 @@ def trial_curve_table(result: dict) -> pa.Table:
                                 schema=TRIAL_CURVE)
 
 
-def sha256_file(path) -> str:
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
-
-
 def remove_stale_tmp(folder, recursive: bool = False) -> list[Path]:
     """Delete (and return) the temporary files and sets a killed process of this host left."""
     gone, folder = [], Path(folder)

@@ -190,15 +190,10 @@ def _named_for(path: Path) -> str:
 
 
 def _check_lines(path: Path, raw: bytes) -> None:  # each condition's line against manifest.json
-    from .aggregate_set import MODELS_HEAD, _checksum
+    from .aggregate_set import _checksum, model_lines
 
     manifest = io.read_json(path.parent / "manifest.json", need=("models",))
-    lines = raw.decode().split("\n")
-    decoder, seen = json.JSONDecoder(), {}
-    for line in lines[1:-2] if lines[0] == MODELS_HEAD else ():
-        if line:
-            name, end = decoder.raw_decode(line)
-            seen[name] = _checksum(line[end + 1:].rstrip(","))
+    seen = {name: _checksum(line) for name, line in model_lines(raw.decode()).items()}
     want = {k: v[1] for k, v in manifest["models"].items()}
     if seen != want:
         bad = sorted(k for k in set(seen) | set(want) if seen.get(k) != want.get(k))

@@ -197,8 +197,6 @@ def check_run(cfg: DictConfig) -> None:
     check_int("trials.root_seed", cfg.trials.root_seed, 0)
     check_int("workers", cfg.workers, 1)
     check_ranges(cfg, stages=True)
-    if not cfg.figure or "/" in cfg.figure or cfg.figure.startswith("."):
-        _bad("figure", cfg.figure, "must be a plain name (it names a folder)")
     check_root(cfg)
     check_names(cfg)
     check_stamp(cfg)
