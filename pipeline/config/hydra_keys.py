@@ -4,6 +4,7 @@ environment variable runs code; a folder outside paths.root is written outside i
 """
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 from omegaconf import OmegaConf
@@ -30,26 +31,15 @@ HYDRA_FILLED = ("runtime", "overrides", "job.override_dirname", "job.id", "job.n
                 "job.config_name")
 
 
-def _flat(node, where: str = "") -> dict:
+def _flat(node, where: str = "", lists: bool = False) -> dict:
+    """{dotted key: leaf} of a plain tree; lists are leaves, or (lists) entered as key[i]."""
     if isinstance(node, dict):
-        out = {}
-        for k, v in node.items():
-            out.update(_flat(v, f"{where}.{k}" if where else str(k)))
-        return out
-    return {where: node}
-
-
-def _targets(node, where: str):
-    if isinstance(node, dict):
-        for k, v in node.items():
-            key = f"{where}.{k}" if where else str(k)
-            if k == "_target_":
-                yield key, v
-            else:
-                yield from _targets(v, key)
-    elif isinstance(node, list):
-        for i, v in enumerate(node):
-            yield from _targets(v, f"{where}[{i}]")
+        parts = [(f"{where}.{k}" if where else str(k), v) for k, v in node.items()]
+    elif lists and isinstance(node, list):
+        parts = [(f"{where}[{i}]", v) for i, v in enumerate(node)]
+    else:
+        return {where: node}
+    return {k: v for key, child in parts for k, v in _flat(child, key, lists).items()}
 
 
 def check_hydra(cfg) -> None:
@@ -58,8 +48,9 @@ def check_hydra(cfg) -> None:
     failing its check."""
     tree = OmegaConf.to_container(cfg, resolve=False)
     hydra = tree.pop("hydra", None) or {}
-    for key, target in _targets(tree, ""):
-        if not (isinstance(target, str) and target.startswith(OWN_TARGETS)):
+    for key, target in _flat(tree, lists=True).items():
+        if "_target_" in re.split(r"[.\[]", key) and not (
+                isinstance(target, str) and target.startswith(OWN_TARGETS)):
             raise ConfigError(f"{key}={target!r}: the config names no code to run (only "
                               "pipeline's own)")
     for name in hydra.get("callbacks") or {}:
