@@ -2,13 +2,12 @@
 by conditions.continues): the learner's and the generator's state, and the base's cached curve
 and snapshots; the result is an uninterrupted run's, to the bit. Only a trial planned as a base
 keeps it (`keep_state`), in trials/<kk>/<key>.state.json beside its sidecar, sealed, as plain
-data (arrays as base64, gbmodel's dataclasses by name) that crosses to a worker like any trial.
+data (arrays as base64, the learner's dataclasses by name) that crosses to a worker like any trial.
 A base in the cache without it is run again, before its continuations."""
 from __future__ import annotations
 
 import base64
 import dataclasses
-import importlib
 from pathlib import Path
 
 import numpy as np
@@ -42,30 +41,26 @@ def encode(x):
                     "keep (arrays, numbers, strings, tuples, lists, dicts and dataclasses)")
 
 
-def decode(d):
+def decode(d, kinds: dict):
+    """encode's inverse; a dataclass is looked up by name in `kinds` (state_kinds), never
+    imported: the file names no code to run."""
     if not isinstance(d, dict):
         return d
     if "array" in d:
         a = np.frombuffer(base64.b64decode(d["data"]), dtype=np.dtype(d["array"]))
         return a.reshape(d["shape"]).copy()
     if "scalar" in d:
-        return decode(d["scalar"])[()]
+        return decode(d["scalar"], kinds)[()]
     if "dataclass" in d:
-        module, _, name = d["dataclass"].partition(":")
-        if module.split(".")[0] != "gbmodel":  # a state is gbmodel's: nothing else is imported
-            raise ValueError(f"a checkpoint names {d['dataclass']!r}, not a class of gbmodel")
-        kind = importlib.import_module(module)
-        for part in name.split("."):
-            kind = getattr(kind, part)
-        if not dataclasses.is_dataclass(kind):
-            raise ValueError(f"a checkpoint names {d['dataclass']!r}, not a dataclass")
-        return kind(**{k: decode(v) for k, v in d["fields"].items()})
+        if d["dataclass"] not in kinds:
+            raise ValueError(f"a checkpoint names {d['dataclass']!r}, not a dataclass of gbmodel")
+        return kinds[d["dataclass"]](**{k: decode(v, kinds) for k, v in d["fields"].items()})
     if "tuple" in d:
-        return tuple(decode(v) for v in d["tuple"])
+        return tuple(decode(v, kinds) for v in d["tuple"])
     if "list" in d:
-        return [decode(v) for v in d["list"]]
+        return [decode(v, kinds) for v in d["list"]]
     if "dict" in d:
-        return {decode(k): decode(v) for k, v in d["dict"]}
+        return {decode(k, kinds): decode(v, kinds) for k, v in d["dict"]}
     if "float" in d:
         return float.fromhex(d["float"])
     raise ValueError(f"not a checkpoint's data: keys {sorted(d)}")
@@ -117,12 +112,27 @@ def load(cache_dir, base: dict) -> tuple[dict | None, str | None]:
                 snapshots=side["snapshots"]), None
 
 
-def checkpoint(data: dict):
-    """The gbmodel.Checkpoint of load()'s plain data (in the worker)."""
+def state_kinds(learner: str) -> dict:
+    """The dataclasses of gbmodel's modules once learner `learner` is imported (its state's
+    kinds among them), by encode's name for them: a checkpoint picks a class of these only."""
+    import sys
+
     import gbmodel
 
+    gbmodel.learners.get(learner)
+    mods = [m for n, m in list(sys.modules.items()) if n.split(".")[0] == "gbmodel"]
+    return {f"{k.__module__}:{k.__qualname__}": k for m in mods for k in vars(m).values()
+            if isinstance(k, type) and dataclasses.is_dataclass(k) and k.__module__ == m.__name__}
+
+
+def checkpoint(data: dict, learner: str):
+    """The gbmodel.Checkpoint of load()'s plain data (in the worker), for a trial of `learner`."""
+    import gbmodel
+
+    kinds = state_kinds(learner)
     c = data["curve"]
     result = gbmodel.TrialResult(
         **{k: np.asarray(c[k], np.int64 if k == "epoch" else np.float64) for k in CURVE}, M=None,
         snapshots={int(e): np.asarray(m) for e, m in data["snapshots"].items()})
-    return gbmodel.Checkpoint(data["epoch"], decode(data["state"]), decode(data["rng"]), result)
+    return gbmodel.Checkpoint(data["epoch"], decode(data["state"], kinds), decode(data["rng"], kinds),
+                              result)

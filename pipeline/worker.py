@@ -29,7 +29,8 @@ def run_one(trial: dict) -> dict:
         from . import checkpoint
         from .warm import recovering  # a damaged numba cache is removed, the trial rerun
         resume = trial.get("resume")  # a continuation's only (a stand-in run_trial takes none)
-        extra = {} if resume is None else {"resume": checkpoint.checkpoint(resume)}
+        learner = trial["spec"]["learner"]["name"]
+        extra = {} if resume is None else {"resume": checkpoint.checkpoint(resume, learner)}
         res = recovering(lambda: gbmodel.run_trial(spec, np.random.default_rng(seed), **extra))
         code_fingerprint(trial["spec"]["learner"]["name"])  # what it imported was hashed
         out = dict(status="ok", epoch=res.epoch, samples=res.epoch * res.samples_per_epoch,

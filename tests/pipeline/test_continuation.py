@@ -31,12 +31,12 @@ def _run(epochs, resume=None, **learner):
     return gbmodel.run_trial(spec, rng, resume=resume)
 
 
-def _through_json(res):
+def _through_json(res, learner="goal_babbling"):
     """A base's checkpoint as the cache keeps it (JSON) and a worker gets it back."""
     final = json.loads(json.dumps(checkpoint.final_state(res)))
     curve = {c: getattr(res, c).tolist() for c in checkpoint.CURVE}
     snaps = {str(e): m.tolist() for e, m in res.snapshots.items()}
-    return checkpoint.checkpoint(dict(final, curve=curve, snapshots=snaps))
+    return checkpoint.checkpoint(dict(final, curve=curve, snapshots=snaps), learner)
 
 
 STEP = dict(rate_schedule="step", rate_step_epoch=20, rate_step_factor=0.1)
@@ -138,3 +138,24 @@ def test_only_a_rate_after_the_base_may_differ_from_it():
     cfg.conditions.variants[1].set = ["learner.radius=0.05"]
     with pytest.raises(ConfigError, match="changes learner.radius"):
         plan(cfg)
+
+
+def test_a_state_of_dataclasses_continues_and_names_only_its_learners_classes(block):
+    """A learner whose state is a dataclass (online Goal Babbling) continues to the bit; the class
+    is found by name among gbmodel's loaded dataclasses, never imported: a checkpoint naming
+    anything else is refused in one line."""
+    spec = dict(body={"name": "arm2"}, learner={"name": "online_goal_babbling"},
+                evals_per_decade=5)
+    rng = lambda: np.random.default_rng(np.random.SeedSequence(2010, spawn_key=(7, 1)))  # noqa: E731
+    whole = gbmodel.run_trial(gbmodel.TrialSpec(epochs=30, **spec), rng())
+    base = gbmodel.run_trial(gbmodel.TrialSpec(epochs=20, **spec), rng())
+    cont = gbmodel.run_trial(gbmodel.TrialSpec(epochs=30, **spec), rng(),
+                             resume=_through_json(base, "online_goal_babbling"))
+    assert cont.abs_error.tobytes() == whole.abs_error.tobytes()
+    assert cont.M.tobytes() == whole.M.tobytes()
+    kinds = checkpoint.state_kinds("online_goal_babbling")
+    text = json.dumps(checkpoint.encode(base.state))
+    for other in ("subprocess:CompletedProcess", "pipeline.io:Sealed", "gbmodel.nowhere:State"):
+        forged = json.loads(text.replace("gbmodel.learners.online_goal_babbling:State", other))
+        with pytest.raises(ValueError, match="not a dataclass of gbmodel"):
+            checkpoint.decode(forged, kinds)
