@@ -33,8 +33,8 @@ def at_targets(M1, M2, spec, size) -> tuple[float, float]:
     x = body.target_set(size)
     past = (np.abs(gb.predict(M2, params, body, x)) > 1.0).any(axis=1).mean() \
         if body.normalized and body.saturates else 0.0
-    return float(past), float(np.linalg.norm(gb.predict_model(M2, params, body, x)
-                                             - gb.predict_model(M1, params, body, x), axis=1).mean())
+    moved = gb.predict_model(M2, params, body, x) - gb.predict_model(M1, params, body, x)
+    return float(past), float(np.linalg.norm(moved, axis=1).mean())
 
 
 def run(figure: str, epochs: int, trials: int, overrides: list[str], only=(), curve=False):

@@ -49,6 +49,7 @@ def run_command(code: Path, stage: str, args: list[str]) -> tuple[dict, int, byt
 
 
 def run_stage(code: Path, stage: str, args: list[str]) -> dict:
+    """run_command's times; RuntimeError with its stderr when it exits other than 0 or 1."""
     out, rc, err = run_command(code, stage, args)
     if rc not in (0, 1):
         raise RuntimeError(f"{stage} in {code} exited {rc}: {err.decode(errors='replace')[-2000:]}")
@@ -75,10 +76,10 @@ def cached_smoke(codes: list[Path], experiments: str, repeat: int,
     runs, the checkouts alternating; per checkout each stage's median and the median total."""
     for code in codes:
         smoke_once(code, experiments, profile)
-    runs = interleaved(codes, repeat, lambda code, _: smoke_once(code, experiments, profile),
-                       flip=False)
-    return [dict({s: median_of([r[s] for r in rs]) for s in SMOKE_STAGES}, code=str(code),
-                 **median_of(rs)) for code, rs in runs.items()]
+    runs = interleaved(range(len(codes)), repeat, lambda i, _: smoke_once(
+        codes[i], experiments, profile), flip=False)
+    return [dict({s: median_of([r[s] for r in rs]) for s in SMOKE_STAGES}, code=str(codes[i]),
+                 **median_of(rs)) for i, rs in runs.items()]
 
 
 def headline(results: list[dict], smokes: list[dict]) -> list[str]:
@@ -106,12 +107,10 @@ def change_one_trial(cache: Path) -> str:
     return side.stem
 
 
-def files_under(folder: Path) -> int:
-    return sum(len(files) for _, _, files in os.walk(folder))
-
-
-def megabytes(folder: Path) -> float:
-    return sum(p.stat().st_size for p in folder.rglob("*") if p.is_file()) / 2**20
+def files_mb(folder: Path, digits: int) -> tuple[int, float]:
+    """The files under `folder` and their MB."""
+    sizes = [p.stat().st_size for p in folder.rglob("*") if p.is_file()]
+    return len(sizes), round(sum(sizes) / 2**20, digits)
 
 
 def prepare(code: Path, size: int, epochs: int, workers: int) -> tuple[dict, Path]:
@@ -121,7 +120,7 @@ def prepare(code: Path, size: int, epochs: int, workers: int) -> tuple[dict, Pat
         args, agg = overrides(root, size, epochs, workers), overrides(root, size, epochs, None)
         out = dict(code=str(code), size=size, simulate=run_stage(code, "simulate", args))
         trials = root / "outputs" / "cache" / "trials"
-        out.update(files=files_under(trials), cache_mb=round(megabytes(trials), 1))
+        out["files"], out["cache_mb"] = files_mb(trials, 1)
         out["simulate_cached"] = run_stage(code, "simulate", args)
         out["aggregate"] = run_stage(code, "aggregate", agg)
         out["aggregate_cached"] = run_stage(code, "aggregate", agg)
@@ -241,10 +240,9 @@ def packing(n: int, rows: int = 11) -> dict:
             t1 = time.process_time()
             layout(folder, False)
             t2 = time.process_time()
-            out[layout.__name__] = dict(files=files_under(folder),
-                                        write_ms=round(1e3 * (t1 - t0) / n, 4),
-                                        read_ms=round(1e3 * (t2 - t1) / n, 4),
-                                        mb=round(megabytes(folder), 2))
+            files, mb = files_mb(folder, 2)
+            out[layout.__name__] = dict(files=files, write_ms=round(1e3 * (t1 - t0) / n, 4),
+                                        read_ms=round(1e3 * (t2 - t1) / n, 4), mb=mb)
     return out
 
 
