@@ -1,22 +1,22 @@
-"""Benchmarks of the compiled kernel (`make bench`) and its floors; two commands beside it.
+"""Benchmarks of the compiled kernel and its floors (docs/core.md, "The fast path ... and
+`make bench`"); two commands beside it.
 
     python -m pipeline.tools.bench [bench.repeats=5] [bench.parallel=false]     (make bench)
     python -m pipeline.tools.bench compare BASELINE_DIR [ROUNDS] [REPEATS] [LEARNER]
     python -m pipeline.tools.bench costs
 
-make bench: whole trials of arm5 and the iCub (the fast path, the numpy reference, online Goal
-Babbling, solver=lstsq, updates=online) interleaved (`paired`), wall and CPU ratios (`*_cpu`);
-the floors: a sample's flops over the peak measured in the run (`floor_ratio`), the compiled epoch
-stage by stage (`floor.stages`) against its flops and its counted floor (`sample_counts` priced by
-this CPU's `probe_ns`: `floor.counted_ratio`); bench.parallel: one and two workers. Writes
-paths.bench/bench.json. compare: CPU time per trial-epoch of a baseline checkout (`git archive
-<commit> | tar -x -C /tmp/base`) against this one, interleaved child processes. costs: every
-learner's CPU time per sample and joint against Goal Babbling's fast path.
+make bench: whole trials of arm5 and the iCub on every path (PATHS) interleaved, the medians of
+their wall and CPU ratios (RATIOS); the floors (floor.py): a sample's flops over the peak measured
+in the run, the compiled epoch stage by stage against them and against its counted floor; with
+bench.parallel, one and two workers; into paths.bench/bench.json. compare: another checkout's
+kernel beside this one's. costs: every learner's CPU time per sample and joint against Goal
+Babbling's fast path.
 """
 from __future__ import annotations
 
 import os
 import platform
+import statistics
 import sys
 import time
 from pathlib import Path
@@ -44,7 +44,7 @@ from gbmodel.simd import (
 from .. import cli, execute, io
 from ..config import CONFIG_PATH, compose
 from ..plan import plan
-from . import turns
+from . import REPO, child, interleaved
 from .floor import CLASSES, body_counts, counted_floor, online_sample_flops, sample_flops
 
 # _part holds the kernels it calls, compiled in: its cache (with this folder's other kernels)
@@ -52,6 +52,7 @@ from .floor import CLASSES, body_counts, counted_floor, online_sample_flops, sam
 fresh_cache(Path(__file__).parent, sorted(Path(fast.__file__).parent.glob("*.py")))
 
 # epochs per timed trial: long enough to swamp timer noise, short enough for the reference path
+# (the path's learner and overrides: PATHS)
 EPOCHS = {"fast": {"arm5": 5000, "icub": 1000}, "reference": {"arm5": 100, "icub": 20},
           "online": {"arm5": 5000, "icub": 1000}, "lstsq": {"arm5": 5000, "icub": 1000},
           "updates_online": {"arm5": 5000, "icub": 1000}}
@@ -176,23 +177,15 @@ def time_trial(spec: dict, seed: int = 0) -> tuple[float, float]:
             (time.process_time() - c0) / spec["epochs"])
 
 
-def paired(specs: dict, repeats: int, before=None) -> dict:
-    """name -> [(wall, cpu) per repeat]: repeat r runs every spec with seed r, in reversed order
-    every other repeat (a machine's drifting speed shifts them alike), `before()` first."""
-    out = {name: [] for name in specs}
-    for r in range(repeats):
-        if before is not None:
-            before()
-        for name in turns(specs, r):
-            out[name].append(time_trial(specs[name], r))
-    return out
-
-
 def paired_ratio(times: dict, a: str, b: str, clock: int = 1) -> float:
     """The median over repeats of a's time over b's in the same repeat (clock 0: wall, 1: CPU)."""
     return float(np.median([ta[clock] / tb[clock] for ta, tb in zip(times[a], times[b])]))
 
 
+PATHS = {"fast": ("goal_babbling", ()), "online": ("online_goal_babbling", ()),
+         "lstsq": ("goal_babbling", ("learner.solver=lstsq",)),
+         "updates_online": ("goal_babbling", ("learner.updates=online",)),
+         "reference": ("goal_babbling", ())}
 RATIOS = {"speedup": ("reference", "fast"), "online_over_batch": ("online", "fast"),
           "lstsq_over_gradient": ("lstsq", "fast"),
           "updates_online_over_batch": ("updates_online", "fast")}  # speedup: fast is b's
@@ -278,12 +271,10 @@ def stage_row(spec: dict, flops: dict, counts: dict, peak, repeats: int = 5,
     # each part compiled or loaded, and sized to about `seconds`
     reps = [max(4, int(seconds / max(_took(_part, i, 4, *args), 1e-6) * 4))
             for i in range(len(_PARTS))]
-    ns, peaks, probe = {name: [] for name in _PARTS}, [], probe_ns()
-    for r in range(repeats):
-        peaks.append(peak())
-        for i in turns(range(len(_PARTS)), r):
-            ns[_PARTS[i]].append(1e9 * _took(_part, i, reps[i], *args) / reps[i] / Npad)
-    t = {k: float(np.median(v)) for k, v in ns.items()}
+    peaks, probe = [], probe_ns()
+    ns = interleaved(range(len(_PARTS)), repeats, lambda i, _: 1e9 * _took(
+        _part, i, reps[i], *args) / reps[i] / Npad, before=lambda: peaks.append(peak()))
+    t = {_PARTS[i]: float(np.median(v)) for i, v in ns.items()}
     peak = float(np.median(peaks))
     times = dict({k: t[k] for k in _PARTS[:4]}, M_phi_error=t["features_predict"] - t["features"],
                  gradient=t["features_predict_gradient"] - t["features_predict"])
@@ -351,16 +342,13 @@ def parallel_speedup(trials: int = 8) -> dict:
 
 def body_row(body: str, repeats: int) -> dict:
     """bench.json's row of one body: every path's times, their ratios and the floors."""
-    for learner in ("goal_babbling", "online_goal_babbling"):  # compile or load the kernels
-        time_trial(paper_spec(body, 10, True, learner))       # outside the timing
-    time_trial(paper_spec(body, 10, True, extra=("learner.updates=online",)))
-    extras = {"fast": (), "online": (), "lstsq": ("learner.solver=lstsq",),
-              "updates_online": ("learner.updates=online",), "reference": ()}
-    specs = {path: paper_spec(body, EPOCHS[path][body], path != "reference",
-                              "online_goal_babbling" if path == "online" else "goal_babbling",
-                              extras[path]) for path in extras}
-    peaks = []
-    times, row = paired(specs, repeats, before=lambda: peaks.append(peak_gflops())), {}
+    for path in ("fast", "online", "updates_online"):  # compile or load the kernels untimed
+        time_trial(paper_spec(body, 10, True, *PATHS[path]))
+    specs = {path: paper_spec(body, EPOCHS[path][body], path != "reference", *PATHS[path])
+             for path in PATHS}
+    peaks, row = [], {}
+    times = interleaved(specs, repeats, lambda path, r: time_trial(specs[path], r),
+                        before=lambda: peaks.append(peak_gflops()))
     for path in specs:
         wall, cpu = (np.array(t) for t in zip(*times[path]))
         row[f"{path}_us_per_trial_epoch"] = 1e6 * float(np.median(wall))
@@ -391,16 +379,9 @@ def body_row(body: str, repeats: int) -> dict:
 def row_lines(body: str, row: dict) -> list[str]:
     us = {path: row[f"{path}_us_per_trial_epoch"] for path in EPOCHS}
     floor, st = row["floor"], row["floor"]["stages"]
-    out = [f"{body}: fast {us['fast']:8.1f} us/trial-epoch   reference {us['reference']:9.1f} "
-           f"us/trial-epoch   ratio fast/reference {1 / row['speedup']:.4f} "
-           f"({row['speedup']:.0f}x faster)   online {us['online']:8.1f} us/trial-epoch, "
-           f"online/batch {row['online_over_batch']:.2f} (CPU time "
-           f"{row['online_over_batch_cpu']:.2f}; its draws alone "
-           f"{row['online_draw_us_per_epoch']:.1f} us/epoch)   lstsq {us['lstsq']:8.1f} "
-           f"us/trial-epoch, lstsq/gradient {row['lstsq_over_gradient']:.2f}   updates=online "
-           f"{us['updates_online']:8.1f} us/trial-epoch, online/batch "
-           f"{row['updates_online_over_batch']:.2f}",
-           f"{body}: CPU time, paired: " + "   ".join(
+    out = [f"{body}: us/trial-epoch: " + "   ".join(f"{p} {t:.1f}" for p, t in us.items())
+           + f" (online's draws alone {row['online_draw_us_per_epoch']:.1f} us/epoch)",
+           f"{body}: ratios, paired: " + "   ".join(
                f"{name} {row[name]:.2f} wall, {row[name + '_cpu']:.2f} CPU" for name in RATIOS),
            f"{body}: floor: " + floor_line(floor)
            + f", peak {floor['peak_gflops']:.1f} GFLOP/s measured",
@@ -464,6 +445,46 @@ def costs() -> None:
                   f"and joint, {t / base:8.1f}x Goal Babbling's fast path", flush=True)
 
 
+# ---- bench compare: the kernel of another checkout beside this one's ----------------------------
+CHILD = r'''
+import json, sys, time
+import numpy as np, gbmodel
+from pipeline.tools.bench import EPOCHS, paper_spec
+
+
+def time_trial(spec, seed=0):
+    t0 = time.process_time()
+    gbmodel.run_trial(gbmodel.TrialSpec.from_dict(spec), np.random.default_rng(seed))
+    return (time.process_time() - t0) / spec["epochs"]
+
+
+out, learner = {}, sys.argv[2]
+path = "online" if learner == "online_goal_babbling" else "fast"
+for body in ("arm5", "icub"):
+    spec = paper_spec(body, EPOCHS[path][body], True, learner)
+    time_trial(paper_spec(body, 10, True, learner))
+    out[body] = [time_trial(spec, s) * 1e6 for s in range(int(sys.argv[1]))]
+print(json.dumps(out))
+'''
+
+
+def compare(baseline: str, rounds: int = 4, reps: int = 3, learner: str = "goal_babbling") -> dict:
+    """`bench compare`: each round `reps` trials per body in a child process (CHILD: its own
+    timer, as old as the baseline) of `baseline` and of this checkout in turn; prints the medians
+    (us per trial-epoch, CPU) and their ratio."""
+    trees = {"baseline": str(Path(baseline).resolve()), "this": str(REPO)}
+    runs = interleaved(trees, rounds, lambda t, _: child(
+        trees[t], CHILD, str(reps), learner, env={"PYTHONPATH": trees[t], "PATH": "/usr/bin:/bin"}))
+    res = {t: {b: [x for run in rs for x in run[b]] for b in ("arm5", "icub")}
+           for t, rs in runs.items()}
+    for b in ("arm5", "icub"):
+        m = {t: statistics.median(res[t][b]) for t in trees}
+        print(f"{b}: baseline {m['baseline']:.1f} us/trial-epoch, this {m['this']:.1f} "
+              f"us/trial-epoch, ratio this/baseline {m['this'] / m['baseline']:.3f} "
+              f"(medians of {len(res['baseline'][b])})")
+    return res
+
+
 @hydra.main(config_path=CONFIG_PATH, config_name="config", version_base="1.3")
 def main(cfg: DictConfig) -> None:
     with execute.single_threaded_children():
@@ -472,8 +493,6 @@ def main(cfg: DictConfig) -> None:
 
 if __name__ == "__main__":
     if sys.argv[1:2] == ["compare"]:
-        from .scale import compare
-
         compare(sys.argv[2], *(int(a) for a in sys.argv[3:5]), *sys.argv[5:6])
     elif sys.argv[1:2] == ["costs"]:
         costs()

@@ -75,8 +75,7 @@ def describe(desc: dict) -> list[str]:
             lim, deg = f"{'none':<20}", f"{'none':<20}"
         out.append(f"  {i + 1:<5}  {names[i][:20]:<20} {seg[i]:11.3f}  {lim} {deg} "
                    f"{body.home[i]:+.3f}")
-    x = workspace.hand_samples(body)
-    reach = workspace.reach(body)
+    x, reach = workspace.hand_samples(body), workspace.reach(body)
     out.append(f"reach: {reach:.3f} m (half the largest distance between two hand positions over "
                f"{workspace.SAMPLES:,} postures within the limits)")
     out.append("workspace (sampled), per axis 1 % ... 99 %: " + ", ".join(
@@ -98,8 +97,8 @@ def describe(desc: dict) -> list[str]:
         sides = ", ".join(f"{AXES[k]} {h - lo:.3f} m" for k, lo, h in
                           zip(body.outputs, grid["lo"], grid["hi"]))
         widest = 100 * max(np.subtract(grid["hi"], grid["lo"])) / reach
-        home = body.forward(body.home)
-        holds = all(lo <= h <= hi for lo, h, hi in zip(grid["lo"], home, grid["hi"]))
+        holds = all(lo <= h <= hi for lo, h, hi in zip(grid["lo"], body.forward(body.home),
+                                                        grid["hi"]))
         out.append(f"proposed grid ({sides}: {widest:.0f} % of the reach at most; every target "
                    "reached at full and half size; "
                    + ("it holds the hand at home" if holds else

@@ -1,14 +1,11 @@
 """The first hour, measured: set-up, make smoke and make test in a fresh clone of this checkout.
 
-    python -m pipeline.tools.firsthour                 # all three (make first-hour)
-    python -m pipeline.tools.firsthour --no-test       # set-up and smoke only (~5 min)
-    python -m pipeline.tools.firsthour --keep          # keep the clone (its path is printed)
+    python -m pipeline.tools.firsthour [--no-test] [--keep] [--out FILE]    (make first-hour)
 
-The clone is of the committed HEAD, in a temporary folder; each command runs as a new user types
-it, timed (wall, and CPU of the make and every process under it), make smoke with the trials it
-ran, make test with pytest's counts, beside the machine's state (cores, load average before and
-after, date, commit). The results go to --out (outputs/bench/first_hour.json), which the pages
-quote as named values `first_hour.*` (pipeline.tools.render: `{{ first_hour.smoke.cpu_min:.1f }}`).
+The clone is of the committed HEAD, in a temporary folder; each command is timed as a new user
+types it (wall, and CPU of the make and every process under it), smoke with the trials it ran,
+test with pytest's counts, beside the machine's state. The results (--out, default OUT) are the
+pages' named values `first_hour.*` (render: `{{ first_hour.smoke.cpu_min:.1f }}`).
 """
 from __future__ import annotations
 
@@ -24,9 +21,8 @@ import time
 from pathlib import Path
 
 from .. import io
-from . import timed
+from . import REPO, timed
 
-REPO = Path(__file__).resolve().parents[2]
 OUT = Path("outputs") / "bench" / "first_hour.json"
 COUNTS = re.compile(r"(\d+) (passed|skipped|failed|errors?)\b")
 
@@ -52,10 +48,6 @@ def pytest_counts(text: str) -> dict:
     return dict(out, failures=failures) if failures else out
 
 
-def trials_in(cache: Path) -> int:  # one sidecar each
-    return sum(1 for p in cache.glob("trials/*/*.json") if not p.name.endswith(".state.json"))
-
-
 def machine() -> dict:
     return dict(cores=os.cpu_count(), load_average=[round(x, 2) for x in os.getloadavg()],
                 date=time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()))
@@ -64,13 +56,12 @@ def machine() -> dict:
 def measure(clone: Path, test: bool) -> dict:
     """set-up, smoke (and test) in `clone`; a failing command's tail printed, the rest skipped."""
     out = {}
-    steps = [("setup", "make setup"), ("smoke", "make smoke")] + (
-        [("test", "make test")] if test else [])
-    for name, cmd in steps:
-        print(f"{cmd} in {clone} ...", file=sys.stderr, flush=True)
-        out[name], text = run(clone, *cmd.split())
-        if name == "smoke":
-            out[name]["trials"] = trials_in(clone / "outputs" / "smoke" / "cache")
+    for name in ("setup", "smoke", "test")[:3 if test else 2]:
+        print(f"make {name} in {clone} ...", file=sys.stderr, flush=True)
+        out[name], text = run(clone, "make", name)
+        if name == "smoke":  # one sidecar each
+            out[name]["trials"] = sum(1 for p in clone.glob("outputs/smoke/cache/trials/*/*.json")
+                                      if not p.name.endswith(".state.json"))
         if name == "test":
             out[name].update(pytest_counts(text))
         print(f"  {json.dumps(out[name])}", file=sys.stderr, flush=True)

@@ -25,24 +25,16 @@ from pipeline.config import compose
 from pipeline.plan import plan
 
 
-def saturated(M, spec, size) -> float:
-    """The share of the targets at which g commands a joint past its limit (0 without limits)."""
-    body = spec.make_body()
-    if not (body.normalized and body.saturates):
-        return 0.0
-    _, params = spec.make_learner()
-    q = gb.predict(M, params, body, body.target_set(size))
-    return float((np.abs(q) > 1.0).any(axis=1).mean())
-
-
-def drift(M1, M2, spec, size) -> float:
-    """The mean over the targets of |g2(x*) - g1(x*)| (command units): the redundancy resolution
-    wandering shows here, while the hand's error may stay put."""
-    body = spec.make_body()
-    _, params = spec.make_learner()
+def at_targets(M1, M2, spec, size) -> tuple[float, float]:
+    """At the targets of size `size`: the share at which g2 commands a joint past its limit (0
+    without limits), and the mean of |g2(x*) - g1(x*)| (command units: the redundancy resolution
+    wandering shows here, while the hand's error may stay put)."""
+    body, (_, params) = spec.make_body(), spec.make_learner()
     x = body.target_set(size)
-    return float(np.linalg.norm(gb.predict_model(M2, params, body, x)
-                                - gb.predict_model(M1, params, body, x), axis=1).mean())
+    past = (np.abs(gb.predict(M2, params, body, x)) > 1.0).any(axis=1).mean() \
+        if body.normalized and body.saturates else 0.0
+    moved = gb.predict_model(M2, params, body, x) - gb.predict_model(M1, params, body, x)
+    return float(past), float(np.linalg.norm(moved, axis=1).mean())
 
 
 def run(figure: str, epochs: int, trials: int, overrides: list[str], only=(), curve=False):
@@ -57,9 +49,9 @@ def run(figure: str, epochs: int, trials: int, overrides: list[str], only=(), cu
             continue
         spec = gbmodel.TrialSpec.from_dict({**t["spec"], "snapshots": [mark]})
         r = gbmodel.run_trial(spec, np.random.default_rng(np.random.SeedSequence(**t["seed"])))
+        sat, moved = at_targets(r.snapshots[mark], r.M, spec, r.size[-1])
         rows.setdefault(t["growth_label"], []).append(
-            (r.abs_error[-1], r.heldout_abs_error[-1], saturated(r.M, spec, r.size[-1]),
-             r.epoch, r.abs_error, drift(r.snapshots[mark], r.M, spec, r.size[-1])))
+            (r.abs_error[-1], r.heldout_abs_error[-1], sat, r.epoch, r.abs_error, moved))
     cpu = time.process_time() - t0
     out = {}
     for label, rs in rows.items():

@@ -5,10 +5,9 @@
     python -m pipeline.tools.rate 'hydra.searchpath=[file:///my/conf]' body=my_arm \
       learner.solver=lstsq learner.radius=0.1 learner.targets_per_epoch=30 learner.steps=10 --write
 
-It prints the body's learner settings file (body_learner/<body>_goal_babbling.yaml beside the
-body's file: conf/ or a folder of hydra.searchpath): the package line, the settings given on the
-command line that differ from the core's defaults, and eta = 1 / W with the samples it holds
-for; --write writes that file itself, in one rename. With solver=lstsq there is no rate.
+It prints the body's learner settings file (destination): the settings given on the command
+line that differ from the core's defaults and eta = 1 / W (weight_sum); --write writes it. With
+solver=lstsq there is no rate.
 """
 from __future__ import annotations
 
@@ -56,8 +55,7 @@ def weight_sum(body: dict, params: dict, seeds=SEEDS, epochs: int = EPOCHS,
 
 
 def rate(cfg: DictConfig, epochs: int = EPOCHS, seeds=SEEDS) -> dict:
-    """W, eta = 1 / W and the samples per epoch it holds for, for cfg's body and learner."""
-    goal_babbling_only(cfg)
+    """W, eta = 1 / W and the samples per epoch it holds for, for cfg's body and Goal Babbling."""
     params = OmegaConf.to_container(cfg.learner)
     for k in ("name", "epochs", "evals_per_decade"):
         params.pop(k)
@@ -65,12 +63,6 @@ def rate(cfg: DictConfig, epochs: int = EPOCHS, seeds=SEEDS) -> dict:
     p = gb.Params(**params)
     return dict(body=cfg.body.name, W=W, learning_rate=1.0 / W, current=p.rate(),
                 rate_samples=p.variations * (p.targets_per_epoch * p.steps + 1))
-
-
-def goal_babbling_only(cfg: DictConfig) -> None:
-    if cfg.learner.name != "goal_babbling":
-        raise ConfigError(f"learner={cfg.learner.name}: the rate rule is Goal Babbling's plain "
-                          "step (learner=goal_babbling)")
 
 
 def destination(cfg: DictConfig) -> Path:
@@ -124,7 +116,9 @@ def run(cfg: DictConfig, write: bool | None = None) -> int:
     from ..plan import SECONDS_PER_COST, cost, plan
     from ..progress import fmt_duration
 
-    goal_babbling_only(cfg)  # before its settings are read: another learner has no `solver`
+    if cfg.learner.name != "goal_babbling":  # before its settings: another has no `solver`
+        raise ConfigError(f"learner={cfg.learner.name}: the rate rule is Goal Babbling's plain "
+                          "step (learner=goal_babbling)")
     path, r = destination(cfg), None
     if cfg.learner.solver == "gradient":
         cpu = len(SEEDS) * cost(dict(spec={**plan(cfg)[0]["spec"], "epochs": EPOCHS}))

@@ -4,11 +4,10 @@
     python -m pipeline.tools.render --check    # exit 1, one line per page that differs
 
 A page with the report's numbers (README.md, docs/*.md) has its template at the same path under
-docs/templates/: its text with `{{ name:.1f }}` where a number stands, `{{ name }}` where a table
-does (pipeline/studies/values.py), from the committed report's outputs/report/values.csv, and the
-first-hour times from outputs/bench/first_hour.json (pipeline/tools/firsthour.py). Edit the
-template, never the page. Exit 2 (one line, nothing written): a bad reference, no values table,
-or a template or page reached through a link. A page is replaced in one rename.
+docs/templates/: `{{ name:.1f }}` where a number stands, `{{ name }}` where a table does
+(pipeline/studies/values.py), from the committed report's values.csv and first_hour.json
+(firsthour.py). Edit the template, never the page. Exit 2 (one line, nothing written): a bad
+reference, no values table, or a template or page reached through a link.
 """
 from __future__ import annotations
 
@@ -17,18 +16,10 @@ import sys
 from pathlib import Path
 
 from ..studies import values as named
-from . import fail, firsthour
-
-REPO_ROOT = Path(__file__).resolve().parents[2]  # the checkout (pipeline.config's, without Hydra)
+from . import REPO, fail, firsthour
 
 TEMPLATES = "docs/templates"
 VALUES = Path("outputs") / "report" / named.FILE
-
-
-def templates(root: Path) -> list[Path]:
-    """Every template's path under docs/templates/: its page's from the root."""
-    base = root / TEMPLATES
-    return sorted(p.relative_to(base) for p in base.rglob("*.md")) if base.is_dir() else []
 
 
 def rendered(root: Path, values_path: Path | None = None) -> dict[Path, str]:
@@ -37,8 +28,8 @@ def rendered(root: Path, values_path: Path | None = None) -> dict[Path, str]:
     if not values_path.is_file():
         raise named.BadValue(f"{values_path}: no values table (the report stage writes it)")
     vals = {**named.read(values_path), **firsthour.values(root / firsthour.OUT)}
-    out = {}
-    for rel in templates(root):
+    out, base = {}, root / TEMPLATES
+    for rel in sorted(p.relative_to(base) for p in base.rglob("*.md")) if base.is_dir() else []:
         src = unlinked(root, Path(TEMPLATES) / rel)
         unlinked(root, rel)  # the page: never written through a link
         try:
@@ -74,7 +65,7 @@ def main(argv=None, root: Path | None = None) -> int:
     ap.add_argument("--values", type=Path, default=None,
                     help=f"the named values (default: {VALUES})")
     args = ap.parse_args(argv)
-    root = REPO_ROOT if root is None else root
+    root = REPO if root is None else root
     try:
         pages = rendered(root, args.values)
     except (named.BadValue, OSError) as e:

@@ -3,11 +3,9 @@
     python -m pipeline.tools.rescore [REPORT_DIR] [--register FILE]
 
 Judges REPORT_DIR/measures.parquet (default outputs/report) under every reading of a register
-(default pipeline/studies/register.yaml, or an edited copy) as the scorecard does, and prints the
-two headlines (the default reading on the counted figures; the recommended reading over the
-readings study) and every cell whose verdict differs from the report's claims.csv. The measures
-themselves (smoothing, windows) are fixed when the trials are measured. Exit 2 with one line on
-bad input.
+(default pipeline/studies/register.yaml) as the scorecard does: the two headlines and every cell
+whose verdict differs from the report's claims.csv. The measures themselves (smoothing, windows)
+are fixed when the trials are measured. Exit 2 with one line on bad input.
 """
 from __future__ import annotations
 

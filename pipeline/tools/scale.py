@@ -1,7 +1,7 @@
 """Benchmarks of the pipeline at scale (`make scale`; docs/scale.md): sweeps of short arm5 trials
 (ten conditions) from nothing, each stage timed as the command a user types (simulate, cached,
-aggregate, cached, after one trial changed), wall, CPU, peak memory and files; cold reports and
-the kernel (`bench compare`) against another checkout; the cached stages.
+aggregate, cached, after one trial changed), wall, CPU, peak memory and files; cold reports
+against another checkout; the cached stages.
 
     python -m pipeline.tools.scale                           # 1,000 and 10,000 trials
     python -m pipeline.tools.scale --sizes 100000            # the large one (about an hour)
@@ -19,7 +19,6 @@ import json
 import os
 import shutil
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
@@ -27,9 +26,8 @@ from pathlib import Path
 
 from pipeline import io
 
-from . import fail, timed, turns
+from . import REPO, child, fail, interleaved, timed
 
-REPO = Path(__file__).resolve().parents[2]
 CONDITIONS = 10  # growth periods 1 ... 10: trials.count = size / CONDITIONS
 STAGES = ("simulate", "simulate_cached", "aggregate", "aggregate_cached", "aggregate_one")
 SMOKE_STAGES = ("simulate", "aggregate", "report")  # make smoke's commands
@@ -51,6 +49,7 @@ def run_command(code: Path, stage: str, args: list[str]) -> tuple[dict, int, byt
 
 
 def run_stage(code: Path, stage: str, args: list[str]) -> dict:
+    """run_command's times; RuntimeError with its stderr when it exits other than 0 or 1."""
     out, rc, err = run_command(code, stage, args)
     if rc not in (0, 1):
         raise RuntimeError(f"{stage} in {code} exited {rc}: {err.decode(errors='replace')[-2000:]}")
@@ -65,6 +64,7 @@ def smoke_once(code: Path, experiments: str, profile: str = "smoke") -> dict:
 
 
 def median_of(runs: list[dict]) -> dict:
+    """Each number's median over `runs`, and every run's CPU seconds (runs_cpu_s)."""
     out = {k: round(statistics.median(r[k] for r in runs), 3) for k in runs[0]
            if isinstance(runs[0][k], (int, float))}
     return dict(out, runs_cpu_s=[r["cpu_s"] for r in runs])
@@ -76,13 +76,10 @@ def cached_smoke(codes: list[Path], experiments: str, repeat: int,
     runs, the checkouts alternating; per checkout each stage's median and the median total."""
     for code in codes:
         smoke_once(code, experiments, profile)
-    runs = {code: [] for code in codes}
-    for _ in range(repeat):
-        for code in codes:
-            runs[code].append(smoke_once(code, experiments, profile))
-    return [dict({s: median_of([r[s] for r in runs[code]]) for s in SMOKE_STAGES}, code=str(code),
-                 cpu_s=round(statistics.median(r["cpu_s"] for r in runs[code]), 3),
-                 runs_cpu_s=[r["cpu_s"] for r in runs[code]]) for code in codes]
+    runs = interleaved(range(len(codes)), repeat, lambda i, _: smoke_once(
+        codes[i], experiments, profile), flip=False)
+    return [dict({s: median_of([r[s] for r in rs]) for s in SMOKE_STAGES}, code=str(codes[i]),
+                 **median_of(rs)) for i, rs in runs.items()]
 
 
 def headline(results: list[dict], smokes: list[dict]) -> list[str]:
@@ -110,12 +107,10 @@ def change_one_trial(cache: Path) -> str:
     return side.stem
 
 
-def files_under(folder: Path) -> int:
-    return sum(len(files) for _, _, files in os.walk(folder))
-
-
-def megabytes(folder: Path) -> float:
-    return sum(p.stat().st_size for p in folder.rglob("*") if p.is_file()) / 2**20
+def files_mb(folder: Path, digits: int) -> tuple[int, float]:
+    """The files under `folder` and their MB."""
+    sizes = [p.stat().st_size for p in folder.rglob("*") if p.is_file()]
+    return len(sizes), round(sum(sizes) / 2**20, digits)
 
 
 def prepare(code: Path, size: int, epochs: int, workers: int) -> tuple[dict, Path]:
@@ -125,7 +120,7 @@ def prepare(code: Path, size: int, epochs: int, workers: int) -> tuple[dict, Pat
         args, agg = overrides(root, size, epochs, workers), overrides(root, size, epochs, None)
         out = dict(code=str(code), size=size, simulate=run_stage(code, "simulate", args))
         trials = root / "outputs" / "cache" / "trials"
-        out.update(files=files_under(trials), cache_mb=round(megabytes(trials), 1))
+        out["files"], out["cache_mb"] = files_mb(trials, 1)
         out["simulate_cached"] = run_stage(code, "simulate", args)
         out["aggregate"] = run_stage(code, "aggregate", agg)
         out["aggregate_cached"] = run_stage(code, "aggregate", agg)
@@ -149,12 +144,10 @@ def paired(codes: list[Path], size: int, epochs: int, workers: int, keep: bool,
     try:
         for code in codes:
             prepared.append((code, *prepare(code, size, epochs, workers)))
-        runs = {code: [] for code in codes}
-        for _ in range(repeat):
-            for code, _, root in prepared:
-                runs[code].append(changed_once(code, root, size, epochs))
-        for code, out, _ in prepared:
-            out["aggregate_one"] = median_of(runs[code])
+        runs = interleaved(range(len(prepared)), repeat, lambda i, _: changed_once(
+            prepared[i][0], prepared[i][2], size, epochs), flip=False)
+        for i, (_, out, _) in enumerate(prepared):
+            out["aggregate_one"] = median_of(runs[i])
             for stage in STAGES:
                 out[stage]["cpu_ms_per_trial"] = round(1000 * out[stage]["cpu_s"] / size, 3)
         return [out for _, out, _ in prepared]
@@ -177,15 +170,6 @@ for name in ("plan", "plan_saved"):
 out["peak_mb"] = round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)
 print(json.dumps(out))
 """
-
-
-def child(code, script: str, *args: str, env: dict | None = None) -> dict:
-    """The JSON that `python -c script args` prints last in checkout `code`."""
-    proc = subprocess.run([sys.executable, "-c", script, *args], cwd=code, capture_output=True,
-                          text=True, env=env or dict(os.environ, PYTHONPATH=str(code)))
-    if proc.returncode:
-        raise RuntimeError(f"a child in {code} exited {proc.returncode}: {proc.stderr[-2000:]}")
-    return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
 def planning(code: Path, size: int, epochs: int, workers: int) -> dict:
@@ -256,10 +240,9 @@ def packing(n: int, rows: int = 11) -> dict:
             t1 = time.process_time()
             layout(folder, False)
             t2 = time.process_time()
-            out[layout.__name__] = dict(files=files_under(folder),
-                                        write_ms=round(1e3 * (t1 - t0) / n, 4),
-                                        read_ms=round(1e3 * (t2 - t1) / n, 4),
-                                        mb=round(megabytes(folder), 2))
+            files, mb = files_mb(folder, 2)
+            out[layout.__name__] = dict(files=files, write_ms=round(1e3 * (t1 - t0) / n, 4),
+                                        read_ms=round(1e3 * (t2 - t1) / n, 4), mb=mb)
     return out
 
 
@@ -311,21 +294,19 @@ def differing(a: Path, b: Path) -> list[str]:
 def report_pairs(trees: dict, roots: dict, exps: list[str], profile: str, rounds: int) -> tuple:
     """`rounds` pairs of cold reports of the checkouts `trees` (this, baseline) on the aggregates
     under `roots`: (CPU seconds per checkout, the files that differ in the last pair)."""
-    cpu, tmps = {t: [] for t in trees}, {}
+    tmps = {}
+
+    def one(t: str, r: int) -> float:
+        out = tmps[t] / f"{t}{r}"
+        cpu = cold_report(trees[t], report_args(exps, profile, out, roots[t]), out)
+        print(f"round {r + 1}, {t}: {cpu:.2f} s CPU", flush=True)
+        return cpu
     try:
         for t in trees:  # a report is written under paths.root only
             (roots[t] / "outputs").mkdir(exist_ok=True)
             tmps[t] = Path(tempfile.mkdtemp(prefix=f".bench_report_{t}_",
                                             dir=roots[t] / "outputs"))
-        for r in range(rounds):
-            for t in turns(trees, r):
-                out = tmps[t] / f"{t}{r}"
-                cpu[t].append(cold_report(trees[t], report_args(exps, profile, out, roots[t]),
-                                          out))
-            print(f"round {r + 1}: this {cpu['this'][-1]:.2f} s CPU, baseline "
-                  f"{cpu['baseline'][-1]:.2f} s, ratio {cpu['this'][-1] / cpu['baseline'][-1]:.3f}",
-                  flush=True)
-        last = rounds - 1
+        cpu, last = interleaved(trees, rounds, one), rounds - 1
         return cpu, differing(tmps["this"] / f"this{last}", tmps["baseline"] / f"baseline{last}")
     finally:
         for tmp in tmps.values():
@@ -365,48 +346,6 @@ def stages_main(a) -> int:
         print(f"  {name:10s} {r[name]['wall_s']:6.1f} s wall  {r[name]['cpu_s']:6.1f} s CPU")
     print(f"  total      {r['cpu_s']:6.1f} s CPU ({', '.join(map(str, r['runs_cpu_s']))})")
     return 0
-
-
-# ---- bench compare: the kernel of another checkout beside this one's ----------------------------
-CHILD = r'''
-import json, sys, time
-import numpy as np, gbmodel
-from pipeline.tools.bench import EPOCHS, paper_spec
-
-
-def time_trial(spec, seed=0):
-    t0 = time.process_time()
-    gbmodel.run_trial(gbmodel.TrialSpec.from_dict(spec), np.random.default_rng(seed))
-    return (time.process_time() - t0) / spec["epochs"]
-
-
-out, learner = {}, sys.argv[2]
-path = "online" if learner == "online_goal_babbling" else "fast"
-for body in ("arm5", "icub"):
-    spec = paper_spec(body, EPOCHS[path][body], True, learner)
-    time_trial(paper_spec(body, 10, True, learner))
-    out[body] = [time_trial(spec, s) * 1e6 for s in range(int(sys.argv[1]))]
-print(json.dumps(out))
-'''
-
-
-def compare(baseline: str, rounds: int = 4, reps: int = 3, learner: str = "goal_babbling") -> dict:
-    """`python -m pipeline.tools.bench compare`: each round `reps` trials per body in a child
-    process of `baseline` and of this checkout in turn; prints the medians (us per trial-epoch,
-    CPU) and their ratio."""
-    trees = {"baseline": str(Path(baseline).resolve()), "this": str(REPO)}
-    res = {t: {"arm5": [], "icub": []} for t in trees}
-    for r in range(rounds):
-        for t, path in turns(trees.items(), r):
-            for b, times in child(path, CHILD, str(reps), learner,
-                                  env={"PYTHONPATH": path, "PATH": "/usr/bin:/bin"}).items():
-                res[t][b] += times
-    for b in ("arm5", "icub"):
-        m = {t: statistics.median(res[t][b]) for t in trees}
-        print(f"{b}: baseline {m['baseline']:.1f} us/trial-epoch, this {m['this']:.1f} "
-              f"us/trial-epoch, ratio this/baseline {m['this'] / m['baseline']:.3f} "
-              f"(medians of {len(res['baseline'][b])})")
-    return res
 
 
 def parser(command: str | None) -> argparse.ArgumentParser:
