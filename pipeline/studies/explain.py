@@ -10,7 +10,7 @@ import pandas as pd
 from . import claims, explain_extent, scorecard
 from .capacity import _extremes, best_cubic
 from .choices import escape
-from .sections import Context, declared, register
+from .sections import Context, declared, prose, register
 
 
 def explained() -> dict[str, str]:
@@ -138,32 +138,16 @@ def half_size_text(found: list[dict]) -> str:
     if d is None or not d["at"]:
         return text
     if not _slower(d):
-        return text + ("At the default step the half-size arm does not learn slower in this run "
-                       "(no interval lies above 1).")
+        return text + prose("explain.half_size.not_slower")
     if ls is not None and not _slower(ls) and rate is not None and not _slower(rate):
-        return text + ("The gap closes under least squares and with the doubled rate at half "
-                       "size: the slower learning is the plain step's size dependence (the "
-                       "efficiency weight scales with the size, so at half size the whole step "
-                       "halves; the cubic features scale with its powers), not something about "
-                       "the small body.")
+        return text + prose("explain.half_size.step")
     late = rate is not None and _slower(rate) and list(rate["at"].values())[-1]["low"] <= 1
     if ls is not None and not _slower(ls) and late:
-        return text + ("The gap closes under least squares, which no uniform scaling of the "
-                       "weights or the features changes: the slower learning is the plain "
-                       "step's size dependence, not something about the small body. Doubling "
-                       "the rate at half size (the step the full-size weights would give) "
-                       f"closes it only after epoch {rate['last_above']:,}: the halved weights "
-                       "account for part of it, the cubic features, which shrink with the "
-                       "size's powers, for the early rest.")
+        return text + prose("explain.half_size.late", epoch=rate["last_above"])
     if ls is not None and not _slower(ls):
-        return text + ("The gap closes under least squares, which no uniform scaling of the "
-                       "weights or the features changes, but not with the doubled rate: the "
-                       "halved weights alone do not account for it; the features' scaling with "
-                       "the size's powers remains.")
+        return text + prose("explain.half_size.features")
     if ls is not None:
-        return text + ("The gap remains under least squares, which no uniform scaling of the "
-                       "weights or the features changes: the slower learning is not only the "
-                       "plain step's size dependence.")
+        return text + prose("explain.half_size.remains")
     return text
 
 
@@ -244,8 +228,9 @@ def rows(aggs: dict, named: dict | None = None) -> list[dict]:
                              "explanations.fig2.capacity.measured.n2", "best_worst_mm"))
     if by.get("boundary") in aggs:
         b = boundary(aggs[by["boundary"]])
-        named.update({name: float(f"{r['learned_mm']:.1f}") for r in b
-                      for lim, name in QUOTED_BOUNDARY.items() if r["label"].startswith(lim)})
+        named.update({name: float(f"{r['learned_mm']:.1f}") for r in b for lim, name in (
+            ("+-0.9 m", "explanations.fig2.boundary.measured.n5"),
+            ("+-0.8 m", "explanations.fig2.boundary.measured.n8")) if r["label"].startswith(lim)})
         if b:
             out.append(dict(figure="fig2", experiment=f"boundary ({by['boundary']}): learned "
                             f"on heights +-lim (21 targets, {b[0]['trials']} trials), error at "
@@ -308,10 +293,6 @@ def _extents(aggs: dict):
             yield explains, by[explains], e
 
 
-QUOTED_BOUNDARY = {"+-0.9 m": "explanations.fig2.boundary.measured.n5",
-                   "+-0.8 m": "explanations.fig2.boundary.measured.n8"}  # the learned error
-
-
 def _half_size_named(found: list[dict]) -> dict:
     """The half-size numbers the pages quote, as half_size_text prints them."""
     by, out = {v["kind"]: v for v in found}, {}
@@ -338,12 +319,7 @@ def section(ctx: Context) -> list[str]:
     for name, x in named.items():
         ctx.value(name, x)
     md = (["## Decisive experiments behind the explanations", "",
-           "Read from the aggregated experiments explain_* and readings_fig4 (conf/experiment/, "
-           "pipeline/studies/explain.py): what a cubic can reach when fitted directly "
-           "(the capacity bound), the 2-DOF arm learned with its extremes away from the "
-           "stretched arm, the iCub continued at a smaller learning rate, the half-size arm "
-           "under steps that take the size out, the rise during growth per rate, and the final "
-           "error per target-set extent.", "",
+           prose("explain.section"), "",
            "| figure | experiment | measured |", "|---|---|---|"]
           + [f"| {r['figure']} | {escape(r['experiment'])} | {escape(r['measured'])} |"
              for r in found] + [""])

@@ -12,10 +12,10 @@ import pandas as pd
 from omegaconf import OmegaConf
 
 from .. import io
-from . import claims, conventions, discussion, figures, replicate, scorecard, scorecard_page
+from . import claims, conventions, discussion, figures, replicate, scorecard
 from .choices import escape
 from .claims import DIVERGED, diverged_conditions
-from .sections import Context, declares_claims, register
+from .sections import Context, declares_claims, prose, register
 from .quoted import CONTROLLED, RANGED, SCORECARD, SUMMARY, SUMMARY_RATIOS
 from .values import printed
 
@@ -195,22 +195,16 @@ def scorecard_part(ctx: Context, p: Paper) -> list[str]:
     ctx.value("headline.first", scorecard.headline_text(scorecard.headline(first, counted))
               if len(first) else "")
     _write_measures(ctx, p.measured, counted)
-    ctx.save(scorecard_page.figure(p.cards, ctx.title.split(":")[0] + ": the paper's claims, "
+    ctx.save(scorecard.figure(p.cards, ctx.title.split(":")[0] + ": the paper's claims, "
                               "t intervals over trials"), "scorecard")
     ours = claims.our_reading(p.cards) if p.discussion == discussion.FINDINGS.read_text() else None
     return ["## Scorecard: the paper's claims, with their uncertainty", "",
             "![scorecard](scorecard.png)", "",
-            scorecard_page.markdown(p.cards, p.measures, counted, ours,
+            scorecard.markdown(p.cards, p.measures, counted, ours,
                                     "" if ctx.cfg.report.scale else
                                     scorecard.recommended_headline(readings_cards, recommended),
-                                    scorecard_page.first_headline(p.measures, counted)),
-            "Each cell: its verdict, how many of its conditions are reproduced, and its worst "
-            "condition: the mean over trials of the measure and its interval "
-            "(`scorecard.csv` holds every measure, `scorecard_readings.csv` the same under "
-            "the other registered readings, `claims.csv` every "
-            "cell, `measures.parquet` every per-trial value: `python -m "
-            "pipeline.tools.rescore` judges them again under an edited register); "
-            "pipeline/studies/scorecard.py says how.", ""]
+                                    scorecard.first_headline(p.measures, counted)),
+            prose("scorecard.after"), ""]
 
 
 def claims_part(ctx: Context, p: Paper) -> list[str]:

@@ -12,7 +12,7 @@ import pandas as pd
 
 from . import claims, figures, register_schema, scorecard
 from .choices import escape
-from .sections import Context, declared, declares_claims, register
+from .sections import Context, declared, declares_claims, prose, register
 from .quoted import QUOTED_RATIOS, QUOTED_RISE
 from .quoted import READINGS_SUMMARY as QUOTED
 from .values import printed
@@ -186,10 +186,7 @@ def recommendations_markdown(cards: pd.DataFrame, recs: list[dict]) -> str:
     shown = [r for r in recs if r["figure"] in set(cards["figure"])]
     if not shown:
         return ""
-    lines = ["The project's default stays the plain step at 1 / W (its reasons: the paper's "
-             "text and the stability rule, pipeline/tools/rate.py: weight_sum); the reading "
-             "recommended per figure (pipeline/studies/register.yaml: recommended, written from the "
-             "findings, checked against the verdicts above):", "",
+    lines = [prose("readings.recommended"), "",
              "| figure | recommended reading | reproduces (as written) | reason |",
              "|---|---|---|---|"]
     lines += [f"| {r['figure']} | {escape(r['reading'])} | {', '.join(r['reproduces']) or '—'} "
@@ -301,10 +298,7 @@ def section(ctx: Context) -> list[str]:
                           "absolute error of every condition (mean over trials)"),
                    "readings_curves")[0].name
     return ["## Every reading of the paper against every claim", "",
-            "Each row is a reading of the text (conf/experiment/readings_*.yaml, "
-            "pipeline/studies/readings.py); each column a claim of the paper on a figure, "
-            "judged by the scorecard as above (readings_matrix.csv; the cells with their "
-            "intervals below, readings_scorecard.csv):", "",
+            prose("readings.section"), "",
             matrix_markdown(read_matrix(m)), recommendations_markdown(cards, recommended()),
             f"![readings]({png})", "", intervals_markdown(cards)]
 

@@ -13,7 +13,7 @@ from scipy import stats
 
 from . import claims, coverage, scorecard
 from .choices import escape
-from .sections import Context, declared, register
+from .sections import Context, declared, prose, register
 
 STUDY = "replicate"
 SHARE = {"final": "calibration.final.share", "rise": "calibration.rise.share",  # quoted names
@@ -162,12 +162,4 @@ def section(ctx: Context) -> list[str]:
                + ".")
     pairs = ", ".join(f"{r} (of {f})" for r, f in _pairs(ctx))
     return ["## Calibration: the scorecard's intervals against a replicate set", "",
-            f"The replicate sets ({pairs}) rerun each figure's conditions from another root "
-            "seed. For each counted measure (primary reading; controlled readings are out of "
-            "scope) the first set gives the prediction interval of the replicate's mean at the "
-            "level the scorecard used, mean1 +- t((1 + level) / 2, n1 - 1) s1 sqrt(1/n1 + "
-            "1/n2): the scorecard's own interval widened for the replicate's noise, so the "
-            "share covering tests exactly the published intervals (it covers with probability "
-            "`level` if they are right). The resampling table of docs/scorecard.md resamples the "
-            "same values and shows skew only; this is the calibration (calibration.csv, "
-            "pipeline/studies/replicate.py).", "", markdown(s), verdict, ""]
+            prose("replicate.section", pairs=pairs), "", markdown(s), verdict, ""]

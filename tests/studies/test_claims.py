@@ -10,7 +10,7 @@ from pipeline.studies import discussion, paper
 from pipeline.measures import growth_peak
 from pipeline.studies import claims
 from pipeline.studies import scorecard as sc
-from pipeline.studies import scorecard_page as page
+from pipeline.studies import scorecard as page
 from tests.studies.coverage_tables import covered
 
 EPOCHS = np.array([1, 2, 5, 10, 11, 20, 50, 100])

@@ -4,7 +4,7 @@ import pandas as pd
 import pytest
 
 from pipeline.studies import scorecard as sc
-from pipeline.studies import scorecard_page as page
+from pipeline.studies import scorecard as page
 from tests.studies.coverage_tables import covered
 
 

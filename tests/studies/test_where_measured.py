@@ -8,7 +8,7 @@ import pytest
 
 from pipeline.studies import claims, measures_table, register_schema
 from pipeline.studies import scorecard as sc
-from pipeline.studies import scorecard_page as page
+from pipeline.studies import scorecard as page
 from tests.studies.coverage_tables import covered
 
 EPOCHS = np.array([1, 2, 5, 10, 11, 20, 50, 100])
