@@ -225,12 +225,12 @@ def rows(aggs: dict, named: dict | None = None) -> list[dict]:
                     if c["trials"].get("0", {}).get("M") is not None), (None, None))
     if M is not None:
         out.append(_capacity(named, "fig2", "the 21 heights", cond["spec"], M, "", ".1f",
-                             "explanations.fig2.capacity.measured.n2", "best_worst_mm"))
+                             "explanations.fig2.capacity.best_worst_mm", "best_worst_mm"))
     if by.get("boundary") in aggs:
         b = boundary(aggs[by["boundary"]])
         named.update({name: float(f"{r['learned_mm']:.1f}") for r in b for lim, name in (
-            ("+-0.9 m", "explanations.fig2.boundary.measured.n5"),
-            ("+-0.8 m", "explanations.fig2.boundary.measured.n8")) if r["label"].startswith(lim)})
+            ("+-0.9 m", "explanations.fig2.boundary.0.9m.learned_mm"),
+            ("+-0.8 m", "explanations.fig2.boundary.0.8m.learned_mm")) if r["label"].startswith(lim)})
         if b:
             out.append(dict(figure="fig2", experiment=f"boundary ({by['boundary']}): learned "
                             f"on heights +-lim (21 targets, {b[0]['trials']} trials), error at "
@@ -241,7 +241,7 @@ def rows(aggs: dict, named: dict | None = None) -> list[dict]:
     if full and full["trials"]:
         out.append(_capacity(named, "fig7", "the 4 x 4 x 4 grid", full["spec"],
                              next(iter(full["trials"].values()))["M"], "const1.0 ", ".2f",
-                             "explanations.fig7.capacity.measured.n1", "best_mean_mm"))
+                             "explanations.fig7.capacity.best_mean_mm", "best_mean_mm"))
     k = continuation(aggs[by["continuation"]]) if by.get("continuation") in aggs else None
     if k and k["later"] <= 0:
         out.append(dict(figure="fig7", experiment=f"continuation ({by['continuation']})",
@@ -249,9 +249,9 @@ def rows(aggs: dict, named: dict | None = None) -> list[dict]:
                                  f"({k['epoch'] + k['later']:,} epochs): nothing to compare"))
     elif k:
         named.update({name: float(f"{k[m]:.2f}") for name, m in (
-            ("explanations.fig7.continuation.measured.n1", "before_mm"),
-            ("explanations.fig7.continuation.measured.n2", "same_mm"),
-            ("explanations.fig7.continuation.measured.n3", "smaller_mm"))})
+            ("explanations.fig7.continuation.before_mm", "before_mm"),
+            ("explanations.fig7.continuation.same_mm", "same_mm"),
+            ("explanations.fig7.continuation.smaller_mm", "smaller_mm"))})
         out.append(dict(figure="fig7", experiment=f"continuation ({by['continuation']}): "
                         f"{k['later']:,} more epochs after epoch {k['epoch']:,}",
                         measured=f"{k['before_mm']:.2f} mm -> {k['same_mm']:.2f} mm at the same "
@@ -296,13 +296,13 @@ def _extents(aggs: dict):
 def _half_size_named(found: list[dict]) -> dict:
     """The half-size numbers the pages quote, as half_size_text prints them."""
     by, out = {v["kind"]: v for v in found}, {}
-    for kind, name in (("default", "explanations.fig4.half_size.measured.n9"),
-                       ("lstsq", "explanations.fig4.half_size.measured.n36")):
+    for kind, name in (("default", "explanations.fig4.half_size.default.1000.ratio"),
+                       ("lstsq", "explanations.fig4.half_size.lstsq.1000.ratio")):
         if 1_000 in by.get(kind, {}).get("at", {}):
             out[name] = float(f"{by[kind]['at'][1_000]['value']:.2f}")
     rate = next((v for v in found if v["kind"] == "rate"), {})
     if rate.get("last_above"):
-        out["explanations.fig4.half_size.measured.n30"] = float(rate["last_above"])
+        out["explanations.fig4.half_size.rate.last_above_epoch"] = float(rate["last_above"])
     return out
 
 
