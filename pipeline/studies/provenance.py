@@ -173,9 +173,7 @@ def markdown(aggs: dict, out_dir=None) -> list[str]:
     md.append(row("all, each shared trial once", *total))
     md += ["", prose("provenance.cpu"), ""]
     lines = credits(aggs)
-    md += ["## Credits", "",
-           "The Goal Babbling model and the paper's bodies: Rolf, Steil and Gienger (2010), "
-           "reproduced here."] + ([""] + ["Third-party robot models used by this report:", ""]
+    md += ["## Credits", "", prose("provenance.credits")] + ([""] + ["Third-party robot models used by this report:", ""]
                                  + lines if lines else []) + [""]
     return md
 

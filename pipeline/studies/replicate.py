@@ -146,9 +146,8 @@ def section(ctx: Context) -> list[str]:
     table = calibrate(ctx)
     if not len(table):
         alone = [f"{r} (of {f})" for r, f in replicated().items() if r in ctx.of(STUDY)]
-        return ["## Calibration: no replicate set with its figure", "", "The replicate sets "
-                f"{', '.join(alone)} run without the figure they replicate: nothing to "
-                "calibrate.", ""] if alone else []
+        return ["## Calibration: no replicate set with its figure", "",
+                prose("replicate.alone", alone=", ".join(alone)), ""] if alone else []
     ctx.text("calibration.csv", table.to_csv(index=False, float_format="%.6g"))
     s, scale = summary(table), ctx.cfg.report.scale
     for r in s.itertuples():
@@ -157,9 +156,7 @@ def section(ctx: Context) -> list[str]:
     bad = sorted(failing(table))
     verdict = (f"A {scale} run ({int(table['n1'].max())} trials): measured, not a verdict at "
                "that scale." if scale else
-               "Cells that fail it (the claim's share below its range, or the cell's deciding "
-               "condition not covered): " + (", ".join(f"{c} on {f}" for f, c in bad) or "none")
-               + ".")
+               prose("replicate.fails", cells=", ".join(f"{c} on {f}" for f, c in bad) or "none"))
     pairs = ", ".join(f"{r} (of {f})" for r, f in _pairs(ctx))
     return ["## Calibration: the scorecard's intervals against a replicate set", "",
             prose("replicate.section", pairs=pairs), "", markdown(s), verdict, ""]
