@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from . import claims, figures, register_schema, scorecard
+from . import claims, figures, scorecard
 from .choices import escape
 from .sections import Context, declared, declares_claims, prose, register
 from .quoted import QUOTED_RATIOS, QUOTED_RISE
@@ -149,7 +149,7 @@ def matrix_markdown(m: pd.DataFrame) -> str:
 def recommended(path: Path = claims.REGISTER) -> list[dict]:
     """The register's `recommended` (figure, reading, reproduces, why); a ValueError names a
     figure this study does not read, a claim not the paper's or a figure named twice."""
-    recs = register_schema.load(path).get("recommended", [])
+    recs = claims.read_register(path).get("recommended", [])
     for r in recs:
         if r["figure"] not in reading_studies().values():
             raise ValueError(f"{path}: no readings figure {r['figure']!r}")

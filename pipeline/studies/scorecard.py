@@ -15,14 +15,14 @@ import pandas as pd
 from scipy import stats
 
 from . import coverage
-from .claims import BY_ID, CLAIMS, DIVERGED, Test, judge, stage_measures, title  # noqa: F401
+from .claims import BY_ID, CLAIMS, DIVERGED, Test, judge, stage_measures  # noqa: F401
 from .claims import measures as claims_measures
 from .sections import prose
 
 LEVEL = 0.95  # the nominal level where the coverage allows it (coverage.LEVELS[0])
 MIN_VERDICT = min(coverage.COUNTS)  # fewer trials: "not a verdict" (no skew diagnostic)
 MAX_DECIDE = 1000  # "trials to decide" beyond this is no estimate: not shown
-TITLES = {c.id: title(c.id) for c in CLAIMS}
+TITLES = {c.id: c.words + (" (diagnostic)" if c.diagnostic else "") for c in CLAIMS}
 REPRODUCED, NOT, INCONCLUSIVE = "reproduced", "not reproduced", "inconclusive"
 NOT_A_VERDICT = "not a verdict"
 UNCALIBRATED = "interval not calibrated"
@@ -399,10 +399,9 @@ def first_headline(results: list[dict], counted=None) -> str:
     if not len(cards):
         return ""
     n = headline(cards, counted)
-    return ("The criteria as first fixed, before the first run's data (the readings marked "
-            f"`first` in register.yaml, on the measures as they are now): **{headline_text(n)}**"
-            + (f"; {', '.join(none)} had no criterion before the data and are not in this count"
-               if none else "") + ".")
+    return prose("scorecard.first", headline=headline_text(n), none=(
+        f"; {', '.join(none)} had no criterion before the data and are not in this count"
+        if none else ""))
 
 
 COLOURS = {REPRODUCED: "#b7e1b0", NOT: "#f4b6b0", INCONCLUSIVE: "#fbe3a0", DIVERGED: "#c9c3e6",
