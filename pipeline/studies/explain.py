@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from . import claims, explain_extent, scorecard
+from . import claims, explain_extent
 from .capacity import _extremes, best_cubic
 from .choices import escape
 from .sections import Context, declared, prose, register
@@ -79,11 +79,6 @@ def _rate0(agg: dict) -> float | None:
     return _learner(agg, default["condition"].iloc[0])["learning_rate"] if len(default) else None
 
 
-def _ci(values) -> dict:
-    point, low, high = scorecard.interval(values)
-    return dict(value=point, low=low, high=high, trials=len(values))
-
-
 def half_size(agg: dict) -> list[dict]:
     """Per variant: half-size over full-size relative error, trials paired by index, at
     HALF_EPOCHS (t interval), and the last epoch the half-size mean curve lies above."""
@@ -103,7 +98,7 @@ def half_size(agg: dict) -> list[dict]:
         for e in HALF_EPOCHS:
             before = ratio.columns[ratio.columns <= e]
             if len(before) and e <= ratio.columns[-1]:
-                at[e] = dict(_ci(ratio[before[-1]].to_numpy()), epoch=int(before[-1]))
+                at[e] = dict(explain_extent.ci(ratio[before[-1]].to_numpy()), epoch=int(before[-1]))
         mean = (a.mean() / b.mean()).dropna()
         above = mean.index[mean.to_numpy() > 1]
         out.append(dict(label=label, kind=kind, rate=(learner["learning_rate"] / rate0
@@ -165,7 +160,7 @@ def rises(agg: dict) -> list[dict]:
         out.append(dict(reading=r.variant, T_G=int(r.growth_period),
                         solver=learner.get("solver", "gradient"),
                         rate=learner["learning_rate"] / rate0 if rate0 else np.nan,
-                        **_ci(claims.rise(g[:, ep <= r.growth_period + 1]))))
+                        **explain_extent.ci(claims.rise(g[:, ep <= r.growth_period + 1]))))
     return out
 
 

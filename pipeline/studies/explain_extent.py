@@ -27,9 +27,10 @@ def factor(label: str) -> float:
     return float(m.group(1))
 
 
-def _ci(values) -> dict:
+def ci(values) -> dict:
+    """The mean of `values`, its 95 % t interval and their count."""
     point, low, high = scorecard.interval(np.asarray(values, float))
-    return dict(value=point, low=low, high=high)
+    return dict(value=point, low=low, high=high, trials=len(values))
 
 
 def extent(agg: dict) -> dict | None:
@@ -45,8 +46,8 @@ def extent(agg: dict) -> dict | None:
     for f, t in per.items():
         same = t.index.intersection(base.index)
         variants.append(dict(factor=f, trials=len(t), epoch=int(t["epoch"].max()), **{
-            name: dict(_ci(1e3 * t[col].dropna()),
-                       ratio=_ci((t.loc[same, col] / base.loc[same, col]).dropna()))
+            name: dict(ci(1e3 * t[col].dropna()),
+                       ratio=ci((t.loc[same, col] / base.loc[same, col]).dropna()))
             for name, col in POINTS.items()}))
     k = {}
     for name in POINTS:

@@ -13,7 +13,7 @@ from scipy import stats
 
 from . import claims, coverage, scorecard
 from .choices import escape
-from .sections import Context, declared, prose, register
+from .sections import Context, prose, reads, register
 
 STUDY = "replicate"
 SHARE = {"final": "calibration.final.share", "rise": "calibration.rise.share",  # quoted names
@@ -22,11 +22,6 @@ SHARE = {"final": "calibration.final.share", "rise": "calibration.rise.share",  
 RANGE = 0.95  # the two-sided probability of the expected range of a pooled share
 COLUMNS = ["figure", "claim", "where", "deciding", "n1", "n2", "level", "mean", "low", "high",
            "replicate_mean", "covered"]
-
-
-def replicated() -> dict[str, str]:
-    return {n: e.declares.reads for n, e in declared().items()
-            if e.study == STUDY and e.declares.reads}
 
 
 def prediction(values, n2: int, level: float) -> tuple[float, float, float]:
@@ -109,7 +104,7 @@ def _pairs(ctx: Context) -> dict:
     """(replicate, figure) -> (the figure's measures, the replicate's), made once."""
     def make():
         figs, reps, out = ctx.of("figures"), ctx.of(STUDY), {}
-        for r, f in replicated().items():
+        for r, f in reads(STUDY).items():
             if r in reps and f in figs and "trials" in reps[r] and "trials" in figs[f]:
                 out[(r, f)] = tuple(claims.measures(f, a["trials"], a["summary"])
                                     for a in (figs[f], reps[r]))
@@ -145,7 +140,7 @@ def markdown(s: pd.DataFrame) -> str:
 def section(ctx: Context) -> list[str]:
     table = calibrate(ctx)
     if not len(table):
-        alone = [f"{r} (of {f})" for r, f in replicated().items() if r in ctx.of(STUDY)]
+        alone = [f"{r} (of {f})" for r, f in reads(STUDY).items() if r in ctx.of(STUDY)]
         return ["## Calibration: no replicate set with its figure", "",
                 prose("replicate.alone", alone=", ".join(alone)), ""] if alone else []
     ctx.text("calibration.csv", table.to_csv(index=False, float_format="%.6g"))

@@ -47,6 +47,12 @@ def of_study(study: str) -> list[str]:
     return [n for n, e in declared().items() if e.study == study]
 
 
+def reads(study: str) -> dict[str, str]:
+    """experiment -> the paper figure it reads (declares.reads), of `study`, in declared order."""
+    return {n: e.declares.reads for n, e in declared().items()
+            if e.study == study and e.declares.reads}
+
+
 def _load() -> None:
     """Import every module of this package and every entry point `gbgrowth.studies`: each
     registers its section."""
