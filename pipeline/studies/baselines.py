@@ -7,12 +7,12 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 from scipy import stats
+from scipy.optimize import brentq
 
 from . import figures
 from ..measures import finals
 from .choices import escape
-from .beats import p_beats
-from .sections import Context, of_study, register
+from .sections import Context, of_study, prose, register
 
 GB, GB_PROGRESS = "Goal Babbling", "Goal Babbling (goals by progress)"
 GB_LSTSQ = "Goal Babbling (least squares)"  # learner.solver=lstsq: fits M like motor babbling
@@ -50,6 +50,39 @@ def interval(mean: float, std: float, n: int) -> tuple[float, float]:
         return np.nan, np.nan
     h = stats.t.ppf(0.975, n - 1) * std / np.sqrt(n)
     return float(mean - h), float(mean + h)
+
+
+def p_beats(a, b) -> tuple[float, float, float]:
+    """(P, lo, hi): P(A < B) over all n m pairs of trials (ties count half: Mann-Whitney U /
+    (n m)) and its 95 % interval by Newcombe's method 5 (Statist. Med. 25: 559-573, 2006): {theta
+    : (theta - P)^2 <= z^2 V(theta)}, Hanley and McNeil's V(theta) = theta (1 - theta) / (n m) [1 +
+    (N - 1)(1 - theta) / (2 - theta) + (N - 1) theta / (1 + theta)], N = (n + m) / 2. At 5 trials
+    a learner it stays in [0, 1] and keeps an interval at P = 1 (a bootstrap collapses to [1, 1],
+    a Wald interval leaves [0, 1]). NaN where either learner has no finite trial."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    a, b = a[np.isfinite(a)], b[np.isfinite(b)]
+    n, m = len(a), len(b)
+    if not n or not m:
+        return np.nan, np.nan, np.nan
+    d = a[:, None] - b[None, :]
+    p = float(((d < 0) + 0.5 * (d == 0)).mean())
+    z2, k = stats.norm.ppf(0.975) ** 2, (n + m) / 2 - 1
+
+    def w(x):  # V(x) n m / (x (1 - x))
+        return (1 + k * (1 - x) / (2 - x) + k * x / (1 + x)) / (n * m)
+
+    def far(q):  # the limit away from q in {0, 1}: (x - q)^2 = z^2 V(x), divided by |x - q|
+        return lambda x: abs(x - q) - z2 * (1 - abs(x - q)) * w(x)
+
+    if p == 1.0:
+        return p, brentq(far(1.0), 0.0, 1.0), 1.0
+    if p == 0.0:
+        return p, 0.0, brentq(far(0.0), 0.0, 1.0)
+
+    def f(x):
+        return (x - p) ** 2 - z2 * x * (1 - x) * w(x)
+
+    return p, brentq(f, 0.0, p), brentq(f, p, 1.0)
 
 
 def per_trial(aggs: dict) -> pd.DataFrame:
@@ -104,15 +137,7 @@ def same_solver(pt: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=cols)
 
 
-VOID = ("stored experience is void after growth: the memory that keeps everything holds every "
-        "example of the budget, those of its first half drawn on the growing, smaller body "
-        "(growth takes the first half: conditions.growth_share = 0.5); it is void if its grown "
-        f"error ends more than {FACTOR:g}x its error without growth (medians over trials) and "
-        "P(no growth < grown) has its 95 % interval above 1/2 (at 3 trials each: only if every "
-        "grown trial ends above every no-growth one)")
-CONTROL = ("(control, not a test of the claim) the memory of the last 10 epochs holds only "
-           "examples drawn after growth ended, on the full-size body, so growth cannot void it: "
-           f"it should end within {FACTOR:g}x of its error without growth (medians over trials)")
+VOID, CONTROL = (prose(f"baselines.{k}", factor=FACTOR) for k in ("void", "control"))
 
 
 def void_after_growth(pt: pd.DataFrame) -> list[dict]:
@@ -160,16 +185,8 @@ def smoothness(t: pd.DataFrame) -> list[str]:
         if not len(j):
             continue
         where = f"({KIND[learner]}; {len(j)} rows, budgets {', '.join(dict.fromkeys(rows.budget))})"
-        if j.max() > JUMP:
-            out.append(f"- {learner} {where}: its inverse jumps up to {j.max():.3g} command units "
-                       f"(at least {j.min():.3g}) between neighbouring targets 1/200 of the box "
-                       "apart. That is a discontinuous command: a real arm sent along a line of "
-                       "targets would whip between solutions.")
-        else:
-            out.append(f"- {learner} {where}: its inverse moves at most {j.max():.3g} command "
-                       "units between neighbouring targets 1/200 of the box apart: a continuous "
-                       "command, a real arm follows a line of targets without whipping between "
-                       f"solutions (a jump above {JUMP:g} would be discontinuous).")
+        out.append(prose("baselines.jumps" if j.max() > JUMP else "baselines.smooth",
+                         learner=learner, where=where, most=j.max(), least=j.min(), jump=JUMP))
     return out
 
 
@@ -241,10 +258,8 @@ def claims(t: pd.DataFrame, pt: pd.DataFrame | None = None) -> list[dict]:
         mb, gb = (_err(t, body, x, "no growth", budget) for x in (MB_WIDE, GB_LSTSQ))
         if not np.isfinite(mb) or not np.isfinite(gb):
             continue
-        out.append(dict(body=body, budget=budget, argument="motor babbling cannot resolve "
-                        "redundancy: over the whole joint range it ends worse than Goal "
-                        f"Babbling with the same least-squares fit (by more than {FACTOR:g}x),"
-                        " without growth",
+        out.append(dict(body=body, budget=budget,
+                        argument=prose("baselines.redundancy", factor=FACTOR),
                         measured=f"motor babbling {_mm(t, body, MB_WIDE, 'no growth', budget)}"
                                  f" (around home {_mm(t, body, MB, 'no growth', budget)}), "
                                  f"{GB_LSTSQ} {_mm(t, body, GB_LSTSQ, 'no growth', budget)}",
@@ -258,9 +273,7 @@ def claims(t: pd.DataFrame, pt: pd.DataFrame | None = None) -> list[dict]:
         ratios = {b: both(b, first[b])[0] / both(b, first[b])[1] if first[b] else np.nan
                   for b in bodies}
         out.append(dict(body=" and ".join(bodies), budget=", ".join(map(str, first.values())),
-                        argument="motor babbling does not scale to many joints: its held-out "
-                        f"error relative to {GB_LSTSQ}'s (the same fit) grows from arm5 to the "
-                        "iCub, each at its smallest budget where both ran",
+                        argument=prose("baselines.joints", gb=GB_LSTSQ),
                         measured=", ".join(f"{b}: {r:.2f}x" for b, r in ratios.items()),
                         answer=_answer(ratios[bodies[1]] > ratios[bodies[0]], *ratios.values())))
     out += void_after_growth(pt if pt is not None else per_trial({}))
@@ -270,8 +283,8 @@ def claims(t: pd.DataFrame, pt: pd.DataFrame | None = None) -> list[dict]:
         grown = {g: v for g, v in grown.items() if np.isfinite(v)}
         if not np.isfinite(fixed) or not grown:
             continue
-        out.append(dict(body=body, budget=budget, argument=f"{learner} keeps its error: after "
-                        f"growing it ends within {FACTOR:g}x of its error without growth",
+        out.append(dict(body=body, budget=budget,
+                        argument=prose("baselines.keeps", learner=learner, factor=FACTOR),
                         measured=f"no growth {_mm(t, body, learner, 'no growth', budget)}; "
                                  + ", ".join(f"{g} {_mm(t, body, learner, g, budget)} "
                                              f"({v / fixed:.2f}x)" for g, v in grown.items()),
@@ -283,9 +296,7 @@ def claims(t: pd.DataFrame, pt: pd.DataFrame | None = None) -> list[dict]:
                  for g in GROWTHS}
         if all(p is None for p, _ in pairs.values()):
             continue
-        out.append(dict(body=body, budget=budget, argument=f"(not the paper's) {base} with goals "
-                        "chosen by progress masters growth faster: a lower held-out error than "
-                        "random goals (95 % intervals apart)",
+        out.append(dict(body=body, budget=budget, argument=prose("baselines.progress", base=base),
                         measured="; ".join(f"{g}: {_mm(t, body, progress, g, budget)} against "
                                            f"{_mm(t, body, base, g, budget)}" for g in GROWTHS),
                         answer=", ".join(f"{g} {_compare(*pairs[g])}" for g in GROWTHS)))
@@ -306,25 +317,6 @@ def identical_rows(t: pd.DataFrame) -> list[str]:
     return notes
 
 
-INTRO = """Every trial is scored twice: on the training grid (the targets the learners aim at) and
-on a fixed held-out set no path is aimed at (the cell centres and 200 uniform points in the target
-box, from a fixed seed, scaled with the body: gbmodel/evaluation.py). The verdicts use the held-out
-error; in the first table [lo, hi] is the 95 % interval of the mean over the trials. Budgets are
-reaching movements (forward-kinematics samples, the measurements of goal selection by progress
-included); the smallest is the common one, where every learner runs; growth takes the first half
-of every budget. A learner is compared with another only at a budget where both ran."""
-
-SAME_SOLVER_INTRO = f"""Exploration with the same solver: {GB_LSTSQ} fits its polynomial by least
-squares on its own samples, as motor babbling does on its postures, so a difference between them
-is one of exploration, not of fitting. At every budget and growth where both ran: the medians of
-the held-out error over trials, and P = P({GB_LSTSQ} < motor babbling) over all pairs of their
-trials (the Mann-Whitney U / (n m); ties count half) with its 95 % interval by Newcombe's method 5
-(score-type, Hanley-McNeil variance: it stays in [0, 1] and keeps its width when 5 trials do not
-overlap, where a bootstrap over trials collapses to a point). "lower": the interval lies on one
-side of 1/2. The gradient rows (Goal Babbling, the paper's learner) fit differently and are not
-compared with motor babbling here."""
-
-
 def same_solver_summary(ss: pd.DataFrame) -> list[str]:
     """Sentences generated from the same-solver comparisons, one per body and rival."""
     out = []
@@ -340,7 +332,7 @@ def same_solver_summary(ss: pd.DataFrame) -> list[str]:
 
 
 def markdown(t: pd.DataFrame, claim_rows: list[dict], pt: pd.DataFrame | None = None) -> str:
-    lines = [INTRO, "", "| body | budget | learner | growth | samples | trials "
+    lines = [prose("baselines.intro"), "", "| body | budget | learner | growth | samples | trials "
              "| held-out error [mm] (95 % interval) | grid error [mm] | final rel. error "
              "[mm/size] | largest jump [command units] |",
              "|---|---|---|---|---|---|---|---|---|---|"]
@@ -358,7 +350,7 @@ def markdown(t: pd.DataFrame, claim_rows: list[dict], pt: pd.DataFrame | None = 
                      f"| {r.largest_jump:.3g} |")
     ss = same_solver(pt if pt is not None else per_trial({}))
     if len(ss):
-        lines += ["", SAME_SOLVER_INTRO, "", f"| body | budget | growth | against "
+        lines += ["", prose("baselines.same_solver", gb=GB_LSTSQ), "", f"| body | budget | growth | against "
                   f"| median {GB_LSTSQ} [mm] | median rival [mm] | trials | P [95 % interval] "
                   "| lower |", "|---|---|---|---|---|---|---|---|---|"]
         lines += [f"| {r.body} | {r.budget} | {r.growth} | {r.rival} | {r.gb_median_mm:.1f} "
@@ -428,13 +420,7 @@ def section(ctx: Context) -> list[str]:
     png = ctx.save(figure(rivals, "Goal Babbling and its alternatives: error against reaching "
                           "movements"), "baselines_curves")[0].name
     return ["## Beyond the paper: Goal Babbling against its alternatives under growth", "",
-            "The learners (gbmodel/learners/) at budgets of reaching movements, on "
-            "the 5-DOF arm and the iCub, without growth, with the paper's linear growth and "
-            "with an infant-like schedule (conf/experiment/baselines_*.yaml, "
-            "pipeline/studies/baselines.py, docs/baselines.md). Errors at the end of each "
-            "budget; the figure draws the held-out error; the largest jump is the "
-            "final inverse's largest joint-space step between neighbouring points on lines "
-            "through the target box (branch switching, lookup).", "",
+            prose("baselines.section"), "",
             f"![baselines]({png})", "", markdown(rival_table, rival_claims, trials)]
 
 

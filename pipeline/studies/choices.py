@@ -11,7 +11,7 @@ import gbmodel
 from gbmodel import evaluation
 from gbmodel.bodies import cell_centres
 
-from .sections import Context, register
+from .sections import Context, prose, register
 
 
 def scores(spec: dict, M) -> dict:
@@ -63,14 +63,7 @@ def markdown(t: pd.DataFrame, aggs: dict) -> str:
                        f"{int(a['summary']['epochs'].max()):,} epochs" for f, a in aggs.items())
     lines = [
         "# Open choices: measured effect of the alternatives", "",
-        "Each row: one variant of the paper's settings, at full size without growth unless it "
-        "says otherwise, with common random numbers across variants (conf/experiment/"
-        f"choices_*.yaml; {setups}). Final error = mean Euclidean distance over the "
-        "target grid (the chosen formula); the next columns score the same final estimates as "
-        "the RMS distance, as the mean squared distance printed in eq. 10 (mm^2), by the worst "
-        "target, and over off-grid points (the centres of the grid cells). Rows with growth "
-        "(0.5 -> 1.0 over T_G epochs) give the temporary rise of the mean absolute error during "
-        "growth. * = chosen.", "",
+        prose("choices.intro", setups=setups), "",
         "| body | choice | variant | final error [mm] | RMS [mm] | mean squared [mm^2] "
         "| worst target [mm] | off-grid [mm] | rise during growth |",
         "|---|---|---|---|---|---|---|---|---|"]

@@ -228,12 +228,12 @@ def table(aggs: dict, trials: dict, fail_factor: float, postures: dict) -> pd.Da
 # the numbers of the table the pages quote, named where computed: the spread's change in %
 # (negated) per trial count n, and trial 0's error over its condition's median in % per
 # (condition, panel) (negated where the sign says so)
-QUOTED_SPREAD = {20: "conventions.spread_over_trials.measured_effect.n5_neg",
-                 5: "conventions.spread_over_trials.measured_effect.n9_neg"}
-QUOTED_RANKS = {("fig4 TG1000", "fig3"): ("conventions.fig._3_6_postures.measured_effect.n14", 1),
-                ("fig5 TG1000", "fig3"):
-                    ("conventions.fig._3_6_postures.measured_effect.n20_neg", -1),
-                ("fig7 TG1000", "fig6"): ("conventions.fig._3_6_postures.measured_effect.n32", 1)}
+QUOTED_SPREAD = {20: "conventions.spread.ddof0.20_trials.below_pct",
+                 5: "conventions.spread.ddof0.5_trials.below_pct"}
+QUOTED_RANKS = {
+    ("fig4 TG1000", "fig3"): ("conventions.postures.fig3.fig4_tg1000.trial0_over_median_pct", 1),
+    ("fig5 TG1000", "fig3"): ("conventions.postures.fig3.fig5_tg1000.trial0_below_median_pct", -1),
+    ("fig7 TG1000", "fig6"): ("conventions.postures.fig6.fig7_tg1000.trial0_over_median_pct", 1)}
 
 
 def markdown(t: pd.DataFrame) -> str:

@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from . import claims, explain_extent, scorecard
+from . import claims, explain_extent
 from .capacity import _extremes, best_cubic
 from .choices import escape
-from .sections import Context, declared, register
+from .sections import Context, declared, prose, register
 
 
 def explained() -> dict[str, str]:
@@ -79,11 +79,6 @@ def _rate0(agg: dict) -> float | None:
     return _learner(agg, default["condition"].iloc[0])["learning_rate"] if len(default) else None
 
 
-def _ci(values) -> dict:
-    point, low, high = scorecard.interval(values)
-    return dict(value=point, low=low, high=high, trials=len(values))
-
-
 def half_size(agg: dict) -> list[dict]:
     """Per variant: half-size over full-size relative error, trials paired by index, at
     HALF_EPOCHS (t interval), and the last epoch the half-size mean curve lies above."""
@@ -103,7 +98,7 @@ def half_size(agg: dict) -> list[dict]:
         for e in HALF_EPOCHS:
             before = ratio.columns[ratio.columns <= e]
             if len(before) and e <= ratio.columns[-1]:
-                at[e] = dict(_ci(ratio[before[-1]].to_numpy()), epoch=int(before[-1]))
+                at[e] = dict(explain_extent.ci(ratio[before[-1]].to_numpy()), epoch=int(before[-1]))
         mean = (a.mean() / b.mean()).dropna()
         above = mean.index[mean.to_numpy() > 1]
         out.append(dict(label=label, kind=kind, rate=(learner["learning_rate"] / rate0
@@ -138,32 +133,16 @@ def half_size_text(found: list[dict]) -> str:
     if d is None or not d["at"]:
         return text
     if not _slower(d):
-        return text + ("At the default step the half-size arm does not learn slower in this run "
-                       "(no interval lies above 1).")
+        return text + prose("explain.half_size.not_slower")
     if ls is not None and not _slower(ls) and rate is not None and not _slower(rate):
-        return text + ("The gap closes under least squares and with the doubled rate at half "
-                       "size: the slower learning is the plain step's size dependence (the "
-                       "efficiency weight scales with the size, so at half size the whole step "
-                       "halves; the cubic features scale with its powers), not something about "
-                       "the small body.")
+        return text + prose("explain.half_size.step")
     late = rate is not None and _slower(rate) and list(rate["at"].values())[-1]["low"] <= 1
     if ls is not None and not _slower(ls) and late:
-        return text + ("The gap closes under least squares, which no uniform scaling of the "
-                       "weights or the features changes: the slower learning is the plain "
-                       "step's size dependence, not something about the small body. Doubling "
-                       "the rate at half size (the step the full-size weights would give) "
-                       f"closes it only after epoch {rate['last_above']:,}: the halved weights "
-                       "account for part of it, the cubic features, which shrink with the "
-                       "size's powers, for the early rest.")
+        return text + prose("explain.half_size.late", epoch=rate["last_above"])
     if ls is not None and not _slower(ls):
-        return text + ("The gap closes under least squares, which no uniform scaling of the "
-                       "weights or the features changes, but not with the doubled rate: the "
-                       "halved weights alone do not account for it; the features' scaling with "
-                       "the size's powers remains.")
+        return text + prose("explain.half_size.features")
     if ls is not None:
-        return text + ("The gap remains under least squares, which no uniform scaling of the "
-                       "weights or the features changes: the slower learning is not only the "
-                       "plain step's size dependence.")
+        return text + prose("explain.half_size.remains")
     return text
 
 
@@ -181,7 +160,7 @@ def rises(agg: dict) -> list[dict]:
         out.append(dict(reading=r.variant, T_G=int(r.growth_period),
                         solver=learner.get("solver", "gradient"),
                         rate=learner["learning_rate"] / rate0 if rate0 else np.nan,
-                        **_ci(claims.rise(g[:, ep <= r.growth_period + 1]))))
+                        **explain_extent.ci(claims.rise(g[:, ep <= r.growth_period + 1]))))
     return out
 
 
@@ -241,11 +220,12 @@ def rows(aggs: dict, named: dict | None = None) -> list[dict]:
                     if c["trials"].get("0", {}).get("M") is not None), (None, None))
     if M is not None:
         out.append(_capacity(named, "fig2", "the 21 heights", cond["spec"], M, "", ".1f",
-                             "explanations.fig2.capacity.measured.n2", "best_worst_mm"))
+                             "explanations.fig2.capacity.best_worst_mm", "best_worst_mm"))
     if by.get("boundary") in aggs:
         b = boundary(aggs[by["boundary"]])
-        named.update({name: float(f"{r['learned_mm']:.1f}") for r in b
-                      for lim, name in QUOTED_BOUNDARY.items() if r["label"].startswith(lim)})
+        named.update({name: float(f"{r['learned_mm']:.1f}") for r in b for lim, name in (
+            ("+-0.9 m", "explanations.fig2.boundary.0.9m.learned_mm"),
+            ("+-0.8 m", "explanations.fig2.boundary.0.8m.learned_mm")) if r["label"].startswith(lim)})
         if b:
             out.append(dict(figure="fig2", experiment=f"boundary ({by['boundary']}): learned "
                             f"on heights +-lim (21 targets, {b[0]['trials']} trials), error at "
@@ -256,7 +236,7 @@ def rows(aggs: dict, named: dict | None = None) -> list[dict]:
     if full and full["trials"]:
         out.append(_capacity(named, "fig7", "the 4 x 4 x 4 grid", full["spec"],
                              next(iter(full["trials"].values()))["M"], "const1.0 ", ".2f",
-                             "explanations.fig7.capacity.measured.n1", "best_mean_mm"))
+                             "explanations.fig7.capacity.best_mean_mm", "best_mean_mm"))
     k = continuation(aggs[by["continuation"]]) if by.get("continuation") in aggs else None
     if k and k["later"] <= 0:
         out.append(dict(figure="fig7", experiment=f"continuation ({by['continuation']})",
@@ -264,9 +244,9 @@ def rows(aggs: dict, named: dict | None = None) -> list[dict]:
                                  f"({k['epoch'] + k['later']:,} epochs): nothing to compare"))
     elif k:
         named.update({name: float(f"{k[m]:.2f}") for name, m in (
-            ("explanations.fig7.continuation.measured.n1", "before_mm"),
-            ("explanations.fig7.continuation.measured.n2", "same_mm"),
-            ("explanations.fig7.continuation.measured.n3", "smaller_mm"))})
+            ("explanations.fig7.continuation.before_mm", "before_mm"),
+            ("explanations.fig7.continuation.same_mm", "same_mm"),
+            ("explanations.fig7.continuation.smaller_mm", "smaller_mm"))})
         out.append(dict(figure="fig7", experiment=f"continuation ({by['continuation']}): "
                         f"{k['later']:,} more epochs after epoch {k['epoch']:,}",
                         measured=f"{k['before_mm']:.2f} mm -> {k['same_mm']:.2f} mm at the same "
@@ -308,20 +288,16 @@ def _extents(aggs: dict):
             yield explains, by[explains], e
 
 
-QUOTED_BOUNDARY = {"+-0.9 m": "explanations.fig2.boundary.measured.n5",
-                   "+-0.8 m": "explanations.fig2.boundary.measured.n8"}  # the learned error
-
-
 def _half_size_named(found: list[dict]) -> dict:
     """The half-size numbers the pages quote, as half_size_text prints them."""
     by, out = {v["kind"]: v for v in found}, {}
-    for kind, name in (("default", "explanations.fig4.half_size.measured.n9"),
-                       ("lstsq", "explanations.fig4.half_size.measured.n36")):
+    for kind, name in (("default", "explanations.fig4.half_size.default.1000.ratio"),
+                       ("lstsq", "explanations.fig4.half_size.lstsq.1000.ratio")):
         if 1_000 in by.get(kind, {}).get("at", {}):
             out[name] = float(f"{by[kind]['at'][1_000]['value']:.2f}")
     rate = next((v for v in found if v["kind"] == "rate"), {})
     if rate.get("last_above"):
-        out["explanations.fig4.half_size.measured.n30"] = float(rate["last_above"])
+        out["explanations.fig4.half_size.rate.last_above_epoch"] = float(rate["last_above"])
     return out
 
 
@@ -338,12 +314,7 @@ def section(ctx: Context) -> list[str]:
     for name, x in named.items():
         ctx.value(name, x)
     md = (["## Decisive experiments behind the explanations", "",
-           "Read from the aggregated experiments explain_* and readings_fig4 (conf/experiment/, "
-           "pipeline/studies/explain.py): what a cubic can reach when fitted directly "
-           "(the capacity bound), the 2-DOF arm learned with its extremes away from the "
-           "stretched arm, the iCub continued at a smaller learning rate, the half-size arm "
-           "under steps that take the size out, the rise during growth per rate, and the final "
-           "error per target-set extent.", "",
+           prose("explain.section"), "",
            "| figure | experiment | measured |", "|---|---|---|"]
           + [f"| {r['figure']} | {escape(r['experiment'])} | {escape(r['measured'])} |"
              for r in found] + [""])

@@ -11,6 +11,7 @@ import numpy as np
 
 from .. import measures
 from . import claims, scorecard
+from .sections import prose
 
 FIGURE = {"extent": "fig7", "extent_arm5": "fig4"}  # explanation (declares.explains) -> figure
 WORDS = {"grid": "grid", "path": "path targets", "uniform": "uniform points"}  # as the texts say
@@ -26,9 +27,10 @@ def factor(label: str) -> float:
     return float(m.group(1))
 
 
-def _ci(values) -> dict:
+def ci(values) -> dict:
+    """The mean of `values`, its 95 % t interval and their count."""
     point, low, high = scorecard.interval(np.asarray(values, float))
-    return dict(value=point, low=low, high=high)
+    return dict(value=point, low=low, high=high, trials=len(values))
 
 
 def extent(agg: dict) -> dict | None:
@@ -44,8 +46,8 @@ def extent(agg: dict) -> dict | None:
     for f, t in per.items():
         same = t.index.intersection(base.index)
         variants.append(dict(factor=f, trials=len(t), epoch=int(t["epoch"].max()), **{
-            name: dict(_ci(1e3 * t[col].dropna()),
-                       ratio=_ci((t.loc[same, col] / base.loc[same, col]).dropna()))
+            name: dict(ci(1e3 * t[col].dropna()),
+                       ratio=ci((t.loc[same, col] / base.loc[same, col]).dropna()))
             for name, col in POINTS.items()}))
     k = {}
     for name in POINTS:
@@ -130,13 +132,8 @@ def claim(experiment: str, figure: str, e: dict) -> str:
     if low is not None:
         at = ", ".join(f"x{v['factor']:g} {v['path targets']['value']:.1f} mm"
                        for v in e["variants"])
-        return (f"Fig. {figure[3:]}'s {paper} depends on the target set it is averaged over, but "
-                f"not as a scale: on the path targets the final error is {at} ({experiment}), "
-                f"lowest at x{low:g}. Where the paper does not state the target set, an "
-                f"absolute error is comparable to its {paper} only for a set like the one used.")
+        return prose("extent.not_a_scale", fig=figure[3:], paper=paper, at=at,
+                     experiment=experiment, low=low)
     by = ", ".join(f"{spread(e, name):.2f} x on the {name}" for name in POINTS)
-    return (f"Fig. {figure[3:]}'s {paper} is an absolute error, and the extent of the target set "
-            f"it is averaged over moves it: from x{lo:g} to x{hi:g} of this project's extent the "
-            f"final error changes by {by} ({experiment}). Where the paper does not state the "
-            f"target set, an absolute error is comparable to its {paper} only to within that "
-            "factor.")
+    return prose("extent.scale", fig=figure[3:], paper=paper, lo=lo, hi=hi, by=by,
+                 experiment=experiment)

@@ -12,10 +12,10 @@ import pandas as pd
 from omegaconf import OmegaConf
 
 from .. import io
-from . import claims, conventions, discussion, figures, replicate, scorecard, scorecard_page
+from . import claims, conventions, discussion, figures, replicate, scorecard
 from .choices import escape
 from .claims import DIVERGED, diverged_conditions
-from .sections import Context, declares_claims, register
+from .sections import Context, declares_claims, prose, register
 from .quoted import CONTROLLED, RANGED, SCORECARD, SUMMARY, SUMMARY_RATIOS
 from .values import printed
 
@@ -195,32 +195,62 @@ def scorecard_part(ctx: Context, p: Paper) -> list[str]:
     ctx.value("headline.first", scorecard.headline_text(scorecard.headline(first, counted))
               if len(first) else "")
     _write_measures(ctx, p.measured, counted)
-    ctx.save(scorecard_page.figure(p.cards, ctx.title.split(":")[0] + ": the paper's claims, "
+    ctx.save(scorecard.figure(p.cards, ctx.title.split(":")[0] + ": the paper's claims, "
                               "t intervals over trials"), "scorecard")
-    ours = claims.our_reading(p.cards) if p.discussion == discussion.FINDINGS.read_text() else None
+    ours = our_reading(p.cards) if p.discussion == discussion.FINDINGS.read_text() else None
     return ["## Scorecard: the paper's claims, with their uncertainty", "",
             "![scorecard](scorecard.png)", "",
-            scorecard_page.markdown(p.cards, p.measures, counted, ours,
+            scorecard.markdown(p.cards, p.measures, counted, ours,
                                     "" if ctx.cfg.report.scale else
                                     scorecard.recommended_headline(readings_cards, recommended),
-                                    scorecard_page.first_headline(p.measures, counted)),
-            "Each cell: its verdict, how many of its conditions are reproduced, and its worst "
-            "condition: the mean over trials of the measure and its interval "
-            "(`scorecard.csv` holds every measure, `scorecard_readings.csv` the same under "
-            "the other registered readings, `claims.csv` every "
-            "cell, `measures.parquet` every per-trial value: `python -m "
-            "pipeline.tools.rescore` judges them again under an edited register); "
-            "pipeline/studies/scorecard.py says how.", ""]
+                                    scorecard.first_headline(p.measures, counted)),
+            prose("scorecard.after"), ""]
 
 
 def claims_part(ctx: Context, p: Paper) -> list[str]:
     """The claims, their criteria and every registered reading (pipeline/studies/register.yaml)."""
     if not p.claim_rows:
         return []
-    return ["## The claims, their criteria and measures", "", claims.markdown(), "",
-            "Every registered reading of a criterion (pipeline/studies/register.yaml; the "
-            "cells above show a reading's verdict where it differs from the primary's):", "",
-            claims.readings_markdown()]
+    return ["## The claims, their criteria and measures", "", claims_markdown(), "",
+            prose("paper.readings"), "",
+            readings_markdown()]
+
+
+def claims_markdown() -> str:
+    """The claims, their criteria and measures (the register's primary readings)."""
+    lines = ["| claim | figures | criterion (on the mean over trials) | measure, per trial |",
+             "|---|---|---|---|"]
+    lines += [f"| {scorecard.TITLES[c.id]} | {c.figures} | {c.criterion} | {c.measure} |"
+              for c in claims.CLAIMS]
+    return "\n".join(lines) + "\n"
+
+
+def readings_markdown() -> str:
+    """Every registered reading of every claim."""
+    lines = ["| claim | reading | criterion | counted | why (the paper's words) | fixed at |",
+             "|---|---|---|---|---|---|"]
+    for c in claims.CLAIMS:
+        for r in c.readings:
+            counted = ("primary" if r.primary and not c.diagnostic else
+                       "diagnostic" if r.diagnostic or c.diagnostic else "shown where it differs")
+            lines.append(f"| {scorecard.TITLES[c.id]} | {r.label} | {r.criterion} | {counted} "
+                         f"| {' '.join(r.why.split())} | {r.fixed_at} |")
+    return "\n".join(lines) + "\n"
+
+
+def our_reading(cards: pd.DataFrame, register: list | None = None) -> dict:
+    """claim -> our reading where every verdict it was written for is this run's, else a note."""
+    now = {(r["claim"], r["figure"]): r["verdict"] for r in cards.to_dict("records")}
+    out = {}
+    for c in claims.CLAIMS if register is None else register:
+        if not c.our_reading:
+            continue
+        off = [f"{f}: {v}, now {now[(c.id, f)]}" for f, v in c.our_reading["written_for"].items()
+               if (c.id, f) in now and now[(c.id, f)] != v]
+        out[c.id] = (c.our_reading["text"] if not off else
+                     "(our reading was written for other verdicts: " + "; ".join(off)
+                     + "; see the discussion)")
+    return out
 
 
 def findings_part(ctx: Context, p: Paper) -> list[str]:

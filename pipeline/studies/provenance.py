@@ -17,7 +17,7 @@ from pathlib import Path
 
 from ..config import IN_CHECKOUT, REPO_ROOT
 from ..plan import cpu_seconds  # the CPU seconds of trials of pipeline.plan.cost
-from .sections import Context, register
+from .sections import Context, prose, register
 
 PACKAGES = ("numpy", "numba", "scipy", "pandas", "pyarrow", "matplotlib", "hydra-core",
             "omegaconf")
@@ -171,16 +171,9 @@ def markdown(aggs: dict, out_dir=None) -> list[str]:
           "| figure | trials | CPU time (measured) | CPU time (estimated) |", "|---|---|---|---|"]
     md += [row(name, *c) for name, c in per.items()]
     md.append(row("all, each shared trial once", *total))
-    md += ["", "CPU time: measured, the CPU seconds each trial took when it was computed (any "
-           "run; a trial cached before times were kept is not measured); estimated, the plan's "
-           "cost model (pipeline.plan.cost), calibrated on whole trials "
-           "(pipeline.plan.cpu_seconds); the last row counts a trial that several figures "
-           "share (the same condition, pipeline.plan.stream) once. The final models of every "
-           "condition: `models/<figure>.json` (`pipeline.models.load(path)`).", ""]
+    md += ["", prose("provenance.cpu"), ""]
     lines = credits(aggs)
-    md += ["## Credits", "",
-           "The Goal Babbling model and the paper's bodies: Rolf, Steil and Gienger (2010), "
-           "reproduced here."] + ([""] + ["Third-party robot models used by this report:", ""]
+    md += ["## Credits", "", prose("provenance.credits")] + ([""] + ["Third-party robot models used by this report:", ""]
                                  + lines if lines else []) + [""]
     return md
 

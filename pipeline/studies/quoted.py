@@ -151,6 +151,6 @@ QUOTED_RATIOS = {
 }
 # a reading's worst rise (readings.csv)
 QUOTED_RISE = {
-    'readings.fig4.eta_0.3_w.rise.measured.n3': ('fig4', 'eta = 0.3 / W', 'rise'),
-    'readings.fig5.eta_0.3_w.rise.measured.n3': ('fig5', 'eta = 0.3 / W', 'rise'),
+    'readings.fig4.eta_0.3_w.rise.value_pct': ('fig4', 'eta = 0.3 / W', 'rise'),
+    'readings.fig5.eta_0.3_w.rise.value_pct': ('fig5', 'eta = 0.3 / W', 'rise'),
 }

@@ -10,9 +10,9 @@ from pathlib import Path
 
 import pandas as pd
 
-from . import claims, figures, register_schema, scorecard
+from . import claims, figures, scorecard
 from .choices import escape
-from .sections import Context, declared, declares_claims, register
+from .sections import Context, declares_claims, prose, reads, register
 from .quoted import QUOTED_RATIOS, QUOTED_RISE
 from .quoted import READINGS_SUMMARY as QUOTED
 from .values import printed
@@ -22,12 +22,6 @@ SYMBOLS = {scorecard.REPRODUCED: "✓", scorecard.NOT: "✗", scorecard.INCONCLU
 SHORT = {"final": "final", "rise": "rise", "blend": "blend", "after": "after",
          "bootstrap": "boot"}  # column heads of the matrix (claims.CLAIMS' words in its legend)
 FIGURE_CHOICES = ("default", "learning rate", "solver")  # the readings readings_curves shows
-
-
-def reading_studies() -> dict[str, str]:
-    """experiment -> the paper figure it reads (declares.reads), in declared order."""
-    return {n: e.declares.reads for n, e in declared().items()
-            if e.study == "readings" and e.declares.reads}
 
 
 def split(agg: dict, frame: str = "curves") -> dict:
@@ -44,7 +38,7 @@ def split(agg: dict, frame: str = "curves") -> dict:
 def readings_measures(read: dict) -> dict:
     """(figure, reading) -> the measures of the readings study (read: its aggregates)."""
     return {(fig, label): claims.measures(fig, trials, summary)
-            for study, fig in reading_studies().items()
+            for study, fig in reads("readings").items()
             if study in read and "trials" in read[study]
             for label, (trials, summary) in split(read[study], "trials").items()}
 
@@ -62,7 +56,7 @@ def intervals(aggs: dict, scale: str = "", measured: dict | None = None) -> pd.D
 def finals(aggs: dict) -> pd.DataFrame:
     """readings_summary.csv: per figure, reading and condition, trials and final errors."""
     rows = []
-    for study, fig in reading_studies().items():
+    for study, fig in reads("readings").items():
         if study not in aggs:
             continue
         for label, (_, sv) in split(aggs[study]).items():
@@ -149,9 +143,9 @@ def matrix_markdown(m: pd.DataFrame) -> str:
 def recommended(path: Path = claims.REGISTER) -> list[dict]:
     """The register's `recommended` (figure, reading, reproduces, why); a ValueError names a
     figure this study does not read, a claim not the paper's or a figure named twice."""
-    recs = register_schema.load(path).get("recommended", [])
+    recs = claims.read_register(path).get("recommended", [])
     for r in recs:
-        if r["figure"] not in reading_studies().values():
+        if r["figure"] not in reads("readings").values():
             raise ValueError(f"{path}: no readings figure {r['figure']!r}")
         for c in r["reproduces"]:
             if c not in claims.BY_ID or claims.BY_ID[c].diagnostic:
@@ -186,10 +180,7 @@ def recommendations_markdown(cards: pd.DataFrame, recs: list[dict]) -> str:
     shown = [r for r in recs if r["figure"] in set(cards["figure"])]
     if not shown:
         return ""
-    lines = ["The project's default stays the plain step at 1 / W (its reasons: the paper's "
-             "text and the stability rule, pipeline/tools/rate.py: weight_sum); the reading "
-             "recommended per figure (pipeline/studies/register.yaml: recommended, written from the "
-             "findings, checked against the verdicts above):", "",
+    lines = [prose("readings.recommended"), "",
              "| figure | recommended reading | reproduces (as written) | reason |",
              "|---|---|---|---|"]
     lines += [f"| {r['figure']} | {escape(r['reading'])} | {', '.join(r['reproduces']) or '—'} "
@@ -216,8 +207,8 @@ def figure(aggs: dict, title: str):
     """The absolute error of every condition, a panel per figure (row) and reading (column)."""
     import textwrap
 
-    reads = reading_studies()
-    studies = [s for s in reads if s in aggs]
+    figs = reads("readings")
+    studies = [s for s in figs if s in aggs]
     per = {s: split(aggs[s]) for s in studies}
     readings = _figure_readings(per)
     fig, axes = figures.plt.subplots(len(studies), len(readings), squeeze=False,
@@ -240,7 +231,7 @@ def figure(aggs: dict, title: str):
                 handles.setdefault(label, line)
             figures.mark_growth_end(ax, sv, styles)
             ax.set(xscale="log", yscale="log")
-            ax.set_title(textwrap.fill(f"{reads[s]}: {reading}", 30), fontsize=8)
+            ax.set_title(textwrap.fill(f"{figs[s]}: {reading}", 30), fontsize=8)
             if j == 0:
                 ax.set_ylabel("absolute error [m]")
             if i == len(studies) - 1:
@@ -301,10 +292,7 @@ def section(ctx: Context) -> list[str]:
                           "absolute error of every condition (mean over trials)"),
                    "readings_curves")[0].name
     return ["## Every reading of the paper against every claim", "",
-            "Each row is a reading of the text (conf/experiment/readings_*.yaml, "
-            "pipeline/studies/readings.py); each column a claim of the paper on a figure, "
-            "judged by the scorecard as above (readings_matrix.csv; the cells with their "
-            "intervals below, readings_scorecard.csv):", "",
+            prose("readings.section"), "",
             matrix_markdown(read_matrix(m)), recommendations_markdown(cards, recommended()),
             f"![readings]({png})", "", intervals_markdown(cards)]
 

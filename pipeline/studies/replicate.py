@@ -13,7 +13,7 @@ from scipy import stats
 
 from . import claims, coverage, scorecard
 from .choices import escape
-from .sections import Context, declared, register
+from .sections import Context, prose, reads, register
 
 STUDY = "replicate"
 SHARE = {"final": "calibration.final.share", "rise": "calibration.rise.share",  # quoted names
@@ -22,11 +22,6 @@ SHARE = {"final": "calibration.final.share", "rise": "calibration.rise.share",  
 RANGE = 0.95  # the two-sided probability of the expected range of a pooled share
 COLUMNS = ["figure", "claim", "where", "deciding", "n1", "n2", "level", "mean", "low", "high",
            "replicate_mean", "covered"]
-
-
-def replicated() -> dict[str, str]:
-    return {n: e.declares.reads for n, e in declared().items()
-            if e.study == STUDY and e.declares.reads}
 
 
 def prediction(values, n2: int, level: float) -> tuple[float, float, float]:
@@ -109,7 +104,7 @@ def _pairs(ctx: Context) -> dict:
     """(replicate, figure) -> (the figure's measures, the replicate's), made once."""
     def make():
         figs, reps, out = ctx.of("figures"), ctx.of(STUDY), {}
-        for r, f in replicated().items():
+        for r, f in reads(STUDY).items():
             if r in reps and f in figs and "trials" in reps[r] and "trials" in figs[f]:
                 out[(r, f)] = tuple(claims.measures(f, a["trials"], a["summary"])
                                     for a in (figs[f], reps[r]))
@@ -145,10 +140,9 @@ def markdown(s: pd.DataFrame) -> str:
 def section(ctx: Context) -> list[str]:
     table = calibrate(ctx)
     if not len(table):
-        alone = [f"{r} (of {f})" for r, f in replicated().items() if r in ctx.of(STUDY)]
-        return ["## Calibration: no replicate set with its figure", "", "The replicate sets "
-                f"{', '.join(alone)} run without the figure they replicate: nothing to "
-                "calibrate.", ""] if alone else []
+        alone = [f"{r} (of {f})" for r, f in reads(STUDY).items() if r in ctx.of(STUDY)]
+        return ["## Calibration: no replicate set with its figure", "",
+                prose("replicate.alone", alone=", ".join(alone)), ""] if alone else []
     ctx.text("calibration.csv", table.to_csv(index=False, float_format="%.6g"))
     s, scale = summary(table), ctx.cfg.report.scale
     for r in s.itertuples():
@@ -157,17 +151,7 @@ def section(ctx: Context) -> list[str]:
     bad = sorted(failing(table))
     verdict = (f"A {scale} run ({int(table['n1'].max())} trials): measured, not a verdict at "
                "that scale." if scale else
-               "Cells that fail it (the claim's share below its range, or the cell's deciding "
-               "condition not covered): " + (", ".join(f"{c} on {f}" for f, c in bad) or "none")
-               + ".")
+               prose("replicate.fails", cells=", ".join(f"{c} on {f}" for f, c in bad) or "none"))
     pairs = ", ".join(f"{r} (of {f})" for r, f in _pairs(ctx))
     return ["## Calibration: the scorecard's intervals against a replicate set", "",
-            f"The replicate sets ({pairs}) rerun each figure's conditions from another root "
-            "seed. For each counted measure (primary reading; controlled readings are out of "
-            "scope) the first set gives the prediction interval of the replicate's mean at the "
-            "level the scorecard used, mean1 +- t((1 + level) / 2, n1 - 1) s1 sqrt(1/n1 + "
-            "1/n2): the scorecard's own interval widened for the replicate's noise, so the "
-            "share covering tests exactly the published intervals (it covers with probability "
-            "`level` if they are right). The resampling table of docs/scorecard.md resamples the "
-            "same values and shows skew only; this is the calibration (calibration.csv, "
-            "pipeline/studies/replicate.py).", "", markdown(s), verdict, ""]
+            prose("replicate.section", pairs=pairs), "", markdown(s), verdict, ""]

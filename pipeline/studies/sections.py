@@ -4,11 +4,25 @@ aggregates) and returning Markdown lines. A new study is one module (here, or an
 `gbgrowth.studies`) and its experiment files (tests/studies/test_toy_study.py)."""
 from __future__ import annotations
 
+import functools
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
 DEFAULT = "figures"
+TEXT = Path(__file__).parent / "report_text.md"  # the report's constant prose
+
+
+@functools.lru_cache(maxsize=None)
+def _texts() -> dict:
+    parts = re.split(r"^<!-- ([a-z_.]+) -->\n", TEXT.read_text(), flags=re.M)
+    return {k: v.strip("\n") for k, v in zip(parts[1::2], parts[2::2])}
+
+
+def prose(name: str, **fields) -> str:
+    """The paragraph `name` of report_text.md, its {fields} filled in."""
+    return _texts()[name].format(**fields)
 SECTIONS: dict[str, tuple[int, object]] = {}  # study -> (place in the report, section)
 
 
@@ -31,6 +45,12 @@ def declared() -> dict:
 def of_study(study: str) -> list[str]:
     """The experiments whose file names `study` as theirs, in declared order."""
     return [n for n, e in declared().items() if e.study == study]
+
+
+def reads(study: str) -> dict[str, str]:
+    """experiment -> the paper figure it reads (declares.reads), of `study`, in declared order."""
+    return {n: e.declares.reads for n, e in declared().items()
+            if e.study == study and e.declares.reads}
 
 
 def _load() -> None:

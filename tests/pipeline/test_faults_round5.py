@@ -21,7 +21,7 @@ from gbmodel import body_loop
 from gbmodel.bodies import body_from
 from pipeline import io, models
 from pipeline.config import REPO_ROOT
-from pipeline.studies import claims, register_schema
+from pipeline.studies import claims
 from pipeline.tools import render, rescore
 from conftest import files_of
 
@@ -334,7 +334,7 @@ def test_r33_the_register_is_not_utf8_or_a_fifo(tmp_path, capsys):
         assert rc == 2 and says in err and err.count("\n") == 1, err
 
 
-@pytest.mark.parametrize("size", [300 * 2**20, register_schema.MAX_BYTES + 1])
+@pytest.mark.parametrize("size", [300 * 2**20, claims.MAX_BYTES + 1])
 def test_r46_a_huge_register_is_refused_before_it_is_parsed(tmp_path, capsys, size):
     path = tmp_path / "huge.yaml"
     with open(path, "wb") as fh:  # sparse: no disk taken
@@ -346,7 +346,7 @@ def test_r46_a_huge_register_is_refused_before_it_is_parsed(tmp_path, capsys, si
 
 def test_r33_the_committed_register_passes_its_schema(tmp_path):  # and with a date unquoted
     text = claims.REGISTER.read_text().replace("date: '2026-12-03'", "date: 2026-12-03")
-    assert register_schema.load(_register(tmp_path, text=text))["claims"]
+    assert claims.read_register(_register(tmp_path, text=text))["claims"]
 
 
 # ---- row 37: links refused by the renderer -------------------------------------------------------

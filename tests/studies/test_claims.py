@@ -10,7 +10,6 @@ from pipeline.studies import discussion, paper
 from pipeline.measures import growth_peak
 from pipeline.studies import claims
 from pipeline.studies import scorecard as sc
-from pipeline.studies import scorecard_page as page
 from tests.studies.coverage_tables import covered
 
 EPOCHS = np.array([1, 2, 5, 10, 11, 20, 50, 100])
@@ -139,7 +138,7 @@ def test_two_trials_are_not_a_verdict():
     judged = cards[cards["claim"] != "bootstrap"]
     assert set(judged["verdict"]) == {sc.NOT_A_VERDICT}
     assert judged["trials_to_decide"].isna().all()
-    md = page.markdown(cards, res, counted=["figX"])
+    md = sc.markdown(cards, res, counted=["figX"])
     assert "our reading" not in md and "would decide" not in md
     assert "**Not a verdict**" in md
 
@@ -151,7 +150,7 @@ def test_diagnostics_are_shown_and_never_counted():
     n = sc.headline(cards)
     assert sum(n.values()) == int((~cards["diagnostic"]).sum())
     assert sum(sc.headline(cards, counted=["figY"]).values()) == 0
-    md = page.markdown(cards, [], counted=["figX"])
+    md = sc.markdown(cards, [], counted=["figX"])
     assert "(diagnostic)" in md and f"**{n['reproduced']} reproduced" in md
 
 
@@ -176,7 +175,7 @@ def test_every_claim_has_words_a_criterion_and_a_measure():
     assert len({c.id for c in claims.CLAIMS}) == len(claims.CLAIMS)
     for c in claims.CLAIMS:
         assert c.words and c.criterion and c.measure and c.figures
-    md = claims.markdown()
+    md = paper.claims_markdown()
     assert md.count("\n") == len(claims.CLAIMS) + 2
 
 
@@ -185,10 +184,10 @@ def test_our_reading_is_shown_only_beside_the_verdicts_it_was_written_for():
                           dict(claim="rise", figure="fig5", verdict=sc.NOT)])
     register = [dataclasses.replace(claims.BY_ID["rise"], our_reading=dict(
         written_for={"fig4": "reproduced", "fig5": "not reproduced"}, text="rises at T_G <= 100"))]
-    assert claims.our_reading(cards, register) == {"rise": "rises at T_G <= 100"}
+    assert paper.our_reading(cards, register) == {"rise": "rises at T_G <= 100"}
     cards.loc[1, "verdict"] = sc.INCONCLUSIVE
     assert "written for other verdicts: fig5: not reproduced, now inconclusive" \
-        in claims.our_reading(cards, register)["rise"]
+        in paper.our_reading(cards, register)["rise"]
 
 
 def test_the_committed_readings_name_known_claims():

@@ -5,7 +5,7 @@ import pandas as pd
 import pytest
 
 from pipeline.config import REPO_ROOT
-from pipeline.studies import claims, readings
+from pipeline.studies import claims, readings, sections
 from pipeline.studies import scorecard as sc
 from test_claims import EPOCHS, RISING, _figure
 
@@ -119,7 +119,7 @@ def test_the_readings_figure_shows_the_rate_and_solver_readings_and_fits():
     spec = {DEFAULT: (RISING, "default"), "eta = 0.1 / W": (FLAT, "learning rate (W)"),
             "least squares (solver=lstsq)": (FLAT, "solver"),
             **{o: (FLAT, o) for o in others}, "eta = 0.3 / W": (RISING, "learning rate (W)")}
-    aggs = {s: _reading_agg(spec, n=2) for s in readings.reading_studies()}
+    aggs = {s: _reading_agg(spec, n=2) for s in sections.reads("readings")}
     fig = readings.figure(aggs, "readings")
     titles = [ax.get_title() for ax in fig.axes if ax.get_visible()]
     assert len(titles) == 3 * 4

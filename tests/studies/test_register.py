@@ -2,7 +2,7 @@
 changelog entry, every reading says why and since when."""
 import yaml
 
-from pipeline.studies import claims
+from pipeline.studies import claims, paper
 
 
 def test_every_criterion_is_the_one_its_latest_changelog_entry_records():
@@ -43,7 +43,7 @@ def test_the_whole_rise_claim_is_counted():
 
 
 def test_every_reading_is_listed_with_why_and_when():
-    md = claims.readings_markdown()
+    md = paper.readings_markdown()
     for c in claims.CLAIMS:
         for r in c.readings:
             assert r.label in md and r.fixed_at in md

@@ -4,7 +4,6 @@ import pandas as pd
 import pytest
 
 from pipeline.studies import scorecard as sc
-from pipeline.studies import scorecard_page as page
 from tests.studies.coverage_tables import covered
 
 
@@ -101,9 +100,9 @@ def test_growth_claims_on_trial_curves():
     # const0.5 ends at 10 mm on a half-size body: 20 mm per full size, the paper's value
     assert cards.loc["final", "verdict"] == sc.REPRODUCED
     assert cards.loc["bootstrap", "verdict"] == sc.REPRODUCED
-    md = page.markdown(sc.cells(res), res)
+    md = sc.markdown(sc.cells(res), res)
     assert "| claim of the paper | figX |" in md and "our reading" not in md
-    md = page.markdown(sc.cells(res), res, readings={"rise": "it rises"})
+    md = sc.markdown(sc.cells(res), res, readings={"rise": "it rises"})
     assert "| claim of the paper | figX | our reading |" in md and "it rises" in md
     for r in res:  # no measure's point lies outside its interval
         assert r["claim"] == "bootstrap" or r["low"] <= r["value"] <= r["high"]
@@ -115,7 +114,7 @@ def test_growth_claims_on_trial_curves():
 def test_the_scorecard_figure_draws_every_cell(tmp_path):
     cards = sc.cells(sc.results({"figX": _figure(4, 0.05), "figY": _figure(4, 0.3)},
                                 table=COVERED))
-    fig = page.figure(cards, "scorecard")
+    fig = sc.figure(cards, "scorecard")
     assert len(fig.axes[0].patches) == len(cards["claim"].unique()) * 2
     # every trial of a judged spread is a dot: 4 per cell, but the exact failure count's
     dots = sum(len(c.get_offsets()) for c in fig.axes[0].collections)
@@ -153,6 +152,6 @@ def test_a_reduced_scale_run_decides_nothing():
     res = sc.no_verdicts(sc.results({"figX": _figure(20, 0.01)}, table=COVERED), "smoke")
     cards = sc.cells(res)
     assert set(cards["verdict"]) == {sc.NOT_A_VERDICT}
-    md = page.markdown(cards, res, counted=["figX"])
+    md = sc.markdown(cards, res, counted=["figX"])
     assert "**no verdict" in md and "would decide" not in md and "our reading" not in md
     assert "**reproduced**" not in md and "**not reproduced**" not in md

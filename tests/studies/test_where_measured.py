@@ -6,9 +6,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipeline.studies import claims, measures_table, register_schema
+from pipeline.studies import claims, measures_table
 from pipeline.studies import scorecard as sc
-from pipeline.studies import scorecard_page as page
 from tests.studies.coverage_tables import covered
 
 EPOCHS = np.array([1, 2, 5, 10, 11, 20, 50, 100])
@@ -72,8 +71,8 @@ def test_a_register_with_an_unknown_place_of_measurement_is_refused(tmp_path):
     text = claims.REGISTER.read_text().replace("points: uniform}", "points: centre}", 1)
     (tmp_path / "r.yaml").write_text(text)
     with pytest.raises(ValueError, match="points"):
-        register_schema.load(tmp_path / "r.yaml")
-    assert set(register_schema.PARAMS["points"]) == set(claims.POINTS)
+        claims.read_register(tmp_path / "r.yaml")
+    assert set(claims.PARAMS["points"]) == set(claims.POINTS)
 
 
 @pytest.mark.parametrize("interval, bounds, verdict, expected", [
@@ -113,7 +112,7 @@ def test_the_headline_says_what_the_criteria_as_first_fixed_give_and_which_have_
     got = first.set_index("claim").loc["final"]
     assert (got["verdict"], got["where"]) == (sc.NOT, "const0.5")
     assert got["value"] == pytest.approx(0.5, rel=0.03)
-    text = page.first_headline(t)
+    text = sc.first_headline(t)
     assert text.startswith("The criteria as first fixed, before the first run's data")
     assert "rise_none" in text
 
