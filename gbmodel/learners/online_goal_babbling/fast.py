@@ -13,7 +13,7 @@ from numba import njit
 
 from ...features import exponents, monomial_tree
 from ...inverse import NO_MOVEMENT
-from ...kinematics import chain_layout, kernel_arrays
+from ...kinematics import kernel_arrays, kernel_body
 from ...simd import (
     W8, chain_forward64, fresh_cache, vadd8, vload8, vload18, vmul8, vsplat8, vstore8, vstore18,
     vsub8,
@@ -31,20 +31,8 @@ def normals(rng, size):
 
 def _kernel_arrays(body, params) -> tuple:
     """(chain, joints, parent, coord) for the kernels, once per body object and degree."""
-    return kernel_arrays(body, ("f8", params.degree), lambda: _body_arrays(body) + monomial_tree(
-        exponents(body.n, params.degree), last=True))
-
-
-def _body_arrays(body) -> tuple:
-    f8 = lambda x: np.ascontiguousarray(x, np.float64)  # noqa: E731
-    full = chain_layout(body)  # at full size: the kernel scales the translations epoch by epoch
-    chain = tuple(f8(full[k]) for k in ("a", "d", "cos_alpha", "sin_alpha", "base")) \
-        + (np.array(body.outputs, np.int64), f8(full["ty"]), f8(full["R"]),
-           bool(full["general"]))
-    normalized, zeros = body.normalized, np.zeros(body.m)
-    joints = (normalized, bool(body.saturates), f8(body.q_min if normalized else zeros),
-              f8(body.q_max - body.q_min if normalized else zeros), f8(body.theta_offset))
-    return chain, joints
+    return kernel_arrays(body, ("f8", params.degree), lambda: kernel_body(body, np.float64)
+                         + monomial_tree(exponents(body.n, params.degree), last=True))
 
 
 @njit(cache=True)
