@@ -18,11 +18,11 @@ from numba import njit
 
 from ...kinematics import kernel_arrays, kernel_body
 from ...features import monomial_tree
-from ...simd import LANES
+from ...simd import LANES, box as _box
 from .core import _lane_sum, gradient_steps
 from .lstsq import solve, solver_work
 from .online import online
-from .rollout import _box, _distances, _work, rollout, scaled
+from .rollout import _distances, _work, rollout, scaled
 from .solve import Solved
 
 # the update rule of an epoch, as the kernel takes it: one code for (solver, updates)

@@ -158,16 +158,6 @@ def _work(m, n, p, V, T):
 
 
 @njit(cache=True)
-def _box(targets):
-    n = targets.shape[1]
-    centre, half = np.empty(n), np.empty(n)
-    for j in range(n):
-        lo, hi = float(targets[:, j].min()), float(targets[:, j].max())
-        centre[j], half[j] = 0.5 * (lo + hi), 0.5 * (hi - lo)
-    return centre, half
-
-
-@njit(cache=True)
 def scaled(chain, k, out):
     """The chain with its translations (a, d, ty) times the length factors k, held in out (3, m)."""
     a, d, ca, sa, base, outputs, ty, R, general = chain

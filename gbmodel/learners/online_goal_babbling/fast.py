@@ -15,8 +15,8 @@ from ...features import exponents, monomial_tree
 from ...inverse import NO_MOVEMENT
 from ...kinematics import kernel_arrays, kernel_body
 from ...simd import (
-    W8, chain_forward64, fresh_cache, vadd8, vload8, vload18, vmul8, vsplat8, vstore8, vstore18,
-    vsub8,
+    W8, box, chain_forward64, fresh_cache, vadd8, vload8, vload18, vmul8, vsplat8, vstore8,
+    vstore18, vsub8,
 )
 
 # the kernels hold simd.py's code: their caches go when it (or this folder) changes
@@ -117,7 +117,6 @@ def _train_block(MT, P, lxs, lx, lq, target, at_home, hops, coins, walk, sizes, 
     normalized, saturates = joints[0], joints[1]
     phi, psi, r, sr, g = np.empty(p), np.empty(p), np.empty(W), np.zeros(W), np.empty(W)
     x_home, start = np.empty(n), np.empty(n)
-    lo, hi, c, h = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     A, b = np.empty((m, n)), np.empty(m)
     x, q = np.empty(n), np.empty(m)
     xstar = np.empty((K * (steps + 1), n))
@@ -125,13 +124,7 @@ def _train_block(MT, P, lxs, lx, lq, target, at_home, hops, coins, walk, sizes, 
     for e in range(len(sizes)):
         size, scale = sizes[e], scales[e]
         chain_forward64(q_home, scale, chain, joints, x_home)
-        for j in range(n):  # the target box at this size
-            lo[j] = hi[j] = targets[0, j] * size
-            for t in range(1, N):
-                v = targets[t, j] * size
-                lo[j] = min(lo[j], v)
-                hi[j] = max(hi[j], v)
-            c[j], h[j] = 0.5 * (lo[j] + hi[j]), 0.5 * (hi[j] - lo[j])
+        c, h = box(targets * size)  # the target box at this size
         T = 0  # the epoch's plan: x* of every sample, and which are returns home
         for kk in range(K):
             for j in range(n):
