@@ -229,7 +229,7 @@ class Growth:
         _, f = check_table(self.table, body.m)
         sizes = table_body_sizes(f, body.segment_lengths)
         if f.shape[1] > 1:
-            if self.pattern not in ("proportional", "none"):
+            if self.pattern != "proportional":
                 raise SpecError("growth.pattern", self.pattern, "a per-segment table gives "
                                 "every segment's factor; use growth=proportional")
             steps = np.diff(sizes)
@@ -263,16 +263,13 @@ class Growth:
         done = progress((e - 1) / self.period, self.schedule)
         return self.start_size + (self.end_size - self.start_size) * done
 
-    def segments(self, body) -> tuple[np.ndarray, np.ndarray]:
-        return PATTERN_TABLE[self.pattern].segments(self, body)
-
     def scales(self, body, sizes) -> np.ndarray:
         if self.table is not None and len(self.table[0]) > 2:
             return table_factors(body.segment_lengths, self.table, sizes)
         if self.rates is not None:
             return rate_factors(body.segment_lengths, self.rates, sizes, self.start_size,
                                 self.end_size)
-        grows, leads = self.segments(body)
+        grows, leads = PATTERN_TABLE[self.pattern].segments(self, body)
         return segment_factors(body.segment_lengths, grows, leads, sizes, self.start_size,
                                self.end_size, self.fixed_scale)
 
