@@ -263,13 +263,16 @@ class Growth:
         done = progress((e - 1) / self.period, self.schedule)
         return self.start_size + (self.end_size - self.start_size) * done
 
+    def segments(self, body) -> tuple[np.ndarray, np.ndarray]:
+        return PATTERN_TABLE[self.pattern].segments(self, body)
+
     def scales(self, body, sizes) -> np.ndarray:
         if self.table is not None and len(self.table[0]) > 2:
             return table_factors(body.segment_lengths, self.table, sizes)
         if self.rates is not None:
             return rate_factors(body.segment_lengths, self.rates, sizes, self.start_size,
                                 self.end_size)
-        grows, leads = PATTERN_TABLE[self.pattern].segments(self, body)
+        grows, leads = self.segments(body)
         return segment_factors(body.segment_lengths, grows, leads, sizes, self.start_size,
                                self.end_size, self.fixed_scale)
 
