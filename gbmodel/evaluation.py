@@ -58,10 +58,17 @@ def path_targets(body: Body, steps: int, size: float = 1.0) -> np.ndarray:
     """The sampled path targets (N (N - 1), n) at `size` for L = `steps`: each ordered pair of
     distinct targets (a, b) once, at (1 - l / L) x*_a + l / L x*_b."""
     def build(t):
-        a, b = np.nonzero(~np.eye(len(t), dtype=bool))
-        frac = np.random.default_rng(PATH_SEED).integers(0, steps, size=len(a)) / steps
-        return (1.0 - frac)[:, None] * t[a] + frac[:, None] * t[b]
+        pairs = len(t) * (len(t) - 1)
+        return _on_paths(t, np.random.default_rng(PATH_SEED).integers(0, steps, (pairs, 1)) / steps)
     return _cached(body, ("path", steps), build) * size
+
+
+def _on_paths(t, frac) -> np.ndarray:
+    """(1 - f) x*_a + f x*_b, every ordered pair (a, b) of distinct targets at its row of the
+    fractions frac (pairs, L) (eq. 9's path points)."""
+    a, b = np.nonzero(~np.eye(len(t), dtype=bool))
+    path = (1.0 - frac)[..., None] * t[a][:, None, :] + frac[..., None] * t[b][:, None, :]
+    return path.reshape(-1, t.shape[1])
 
 
 def eval_epochs(epochs: int, per_decade: int = 20) -> np.ndarray:
@@ -79,11 +86,7 @@ def eval_points(body: Body, size: float, which: str = "grid", path_steps: int = 
     if which == "heldout":
         return heldout_points(body, size)
     if which == "path":
-        t = body.targets
-        a, b = np.nonzero(~np.eye(len(t), dtype=bool))  # every ordered pair of distinct targets
-        frac = (np.arange(path_steps) / path_steps)[None, :, None]
-        path = (1.0 - frac) * t[a][:, None, :] + frac * t[b][:, None, :]
-        return path.reshape(-1, t.shape[1]) * size
+        return _on_paths(body.targets, (np.arange(path_steps) / path_steps)[None]) * size
     raise ValueError(f"evaluation.points={which!r}: choose one of {list(POINTS)}")
 
 

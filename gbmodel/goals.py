@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .evaluation import distances
 from .spec import MAX_EPOCHS, Choice, Int, Number
 
 SELECTIONS = ("random", "progress")
@@ -68,7 +69,7 @@ def start(targets: np.ndarray) -> Tracker:
 
 def first(predict, body, size: float, window: int) -> Tracker:
     """The tracker after its first measurement, the body at `size` (a learner's init)."""
-    errors = reaching_errors(predict, body, size, np.ones(body.m))
+    errors = distances(predict, body, np.ones(body.m), body.target_set(size))
     return start(body.targets).measured(errors, regions(body.targets), window)
 
 
@@ -82,8 +83,8 @@ def train(state, tracker: Tracker, params, body, sizes, scales, draws, epochs, s
                           params.progress_share)
         state = step(state, choose(draws[0][lo:hi], p), lo, hi)
         if measure:
-            errors = reaching_errors(lambda x: predict(state, x), body, sizes[hi - 1],
-                                     scales[hi - 1])
+            errors = distances(lambda x: predict(state, x), body, scales[hi - 1],
+                               body.target_set(sizes[hi - 1]))
             tracker = tracker.measured(errors, region, params.progress_window)
     return state, tracker
 
@@ -91,11 +92,6 @@ def train(state, tracker: Tracker, params, body, sizes, scales, draws, epochs, s
 def extra_samples(params, body) -> int:
     """Reaching movements per epoch spent on measuring (progress; N every period, rounded up)."""
     return samples(body, params.progress_period) if params.goal_selection == "progress" else 0
-
-
-def reaching_errors(predict, body, size: float, scale) -> np.ndarray:
-    xs = body.target_set(size)
-    return np.linalg.norm(body.forward(predict(xs), scale) - xs, axis=-1)
 
 
 def chunks(epochs: np.ndarray, period: int) -> list[tuple[int, int, bool]]:

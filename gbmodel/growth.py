@@ -25,7 +25,6 @@ MAX_TABLE_TIME = 1e12  # |t| of a growth table's rows: their differences stay ex
 
 # WHO Child Growth Standards (2006), length-for-age, boys, median [cm]: birth, 12 and 24 months
 WHO_LENGTH_CM = (49.9, 75.7, 87.1)
-_HALF = (WHO_LENGTH_CM[1] - WHO_LENGTH_CM[0]) / (WHO_LENGTH_CM[2] - WHO_LENGTH_CM[0])
 # k = 2 ln(f / (1 - f)), written out: numpy's log may round a last bit differently on another CPU
 INFANT_RATE = 1.6335222730542454  # tests/core/test_growth.py checks it against the formula
 
@@ -230,7 +229,7 @@ class Growth:
         _, f = check_table(self.table, body.m)
         sizes = table_body_sizes(f, body.segment_lengths)
         if f.shape[1] > 1:
-            if self.pattern not in ("proportional", "none"):
+            if self.pattern != "proportional":
                 raise SpecError("growth.pattern", self.pattern, "a per-segment table gives "
                                 "every segment's factor; use growth=proportional")
             steps = np.diff(sizes)
@@ -285,10 +284,6 @@ def _per_segment(value, m: int, number: Number) -> bool:
     return isinstance(value, (list, tuple)) and len(value) == m and all(map(number.ok, value))
 
 
-def _every_segment_grows(body) -> np.ndarray:
-    return np.ones(body.m, bool)
-
-
 def _needs_held_segments(growth: Growth, body) -> None:
     if body.growing.all():
         raise SpecError("growth.pattern", growth.pattern,
@@ -324,13 +319,13 @@ class Pattern:
 
 # the growth patterns: a new one is a row here and a conf/growth/<name>.yaml
 PATTERN_TABLE = {
-    "proportional": Pattern(lambda g, b: (_every_segment_grows(b), np.zeros(b.m)), holds=True),
+    "proportional": Pattern(lambda g, b: (np.ones(b.m, bool), np.zeros(b.m)), holds=True),
     "nonproportional": Pattern(lambda g, b: (b.growing, np.zeros(b.m)),
                                check=_needs_held_segments, holds=True),
-    "proximal_first": Pattern(lambda g, b: (_every_segment_grows(b),
+    "proximal_first": Pattern(lambda g, b: (np.ones(b.m, bool),
                                             proximal_leads(b.segment_lengths, g.proximal_lead)),
                               check=_needs_two_segments),
-    "per_segment": Pattern(lambda g, b: (_every_segment_grows(b),
+    "per_segment": Pattern(lambda g, b: (np.ones(b.m, bool),
                                          np.asarray(g.leads, np.float64)),
                            check=_needs_leads_or_rates, uses=("leads", "rates")),
 }

@@ -32,6 +32,16 @@ def predict_model(model, params, body, x) -> np.ndarray:
     return predict(np.asarray(model, np.float64), x, table(params, body))
 
 
+def predict_state(state, params, body, x) -> np.ndarray:
+    """A learner's predict, its state holding M."""
+    return predict(state.M, x, table(params, body))
+
+
+def model_of(state) -> np.ndarray:
+    """A learner's model, its state holding M: a copy of M."""
+    return np.array(state.M, copy=True)
+
+
 def init_inverse(home, lo, hi, exps, init_range, rng) -> np.ndarray:
     """M (m, p): home plus a random polynomial within init_range on the box (sec. 3), bounded
     for sure: sum_k |D_ik| max |Phi_k| is scaled to init_range."""

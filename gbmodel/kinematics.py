@@ -64,3 +64,15 @@ def chain_layout(body) -> dict:
     after = np.concatenate([body.frames[1:], np.hstack([np.eye(3), body.tool[:, None]])[None]])
     return dict(a=after[:, 0, 3], d=after[:, 2, 3], ty=after[:, 1, 3], R=after[:, :, :3],
                 cos_alpha=np.ones(m), sin_alpha=np.zeros(m), base=body.frames[0], general=True)
+
+
+def kernel_body(body, dtype) -> tuple:
+    """(chain, joints) as the kernels take them in `dtype`: chain_layout's table, and the
+    commands' mapping (normalized, saturates, q_min, q_span, theta_offset)."""
+    f = lambda x: np.ascontiguousarray(x, dtype)  # noqa: E731
+    ch, norm = chain_layout(body), body.normalized
+    chain = tuple(f(ch[k]) for k in ("a", "d", "cos_alpha", "sin_alpha", "base")) + (
+        np.array(body.outputs, np.int64), f(ch["ty"]), f(ch["R"]), bool(ch["general"]))
+    joints = (norm, bool(body.saturates), f(body.q_min if norm else np.zeros(body.m)),
+              f(body.q_max - body.q_min if norm else np.ones(body.m)), f(body.theta_offset))
+    return chain, joints

@@ -345,6 +345,17 @@ def chain_kinematics(Q, X, C, joints, body):
                 vstore(X, j, c0 + c, vfma(vsplat(base[o, 2]), vload(P, 2, c), x))
 
 
+@njit(cache=True)
+def box(targets):
+    """The target box's centre and half-widths (n,) in float64."""
+    n = targets.shape[1]
+    centre, half = np.empty(n), np.empty(n)
+    for j in range(n):
+        lo, hi = float(targets[:, j].min()), float(targets[:, j].max())
+        centre[j], half[j] = 0.5 * (lo + hi), 0.5 * (hi - lo)
+    return centre, half
+
+
 @intrinsic
 def vload8f(typingctx, a, k, i):
     """a[k, i:i + 8] of a float32 array as float64 lanes (exact)."""

@@ -13,8 +13,8 @@ import numpy as np
 
 from ..features import features
 from ..spec import MAX_DEGREE, Choice, Int, Number, check_fields
-from ..inverse import (init_inverse, predict as predict_inverse, predict_model,  # noqa: F401
-                       table as _exps)
+from ..inverse import (init_inverse, model_of as model, predict_model,  # noqa: F401
+                       predict_state as predict, table as _exps)
 
 
 @dataclass(frozen=True)
@@ -84,14 +84,6 @@ def train(state: State, params: Params, body, sizes, scales, draws, epochs=None)
         M = fit_inverse(M, gram.sum(axis=0), cross.sum(axis=0), count.sum(), params)
     return replace(state, M=M, gram=gram, cross=cross, count=count,
                    epochs=state.epochs + len(sizes))
-
-
-def predict(state: State, params: Params, body, x) -> np.ndarray:
-    return predict_inverse(state.M, x, _exps(params, body))
-
-
-def model(state: State) -> np.ndarray:
-    return np.array(state.M, copy=True)
 
 
 def samples_per_epoch(params: Params, body) -> int:

@@ -34,11 +34,11 @@ from gbmodel.learners.goal_babbling.core import _BLOCK, _accumulate, _features, 
 from gbmodel.learners.goal_babbling.fast import _epoch
 from gbmodel.learners.goal_babbling.lstsq import solver_work
 from gbmodel.learners.goal_babbling.rollout import (
-    _box, _commands, _disturbances, _weights, _work, rollout,
+    _commands, _disturbances, _weights, _work, rollout,
 )
 from gbmodel.simd import (
-    F4, LANES, chain_kinematics, fresh_cache, vadd, vdiv, vfma, vload, vmul, vsplat, vsqrt, vstore,
-    vsum, vwhere,
+    F4, LANES, box as _box, chain_kinematics, fresh_cache, vadd, vdiv, vfma, vload, vmul, vsplat,
+    vsqrt, vstore, vsum, vwhere,
 )
 
 from .. import cli, execute, io

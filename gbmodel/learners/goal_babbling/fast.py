@@ -16,13 +16,13 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ...kinematics import chain_layout, kernel_arrays
+from ...kinematics import kernel_arrays, kernel_body
 from ...features import monomial_tree
-from ...simd import LANES
+from ...simd import LANES, box as _box
 from .core import _lane_sum, gradient_steps
 from .lstsq import solve, solver_work
 from .online import online
-from .rollout import _box, _distances, _work, rollout
+from .rollout import _distances, _work, rollout, scaled
 from .solve import Solved
 
 # the update rule of an epoch, as the kernel takes it: one code for (solver, updates)
@@ -63,7 +63,6 @@ def _block(M, idx, raw, amp, sizes, scales, rates, chain, targets, home, parent,
            radius, steps, plain, rule, update_steps, ring, done, ridge, anchor, anchor_epochs,
            limit, M0):
     """Epochs with sizes[e], length factors scales[e], rates[e] (LSTSQ: `done` epochs in)."""
-    a, d, ca, sa, base, outputs, ty, R, general = chain
     m, p = M.shape
     n = targets.shape[1]
     V, T = raw.shape[1], (idx.shape[1] - 1) * steps
@@ -71,15 +70,9 @@ def _block(M, idx, raw, amp, sizes, scales, rates, chain, targets, home, parent,
     solving = solver_work(m, n, p, V, T, rule == LSTSQ)
     box = _box(targets)
     free = not (joints[0] and joints[1])  # no joint limits: the anchor stays (solve.anchor_at)
-    ae = np.empty(m, np.float32)
-    de = np.empty(m, np.float32)
-    ye = np.empty(m, np.float32)
+    held = np.empty((3, m), np.float32)
     for e in range(idx.shape[0]):
-        for i in range(m):
-            ae[i] = a[i] * scales[e, i]
-            de[i] = d[i] * scales[e, i]
-            ye[i] = ty[i] * scales[e, i]
-        body = (ae, de, ca, sa, base, outputs, ye, R, general)
+        body = scaled(chain, scales[e], held)
         _epoch(M, idx[e], raw[e], amp[e], sizes[e], body, targets, home, parent, var, joints,
                radius, steps, rates[e], plain, rule, update_steps, box, work, ring,
                (done + e) % max(len(ring), 1), ridge,
@@ -94,27 +87,17 @@ def _arrays(body, exps):
 
 
 def _build(body, exps):
-    f4 = lambda x: np.ascontiguousarray(x, np.float32)  # noqa: E731
-    chain = chain_layout(body)
-    normalized = body.normalized
-    joints = (normalized, body.saturates,
-              f4(body.q_min if normalized else np.zeros(body.m)),
-              f4(body.q_max - body.q_min if normalized else np.ones(body.m)),
-              f4(body.theta_offset))
+    chain, joints = kernel_body(body, np.float32)
     parent, var = monomial_tree(exps)
-    return dict(
-        chain=(f4(chain["a"]), f4(chain["d"]), f4(chain["cos_alpha"]), f4(chain["sin_alpha"]),
-               f4(chain["base"]), np.array(body.outputs, np.int64), f4(chain["ty"]),
-               f4(chain["R"]), chain["general"]),
-        targets=f4(body.targets), home=f4(body.saturate(body.home)), parent=parent, var=var,
-        joints=joints)
+    return dict(chain=chain, targets=np.ascontiguousarray(body.targets, np.float32),
+                home=np.ascontiguousarray(body.saturate(body.home), np.float32), parent=parent,
+                var=var, joints=joints)
 
 
 def _amplitudes(raw, amp):
     if amp is None:
         return np.ones(raw.shape[:-1])
     return np.ascontiguousarray(amp, np.float64)
-
 
 
 def _options(params):
@@ -162,9 +145,7 @@ def epoch_samples(M, body, params, exps, size, scale, idx, raw, amp=None, rate=N
         raise ValueError("epoch_samples runs the gradient rules; solver=lstsq: run_block")
     M = np.array(M, dtype=np.float64, order="C")
     arr = _arrays(body, exps)
-    a, d, ca, sa, base, outputs, ty, R, general = arr["chain"]
-    k = np.asarray(scale, np.float32)
-    chain = (a * k, d * k, ca, sa, base, outputs, ty * k, R, general)
+    chain = scaled(arr["chain"], np.asarray(scale, np.float32), np.empty((3, body.m), np.float32))
     T = (len(idx) - 1) * params.steps
     V = raw.shape[0]
     work = _work(body.m, body.n, len(exps), V, T)

@@ -158,24 +158,19 @@ def _work(m, n, p, V, T):
 
 
 @njit(cache=True)
-def _box(targets):
-    n = targets.shape[1]
-    centre, half = np.empty(n), np.empty(n)
-    for j in range(n):
-        lo, hi = float(targets[:, j].min()), float(targets[:, j].max())
-        centre[j], half[j] = 0.5 * (lo + hi), 0.5 * (hi - lo)
-    return centre, half
+def scaled(chain, k, out):
+    """The chain with its translations (a, d, ty) times the length factors k, held in out (3, m)."""
+    a, d, ca, sa, base, outputs, ty, R, general = chain
+    for i in range(len(a)):
+        out[0, i], out[1, i], out[2, i] = a[i] * k[i], d[i] * k[i], ty[i] * k[i]
+    return (out[0], out[1], ca, sa, base, outputs, out[2], R, general)
 
 
 @njit(cache=True)
 def _distances(M, scale, chain, xs, parent, var, joints, out):
-    a, d, ca, sa, base, outputs, ty, R, general = chain
     m, p = M.shape
     NT, n = xs.shape
-    ae, de, ye = np.empty(m, np.float32), np.empty(m, np.float32), np.empty(m, np.float32)
-    for i in range(m):
-        ae[i], de[i], ye[i] = a[i] * scale[i], d[i] * scale[i], ty[i] * scale[i]
-    body = (ae, de, ca, sa, base, outputs, ye, R, general)
+    body = scaled(chain, scale, np.empty((3, m), np.float32))
     M32 = np.empty((m, p), np.float32)
     for i in range(m):
         for k in range(p):

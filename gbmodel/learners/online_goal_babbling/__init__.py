@@ -25,8 +25,9 @@ from ... import evaluation, goals
 from ...features import features
 from ...growth import factors
 from ...spec import MAX_DEGREE, Flag, Int, Number, check_fields
-from ...inverse import (init_inverse, predict as predict_inverse, predict_model,  # noqa: F401
-                        sample_weights, scale_perturbations, table as _exps)
+from ...inverse import (init_inverse, model_of as model, predict as predict_inverse,  # noqa: F401
+                        predict_model, predict_state as predict, sample_weights,
+                        scale_perturbations, table as _exps)
 from . import fast
 from .fast import train_fast  # noqa: F401 (the compiled path, named here for the tests)
 
@@ -117,18 +118,10 @@ def _train(state: State, params: Params, body, sizes, scales, draws) -> State:
     return train_reference(state, params, body, sizes, scales, draws)
 
 
-def predict(state: State, params: Params, body, x) -> np.ndarray:
-    return predict_inverse(state.M, x, _exps(params, body))
-
-
 def distances(state: State, params: Params, body, scale, xs) -> np.ndarray:
     if not params.fast:
         return evaluation.distances(lambda x: predict(state, params, body, x), body, scale, xs)
     return fast.distances(state.M, params, body, scale, xs)
-
-
-def model(state: State) -> np.ndarray:
-    return np.array(state.M, copy=True)
 
 
 def samples_per_epoch(params: Params, body) -> int:

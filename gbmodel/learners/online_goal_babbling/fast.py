@@ -13,10 +13,10 @@ from numba import njit
 
 from ...features import exponents, monomial_tree
 from ...inverse import NO_MOVEMENT
-from ...kinematics import chain_layout, kernel_arrays
+from ...kinematics import kernel_arrays, kernel_body
 from ...simd import (
-    W8, chain_forward64, fresh_cache, vadd8, vload8, vload18, vmul8, vsplat8, vstore8, vstore18,
-    vsub8,
+    W8, box, chain_forward64, fresh_cache, vadd8, vload8, vload18, vmul8, vsplat8, vstore8,
+    vstore18, vsub8,
 )
 
 # the kernels hold simd.py's code: their caches go when it (or this folder) changes
@@ -31,20 +31,8 @@ def normals(rng, size):
 
 def _kernel_arrays(body, params) -> tuple:
     """(chain, joints, parent, coord) for the kernels, once per body object and degree."""
-    return kernel_arrays(body, ("f8", params.degree), lambda: _body_arrays(body) + monomial_tree(
-        exponents(body.n, params.degree), last=True))
-
-
-def _body_arrays(body) -> tuple:
-    f8 = lambda x: np.ascontiguousarray(x, np.float64)  # noqa: E731
-    full = chain_layout(body)  # at full size: the kernel scales the translations epoch by epoch
-    chain = tuple(f8(full[k]) for k in ("a", "d", "cos_alpha", "sin_alpha", "base")) \
-        + (np.array(body.outputs, np.int64), f8(full["ty"]), f8(full["R"]),
-           bool(full["general"]))
-    normalized, zeros = body.normalized, np.zeros(body.m)
-    joints = (normalized, bool(body.saturates), f8(body.q_min if normalized else zeros),
-              f8(body.q_max - body.q_min if normalized else zeros), f8(body.theta_offset))
-    return chain, joints
+    return kernel_arrays(body, ("f8", params.degree), lambda: kernel_body(body, np.float64)
+                         + monomial_tree(exponents(body.n, params.degree), last=True))
 
 
 @njit(cache=True)
@@ -129,7 +117,6 @@ def _train_block(MT, P, lxs, lx, lq, target, at_home, hops, coins, walk, sizes, 
     normalized, saturates = joints[0], joints[1]
     phi, psi, r, sr, g = np.empty(p), np.empty(p), np.empty(W), np.zeros(W), np.empty(W)
     x_home, start = np.empty(n), np.empty(n)
-    lo, hi, c, h = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     A, b = np.empty((m, n)), np.empty(m)
     x, q = np.empty(n), np.empty(m)
     xstar = np.empty((K * (steps + 1), n))
@@ -137,13 +124,7 @@ def _train_block(MT, P, lxs, lx, lq, target, at_home, hops, coins, walk, sizes, 
     for e in range(len(sizes)):
         size, scale = sizes[e], scales[e]
         chain_forward64(q_home, scale, chain, joints, x_home)
-        for j in range(n):  # the target box at this size
-            lo[j] = hi[j] = targets[0, j] * size
-            for t in range(1, N):
-                v = targets[t, j] * size
-                lo[j] = min(lo[j], v)
-                hi[j] = max(hi[j], v)
-            c[j], h[j] = 0.5 * (lo[j] + hi[j]), 0.5 * (hi[j] - lo[j])
+        c, h = box(targets * size)  # the target box at this size
         T = 0  # the epoch's plan: x* of every sample, and which are returns home
         for kk in range(K):
             for j in range(n):
