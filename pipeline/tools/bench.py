@@ -33,9 +33,7 @@ from gbmodel.learners.goal_babbling import fast
 from gbmodel.learners.goal_babbling.core import _BLOCK, _accumulate, _features, _predict
 from gbmodel.learners.goal_babbling.fast import _epoch
 from gbmodel.learners.goal_babbling.lstsq import solver_work
-from gbmodel.learners.goal_babbling.rollout import (
-    _commands, _disturbances, _weights, _work, rollout,
-)
+from gbmodel.learners.goal_babbling.rollout import _commands, _disturbances, _weights, _work, rollout
 from gbmodel.simd import (
     F4, LANES, box as _box, chain_kinematics, fresh_cache, vadd, vdiv, vfma, vload, vmul, vsplat,
     vsqrt, vstore, vsum, vwhere,
@@ -44,7 +42,7 @@ from gbmodel.simd import (
 from .. import cli, execute, io
 from ..config import CONFIG_PATH, compose
 from ..plan import plan
-from . import REPO, child, interleaved
+from . import REPO, child, fail, interleaved
 from .floor import CLASSES, body_counts, counted_floor, online_sample_flops, sample_flops
 
 # _part holds the kernels it calls, compiled in: its cache (with this folder's other kernels)
@@ -160,8 +158,7 @@ def peak_gflops(iters: int = 2_000_000, tries: int = 3) -> float:
 
 
 # ---- whole trials ---------------------------------------------------------------------------
-def paper_spec(body: str, epochs: int, fast: bool, learner: str = "goal_babbling",
-               extra: tuple = ()) -> dict:
+def paper_spec(body: str, epochs: int, fast: bool, learner: str = "goal_babbling", extra=()) -> dict:
     """The TrialSpec (as data) of a full-size trial of `body` at the paper's settings."""
     trial = plan(compose([f"body={body}", f"learner={learner}", "growth=none", "trials.count=1",
                           f"learner.epochs={epochs}", f"learner.fast={str(fast).lower()}",
@@ -493,7 +490,10 @@ def main(cfg: DictConfig) -> None:
 
 if __name__ == "__main__":
     if sys.argv[1:2] == ["compare"]:
-        compare(sys.argv[2], *(int(a) for a in sys.argv[3:5]), *sys.argv[5:6])
+        a = sys.argv[2:6]  # DIR: a checkout; ROUNDS, REPEATS: counts
+        if not a or not (Path(a[0]) / "pipeline").is_dir() or not all(n.isdigit() for n in a[1:3]):
+            sys.exit(fail("usage: bench compare DIR [ROUNDS] [REPEATS] [LEARNER], DIR a checkout"))
+        compare(a[0], *(int(n) for n in a[1:3]), *a[3:4])
     elif sys.argv[1:2] == ["costs"]:
         costs()
     else:

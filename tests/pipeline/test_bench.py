@@ -155,3 +155,17 @@ def test_every_priced_class_is_probed():
     ns = bench.probe_ns(iters=2_000, tries=1)
     assert set(ns) | {"logic"} == set(floor.CLASSES)
     assert all(0 < v < float("inf") for v in ns.values())
+
+
+@pytest.mark.parametrize("args", [[], ["--help"], ["/nonexistent"], [".", "x"]])
+def test_bench_compare_refuses_bad_arguments_in_one_line(args):
+    """`bench compare` without a checkout or with a count that is not one: its usage, exit 2."""
+    import subprocess
+    import sys
+
+    repo = Path(bench.__file__).resolve().parents[2]
+    proc = subprocess.run([sys.executable, "-m", "pipeline.tools.bench", "compare", *args],
+                          cwd=repo, capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert proc.stderr.splitlines() == ["error: usage: bench compare DIR [ROUNDS] [REPEATS] "
+                                        "[LEARNER], DIR a checkout"]
