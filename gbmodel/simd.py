@@ -356,6 +356,53 @@ def box(targets):
     return centre, half
 
 
+@njit(cache=True)
+def fsum(x):
+    """(math.fsum of the float64 array x, True): Shewchuk's partials and CPython's half-even
+    correction step for step, the same correctly rounded sum without a list of Python floats;
+    (nan, False) at a non-finite value or an intermediate overflow, math.fsum's to answer."""
+    p = np.empty(64)  # nonoverlapping partials: at most 2098 / 53 + 1 of finite doubles
+    n = 0
+    for k in range(x.size):
+        v = x[k]
+        if not np.isfinite(v):
+            return np.nan, False
+        i = 0
+        for j in range(n):
+            y = p[j]
+            if abs(v) < abs(y):
+                v, y = y, v
+            hi = v + y
+            lo = y - (hi - v)
+            if lo != 0.0:
+                p[i] = lo
+                i += 1
+            v = hi
+        n = i
+        if v != 0.0:
+            if not np.isfinite(v):
+                return np.nan, False
+            p[n] = v
+            n += 1
+    hi = lo = 0.0
+    if n > 0:
+        n -= 1
+        hi = p[n]
+        while n > 0:  # from the top, until the sum becomes inexact
+            v, n = hi, n - 1
+            y = p[n]
+            hi = v + y
+            lo = y - (hi - v)
+            if lo != 0.0:
+                break
+        if n > 0 and ((lo < 0.0 and p[n - 1] < 0.0) or (lo > 0.0 and p[n - 1] > 0.0)):
+            y = lo * 2.0  # half-even across partials
+            v = hi + y
+            if y == v - hi:
+                hi = v
+    return hi, True
+
+
 @intrinsic
 def vload8f(typingctx, a, k, i):
     """a[k, i:i + 8] of a float32 array as float64 lanes (exact)."""

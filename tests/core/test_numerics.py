@@ -321,3 +321,37 @@ def test_learning_reduces_the_error(name, epochs, start_max, end_max):
     assert r.abs_error[0] > 0.3 and r.abs_error[0] < start_max
     assert r.abs_error[-1] < end_max, r.abs_error[-1]
     assert r.abs_error[-1] < 0.3 * r.abs_error[0]
+
+
+def _sums():
+    """Arrays whose correctly rounded sums are hard: ties across partials, cancellation, every
+    exponent, subnormals, zeros of both signs, and random ones of each kind."""
+    rng = np.random.default_rng(20101207)
+    yield from (np.array(x, dtype=np.float64) for x in (
+        [], [-0.0], [0.0, -0.0], [1e-16, 1.0, 1e16], [1.0, 2.0 ** -53, 2.0 ** -106],
+        [0.1] * 10, [1.0, -1.0, 1e-300], [5e-324, 5e-324], [1e308, -1e308, 1.0]))
+    for _ in range(4000):
+        k = int(rng.integers(0, 60))
+        yield from (rng.random(k), np.ldexp(rng.random(k), rng.integers(-1074, 1000, k)),
+                    np.ldexp(rng.choice([1.0, -1.0, 3.0, 0.5], k), rng.integers(-60, 60, k)),
+                    np.concatenate([rng.random(k), -rng.random(k)]))
+
+
+def test_the_compiled_sum_is_math_fsum_to_the_bit():
+    """evaluation's sums (simd.fsum) give math.fsum's bits; a non-finite value or an
+    intermediate overflow is left to math.fsum, which raises or answers as before."""
+    import math
+
+    from gbmodel.evaluation import error
+    from gbmodel.simd import fsum
+
+    for x in _sums():
+        total, ok = fsum(x)
+        assert ok and np.float64(total).tobytes() == np.float64(math.fsum(x.tolist())).tobytes(), x
+    for x in ([np.inf, 1.0], [np.nan], [1e308, 1e308]):
+        assert not fsum(np.array(x))[1]
+    assert error(np.array([np.inf, 1.0])) == math.inf
+    with pytest.raises(OverflowError):
+        error(np.array([1e308, 1e308]))
+    d = np.random.default_rng(7).random(4032)
+    assert error(d, "rms") == math.sqrt(math.fsum((d * d).tolist()) / d.size)
