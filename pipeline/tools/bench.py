@@ -466,9 +466,8 @@ print(json.dumps(out))
 
 
 def compare(baseline: str, rounds: int = 4, reps: int = 3, learner: str = "goal_babbling") -> dict:
-    """`bench compare`: each round `reps` trials per body in a child process (CHILD: its own
-    timer, as old as the baseline) of `baseline` and of this checkout in turn; prints the medians
-    (us per trial-epoch, CPU) and their ratio."""
+    """`bench compare`: each round `reps` trials per body in a child process (CHILD) of `baseline`
+    and of this checkout in turn; prints the medians (CPU) and the rounds' median paired ratio."""
     trees = {"baseline": str(Path(baseline).resolve()), "this": str(REPO)}
     runs = interleaved(trees, rounds, lambda t, _: child(
         trees[t], CHILD, str(reps), learner, env={"PYTHONPATH": trees[t], "PATH": "/usr/bin:/bin"}))
@@ -476,9 +475,10 @@ def compare(baseline: str, rounds: int = 4, reps: int = 3, learner: str = "goal_
            for t, rs in runs.items()}
     for b in ("arm5", "icub"):
         m = {t: statistics.median(res[t][b]) for t in trees}
-        print(f"{b}: baseline {m['baseline']:.1f} us/trial-epoch, this {m['this']:.1f} "
-              f"us/trial-epoch, ratio this/baseline {m['this'] / m['baseline']:.3f} "
-              f"(medians of {len(res['baseline'][b])})")
+        r = statistics.median(statistics.median(a[b]) / statistics.median(z[b])
+                              for a, z in zip(runs["this"], runs["baseline"]))  # round by round
+        print(f"{b}: baseline {m['baseline']:.1f}, this {m['this']:.1f} us/trial-epoch (medians of "
+              f"{len(res['baseline'][b])}); this/baseline {r:.3f} (the median of {rounds} rounds)")
     return res
 
 
