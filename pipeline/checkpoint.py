@@ -2,7 +2,8 @@
 by conditions.continues): the learner's and the generator's state, and the base's cached curve
 and snapshots; the result is an uninterrupted run's, to the bit. Only a trial planned as a base
 keeps it (`keep_state`), in trials/<kk>/<key>.state.json beside its sidecar, sealed, as plain
-data (arrays as base64, the learner's dataclasses by name) that crosses to a worker like any trial.
+data (arrays as base64, gbmodel's dataclasses by name, looked up, never imported) that crosses to
+a worker like any trial.
 A base in the cache without it is run again, before its continuations."""
 from __future__ import annotations
 

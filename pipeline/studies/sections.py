@@ -23,6 +23,8 @@ def _texts() -> dict:
 def prose(name: str, **fields) -> str:
     """The paragraph `name` of report_text.md, its {fields} filled in."""
     return _texts()[name].format(**fields)
+
+
 SECTIONS: dict[str, tuple[int, object]] = {}  # study -> (place in the report, section)
 
 

@@ -45,7 +45,6 @@ def timed(cmd: list, cwd, env: dict, merged: bool = False) -> tuple:
             os.waitstatus_to_exitcode(status), text)
 
 
-
 def child(code, script: str, *args: str, env: dict | None = None) -> dict:
     """The JSON that `python -c script args` prints last in checkout `code`."""
     proc = subprocess.run([sys.executable, "-c", script, *args], cwd=code, capture_output=True,
