@@ -28,6 +28,15 @@ class Diverged(ArithmeticError):
         self.epoch = epoch
 
 
+def check_evaluation(settings: dict) -> dict:
+    """The evaluation settings with their defaults, SpecError naming a bad one."""
+    ev = {**evaluation.DEFAULTS, **settings}
+    check_choice("evaluation.points", ev["points"], evaluation.POINTS)
+    check_choice("evaluation.formula", ev["formula"], evaluation.FORMULAS)
+    check_int("evaluation.path_steps", ev["path_steps"], 1)
+    return ev
+
+
 @dataclass(frozen=True)
 class TrialSpec:
     """Everything one trial depends on, as plain data mirroring the config's sections (body: a
@@ -72,10 +81,7 @@ class TrialSpec:
                             "set learner.fast=false")
         check_epochs("learner.epochs", self.epochs)
         check_int("learner.evals_per_decade", self.evals_per_decade, 1)
-        ev = {**evaluation.DEFAULTS, **self.evaluation}
-        check_choice("evaluation.points", ev["points"], evaluation.POINTS)
-        check_choice("evaluation.formula", ev["formula"], evaluation.FORMULAS)
-        check_int("evaluation.path_steps", ev["path_steps"], 1)
+        check_evaluation(self.evaluation)
         for e in self.snapshots:
             if not 1 <= e <= self.epochs:
                 raise SpecError("snapshots", e, f"outside the epochs 1 ... {self.epochs}")
@@ -106,6 +112,7 @@ class TrialResult:
     path_abs_error: np.ndarray | None = None  # (E,) on the sampled path targets (path_targets)
     state: Any = None  # the learner's final state and the generator's (bit_generator.state),
     rng: dict | None = None  # what a Checkpoint of this trial holds
+    views: list = field(default_factory=list)  # run_trial's views: a TrialResult or Diverged each
 
 
 @dataclass
@@ -175,23 +182,57 @@ def _setup_of(spec: TrialSpec) -> SimpleNamespace:
     return setup
 
 
-def run_trial(spec: TrialSpec, rng: np.random.Generator,
-              resume: Checkpoint | None = None) -> TrialResult:
+class _Scores:
+    """One evaluation setting's columns of a curve: its points (ev) and formula, the sampled path
+    targets of its L, and where it diverged."""
+
+    def __init__(self, ev: dict, n: int, unit_path):
+        self.ev, self.formula, self.unit_path = ev, ev["formula"], unit_path
+        self.abs, self.heldout, self.uniform, self.path = (np.empty(n) for _ in range(4))
+        self.diverged: Diverged | None = None
+
+    def score(self, k, hi, err, dist, unit_heldout):
+        """Column k (epoch hi) from its error and dist(points at size 1): distances, each set's
+        computed once for all settings."""
+        if not math.isfinite(err):
+            self.diverged = Diverged(hi, err)
+            return
+        d = dist(unit_heldout)  # the held-out set and its uniform part from one set of distances
+        self.abs[k] = err
+        self.heldout[k] = evaluation.error(d, self.formula)
+        self.uniform[k] = evaluation.error(d[-evaluation.HELDOUT_UNIFORM:], self.formula)
+        self.path[k] = evaluation.error(dist(self.unit_path), self.formula)
+
+
+def run_trial(spec: TrialSpec, rng: np.random.Generator, resume: Checkpoint | None = None,
+              views: tuple = ()) -> TrialResult:
     """One trial's learning curve (Diverged on a non-finite error); resume: continue from that
-    checkpoint, to the bit an uninterrupted run's result."""
+    checkpoint, to the bit an uninterrupted run's result. views: other evaluation settings
+    (spec.evaluation's fields) scored on the same learning, each result (or its Diverged) in
+    `views`, to the bit the trial with that evaluation would give alone (evaluation draws
+    nothing)."""
     setup = _setup_of(spec)
     body, growth, learner, params = setup.body, setup.growth, setup.learner, setup.params
-    ev, unit_heldout, cuts = setup.ev, setup.unit_heldout, setup.cuts
+    unit_heldout, cuts = setup.unit_heldout, setup.cuts
     evals, at = setup.evals.copy(), setup.at  # the result's own; the epochs as ints
-    abs_error, heldout, uniform, path, size = (np.empty(len(evals)) for _ in range(5))
+    if views and resume is not None:
+        raise ValueError("run_trial: views of a continuation are not kept")
+    steps = getattr(params, "steps", None)  # eq. 9's L of a learner that has one
+
+    scores = [_Scores(setup.ev, len(evals), setup.unit_path)]
+    for ev in map(check_evaluation, views):
+        same = steps is not None or ev["path_steps"] == setup.ev["path_steps"]
+        scores.append(_Scores(ev, len(evals), setup.unit_path if same else
+                              evaluation.path_targets(body, ev["path_steps"])))
+    mine, size = scores[0], np.empty(len(evals))
     k, snapshots, first = 0, {}, 0
     if resume is None:
         state = learner.init(params, body, setup.size_one, rng)
     else:
         k, rows, snapshots = _resume(spec, resume, evals, rng)
         state, first, done = resume.state, resume.epoch, resume.result
-        for to, part in ((abs_error, done.abs_error), (heldout, done.heldout_abs_error),
-                         (uniform, done.uniform_abs_error), (path, done.path_abs_error),
+        for to, part in ((mine.abs, done.abs_error), (mine.heldout, done.heldout_abs_error),
+                         (mine.uniform, done.uniform_abs_error), (mine.path, done.path_abs_error),
                          (size, done.size)):
             to[:k] = np.asarray(part)[rows]
     # sizes and scales per block, so memory does not grow with the epochs (elementwise: the
@@ -213,23 +254,26 @@ def run_trial(spec: TrialSpec, rng: np.random.Generator,
                 snapshots[hi] = learner.model(state)
             if k < len(at) and hi == at[k]:
                 now, scale = sizes[hi - 1 - start], scales[hi - 1 - start]
-                err = evaluation.evaluate(learner, state, params, body, now, scale, **ev)
-                if not math.isfinite(err):
-                    raise Diverged(hi, err)
-                abs_error[k], size[k] = err, now
-                # the held-out set and its uniform part from one set of distances
-                d = evaluation.point_distances(learner, state, params, body, scale,
-                                               unit_heldout * now)
-                heldout[k] = evaluation.error(d, ev["formula"])
-                uniform[k] = evaluation.error(d[-evaluation.HELDOUT_UNIFORM:], ev["formula"])
-                path[k] = evaluation.error(evaluation.point_distances(
-                    learner, state, params, body, scale, setup.unit_path * now), ev["formula"])
+                size[k], found = now, {}
+
+                def dist(unit):
+                    if id(unit) not in found:
+                        found[id(unit)] = evaluation.point_distances(
+                            learner, state, params, body, scale, unit * now)
+                    return found[id(unit)]
+                for s in scores:
+                    if s.diverged is None:
+                        err = evaluation.evaluate(learner, state, params, body, now, scale, **s.ev)
+                        s.score(k, hi, err, dist, unit_heldout)
+                if mine.diverged is not None:
+                    raise mine.diverged
                 k += 1
     jump = evaluation.largest_jump(lambda x: learner.predict(state, params, body, x), body,
                                    sizes[-1])
-    return TrialResult(epoch=evals, size=size, abs_error=abs_error, rel_error=abs_error / size,
-                       M=learner.model(state), snapshots=snapshots,
-                       samples_per_epoch=learner.samples_per_epoch(params, body),
-                       largest_jump=jump, heldout_abs_error=heldout,
-                       uniform_abs_error=uniform, path_abs_error=path, state=state,
-                       rng=rng.bit_generator.state)
+    results = [s.diverged or TrialResult(
+        epoch=evals, size=size, abs_error=s.abs, rel_error=s.abs / size, M=learner.model(state),
+        snapshots=snapshots, samples_per_epoch=learner.samples_per_epoch(params, body),
+        largest_jump=jump, heldout_abs_error=s.heldout, uniform_abs_error=s.uniform,
+        path_abs_error=s.path, state=state, rng=rng.bit_generator.state) for s in scores]
+    results[0].views = results[1:]
+    return results[0]

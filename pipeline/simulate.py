@@ -22,6 +22,7 @@ from . import cache, checkpoint, cli, engines, execute, io
 from .check import keeps_experiment
 from .config import CONFIG_PATH, check_run
 from .fingerprint import code_fingerprint
+from .keys import canonical
 from .plan import cost, plan, plan_conditions
 from .planned import PLANNED, misplanned, plan_digest
 from .progress import Progress, estimate
@@ -218,16 +219,19 @@ def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = Non
         claims[t["key"]].release()
         mine.remove(t)
         summary.cached += 1
+    mine, views = with_views(mine)
+    costs.update(dict.fromkeys(views, 0.0))
     workers = 1 if execute.in_launcher_worker() else min(cfg.workers, max(len(mine), 1))
-    log.info("[%s] %d trials: %d cached, %d to run on %d worker(s)%s", figure, len(trials),
-             summary.cached, len(mine), workers,
+    log.info("[%s] %d trials: %d cached, %d to run on %d worker(s)%s%s", figure, len(trials),
+             summary.cached, len(mine) + len(views), workers,
+             f" ({len(views)} scored on another's learning)" if views else "",
              f", {len(elsewhere)} being computed by another run" if elsewhere else "")
     progress = Progress(summary, todo, cost=lambda t: costs[t["key"]])
     ahead = estimate(mine, workers, progress.costs)  # a long run says what it costs first
     if ahead:
         print(f"[{figure}] {ahead}", file=sys.stderr, flush=True)
     try:
-        run_mine(cfg, mine, claims, summary, progress)
+        run_mine(cfg, mine, claims, summary, progress, views)
         wait_for(elsewhere, cache_dir, claims, summary, progress)
     finally:
         progress.close()
@@ -267,9 +271,30 @@ def to_run(cache_dir, trials: list[dict]) -> tuple[list[dict], dict]:
     return todo, diverged
 
 
+def with_views(trials: list[dict]) -> tuple[list[dict], dict]:
+    """(the trials to run, key -> trial of the views): trials that differ in their evaluation
+    alone learn once, in the first of them, which scores the others' settings too (`views`:
+    gbmodel.run_trial's; each cached under its own key, the same bytes)."""
+    groups, views = {}, {}
+    for t in trials:  # a continuation or its base runs on its own
+        alone = "base" in t or t.get("keep_state")
+        learning = t["key"] if alone else canonical(
+            [{**t["spec"], "evaluation": None}, t["seed"], t["code"]])
+        groups.setdefault(learning, []).append(t)
+    out = []
+    for lead, *rest in groups.values():
+        if rest:
+            views.update((t["key"], t) for t in rest)
+            lead = {**lead, "views": [dict(key=t["key"], evaluation=t["spec"]["evaluation"])
+                                      for t in rest]}
+        out.append(lead)
+    return out, views
+
+
 def run_mine(cfg: DictConfig, mine: list[dict], claims: dict, summary: Summary,
-             progress: Progress) -> None:
-    """The claimed trials on the engine; continuations after the others (their bases first)."""
+             progress: Progress, views: dict | None = None) -> None:
+    """The claimed trials on the engine; continuations after the others (their bases first);
+    views: key -> trial scored by a trial of `mine` (with_views)."""
     cache_dir = Path(cfg.paths.cache)
     for wave in ([t for t in mine if "base" not in t], [t for t in mine if "base" in t]):
         ready = []
@@ -285,9 +310,21 @@ def run_mine(cfg: DictConfig, mine: list[dict], claims: dict, summary: Summary,
                 OmegaConf.to_container(cfg.engine), ready, cfg.workers, execute.run_one,
                 logs=Path(cfg.paths.out) / "logs" / "submitit", warm_up=execute.warm_up,
                 pool=execute.local, cost=cost):
-            record(cache_dir, trial, result, summary)
-            claims[trial["key"]].release()
-            progress.update(trial, result)
+            for t, r in [(trial, result), *_viewed(trial, result, views)]:
+                record(cache_dir, t, r, summary)
+                claims[t["key"]].release()
+                progress.update(t, r)
+
+
+def _viewed(trial: dict, result: dict, views: dict | None) -> list[tuple[dict, dict]]:
+    """(view trial, its result) of each view a finished trial scored; failed with it."""
+    out = []
+    for v in trial.get("views", ()):
+        r = result.get("views", {}).get(v["key"]) or dict(
+            status="failed", key=v["key"], seconds=0.0, error=f"not scored: the trial learning "
+            f"for it {result['status']} ({result.get('error')})")
+        out.append((views[v["key"]], r))
+    return out
 
 
 def wait_for(elsewhere: list[dict], cache_dir, claims: dict, summary: Summary,

@@ -31,22 +31,45 @@ def run_one(trial: dict) -> dict:
         resume = trial.get("resume")  # a continuation's only (a stand-in run_trial takes none)
         learner = trial["spec"]["learner"]["name"]
         extra = {} if resume is None else {"resume": checkpoint.checkpoint(resume, learner)}
+        views = trial.get("views", ())  # trials that differ in their evaluation alone
+        if views:
+            extra["views"] = tuple(v["evaluation"] for v in views)
         res = recovering(lambda: gbmodel.run_trial(spec, np.random.default_rng(seed), **extra))
         code_fingerprint(trial["spec"]["learner"]["name"])  # what it imported was hashed
-        out = dict(status="ok", epoch=res.epoch, samples=res.epoch * res.samples_per_epoch,
-                   size=res.size, abs_error=res.abs_error, rel_error=res.rel_error, M=res.M,
-                   heldout_abs_error=res.heldout_abs_error,
-                   uniform_abs_error=res.uniform_abs_error, path_abs_error=res.path_abs_error,
-                   snapshots=res.snapshots, largest_jump=res.largest_jump,
-                   final=checkpoint.final_state(res) if trial.get("keep_state") else None)
+        out = _result(res, checkpoint.final_state(res) if trial.get("keep_state") else None)
+        if views:  # each view's result, its CPU counted in this trial's
+            out["views"] = {v["key"]: dict(_result(r), key=v["key"], seconds=0.0, cpu=0.0)
+                            for v, r in zip(views, res.views)}
     except gbmodel.Diverged as err:
         out = dict(status="diverged", error=str(err), epoch=err.epoch)
+        if trial.get("views"):  # the views' learning stopped here: each runs on its own
+            out["views"] = {v["key"]: dict(run_one(view(trial, v)), cpu=0.0)
+                            for v in trial["views"]}
     except Exception as err:  # recorded and reported; the other trials go on
         out = dict(status="failed", error=f"{type(err).__name__}: {err}",
                    traceback=traceback.format_exc())
     out["key"], out["seconds"] = trial["key"], time.perf_counter() - start
     out["cpu"] = time.process_time() - cpu  # this worker's CPU seconds (one thread)
     return out
+
+
+def _result(res, final=None) -> dict:
+    """A TrialResult (or a Diverged) as the plain data the driver caches."""
+    import gbmodel
+
+    if isinstance(res, gbmodel.Diverged):
+        return dict(status="diverged", error=str(res), epoch=res.epoch)
+    return dict(status="ok", epoch=res.epoch, samples=res.epoch * res.samples_per_epoch,
+                size=res.size, abs_error=res.abs_error, rel_error=res.rel_error, M=res.M,
+                heldout_abs_error=res.heldout_abs_error, uniform_abs_error=res.uniform_abs_error,
+                path_abs_error=res.path_abs_error, snapshots=res.snapshots,
+                largest_jump=res.largest_jump, final=final)
+
+
+def view(trial: dict, v: dict) -> dict:
+    """The trial a view of `trial` stands for: its key, its evaluation, the same learning."""
+    return {**{k: x for k, x in trial.items() if k not in ("views", "keep_state")},
+            "key": v["key"], "spec": {**trial["spec"], "evaluation": v["evaluation"]}}
 
 
 def run_batch(fn, trials: list[dict]) -> list[dict]:

@@ -4,11 +4,12 @@ that hold it share its trials, and the cache runs them once (issue 43 item 2).""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pandas as pd
 import pytest
 
-from pipeline import aggregate, simulate
+from pipeline import aggregate, cache, simulate
 from pipeline.config import compose
 from pipeline.plan import plan
 
@@ -82,3 +83,35 @@ def test_a_trial_two_experiments_share_is_run_once(tiny):
     full = [c[c["condition"] == "const1.0"].sort_values(["trial", "epoch"])
             for c in curves.values()]
     assert len(full[0]) and full[0]["abs_error"].tolist() == full[1]["abs_error"].tolist()
+
+
+def _sidecars(cfg) -> dict:
+    return {p.stem: json.loads(p.read_bytes())
+            for p in (Path(cfg.paths.cache) / "trials").glob("*/*.json")}
+
+
+def test_trials_that_differ_in_their_evaluation_alone_learn_once(tmp_path):
+    """Issue 57 item 3: a variant that changes the evaluation alone is scored on its default's
+    learning (pipeline.simulate.with_views), each trial cached under its own key with the bytes
+    it has when run alone; its CPU is counted in the trial that learned for it."""
+    base = ["profile=smoke", "learner.epochs=300", "trials.count=2", "workers=1",
+            "growth=proportional", "growth.period=100"]
+    settings = [{}, dict(points="path", path_steps=4), dict(formula="rms")]
+    variants = ",".join(f"{{label:v{i},choice:evaluation,set:[%s]}}" % ",".join(
+        f"'evaluation.{k}={v}'" for k, v in s.items()) for i, s in enumerate(settings))
+    cfg = compose([*base, f"paths.root={tmp_path / 'together'}", "figure=views",
+                   f"conditions.variants=[{variants}]"])
+    together = simulate.simulate(cfg)
+    n = len(plan(cfg))
+    assert (together.total, together.ran, together.failed) == (n, n, {})
+    shared = _sidecars(cfg)
+    assert len(shared) == n
+    apart = {}
+    for i, s in enumerate(settings):  # each setting in a run of its own: no views
+        c = compose([*base, f"paths.root={tmp_path / str(i)}", "figure=views",
+                     *[f"evaluation.{k}={v}" for k, v in s.items()]])
+        assert simulate.simulate(c).ran == n // 3
+        apart.update(_sidecars(c))
+    assert apart == shared  # the same keys, curves (their sha256), models and jumps
+    times = cache.read_times(cfg.paths.out)
+    assert sorted(times.values()).count(0.0) == 2 * n // 3  # the views'
