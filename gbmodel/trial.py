@@ -28,15 +28,6 @@ class Diverged(ArithmeticError):
         self.epoch = epoch
 
 
-def check_evaluation(settings: dict) -> dict:
-    """The evaluation settings with their defaults, SpecError naming a bad one."""
-    ev = {**evaluation.DEFAULTS, **settings}
-    check_choice("evaluation.points", ev["points"], evaluation.POINTS)
-    check_choice("evaluation.formula", ev["formula"], evaluation.FORMULAS)
-    check_int("evaluation.path_steps", ev["path_steps"], 1)
-    return ev
-
-
 @dataclass(frozen=True)
 class TrialSpec:
     """Everything one trial depends on, as plain data mirroring the config's sections (body: a
@@ -81,7 +72,10 @@ class TrialSpec:
                             "set learner.fast=false")
         check_epochs("learner.epochs", self.epochs)
         check_int("learner.evals_per_decade", self.evals_per_decade, 1)
-        check_evaluation(self.evaluation)
+        ev = {**evaluation.DEFAULTS, **self.evaluation}
+        check_choice("evaluation.points", ev["points"], evaluation.POINTS)
+        check_choice("evaluation.formula", ev["formula"], evaluation.FORMULAS)
+        check_int("evaluation.path_steps", ev["path_steps"], 1)
         for e in self.snapshots:
             if not 1 <= e <= self.epochs:
                 raise SpecError("snapshots", e, f"outside the epochs 1 ... {self.epochs}")
@@ -182,65 +176,94 @@ def _setup_of(spec: TrialSpec) -> SimpleNamespace:
     return setup
 
 
-class _Scores:
-    """One evaluation setting's columns of a curve: its points (ev) and formula, the sampled path
-    targets of its L, and where it diverged."""
+class _Curve:
+    """The curve of one trial a run scores (its own, or a view's): its evaluation epochs, points
+    and formula (its set-up's), snapshots, columns, and where it diverged or ended."""
 
-    def __init__(self, ev: dict, n: int, unit_path):
-        self.ev, self.formula, self.unit_path = ev, ev["formula"], unit_path
-        self.abs, self.heldout, self.uniform, self.path = (np.empty(n) for _ in range(4))
-        self.diverged: Diverged | None = None
+    def __init__(self, spec: TrialSpec, setup):
+        self.epochs, self.snaps, self.ev, self.formula = (spec.epochs, set(spec.snapshots),
+                                                          setup.ev, setup.ev["formula"])
+        self.evals, self.at, self.unit_path = setup.evals.copy(), setup.at, setup.unit_path
+        self.abs, self.heldout, self.uniform, self.path, self.size = (
+            np.empty(len(self.evals)) for _ in range(5))
+        self.k, self.snapshots, self.diverged, self.result = 0, {}, None, None
 
-    def score(self, k, hi, err, dist, unit_heldout):
-        """Column k (epoch hi) from its error and dist(points at size 1): distances, each set's
-        computed once for all settings."""
-        if not math.isfinite(err):
-            self.diverged = Diverged(hi, err)
-            return
-        d = dist(unit_heldout)  # the held-out set and its uniform part from one set of distances
-        self.abs[k] = err
-        self.heldout[k] = evaluation.error(d, self.formula)
-        self.uniform[k] = evaluation.error(d[-evaluation.HELDOUT_UNIFORM:], self.formula)
-        self.path[k] = evaluation.error(dist(self.unit_path), self.formula)
+    def after(self, hi, now, scale, state, run, dist) -> None:
+        """After epoch hi (the body at size `now`, factors `scale`; run: the set-up): the
+        snapshot and the evaluation this curve takes there; dist(unit): the distances of a
+        point set at size 1, each set's computed once for all curves."""
+        if hi in self.snaps:
+            self.snapshots[hi] = run.learner.model(state)
+        if self.k < len(self.at) and hi == self.at[self.k]:
+            err = evaluation.evaluate(run.learner, state, run.params, run.body, now, scale,
+                                      **self.ev)
+            if not math.isfinite(err):
+                self.diverged = Diverged(hi, err)
+                return
+            d = dist(run.unit_heldout)  # the held-out set and its uniform part: one set of distances
+            k, f = self.k, self.formula
+            self.abs[k], self.size[k] = err, now
+            self.heldout[k] = evaluation.error(d, f)
+            self.uniform[k] = evaluation.error(d[-evaluation.HELDOUT_UNIFORM:], f)
+            self.path[k] = evaluation.error(dist(self.unit_path), f)
+            self.k += 1
+
+    def finish(self, state, run, size, rng) -> TrialResult:
+        jump = evaluation.largest_jump(
+            lambda x: run.learner.predict(state, run.params, run.body, x), run.body, size)
+        return TrialResult(
+            epoch=self.evals, size=self.size, abs_error=self.abs, rel_error=self.abs / self.size,
+            M=run.learner.model(state), snapshots=self.snapshots,
+            samples_per_epoch=run.learner.samples_per_epoch(run.params, run.body),
+            largest_jump=jump, heldout_abs_error=self.heldout, uniform_abs_error=self.uniform,
+            path_abs_error=self.path, state=state, rng=rng.bit_generator.state)
+
+
+LEARNING = ("body", "growth", "learner")  # what a view shares with its trial
+
+
+def _view_curves(spec: TrialSpec, views: tuple) -> list[_Curve]:
+    """A curve per view: a spec whose learning is `spec`'s first epochs (ValueError if not)."""
+    out = []
+    for v in views:
+        if any(getattr(v, f) != getattr(spec, f) for f in LEARNING) or v.epochs > spec.epochs \
+                or (v.epochs < spec.epochs and v.epochs % DRAW_BLOCK):
+            raise ValueError(f"run_trial: a view shares the trial's {', '.join(LEARNING)} and its "
+                             f"first epochs, a multiple of {DRAW_BLOCK} (the draw block) or all")
+        out.append(_Curve(v, _setup_of(v)))
+    return out
 
 
 def run_trial(spec: TrialSpec, rng: np.random.Generator, resume: Checkpoint | None = None,
               views: tuple = ()) -> TrialResult:
     """One trial's learning curve (Diverged on a non-finite error); resume: continue from that
-    checkpoint, to the bit an uninterrupted run's result. views: other evaluation settings
-    (spec.evaluation's fields) scored on the same learning, each result (or its Diverged) in
-    `views`, to the bit the trial with that evaluation would give alone (evaluation draws
-    nothing)."""
-    setup = _setup_of(spec)
-    body, growth, learner, params = setup.body, setup.growth, setup.learner, setup.params
-    unit_heldout, cuts = setup.unit_heldout, setup.cuts
-    evals, at = setup.evals.copy(), setup.at  # the result's own; the epochs as ints
+    checkpoint, to the bit an uninterrupted run's result. views: TrialSpecs whose learning is
+    this one's (the same body, growth and learner, their epochs its first), each scored on the
+    way (another evaluation, fewer epochs), its result (or Diverged) in `views`, to the bit
+    run_trial's of it alone (evaluation draws nothing; the draws come per block); no state."""
+    run = _setup_of(spec)
+    body, growth, learner, params = run.body, run.growth, run.learner, run.params
     if views and resume is not None:
-        raise ValueError("run_trial: views of a continuation are not kept")
-    steps = getattr(params, "steps", None)  # eq. 9's L of a learner that has one
-
-    scores = [_Scores(setup.ev, len(evals), setup.unit_path)]
-    for ev in map(check_evaluation, views):
-        same = steps is not None or ev["path_steps"] == setup.ev["path_steps"]
-        scores.append(_Scores(ev, len(evals), setup.unit_path if same else
-                              evaluation.path_targets(body, ev["path_steps"])))
-    mine, size = scores[0], np.empty(len(evals))
-    k, snapshots, first = 0, {}, 0
+        raise ValueError("run_trial: a continuation has no views")
+    mine, others = _Curve(spec, run), _view_curves(spec, views)
+    curves = [mine, *others]
+    cuts = run.cuts.union(*(set(c.at) | c.snaps for c in others))
+    first = 0
     if resume is None:
-        state = learner.init(params, body, setup.size_one, rng)
+        state = learner.init(params, body, run.size_one, rng)
     else:
-        k, rows, snapshots = _resume(spec, resume, evals, rng)
+        mine.k, rows, mine.snapshots = _resume(spec, resume, mine.evals, rng)
         state, first, done = resume.state, resume.epoch, resume.result
         for to, part in ((mine.abs, done.abs_error), (mine.heldout, done.heldout_abs_error),
                          (mine.uniform, done.uniform_abs_error), (mine.path, done.path_abs_error),
-                         (size, done.size)):
-            to[:k] = np.asarray(part)[rows]
+                         (mine.size, done.size)):
+            to[:mine.k] = np.asarray(part)[rows]
     # sizes and scales per block, so memory does not grow with the epochs (elementwise: the
     # same bytes as from the whole array)
     for start in range(first, spec.epochs, DRAW_BLOCK):  # epochs start+1 ... stop
         stop = min(start + DRAW_BLOCK, spec.epochs)
         if start == 0:  # the set-up's, copied: a learner may not share them with other trials
-            sizes, scales = setup.sizes.copy(), setup.scales.copy()
+            sizes, scales = run.sizes.copy(), run.scales.copy()
         else:
             sizes = growth.sizes(np.arange(start + 1, stop + 1), body)  # of epochs start+1 ... stop
             scales = growth.scales(body, sizes)
@@ -250,30 +273,21 @@ def run_trial(spec: TrialSpec, rng: np.random.Generator, resume: Checkpoint | No
             part = tuple(d[lo - start:hi - start] for d in draws)
             state = learner.train(state, params, body, sizes[lo - start:hi - start],
                                   scales[lo - start:hi - start], part, np.arange(lo + 1, hi + 1))
-            if hi in spec.snapshots:
-                snapshots[hi] = learner.model(state)
-            if k < len(at) and hi == at[k]:
-                now, scale = sizes[hi - 1 - start], scales[hi - 1 - start]
-                size[k], found = now, {}
+            now, scale, found = sizes[hi - 1 - start], scales[hi - 1 - start], {}
 
-                def dist(unit):
-                    if id(unit) not in found:
-                        found[id(unit)] = evaluation.point_distances(
-                            learner, state, params, body, scale, unit * now)
-                    return found[id(unit)]
-                for s in scores:
-                    if s.diverged is None:
-                        err = evaluation.evaluate(learner, state, params, body, now, scale, **s.ev)
-                        s.score(k, hi, err, dist, unit_heldout)
-                if mine.diverged is not None:
-                    raise mine.diverged
-                k += 1
-    jump = evaluation.largest_jump(lambda x: learner.predict(state, params, body, x), body,
-                                   sizes[-1])
-    results = [s.diverged or TrialResult(
-        epoch=evals, size=size, abs_error=s.abs, rel_error=s.abs / size, M=learner.model(state),
-        snapshots=snapshots, samples_per_epoch=learner.samples_per_epoch(params, body),
-        largest_jump=jump, heldout_abs_error=s.heldout, uniform_abs_error=s.uniform,
-        path_abs_error=s.path, state=state, rng=rng.bit_generator.state) for s in scores]
-    results[0].views = results[1:]
-    return results[0]
+            def dist(unit):
+                if id(unit) not in found:
+                    found[id(unit)] = evaluation.point_distances(learner, state, params, body,
+                                                                 scale, unit * now)
+                return found[id(unit)]
+            for c in curves:
+                if c.diverged is None and c.result is None:
+                    c.after(hi, now, scale, state, run, dist)
+                    if c is not mine and hi == c.epochs and c.diverged is None:
+                        c.result = c.finish(state, run, now, rng)
+                        c.result.state = None
+            if mine.diverged is not None:
+                raise mine.diverged
+    result = mine.finish(state, run, sizes[-1], rng)
+    result.views = [c.diverged or c.result for c in others]
+    return result

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import gbmodel
 import gbmodel.bodies
+import gbmodel.trial
 import hydra
 from omegaconf import DictConfig, OmegaConf
 
@@ -221,6 +222,7 @@ def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = Non
         summary.cached += 1
     mine, views = with_views(mine)
     costs.update(dict.fromkeys(views, 0.0))
+    mine.sort(key=lambda t: costs[t["key"]], reverse=True)
     workers = 1 if execute.in_launcher_worker() else min(cfg.workers, max(len(mine), 1))
     log.info("[%s] %d trials: %d cached, %d to run on %d worker(s)%s%s", figure, len(trials),
              summary.cached, len(mine) + len(views), workers,
@@ -272,22 +274,27 @@ def to_run(cache_dir, trials: list[dict]) -> tuple[list[dict], dict]:
 
 
 def with_views(trials: list[dict]) -> tuple[list[dict], dict]:
-    """(the trials to run, key -> trial of the views): trials that differ in their evaluation
-    alone learn once, in the first of them, which scores the others' settings too (`views`:
-    gbmodel.run_trial's; each cached under its own key, the same bytes)."""
-    groups, views = {}, {}
+    """(the trials to run, key -> trial of the views): a trial whose learning is the first
+    epochs of another's (the same body, growth, learner and seed; another evaluation, fewer
+    epochs: a multiple of the draw block) is scored by that run on the way (gbmodel.run_trial's
+    views), cached under its own key with the bytes it has alone."""
+    groups, views, out = {}, {}, []
     for t in trials:  # a continuation or its base runs on its own
         alone = "base" in t or t.get("keep_state")
         learning = t["key"] if alone else canonical(
-            [{**t["spec"], "evaluation": None}, t["seed"], t["code"]])
+            [{k: t["spec"][k] for k in gbmodel.trial.LEARNING}, t["seed"], t["code"]])
         groups.setdefault(learning, []).append(t)
-    out = []
-    for lead, *rest in groups.values():
-        if rest:
+    for group in groups.values():
+        while group:
+            lead = max(group, key=lambda t: t["spec"]["epochs"])
+            rest = [t for t in group if t is not lead and (
+                t["spec"]["epochs"] == lead["spec"]["epochs"]
+                or t["spec"]["epochs"] % gbmodel.trial.DRAW_BLOCK == 0)]
+            taken = {id(lead), *map(id, rest)}
+            group = [t for t in group if id(t) not in taken]
             views.update((t["key"], t) for t in rest)
-            lead = {**lead, "views": [dict(key=t["key"], evaluation=t["spec"]["evaluation"])
-                                      for t in rest]}
-        out.append(lead)
+            out.append({**lead, "views": [dict(key=t["key"], spec=t["spec"]) for t in rest]}
+                       if rest else lead)
     return out, views
 
 

@@ -31,9 +31,9 @@ def run_one(trial: dict) -> dict:
         resume = trial.get("resume")  # a continuation's only (a stand-in run_trial takes none)
         learner = trial["spec"]["learner"]["name"]
         extra = {} if resume is None else {"resume": checkpoint.checkpoint(resume, learner)}
-        views = trial.get("views", ())  # trials that differ in their evaluation alone
+        views = trial.get("views", ())  # trials whose learning is this one's first epochs
         if views:
-            extra["views"] = tuple(v["evaluation"] for v in views)
+            extra["views"] = tuple(gbmodel.TrialSpec.from_dict(v["spec"]) for v in views)
         res = recovering(lambda: gbmodel.run_trial(spec, np.random.default_rng(seed), **extra))
         code_fingerprint(trial["spec"]["learner"]["name"])  # what it imported was hashed
         out = _result(res, checkpoint.final_state(res) if trial.get("keep_state") else None)
@@ -67,9 +67,8 @@ def _result(res, final=None) -> dict:
 
 
 def view(trial: dict, v: dict) -> dict:
-    """The trial a view of `trial` stands for: its key, its evaluation, the same learning."""
-    return {**{k: x for k, x in trial.items() if k not in ("views", "keep_state")},
-            "key": v["key"], "spec": {**trial["spec"], "evaluation": v["evaluation"]}}
+    """The trial a view of `trial` stands for (its key and spec), run on its own."""
+    return {**{k: x for k, x in trial.items() if k not in ("views", "keep_state")}, **v}
 
 
 def run_batch(fn, trials: list[dict]) -> list[dict]:

@@ -57,24 +57,32 @@ def test_sizes_and_scales_per_block_are_the_bytes_of_the_whole_run(growth):
         assert g.scales(body, part).tobytes() == whole_scales[start:stop].tobytes()
 
 
-@pytest.mark.parametrize("learner", [{"name": "goal_babbling"}, {"name": "motor_babbling"}])
-def test_views_are_the_bytes_of_each_evaluation_run_alone(learner):
-    """run_trial's views: other evaluation settings scored on the same learning give, field by
-    field, what the trial with that evaluation gives alone; a view that would diverge alone is
-    its Diverged, and the trial itself is unchanged by its views."""
-    spec = gbmodel.TrialSpec(learner=learner, epochs=300, growth=dict(
-        pattern="proportional", start_size=0.4, end_size=1.0, period=150))
-    views = ({"points": "path", "path_steps": 4}, {"formula": "rms"},
-             {"points": "centres", "formula": "mean_squared", "path_steps": 3})
+@pytest.mark.parametrize("learner", [{"name": "goal_babbling"}, {"name": "motor_babbling"},
+                                     {"name": "goal_babbling", "solver": "lstsq"}])
+def test_views_are_the_bytes_of_each_trial_run_alone(learner):
+    """run_trial's views: trials whose learning is this one's first epochs (another evaluation,
+    fewer epochs, other snapshots) give, field by field, what each gives alone; the trial itself
+    is unchanged by its views."""
+    spec = gbmodel.TrialSpec(learner=learner, epochs=2300, evals_per_decade=5, growth=dict(
+        pattern="proportional", start_size=0.4, end_size=1.0, period=1500))
+    views = [dict(evaluation={"points": "path", "path_steps": 4}), dict(
+        evaluation={"formula": "rms"}, snapshots=(7, 2300)), dict(epochs=1000, snapshots=(5,)),
+        dict(epochs=2000, evals_per_decade=20, evaluation={"points": "centres", "path_steps": 3,
+                                                            "formula": "mean_squared"})]
+    views = tuple(gbmodel.TrialSpec(**{**vars(spec), **v}) for v in views)
     res = gbmodel.run_trial(spec, np.random.default_rng(3), views=views)
     fields = ("epoch", "size", "abs_error", "rel_error", "heldout_abs_error",
               "uniform_abs_error", "path_abs_error", "M", "samples_per_epoch", "largest_jump")
-    for ev, got in zip(((), *views), (res, *res.views)):
-        alone = gbmodel.run_trial(gbmodel.TrialSpec(**{**vars(spec), "evaluation": dict(ev)}),
-                                  np.random.default_rng(3))
+    for one, got in zip((spec, *views), (res, *res.views)):
+        alone = gbmodel.run_trial(one, np.random.default_rng(3))
         for f in fields:
-            assert np.array_equal(getattr(alone, f), getattr(got, f)), (ev, f)
-    assert len({r.abs_error[-1] for r in (res, *res.views)}) == 4  # four other numbers
+            assert np.array_equal(getattr(alone, f), getattr(got, f)), (one, f)
+        assert got.snapshots.keys() == alone.snapshots.keys()
+        assert all(np.array_equal(alone.snapshots[e], got.snapshots[e]) for e in got.snapshots)
+    assert len({r.abs_error[-1] for r in (res, *res.views)}) == 5  # five other numbers
+    with pytest.raises(ValueError, match="first epochs"):  # 1500 epochs: not a whole block
+        gbmodel.run_trial(spec, np.random.default_rng(3), views=(
+            gbmodel.TrialSpec(**{**vars(spec), "epochs": 1500}),))
 
 
 def test_a_view_diverges_on_its_own_and_the_trial_goes_on(monkeypatch):
@@ -84,8 +92,10 @@ def test_a_view_diverges_on_its_own_and_the_trial_goes_on(monkeypatch):
     def error(d, formula="mean"):  # the rms view's error is not finite
         return float("inf") if formula == "rms" else real(d, formula)
     monkeypatch.setattr(gbmodel.evaluation, "error", error)
-    res = gbmodel.run_trial(spec, np.random.default_rng(0), views=({"formula": "rms"},))
+    view = gbmodel.TrialSpec(epochs=50, evaluation={"formula": "rms"})
+    res = gbmodel.run_trial(spec, np.random.default_rng(0), views=(view,))
     assert isinstance(res.views[0], gbmodel.Diverged) and res.views[0].epoch == 1
     assert np.isfinite(res.abs_error).all()
     with pytest.raises(gbmodel.SpecError, match="evaluation.points"):
-        gbmodel.run_trial(spec, np.random.default_rng(0), views=({"points": "nowhere"},))
+        gbmodel.run_trial(spec, np.random.default_rng(0), views=(
+            gbmodel.TrialSpec(epochs=50, evaluation={"points": "nowhere"}),))
