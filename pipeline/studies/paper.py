@@ -381,10 +381,9 @@ def animation_part(ctx: Context, p: Paper) -> list[str]:
 
 def conventions_part(ctx: Context, p: Paper) -> list[str]:
     """The reporting conventions: the measured effect of each alternative on the paper's figures."""
-    cfg = ctx.cfg
-    table = conventions.table(
-        p.aggs, conventions.read_trials(cfg.paths.aggregate, p.aggs), cfg.aggregate.fail_factor,
-        OmegaConf.to_container(cfg.report.postures))
+    trials = {k: a["trials"] for k, a in p.aggs.items() if "trials" in a}
+    table = conventions.table(p.aggs, trials, ctx.cfg.aggregate.fail_factor,
+                              OmegaConf.to_container(ctx.cfg.report.postures))
     if not len(table):
         return []
     ctx.text("conventions.csv", table.to_csv(index=False, float_format="%.6g"))
