@@ -94,7 +94,7 @@ def up_to_date(out: Path, digest: str) -> bool:
         return False
 
 
-def scale_mismatches(cfg: DictConfig, aggs: dict, experiments) -> list[str]:
+def scale_mismatches(aggs: dict, experiments) -> list[str]:
     """A line per experiment whose figure does not hold exactly its full-scale plan's trials."""
     from .config import compose
     from .plan import plan
@@ -113,7 +113,7 @@ def scale_mismatches(cfg: DictConfig, aggs: dict, experiments) -> list[str]:
 
 def check_published_scale(cfg: DictConfig, aggs: dict) -> None:
     """A ConfigError unless every report.paper_experiments is at full scale."""
-    bad = scale_mismatches(cfg, aggs, cfg.report.paper_experiments)
+    bad = scale_mismatches(aggs, cfg.report.paper_experiments)
     if bad:
         raise ConfigError(
             f"report.publish=true: {bad[0]}; the committed report is written only by make "
@@ -130,7 +130,7 @@ def report_title(cfg: DictConfig, aggs: dict) -> str:
     if not declared:
         return f"Experiment {names}"
     experiments = [e for e in cfg.report.paper_experiments if e in declared]
-    if len(experiments) == len(declared) and not scale_mismatches(cfg, aggs, experiments):
+    if len(experiments) == len(declared) and not scale_mismatches(aggs, experiments):
         return "Reproduction of Rolf, Steil & Gienger (2010): Goal Babbling on growing bodies"
     return f"Paper experiments at a custom scale (not the paper's): {names}"
 

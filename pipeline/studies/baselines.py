@@ -39,9 +39,11 @@ IDENTICAL = {
 }
 
 
-def parse(label: str) -> tuple[str, str, str]:
-    """(learner, budget, schedule) of a variant label."""
-    return tuple(label.rsplit(", ", 2))
+def cell(variant: str, growth: str) -> dict:
+    """learner, budget and growth ("no growth" for a summary's growth "none") of a variant."""
+    learner, budget, schedule = variant.rsplit(", ", 2)
+    return dict(learner=learner, budget=budget,
+                growth="no growth" if growth == "none" else schedule)
 
 
 def interval(mean: float, std: float, n: int) -> tuple[float, float]:
@@ -96,10 +98,8 @@ def per_trial(aggs: dict) -> pd.DataFrame:
         models = agg.get("models", {}).get("conditions", {})
         for r in finals(agg["trials"]).itertuples():
             c = labels.loc[r.condition]
-            learner, budget, schedule = parse(c.variant)
             model = models.get(r.condition, {}).get("trials", {}).get(str(r.trial), {})
-            rows.append(dict(body=c.body, learner=learner, budget=budget,
-                             growth="no growth" if c.growth == "none" else schedule,
+            rows.append(dict(body=c.body, **cell(c.variant, c.growth),
                              trial=int(r.trial), heldout_mm=1e3 * r.heldout_abs_error,
                              largest_jump=float(model.get("largest_jump", np.nan))))
     return pd.DataFrame(rows, columns=["body", "learner", "budget", "growth", "trial",
@@ -195,12 +195,10 @@ def table(aggs: dict) -> pd.DataFrame:
     rows = []
     for study in (s for s in of_study("baselines") if s in aggs):
         for r in aggs[study]["summary"].itertuples():
-            learner, budget, schedule = parse(r.variant)
             lo, hi = interval(r.final_heldout_abs_error_mean, r.final_heldout_abs_error_std,
                               r.n_trials)
-            rows.append(dict(body=r.body, learner=learner, budget=budget,
-                             growth="no growth" if r.growth == "none" else schedule,
-                             samples=r.final_samples, trials=r.n_trials, diverged=r.n_diverged,
+            rows.append(dict(body=r.body, **cell(r.variant, r.growth), samples=r.final_samples,
+                             trials=r.n_trials, diverged=r.n_diverged,
                              grid_mm=1e3 * r.final_abs_error_mean,
                              heldout_mm=1e3 * r.final_heldout_abs_error_mean,
                              heldout_std_mm=1e3 * r.final_heldout_abs_error_std,
@@ -381,13 +379,13 @@ def figure(aggs: dict, title: str):
     colors = dict(zip(LEARNERS, figures.plt.get_cmap("tab10")(np.arange(len(LEARNERS)))))
     for i, s in enumerate(studies):
         summ, curves = aggs[s]["summary"], aggs[s]["curves"]
-        largest = summ.assign(learner=[parse(v)[0] for v in summ["variant"]]) \
+        largest = summ.assign(learner=[cell(v, "")["learner"] for v in summ["variant"]]) \
             .groupby("learner")["final_samples"].transform("max")
         for r, top in zip(summ.itertuples(), largest):
             if r.final_samples != top:
                 continue
-            learner, _, schedule = parse(r.variant)
-            ax = axes[i, GROWTHS.index("no growth" if r.growth == "none" else schedule)]
+            learner, _, growth = cell(r.variant, r.growth).values()
+            ax = axes[i, GROWTHS.index(growth)]
             cu = curves[curves["condition"] == r.condition].sort_values("samples")
             ax.plot(cu["samples"], cu["heldout_abs_error_mean"], color=colors.get(learner),
                     lw=1.2, ls=STYLE.get(learner, "-"), label=learner)

@@ -285,16 +285,12 @@ Test = Measure  # a Measure judged under a reading (`judge`)
 def per_trial(trials: pd.DataFrame, condition: str, column: str) -> tuple[np.ndarray, np.ndarray]:
     """(epochs, values[trial, epoch]) of one condition, as DataFrame.pivot and dropna give them."""
     c = trials.iloc[_rows_of(trials, condition)]
-    t, e, v = c["trial"].to_numpy(), c["epoch"].to_numpy(), c[column].to_numpy()
-    if not len(c) or v.dtype != np.float64 or t.dtype.kind not in "iu" or e.dtype.kind not in "iu":
-        p = c.pivot(index="trial", columns="epoch", values=column).sort_index(axis=1).dropna(axis=1)
-        return p.columns.to_numpy(), p.to_numpy()
-    ts, ti = np.unique(t, return_inverse=True)
-    es, ei = np.unique(e, return_inverse=True)
+    ts, ti = np.unique(c["trial"].to_numpy(), return_inverse=True)
+    es, ei = np.unique(c["epoch"].to_numpy(), return_inverse=True)
     if np.unique(ti * len(es) + ei).size < len(c):
         raise ValueError(f"{condition}: a trial has an epoch twice: no curve per trial")
     values = np.full((len(ts), len(es)), np.nan)
-    values[ti, ei] = v
+    values[ti, ei] = c[column].to_numpy(np.float64)
     keep = ~np.isnan(values).any(axis=0)
     return es[keep], values[:, keep]
 

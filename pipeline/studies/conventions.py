@@ -4,8 +4,6 @@ ddof, the failed-to-bootstrap factor, trial 0's rank in the postures, the curves
 relative error's normalisation. A row whose data is absent is left out."""
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pandas as pd
 
@@ -25,12 +23,6 @@ def figures_declared() -> tuple[str, ...]:
 FACTORS = (1.5, 2.0, 5.0)  # alternatives to aggregate.fail_factor
 STRIDES = (2, 4)  # every 2nd, every 4th evaluation point
 COLUMNS = ["convention", "ours", "alternative", "measured_effect"]
-
-
-def read_trials(folder, figures) -> dict:
-    """figure -> its trials.parquet, for the declared among `figures` that have one."""
-    paths = {f: Path(folder) / f / "trials.parquet" for f in figures if f in figures_declared()}
-    return {f: pd.read_parquet(p) for f, p in paths.items() if p.exists()}
 
 
 def finals(trials: dict) -> pd.DataFrame:
@@ -193,8 +185,8 @@ def _normalisation_row(aggs: dict) -> tuple | None:
 
 
 def table(aggs: dict, trials: dict, fail_factor: float, postures: dict) -> pd.DataFrame:
-    """The conventions' rows from the aggregates, their read_trials, aggregate.fail_factor and
-    report.postures (panel -> [[figure, condition], ...])."""
+    """The conventions' rows from the aggregates, their per-trial curves (figure -> trials),
+    aggregate.fail_factor and report.postures (panel -> [[figure, condition], ...])."""
     aggs = {k: a for k, a in aggs.items() if k in figures_declared()}
     fin = finals({k: t for k, t in trials.items() if k in aggs})
     rows, named = [], {}  # named: the numbers the pages quote (the table's attrs["values"])

@@ -178,9 +178,9 @@ def scorecard_part(ctx: Context, p: Paper) -> list[str]:
     """The scorecard of the paper's claims: its figure, its tables and measures.parquet."""
     if not p.claim_rows:
         return []
+    from . import readings
+
     counted = counted_figures(p.declared)
-    # the readings' headline: at the paper's scale only (a reduced scale decides nothing)
-    readings_cards, recommended = _recommended(ctx) if not ctx.cfg.report.scale else (None, None)
     ctx.text("claims.csv", pd.DataFrame(p.claim_rows).to_csv(index=False))
     every = pd.DataFrame(p.measures)  # the primary reading's; the others' beside
     ctx.text("scorecard.csv", every[every["primary"]].to_csv(index=False, float_format="%.6g"))
@@ -200,10 +200,11 @@ def scorecard_part(ctx: Context, p: Paper) -> list[str]:
     ours = our_reading(p.cards) if p.discussion == discussion.FINDINGS.read_text() else None
     return ["## Scorecard: the paper's claims, with their uncertainty", "",
             "![scorecard](scorecard.png)", "",
-            scorecard.markdown(p.cards, p.measures, counted, ours,
-                                    "" if ctx.cfg.report.scale else
-                                    scorecard.recommended_headline(readings_cards, recommended),
-                                    scorecard.first_headline(p.measures, counted)),
+            # the readings' headline: at the paper's scale only (a reduced scale decides nothing)
+            scorecard.markdown(p.cards, p.measures, counted, ours, "" if ctx.cfg.report.scale else
+                               scorecard.recommended_headline(readings.shared_cards(ctx),
+                                                              readings.recommended()),
+                               scorecard.first_headline(p.measures, counted)),
             prose("scorecard.after"), ""]
 
 
@@ -381,10 +382,9 @@ def animation_part(ctx: Context, p: Paper) -> list[str]:
 
 def conventions_part(ctx: Context, p: Paper) -> list[str]:
     """The reporting conventions: the measured effect of each alternative on the paper's figures."""
-    cfg = ctx.cfg
-    table = conventions.table(
-        p.aggs, conventions.read_trials(cfg.paths.aggregate, p.aggs), cfg.aggregate.fail_factor,
-        OmegaConf.to_container(cfg.report.postures))
+    trials = {k: a["trials"] for k, a in p.aggs.items() if "trials" in a}
+    table = conventions.table(p.aggs, trials, ctx.cfg.aggregate.fail_factor,
+                              OmegaConf.to_container(ctx.cfg.report.postures))
     if not len(table):
         return []
     ctx.text("conventions.csv", table.to_csv(index=False, float_format="%.6g"))
@@ -417,15 +417,6 @@ PARTS = (scorecard_part, claims_part, findings_part, curves_part, stages_part, p
          animation_part, conventions_part)  # the section's order
 
 
-def _recommended(ctx: Context) -> tuple[pd.DataFrame, list[dict]]:
-    """(the readings study's cells, the recommended readings) for the second headline."""
-    from . import readings
-
-    read = {k: a for k, a in ctx.of("readings").items() if declares_claims(a)}
-    cards = readings.shared_cards(ctx, read) if read else pd.DataFrame()
-    return cards, readings.recommended()
-
-
 def _write_measures(ctx: Context, measured: list, counted: list) -> None:
     """measures.parquet: every per-trial measure of the figures, the readings study, the
     replicate sets, the baselines and the choices."""
@@ -434,11 +425,10 @@ def _write_measures(ctx: Context, measured: list, counted: list) -> None:
     frames = [measures_table.frame([m for m in measured if m.figure == f], "figures",
                                    counted=f in counted)
               for f in dict.fromkeys(m.figure for m in measured)]
-    read = {k: a for k, a in ctx.of("readings").items() if declares_claims(a)}
     recs = {(r["figure"], r["reading"]) for r in readings.recommended()}
     frames += [measures_table.frame(ms, "readings", reading=label,
                                     recommended=(fig, label) in recs)
-               for (fig, label), ms in readings.shared_measures(ctx, read).items()]
+               for (fig, label), ms in readings.shared_measures(ctx).items()]
     frames += replicate.frames(ctx)
     frames += measures_table.study_frames(ctx.of("baselines"), ctx.of("choices"))
     ctx.written.append(measures_table.write(ctx.out / measures_table.NAME, frames,

@@ -242,7 +242,7 @@ def figure(aggs: dict, title: str):
     return fig
 
 
-def _name_values(ctx: Context, cards: pd.DataFrame, summary: pd.DataFrame, read: dict) -> None:
+def _name_values(ctx: Context, cards: pd.DataFrame, summary: pd.DataFrame) -> None:
     """The numbers of this study the pages quote (quoted.py), the matrix and the recommended
     reading's headline."""
     ctx.quote(summary, ("figure", "reading", "condition"), QUOTED)
@@ -263,22 +263,25 @@ def _name_values(ctx: Context, cards: pd.DataFrame, summary: pd.DataFrame, read:
         ctx.value("headline.recommended", scorecard.headline_text(scorecard.headline(mine)))
 
 
-def shared_measures(ctx: Context, read: dict) -> dict:
-    """readings_measures(read), once per report."""
-    return ctx.once("readings measures", lambda: readings_measures(read))
+def claimed(ctx: Context) -> dict:
+    """The readings study's aggregates that declare the paper's claims."""
+    return {k: a for k, a in ctx.of("readings").items() if declares_claims(a)}
 
 
-def shared_cards(ctx: Context, read: dict, scale: str = "") -> pd.DataFrame:
-    """intervals(read, scale), once per report and scale."""
-    return ctx.once(("readings cards", scale),
-                    lambda: intervals(read, scale, shared_measures(ctx, read)))
+def shared_measures(ctx: Context) -> dict:
+    """readings_measures(claimed(ctx)), once per report."""
+    return ctx.once("readings measures", lambda: readings_measures(claimed(ctx)))
+
+
+def shared_cards(ctx: Context, scale: str = "") -> pd.DataFrame:
+    """intervals of shared_measures at `scale`, once per report and scale."""
+    return ctx.once(("readings cards", scale), lambda: intervals({}, scale, shared_measures(ctx)))
 
 
 @register("readings", 30)
 def section(ctx: Context) -> list[str]:
-    studies = ctx.of("readings")
-    read = {k: a for k, a in studies.items() if declares_claims(a)}
-    cards = shared_cards(ctx, read, ctx.cfg.report.scale)  # at the run's scale, for every file
+    read = claimed(ctx)
+    cards = shared_cards(ctx, ctx.cfg.report.scale)  # at the run's scale, for every file
     reading_table = table(cards)
     if not len(reading_table):
         return []
@@ -287,9 +290,9 @@ def section(ctx: Context) -> list[str]:
     summary = finals(read)
     ctx.text("readings_summary.csv", summary.to_csv(index=False, float_format="%.6g"))
     m = ctx.text("readings_matrix.csv", matrix(cards).to_csv(index=False))
-    _name_values(ctx, cards, summary, read)
-    png = ctx.save(figure(studies, "Readings of the paper (the default, the rates, the solver): "
-                          "absolute error of every condition (mean over trials)"),
+    _name_values(ctx, cards, summary)
+    png = ctx.save(figure(ctx.of("readings"), "Readings of the paper (the default, the rates, the "
+                          "solver): absolute error of every condition (mean over trials)"),
                    "readings_curves")[0].name
     return ["## Every reading of the paper against every claim", "",
             prose("readings.section"), "",

@@ -444,23 +444,15 @@ def costs() -> None:
 
 # ---- bench compare: the kernel of another checkout beside this one's ----------------------------
 CHILD = r'''
-import json, sys, time
-import numpy as np, gbmodel
-from pipeline.tools.bench import EPOCHS, paper_spec
-
-
-def time_trial(spec, seed=0):
-    t0 = time.process_time()
-    gbmodel.run_trial(gbmodel.TrialSpec.from_dict(spec), np.random.default_rng(seed))
-    return (time.process_time() - t0) / spec["epochs"]
-
+import json, sys
+from pipeline.tools.bench import EPOCHS, paper_spec, time_trial
 
 out, learner = {}, sys.argv[2]
 path = "online" if learner == "online_goal_babbling" else "fast"
 for body in ("arm5", "icub"):
     spec = paper_spec(body, EPOCHS[path][body], True, learner)
     time_trial(paper_spec(body, 10, True, learner))
-    out[body] = [time_trial(spec, s) * 1e6 for s in range(int(sys.argv[1]))]
+    out[body] = [time_trial(spec, s)[1] * 1e6 for s in range(int(sys.argv[1]))]
 print(json.dumps(out))
 '''
 
