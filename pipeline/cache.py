@@ -130,7 +130,7 @@ def write_trial(cache_dir, trial: dict, result: dict) -> None:
         record.update(error=result["error"], epoch=result["epoch"])
         Path(curve).unlink(missing_ok=True)
     else:
-        data = io.table_bytes(io.trial_curve_table(result))
+        data = io.table_bytes(io.trial_curve_table(result), compress=False)  # (a few kB)
         io.write_in_checked(curve, data)
         record["curve_sha256"] = hashlib.sha256(data).hexdigest()
         record["largest_jump"] = float(result["largest_jump"])

@@ -24,9 +24,14 @@ class CodeChanged(RuntimeError):
     """A gbmodel file differs from the code this process imported from it."""
 
 
-def _dump(tree) -> str:
-    """ast.dump of `tree` with its docstrings taken out (in place)."""
+def _dump(tree, imports: list | None = None) -> str:
+    """ast.dump of `tree` with its docstrings taken out (in place); its imports appended to
+    `imports` in the same walk."""
     for node in ast.walk(tree):
+        if imports is not None and isinstance(node, (ast.ImportFrom, ast.Import)):
+            imports.append(("from", node.level, node.module, [a.name for a in node.names])
+                           if isinstance(node, ast.ImportFrom)
+                           else ("import", None, None, [a.name for a in node.names]))
         body = getattr(node, "body", None)
         if (isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef))
                 and body and isinstance(body[0], ast.Expr)
@@ -49,12 +54,9 @@ def source_fingerprint(sources) -> str:
 def _learn(text: str) -> dict:
     """From one parse: tree (without docstrings) and imports: ("from", level, module or None,
     [names]) or ("import", None, None, [names])."""
-    tree = ast.parse(text)
-    imports = [("from", n.level, n.module, [a.name for a in n.names])
-               if isinstance(n, ast.ImportFrom) else ("import", None, None,
-                                                      [a.name for a in n.names])
-               for n in ast.walk(tree) if isinstance(n, (ast.ImportFrom, ast.Import))]
-    return dict(tree=_dump(tree), imports=imports)
+    imports = []
+    tree = _dump(ast.parse(text), imports)
+    return dict(tree=tree, imports=imports)
 
 
 _facts = lru_cache(maxsize=512)(lambda text: _learn(text))  # once per text and process

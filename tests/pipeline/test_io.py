@@ -288,7 +288,7 @@ def test_a_trials_files_are_those_write_table_and_write_json_write(tmp_path):
         cache.write_trial(tmp_path / "new", t, result)
         curve, side = cache.trial_paths(tmp_path / "old", t)
         record = {k: t[k] for k in cache.CONTENT} | dict(status="ok")
-        record["curve_sha256"] = io.write_table(curve, io.trial_curve_table(result))
+        record["curve_sha256"] = io.write_table(curve, io.trial_curve_table(result), False)
         record.update(largest_jump=float(result["largest_jump"]), M=result["M"].tolist(),
                       snapshots={})
         io.write_json(side, io.seal(record), compact=True)
