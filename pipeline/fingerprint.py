@@ -156,11 +156,9 @@ def _fingerprint(learner: str) -> tuple[str, dict, set, list]:
 
 
 def code_fingerprint(learner: str) -> str:
-    """The fingerprint of the code a trial of `learner` runs: gbmodel's shared core (every file
-    outside gbmodel/learners/, and the registry) plus the files of that learner and of the
-    learners it imports code from. Every file whose module the process has imported is checked
-    against the text hashed (as_imported) on the first call and on any later one after the
-    process imported more (pipeline.worker.run_one asks again after each trial)."""
+    """The fingerprint of gbmodel's shared core (every file outside gbmodel/learners/, and the
+    registry) and `learner`'s files (learner_sources), its imported files checked (as_imported)
+    again after the process imported more (pipeline.worker.run_one asks after each trial)."""
     fp, texts, checked, seen = _fingerprint(learner)
     if seen[0] != len(sys.modules):
         modules, n = _gbmodel_modules(), len(sys.modules)
