@@ -181,18 +181,15 @@ def _args(section: dict) -> str:
     return json.dumps(section.get("args") or {}, sort_keys=True)
 
 
-def load(section: dict) -> Forward:
-    return _load(section["factory"], _args(section))
-
-
 class Deferred:
-    """load(section) at its first call: a body described or loaded imports nothing."""
+    """The section's forward function, loaded at its first call: a body described or loaded
+    imports nothing."""
 
     def __init__(self, section: dict):
         self.section = section
 
     def __call__(self, angles: np.ndarray, factors: np.ndarray) -> np.ndarray:
-        return load(self.section)(angles, factors)
+        return _load(self.section["factory"], _args(self.section))(angles, factors)
 
 
 def digest(section: dict) -> str:

@@ -91,7 +91,9 @@ def train(state, tracker: Tracker, params, body, sizes, scales, draws, epochs, s
 
 def extra_samples(params, body) -> int:
     """Reaching movements per epoch spent on measuring (progress; N every period, rounded up)."""
-    return samples(body, params.progress_period) if params.goal_selection == "progress" else 0
+    if params.goal_selection != "progress":
+        return 0
+    return -(-len(body.targets) // params.progress_period)
 
 
 def chunks(epochs: np.ndarray, period: int) -> list[tuple[int, int, bool]]:
@@ -103,7 +105,3 @@ def chunks(epochs: np.ndarray, period: int) -> list[tuple[int, int, bool]]:
             out.append((lo, i + 1, bool(e % period == 0)))
             lo = i + 1
     return out
-
-
-def samples(body, period: int) -> int:
-    return -(-len(body.targets) // period)

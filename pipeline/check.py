@@ -164,14 +164,17 @@ def _parsed(argv: list[str]) -> tuple[list[str], list, bool]:
             raise ConfigError(f"{arg}: the stages read the project's config and the folders of "
                               "hydra.searchpath=[file://...] only (where every file is checked)")
     overrides = overrides_of(argv)
-    for o in overrides:
-        if not o.isascii() and "LexerNoViableAlt" in (_parse_error(o) or ""):
-            key = o.split("=", 1)[0]
-            raise ConfigError(f"{o}: Hydra reads characters beyond ASCII only inside quotes; "
-                              f"write '{key}=\"{o.split('=', 1)[-1]}\"'")
     try:
         parsed = OverridesParser.create().parse_overrides(overrides)
     except Exception as err:  # a syntax error in an override
+        for o in (o for o in overrides if not o.isascii()):  # one Hydra's lexer refuses alone
+            try:
+                OverridesParser.create().parse_overrides([o])
+            except Exception as bad:
+                if "LexerNoViableAlt" in type(bad.__cause__ or bad).__name__ + str(bad):
+                    key, value = o.split("=", 1)[0], o.split("=", 1)[-1]
+                    raise ConfigError(f"{o}: Hydra reads characters beyond ASCII only inside "
+                                      f"quotes; write '{key}=\"{value}\"'") from None
         raise ConfigError(_one_line(err)) from None
     problem = check_sweep_size(parsed)
     for o in parsed:  # callbacks, launchers, the searchpath: composed and checked once
@@ -302,13 +305,3 @@ def keeps_experiment(overrides: list[str], trials: list[dict]) -> None:
     raise ConfigError(f"{keys['experiment']} with {changed} would replace figure {figure} (the "
                       f"experiment's own settings) with other settings; name this run: "
                       f"figure={figure}_custom (any plain name)")
-
-
-def _parse_error(override: str) -> str | None:
-    try:
-        OverridesParser.create().parse_overrides([override])
-    except Exception as err:
-        return type(err.__cause__ or err).__name__ + str(err)
-    return None
-
-

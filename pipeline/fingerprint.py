@@ -126,20 +126,6 @@ def imported_learners(sources, name: str) -> set[str]:
     return found
 
 
-def _files_of(name: str) -> list[tuple[str, str]] | None:
-    """gbmodel.learners.sources(name) of a learner of gbmodel/learners/, read without importing
-    it (a cached simulate loads no numba); None for a learner registered at run time."""
-    root = Path(gbmodel.__file__).resolve().parent
-    if name in gbmodel.learners._REGISTERED or name not in gbmodel.learners.available():
-        return None
-    package, single = root / "learners" / name / "__init__.py", root / "learners" / f"{name}.py"
-    files = (sorted(package.parent.rglob("*.py")) if package.is_file()
-             else [single] if single.is_file() else None)
-    if files is None:
-        return None
-    return [(f.resolve().relative_to(root.parent).as_posix(), f.read_text()) for f in files]
-
-
 def learner_sources(learner: str) -> list[tuple[str, str]]:
     """(label, text) of the learner's own files and of every learner's whose code it imports,
     transitively."""
@@ -149,8 +135,7 @@ def learner_sources(learner: str) -> list[tuple[str, str]]:
         if name in done:
             continue
         done.add(name)
-        theirs = _files_of(name)
-        theirs = gbmodel.learners.sources(name) if theirs is None else theirs
+        theirs = gbmodel.learners.sources(name)
         out.update(theirs)
         todo += sorted(imported_learners(theirs, name) - done)
     return sorted(out.items())
@@ -173,11 +158,9 @@ def _fingerprint(learner: str) -> tuple[str, dict, set, list]:
 
 
 def code_fingerprint(learner: str) -> str:
-    """The fingerprint of the code a trial of `learner` runs: gbmodel's shared core (every file
-    outside gbmodel/learners/, and the registry) plus the files of that learner and of the
-    learners it imports code from. Every file whose module the process has imported is checked
-    against the text hashed (as_imported) on the first call and on any later one after the
-    process imported more (pipeline.worker.run_one asks again after each trial)."""
+    """The fingerprint of gbmodel's shared core (every file outside gbmodel/learners/, and the
+    registry) and `learner`'s files (learner_sources), its imported files checked (as_imported)
+    again after the process imported more (pipeline.worker.run_one asks after each trial)."""
     fp, texts, checked, seen = _fingerprint(learner)
     if seen[0] != len(sys.modules):
         modules, n = _gbmodel_modules(), len(sys.modules)

@@ -21,14 +21,10 @@ class Stopped(KeyboardInterrupt):
         super().__init__(signal.Signals(signum).name)
         self.signum = signum
 
-    @property
-    def exit_status(self) -> int:
-        return 128 + self.signum
-
 
 def exit_status(err: KeyboardInterrupt) -> int:
     """128 + the signal that stopped the stage (130 for a plain KeyboardInterrupt)."""
-    return getattr(err, "exit_status", 128 + signal.SIGINT)
+    return 128 + getattr(err, "signum", signal.SIGINT)
 
 
 def _handler(signum, frame):

@@ -57,13 +57,14 @@ def get(name: str) -> ModuleType:
 
 def sources(name: str) -> list[tuple[str, str]]:
     """(label, source text) of learner `name`'s code for the key's fingerprint: its files here,
-    or a registered module's name and the source of what it provides."""
-    module = get(name)
+    read without importing it (a cached simulate loads no numba), or a registered module's name
+    and the source of what it provides."""
     here = Path(__file__).resolve().parent
-    path = Path(getattr(module, "__file__", None) or "")
-    if path.is_file() and here in path.resolve().parents:
-        files = sorted(path.parent.rglob("*.py")) if path.name == "__init__.py" else [path]
+    package, single = here / name / "__init__.py", here / f"{name}.py"
+    if name not in _REGISTERED and name in available():  # (a module or package here)
+        files = sorted(package.parent.rglob("*.py")) if package.is_file() else [single]
         return [(f.resolve().relative_to(here.parents[1]).as_posix(), f.read_text()) for f in files]
+    module = get(name)
     text = "\n".join(inspect.getsource(getattr(module, a)) for a in REQUIRED
                      if callable(getattr(module, a)) or inspect.isclass(getattr(module, a)))
     return [(f"{module.__name__}:{name}", text)]

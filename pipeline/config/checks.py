@@ -17,10 +17,6 @@ from ..errors import ConfigError
 from .schema import Config
 
 
-def _bad(key, value, why):
-    raise ConfigError(f"{key}={value!r}: {why}")
-
-
 MAX_TRIALS = 10_000  # trials.count: independent trials per condition (the paper's figures use 20)
 MAX_PLANNED = 100_000  # trials of one run in all (conditions x variants x trials.count)
 MAX_FRAMES = 100  # conditions.frames: the report draws each condition's frames (~0.12 s each)
@@ -136,24 +132,6 @@ def check_keys(cfg) -> None:
                           f"{', '.join(sorted(known))}")
 
 
-def check_root(cfg) -> None:
-    """paths.root is absolute, and every output folder lies under it."""
-    root = cfg.paths.root
-    if not isinstance(root, str) or not root.strip():
-        raise ConfigError(f"paths.root={root!r}: must be a folder (an absolute path)")
-    if not Path(root).is_absolute():
-        raise ConfigError(f"paths.root={root!r}: must be an absolute path (it would be "
-                          f"{Path(root).resolve()} here); e.g. paths.root=$PWD/{root}")
-    base = Path(root).resolve()
-    for key in ("out", "cache", "aggregate", "report", "published", "bench"):
-        path = Path(cfg.paths[key])
-        if not path.is_absolute() or ".." in path.parts:
-            raise ConfigError(f"paths.{key}={str(path)!r}: must be an absolute path without '..'")
-        resolved = path.resolve()
-        if resolved != base and base not in resolved.parents:
-            raise ConfigError(f"paths.{key}={str(path)!r}: outside paths.root={root}")
-
-
 def check_names(cfg) -> None:
     """Every name of the config that becomes part of a path (pipeline.io.safe_name)."""
     from ..io import UnsafeName, safe_name
@@ -179,16 +157,28 @@ def check_stamp(cfg) -> None:
 
 
 def check_paths(cfg: DictConfig) -> None:
-    """Every output folder is (or can become) a folder, writable but the cache (a read-only
-    cache is read; a write it needs fails in one line in cli.finish)."""
+    """paths.root is absolute; every output folder lies under it and is (or can become) a
+    folder, writable but the cache (a read-only cache is read; a write it needs fails in one
+    line in cli.finish)."""
+    root = cfg.paths.root
+    if not isinstance(root, str) or not root.strip():
+        raise ConfigError(f"paths.root={root!r}: must be a folder (an absolute path)")
+    if not Path(root).is_absolute():
+        raise ConfigError(f"paths.root={root!r}: must be an absolute path (it would be "
+                          f"{Path(root).resolve()} here); e.g. paths.root=$PWD/{root}")
+    base = Path(root).resolve()
     for key in ("root", "out", "cache", "aggregate", "report", "published", "bench"):
         path = Path(cfg.paths[key])
+        if key != "root" and (not path.is_absolute() or ".." in path.parts):
+            raise ConfigError(f"paths.{key}={str(path)!r}: must be an absolute path without '..'")
+        if key != "root" and path.resolve() != base and base not in path.resolve().parents:
+            raise ConfigError(f"paths.{key}={str(path)!r}: outside paths.root={root}")
         for p in [path, *path.parents]:
             if p.exists():
                 if not p.is_dir():
-                    _bad(f"paths.{key}", str(path), f"{p} is a file, not a folder")
+                    raise ConfigError(f"paths.{key}={str(path)!r}: {p} is a file, not a folder")
                 if key != "cache" and not os.access(p, os.W_OK | os.X_OK) and p == path:
-                    _bad(f"paths.{key}", str(path), "is not writable")
+                    raise ConfigError(f"paths.{key}={str(path)!r}: is not writable")
                 break
 
 
@@ -197,7 +187,6 @@ def check_run(cfg: DictConfig) -> None:
     check_int("trials.root_seed", cfg.trials.root_seed, 0)
     check_int("workers", cfg.workers, 1)
     check_ranges(cfg, stages=True)
-    check_root(cfg)
+    check_paths(cfg)
     check_names(cfg)
     check_stamp(cfg)
-    check_paths(cfg)

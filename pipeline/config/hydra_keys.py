@@ -147,7 +147,7 @@ def _check_dirs(cfg) -> None:
 
     root = OmegaConf.select(cfg, "paths.root", default=None)
     if not isinstance(root, str) or not Path(root).is_absolute():
-        return  # check_root names it
+        return  # check_paths names it
     base = Path(root).resolve()
     try:
         safe_name("hydra.job.name", _resolved(cfg, "job.name"))

@@ -27,13 +27,6 @@ def defaults_of(cls) -> list[tuple[str, Any, Any]]:
             if f.default is not dataclasses.MISSING]
 
 
-def schema_of(cls, name: str, extra: tuple = (), defaults: list | None = None) -> type:
-    """A schema of `extra` fields and those of defaults_of(cls) (or the `defaults` given)."""
-    fields = [(k, kind, field(default=v))
-              for k, kind, v in (defaults_of(cls) if defaults is None else defaults)]
-    return dataclasses.make_dataclass(name, list(extra) + fields)
-
-
 def conf_of(cls, name: str) -> type:
     """A schema of every field of `cls` (MISSING without a default; a dataclass field: its own)."""
     hints = typing.get_type_hints(cls)
@@ -53,7 +46,7 @@ def conf_of(cls, name: str) -> type:
 
 BodyConf = conf_of(gbmodel.bodies.Description, "BodyConf")
 # growth: gbmodel.Growth's fields; pattern `none` is a body of constant size end_size
-GrowthConf = schema_of(gbmodel.Growth, "GrowthConf")
+GrowthConf = conf_of(gbmodel.Growth, "GrowthConf")
 EvaluationConf = dataclasses.make_dataclass(
     "EvaluationConf", [(k, type(v), field(default=v)) for k, v in evaluation.DEFAULTS.items()])
 LEARNER_EXTRA = (("name", str, field(default=MISSING)), ("epochs", int, field(default=MISSING)),
@@ -169,9 +162,11 @@ def register_schemas() -> None:
         loaded = name in gbmodel.learners._REGISTERED or (
             f"{gbmodel.learners.__name__}.{name}" in sys.modules)
         defaults = None if loaded else learner_params(name)
-        params = None if defaults is not None else gbmodel.learners.get(name).Params
-        cs.store(group="learner", name=f"{name}_schema",
-                 node=schema_of(params, f"{name}_conf", LEARNER_EXTRA, defaults))
+        if defaults is None:
+            defaults = defaults_of(gbmodel.learners.get(name).Params)
+        cs.store(group="learner", name=f"{name}_schema", node=dataclasses.make_dataclass(
+            f"{name}_conf", [*LEARNER_EXTRA, *((k, kind, field(default=v))
+                                               for k, kind, v in defaults)]))
 
 
 _PLAIN_TYPES = {t.__name__: t for t in (int, float, str, bool)}

@@ -16,7 +16,7 @@ from gymnasium import spaces
 from gbmodel.bodies import make_body
 from gbmodel.evaluation import heldout_points
 from gbmodel.growth import Growth
-from gbmodel.spec import MAX_SIZE
+from gbmodel.spec import MAX_SIZE, check_choice
 from gbmodel.workspace import reach
 
 MODES = ("posture", "incremental")
@@ -35,11 +35,6 @@ def make_growth(growth, period: int, schedule: str, start_size: float, end_size:
                   end_size=end_size)
 
 
-def _check(name, value, options):
-    if value not in options:
-        raise ValueError(f"{name}={value!r}: choose one of {list(options)}")
-
-
 class GrowingReach(gym.Env):
     """Reach a target with a body that grows across episodes (module docstring)."""
 
@@ -51,7 +46,7 @@ class GrowingReach(gym.Env):
                  horizon: int = 50, max_step: float = 0.1, goals: str = "grid"):
         for name, value, options in (("mode", mode, MODES), ("reward", reward, REWARDS),
                                      ("goals", goals, GOALS)):
-            _check(name, value, options)
+            check_choice(name, value, options)
         self.body = make_body(body)
         self.growth = make_growth(growth, period, schedule, start_size, end_size).validate(
             self.body)
