@@ -4,38 +4,55 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
+from numba.extending import intrinsic
 
 from ...simd import (
-    F4, LANES, _1, _HALF, chain_kinematics, vadd, vclip, vdiv, vfma, vload, vload1, vmul, vsplat,
-    vsqrt, vstore, vstore1, vsub, vwhere,
+    _VEC8, F4, LANES, W8, F64x8, _1, _HALF, _llvm, chain_kinematics, vadd, vadd8, vclip, vdiv,
+    vdiv8, vfma, vload, vload1, vload8, vmul, vmul8, vsplat, vsplat8, vsqrt, vstore, vstore1,
+    vstore8, vsub, vwhere,
 )
 from .core import _BLOCK, _features, _predict
 from .reference import NO_MOVEMENT
 
+@intrinsic
+def _vabs8(typingctx, a):
+    return F64x8(a), lambda context, builder, sig, args: _llvm(builder, "llvm.fabs", args, _VEC8)
+
+
 @njit(cache=True)
-def _disturbances(raw, amp, s, centre, half, radius, A, b):
+def _disturbances(raw, amp, s, centre, half, radius, A, K):
     """Eq. 8: rows of [A | b] scaled to max |A_i x + b_i| = radius amp[v, i] over the target box
-    at size s (in float64, stored as float32)."""
-    V, m, n = A.shape
-    for v in range(V):
-        for i in range(m):
-            at_centre = raw[v, i, n]
-            spread = 0.0
-            for j in range(n):
-                at_centre += raw[v, i, j] * s * centre[j]
-                spread += abs(raw[v, i, j]) * s * half[j]
-            k_i = radius / (abs(at_centre) + spread) * amp[v, i]
-            for j in range(n):
-                A[v, i, j] = F4(raw[v, i, j] * k_i)
-            b[v, i] = F4(raw[v, i, n] * k_i)
+    at size s, in float64 on W8 rows r = v m + i at a time (each row's operations in the
+    scalar order) in K (n + 2, V m rounded up to W8: [A | b]^T, then amp), stored as float32
+    in A (n + 1, V, m): A[n] is b."""
+    V, m, n1 = raw.shape
+    R = V * m
+    raw, amp, A = raw.reshape(R, n1), amp.reshape(R), A.reshape(n1, R)
+    for j in range(n1):
+        for r in range(R):
+            K[j, r] = raw[r, j]
+    K[n1, :R] = amp
+    for r in range(0, R, W8):
+        at_centre, spread = vload8(K, n1 - 1, r), vsplat8(0.0)
+        for j in range(n1 - 1):
+            x = vmul8(vload8(K, j, r), vsplat8(s))
+            at_centre = vadd8(at_centre, vmul8(x, vsplat8(centre[j])))
+            spread = vadd8(spread, vmul8(vmul8(_vabs8(vload8(K, j, r)), vsplat8(s)),
+                                         vsplat8(half[j])))
+        k = vmul8(vdiv8(vsplat8(radius), vadd8(_vabs8(at_centre), spread)), vload8(K, n1, r))
+        for j in range(n1):
+            vstore8(K, j, r, vmul8(vload8(K, j, r), k))
+    for j in range(n1):
+        for r in range(R):
+            A[j, r] = F4(K[j, r])
 
 
 @njit(cache=True)
-def _commands(gpath, path, A, b, home, T, Npad, Q):
+def _commands(gpath, path, A, home, T, Npad, Q):
     """Q: per variation the home posture, then g + A x* + b along the path; home in the padding.
     (A variation's last vector runs into the next one's columns: in order.)"""
     m, Bv = gpath.shape
-    V, n = A.shape[0], path.shape[0]
+    V, n = A.shape[1], path.shape[0]
     for v in range(V):
         r0 = v * (T + 1)
         for u in range(0, Bv, LANES):
@@ -44,13 +61,13 @@ def _commands(gpath, path, A, b, home, T, Npad, Q):
             x1 = vload(path, min(1, n - 1), u)
             x2 = vload(path, min(2, n - 1), u)
             for i in range(m):
-                q = vfma(vsplat(A[v, i, 0]), x0, vadd(vload(gpath, i, u), vsplat(b[v, i])))
+                q = vfma(vsplat(A[0, v, i]), x0, vadd(vload(gpath, i, u), vsplat(A[n, v, i])))
                 if n > 1:
-                    q = vfma(vsplat(A[v, i, 1]), x1, q)
+                    q = vfma(vsplat(A[1, v, i]), x1, q)
                 if n > 2:
-                    q = vfma(vsplat(A[v, i, 2]), x2, q)
+                    q = vfma(vsplat(A[2, v, i]), x2, q)
                 for j in range(3, n):
-                    q = vfma(vsplat(A[v, i, j]), vload(path, j, u), q)
+                    q = vfma(vsplat(A[j, v, i]), vload(path, j, u), q)
                 vstore(Q, i, r0 + u, q)
         for i in range(m):
             Q[i, r0] = home[i]
@@ -95,7 +112,7 @@ def rollout(M, idx, raw, amp, s, body, targets, home, parent, var, joints, radiu
     """Steps 1-4 of an epoch (reference.samples) into work: Q (m, N) postures, X (n, N) hands,
     w (N) weights, variation v in columns v (T + 1) ... v (T + 1) + T, then weight-0 padding to
     a multiple of LANES and LANES spare columns; M in float32 in work's M32."""
-    Q, X, w, _, _, path, Phip, gpath, dxs, nxs, A, b, M32, _, Qh, Xh = work
+    Q, X, w, _, _, path, Phip, gpath, dxs, nxs, A, K, M32, _, Qh, Xh = work
     m, p = M.shape
     n = targets.shape[1]
     V = raw.shape[0]
@@ -136,8 +153,8 @@ def rollout(M, idx, raw, amp, s, body, targets, home, parent, var, joints, radiu
     _features(path, 0, Bv, parent, var, Phip)
     _predict(M32, Phip, Bv, gpath, Q, w[:0], 0)
     # the variations' disturbances (eq. 8), their rollouts and weights
-    _disturbances(raw, amp, s, box[0], box[1], radius, A, b)
-    _commands(gpath, path, A, b, home, T, Npad, Q)
+    _disturbances(raw, amp, s, box[0], box[1], radius, A, K)
+    _commands(gpath, path, A, home, T, Npad, Q)
     chain_kinematics(Q, X, Npad, joints, body)
     _weights(dxs, nxs, X, Q, V, T, Npad, w)
 
@@ -152,7 +169,7 @@ def _work(m, n, p, V, T):
             np.empty((p, min(Npad, _BLOCK)), f4), np.empty((m, min(Npad, _BLOCK)), f4),
             np.empty((n, Bv + LANES), f4), np.empty((p, Bv), f4), np.empty((m, Bv), f4),
             np.empty((n, Bv), f4), np.empty(Bv, f4),
-            np.empty((V, m, n), f4), np.empty((V, m), f4),
+            np.empty((n + 1, V, m), f4), np.empty((n + 2, -(-(V * m) // W8) * W8)),
             np.empty((m, p), f4), np.empty((m, p * LANES), f4),
             np.empty((m, LANES), f4), np.empty((n, LANES), f4))
 
