@@ -14,6 +14,8 @@ from ...simd import (
 from .core import _BLOCK, _features, _predict
 from .reference import NO_MOVEMENT
 
+_IOTA = np.arange(LANES, dtype=np.float32)
+
 @intrinsic
 def _vabs8(typingctx, a):
     return F64x8(a), lambda context, builder, sig, args: _llvm(builder, "llvm.fabs", args, _VEC8)
@@ -125,20 +127,19 @@ def rollout(M, idx, raw, amp, s, body, targets, home, parent, var, joints, radiu
         vstore(Qh, i, 0, vsplat(home[i]))
     chain_kinematics(Qh, Xh, LANES, joints, body)
     # the target path (eq. 9) at the current size in columns 1 ... T, the hand at home in
-    # column 0, the last target in the rest
+    # column 0, the last target in the rest; a + f d, f = l / steps: exactly a along a repeated
+    # target (targets=any), so that its intended steps are 0 and weigh nothing, as in the
+    # float64 reference. A vector of l runs into the next target's columns: in order.
+    f0 = vdiv(vload1(_IOTA, 0), vsplat(F4(steps)))
     for j in range(n):
         path[j, 0] = Xh[j, 0]
-    for k in range(len(idx) - 1):
-        t0, t1 = idx[k], idx[k + 1]
-        for l in range(steps):
-            f = F4(l) / F4(steps)
-            for j in range(n):
-                # t0 + f (t1 - t0): exactly t0 along a repeated target (targets=any), so that
-                # its intended steps are 0 and weigh nothing, as in the float64 reference
-                path[j, 1 + k * steps + l] = s4 * (targets[t0, j] +
-                                                   f * (targets[t1, j] - targets[t0, j]))
-    for u in range(T + 1, path.shape[1]):
-        for j in range(n):
+        for k in range(len(idx) - 1):
+            a = targets[idx[k], j]
+            d = vsplat(targets[idx[k + 1], j] - a)
+            for l in range(0, steps, LANES):
+                f = f0 if l == 0 else vdiv(vadd(vload1(_IOTA, 0), vsplat(l)), vsplat(F4(steps)))
+                vstore(path, j, 1 + k * steps + l, vmul(vsplat(s4), vadd(vsplat(a), vmul(f, d))))
+        for u in range(T + 1, path.shape[1]):
             path[j, u] = s4 * targets[idx[-1], j]
     # the intended steps u -> u + 1 and their squared lengths
     nxs[:] = 0
