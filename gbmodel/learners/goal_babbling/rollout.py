@@ -114,7 +114,7 @@ def rollout(M, idx, raw, amp, s, body, targets, home, parent, var, joints, radiu
     """Steps 1-4 of an epoch (reference.samples) into work: Q (m, N) postures, X (n, N) hands,
     w (N) weights, variation v in columns v (T + 1) ... v (T + 1) + T, then weight-0 padding to
     a multiple of LANES and LANES spare columns; M in float32 in work's M32."""
-    Q, X, w, _, _, path, Phip, gpath, dxs, nxs, A, K, M32, _, Qh, Xh = work
+    Q, X, w, _, _, path, Phip, gpath, dxs, nxs, A, K, M32, _ = work
     m, p = M.shape
     n = targets.shape[1]
     V = raw.shape[0]
@@ -122,17 +122,12 @@ def rollout(M, idx, raw, amp, s, body, targets, home, parent, var, joints, radiu
     Npad = len(w) - LANES
     T = (len(idx) - 1) * steps
     s4 = F4(s)
-    # the home posture and where it puts the hand (every lane the same)
-    for i in range(m):
-        vstore(Qh, i, 0, vsplat(home[i]))
-    chain_kinematics(Qh, Xh, LANES, joints, body)
-    # the target path (eq. 9) at the current size in columns 1 ... T, the hand at home in
-    # column 0, the last target in the rest; a + f d, f = l / steps: exactly a along a repeated
-    # target (targets=any), so that its intended steps are 0 and weigh nothing, as in the
-    # float64 reference. A vector of l runs into the next target's columns: in order.
+    # the target path (eq. 9) at the current size in columns 1 ... T, the last target in the
+    # rest (column 0, the hand at home, after the rollout); a + f d, f = l / steps: exactly a
+    # along a repeated target (targets=any), so that its intended steps are 0 and weigh
+    # nothing, as in the float64 reference. A vector of l runs into the next target's columns.
     f0 = vdiv(vload1(_IOTA, 0), vsplat(F4(steps)))
     for j in range(n):
-        path[j, 0] = Xh[j, 0]
         for k in range(len(idx) - 1):
             a = targets[idx[k], j]
             d = vsplat(targets[idx[k + 1], j] - a)
@@ -141,12 +136,6 @@ def rollout(M, idx, raw, amp, s, body, targets, home, parent, var, joints, radiu
                 vstore(path, j, 1 + k * steps + l, vmul(vsplat(s4), vadd(vsplat(a), vmul(f, d))))
         for u in range(T + 1, path.shape[1]):
             path[j, u] = s4 * targets[idx[-1], j]
-    # the intended steps u -> u + 1 and their squared lengths
-    nxs[:] = 0
-    for j in range(n):
-        for u in range(Bv):
-            dxs[j, u] = path[j, u + 1] - path[j, u]
-            nxs[u] += dxs[j, u] * dxs[j, u]
     # g along the path
     for i in range(m):
         for k in range(p):
@@ -157,6 +146,16 @@ def rollout(M, idx, raw, amp, s, body, targets, home, parent, var, joints, radiu
     _disturbances(raw, amp, s, box[0], box[1], radius, A, K)
     _commands(gpath, path, A, home, T, Npad, Q)
     chain_kinematics(Q, X, Npad, joints, body)
+    # the intended steps u -> u + 1 and their squared lengths
+    for j in range(n):  # the hand at home: variation 0's column 0 (g's there is not used)
+        path[j, 0] = X[j, 0]
+    for u in range(0, Bv, LANES):
+        nx = vsplat(0)
+        for j in range(n):
+            dx = vsub(vload(path, j, u + 1), vload(path, j, u))
+            vstore(dxs, j, u, dx)
+            nx = vadd(nx, vmul(dx, dx))
+        vstore1(nxs, u, nx)
     _weights(dxs, nxs, X, Q, V, T, Npad, w)
 
 
@@ -168,11 +167,10 @@ def _work(m, n, p, V, T):
     f4 = np.float32
     return (np.zeros((m, N), f4), np.zeros((n, N), f4), np.zeros(N, f4),
             np.empty((p, min(Npad, _BLOCK)), f4), np.empty((m, min(Npad, _BLOCK)), f4),
-            np.empty((n, Bv + LANES), f4), np.empty((p, Bv), f4), np.empty((m, Bv), f4),
+            np.zeros((n, Bv + LANES), f4), np.empty((p, Bv), f4), np.empty((m, Bv), f4),
             np.empty((n, Bv), f4), np.empty(Bv, f4),
             np.empty((n + 1, V, m), f4), np.empty((n + 2, -(-(V * m) // W8) * W8)),
-            np.empty((m, p), f4), np.empty((m, p * LANES), f4),
-            np.empty((m, LANES), f4), np.empty((n, LANES), f4))
+            np.empty((m, p), f4), np.empty((m, p * LANES), f4))
 
 
 @njit(cache=True)
