@@ -14,10 +14,12 @@ from ...simd import (
 from .core import _BLOCK, _features, _predict
 from .reference import NO_MOVEMENT
 
-_IOTA = np.arange(LANES, dtype=np.float32)
+_IOTA = np.arange(LANES, dtype=np.float32)  # lane l: l (the path's fractions l / steps)
+
 
 @intrinsic
 def _vabs8(typingctx, a):
+    """|a| lane by lane (llvm.fabs: the sign bit cleared, as abs does)."""
     return F64x8(a), lambda context, builder, sig, args: _llvm(builder, "llvm.fabs", args, _VEC8)
 
 
