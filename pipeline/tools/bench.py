@@ -219,7 +219,7 @@ def _part(what, reps, M, idx, raw, amp, chain, targets, home, parent, var, joint
             _disturbances(raw[0], amp[0], 1.0, box[0], box[1], radius, work[10], work[11])
             _features(path, 0, gpath.shape[1], parent, var, work[6])
             _predict(M32, work[6], gpath.shape[1], gpath, Q, w[:0], 0)
-            _commands(gpath, path, work[10], work[11], home, T, Npad, Q)
+            _commands(gpath, path, work[10], home, T, Npad, Q)
         elif what == 1:
             chain_kinematics(Q, X, Npad, joints, chain)
         elif what == 2:

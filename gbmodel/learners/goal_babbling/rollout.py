@@ -4,38 +4,59 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
+from numba.extending import intrinsic
 
 from ...simd import (
-    F4, LANES, _1, _HALF, chain_kinematics, vadd, vclip, vdiv, vfma, vload, vload1, vmul, vsplat,
-    vsqrt, vstore, vstore1, vsub, vwhere,
+    _VEC8, F4, LANES, W8, F64x8, _1, _HALF, _llvm, chain_kinematics, vadd, vadd8, vclip, vdiv,
+    vdiv8, vfma, vload, vload1, vload8, vmul, vmul8, vsplat, vsplat8, vsqrt, vstore, vstore1,
+    vstore8, vsub, vwhere,
 )
 from .core import _BLOCK, _features, _predict
 from .reference import NO_MOVEMENT
 
+_IOTA = np.arange(LANES, dtype=np.float32)  # lane l: l (the path's fractions l / steps)
+
+
+@intrinsic
+def _vabs8(typingctx, a):
+    """|a| lane by lane (llvm.fabs: the sign bit cleared, as abs does)."""
+    return F64x8(a), lambda context, builder, sig, args: _llvm(builder, "llvm.fabs", args, _VEC8)
+
+
 @njit(cache=True)
-def _disturbances(raw, amp, s, centre, half, radius, A, b):
+def _disturbances(raw, amp, s, centre, half, radius, A, K):
     """Eq. 8: rows of [A | b] scaled to max |A_i x + b_i| = radius amp[v, i] over the target box
-    at size s (in float64, stored as float32)."""
-    V, m, n = A.shape
-    for v in range(V):
-        for i in range(m):
-            at_centre = raw[v, i, n]
-            spread = 0.0
-            for j in range(n):
-                at_centre += raw[v, i, j] * s * centre[j]
-                spread += abs(raw[v, i, j]) * s * half[j]
-            k_i = radius / (abs(at_centre) + spread) * amp[v, i]
-            for j in range(n):
-                A[v, i, j] = F4(raw[v, i, j] * k_i)
-            b[v, i] = F4(raw[v, i, n] * k_i)
+    at size s, in float64 on W8 rows r = v m + i at a time (each row's operations in the
+    scalar order) in K (n + 2, V m rounded up to W8: [A | b]^T, then amp), stored as float32
+    in A (n + 1, V, m): A[n] is b."""
+    V, m, n1 = raw.shape
+    R = V * m
+    raw, amp, A = raw.reshape(R, n1), amp.reshape(R), A.reshape(n1, R)
+    for j in range(n1):
+        for r in range(R):
+            K[j, r] = raw[r, j]
+    K[n1, :R] = amp
+    for r in range(0, R, W8):
+        at_centre, spread = vload8(K, n1 - 1, r), vsplat8(0.0)
+        for j in range(n1 - 1):
+            x = vmul8(vload8(K, j, r), vsplat8(s))
+            at_centre = vadd8(at_centre, vmul8(x, vsplat8(centre[j])))
+            spread = vadd8(spread, vmul8(vmul8(_vabs8(vload8(K, j, r)), vsplat8(s)),
+                                         vsplat8(half[j])))
+        k = vmul8(vdiv8(vsplat8(radius), vadd8(_vabs8(at_centre), spread)), vload8(K, n1, r))
+        for j in range(n1):
+            vstore8(K, j, r, vmul8(vload8(K, j, r), k))
+    for j in range(n1):
+        for r in range(R):
+            A[j, r] = F4(K[j, r])
 
 
 @njit(cache=True)
-def _commands(gpath, path, A, b, home, T, Npad, Q):
+def _commands(gpath, path, A, home, T, Npad, Q):
     """Q: per variation the home posture, then g + A x* + b along the path; home in the padding.
     (A variation's last vector runs into the next one's columns: in order.)"""
     m, Bv = gpath.shape
-    V, n = A.shape[0], path.shape[0]
+    V, n = A.shape[1], path.shape[0]
     for v in range(V):
         r0 = v * (T + 1)
         for u in range(0, Bv, LANES):
@@ -44,13 +65,13 @@ def _commands(gpath, path, A, b, home, T, Npad, Q):
             x1 = vload(path, min(1, n - 1), u)
             x2 = vload(path, min(2, n - 1), u)
             for i in range(m):
-                q = vfma(vsplat(A[v, i, 0]), x0, vadd(vload(gpath, i, u), vsplat(b[v, i])))
+                q = vfma(vsplat(A[0, v, i]), x0, vadd(vload(gpath, i, u), vsplat(A[n, v, i])))
                 if n > 1:
-                    q = vfma(vsplat(A[v, i, 1]), x1, q)
+                    q = vfma(vsplat(A[1, v, i]), x1, q)
                 if n > 2:
-                    q = vfma(vsplat(A[v, i, 2]), x2, q)
+                    q = vfma(vsplat(A[2, v, i]), x2, q)
                 for j in range(3, n):
-                    q = vfma(vsplat(A[v, i, j]), vload(path, j, u), q)
+                    q = vfma(vsplat(A[j, v, i]), vload(path, j, u), q)
                 vstore(Q, i, r0 + u, q)
         for i in range(m):
             Q[i, r0] = home[i]
@@ -95,7 +116,7 @@ def rollout(M, idx, raw, amp, s, body, targets, home, parent, var, joints, radiu
     """Steps 1-4 of an epoch (reference.samples) into work: Q (m, N) postures, X (n, N) hands,
     w (N) weights, variation v in columns v (T + 1) ... v (T + 1) + T, then weight-0 padding to
     a multiple of LANES and LANES spare columns; M in float32 in work's M32."""
-    Q, X, w, _, _, path, Phip, gpath, dxs, nxs, A, b, M32, _, Qh, Xh = work
+    Q, X, w, _, _, path, Phip, gpath, dxs, nxs, A, K, M32, _ = work
     m, p = M.shape
     n = targets.shape[1]
     V = raw.shape[0]
@@ -103,32 +124,20 @@ def rollout(M, idx, raw, amp, s, body, targets, home, parent, var, joints, radiu
     Npad = len(w) - LANES
     T = (len(idx) - 1) * steps
     s4 = F4(s)
-    # the home posture and where it puts the hand (every lane the same)
-    for i in range(m):
-        vstore(Qh, i, 0, vsplat(home[i]))
-    chain_kinematics(Qh, Xh, LANES, joints, body)
-    # the target path (eq. 9) at the current size in columns 1 ... T, the hand at home in
-    # column 0, the last target in the rest
+    # the target path (eq. 9) at the current size in columns 1 ... T, the last target in the
+    # rest (column 0, the hand at home, after the rollout); a + f d, f = l / steps: exactly a
+    # along a repeated target (targets=any), so that its intended steps are 0 and weigh
+    # nothing, as in the float64 reference. A vector of l runs into the next target's columns.
+    f0 = vdiv(vload1(_IOTA, 0), vsplat(F4(steps)))
     for j in range(n):
-        path[j, 0] = Xh[j, 0]
-    for k in range(len(idx) - 1):
-        t0, t1 = idx[k], idx[k + 1]
-        for l in range(steps):
-            f = F4(l) / F4(steps)
-            for j in range(n):
-                # t0 + f (t1 - t0): exactly t0 along a repeated target (targets=any), so that
-                # its intended steps are 0 and weigh nothing, as in the float64 reference
-                path[j, 1 + k * steps + l] = s4 * (targets[t0, j] +
-                                                   f * (targets[t1, j] - targets[t0, j]))
-    for u in range(T + 1, path.shape[1]):
-        for j in range(n):
+        for k in range(len(idx) - 1):
+            a = targets[idx[k], j]
+            d = vsplat(targets[idx[k + 1], j] - a)
+            for l in range(0, steps, LANES):
+                f = f0 if l == 0 else vdiv(vadd(vload1(_IOTA, 0), vsplat(l)), vsplat(F4(steps)))
+                vstore(path, j, 1 + k * steps + l, vmul(vsplat(s4), vadd(vsplat(a), vmul(f, d))))
+        for u in range(T + 1, path.shape[1]):
             path[j, u] = s4 * targets[idx[-1], j]
-    # the intended steps u -> u + 1 and their squared lengths
-    nxs[:] = 0
-    for j in range(n):
-        for u in range(Bv):
-            dxs[j, u] = path[j, u + 1] - path[j, u]
-            nxs[u] += dxs[j, u] * dxs[j, u]
     # g along the path
     for i in range(m):
         for k in range(p):
@@ -136,9 +145,19 @@ def rollout(M, idx, raw, amp, s, body, targets, home, parent, var, joints, radiu
     _features(path, 0, Bv, parent, var, Phip)
     _predict(M32, Phip, Bv, gpath, Q, w[:0], 0)
     # the variations' disturbances (eq. 8), their rollouts and weights
-    _disturbances(raw, amp, s, box[0], box[1], radius, A, b)
-    _commands(gpath, path, A, b, home, T, Npad, Q)
+    _disturbances(raw, amp, s, box[0], box[1], radius, A, K)
+    _commands(gpath, path, A, home, T, Npad, Q)
     chain_kinematics(Q, X, Npad, joints, body)
+    # the intended steps u -> u + 1 and their squared lengths
+    for j in range(n):  # the hand at home: variation 0's column 0 (g's there is not used)
+        path[j, 0] = X[j, 0]
+    for u in range(0, Bv, LANES):
+        nx = vsplat(0)
+        for j in range(n):
+            dx = vsub(vload(path, j, u + 1), vload(path, j, u))
+            vstore(dxs, j, u, dx)
+            nx = vadd(nx, vmul(dx, dx))
+        vstore1(nxs, u, nx)
     _weights(dxs, nxs, X, Q, V, T, Npad, w)
 
 
@@ -150,11 +169,10 @@ def _work(m, n, p, V, T):
     f4 = np.float32
     return (np.zeros((m, N), f4), np.zeros((n, N), f4), np.zeros(N, f4),
             np.empty((p, min(Npad, _BLOCK)), f4), np.empty((m, min(Npad, _BLOCK)), f4),
-            np.empty((n, Bv + LANES), f4), np.empty((p, Bv), f4), np.empty((m, Bv), f4),
+            np.zeros((n, Bv + LANES), f4), np.empty((p, Bv), f4), np.empty((m, Bv), f4),
             np.empty((n, Bv), f4), np.empty(Bv, f4),
-            np.empty((V, m, n), f4), np.empty((V, m), f4),
-            np.empty((m, p), f4), np.empty((m, p * LANES), f4),
-            np.empty((m, LANES), f4), np.empty((n, LANES), f4))
+            np.empty((n + 1, V, m), f4), np.empty((n + 2, -(-(V * m) // W8) * W8)),
+            np.empty((m, p), f4), np.empty((m, p * LANES), f4))
 
 
 @njit(cache=True)
