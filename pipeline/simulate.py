@@ -24,9 +24,9 @@ from .check import keeps_experiment
 from .config import CONFIG_PATH, check_run
 from .fingerprint import code_fingerprint
 from .keys import canonical
-from .plan import cost, plan, plan_conditions
+from .plan import cost, cpu_seconds, plan, plan_conditions
 from .planned import PLANNED, misplanned, plan_digest
-from .progress import Progress, estimate
+from .progress import Progress, estimate, fmt_duration
 
 log = logging.getLogger("pipeline.simulate")
 WAIT_POLL_S = 2.0
@@ -221,12 +221,15 @@ def simulate(cfg: DictConfig, overrides: list[str] = (), group: str | None = Non
         mine.remove(t)
         summary.cached += 1
     mine, views = with_views(mine)
+    saved = cpu_seconds(sum(costs[k] for k in views), 0)  # the cost model's, not spent
     costs.update(dict.fromkeys(views, 0.0))
     mine.sort(key=lambda t: costs[t["key"]], reverse=True)
     workers = 1 if execute.in_launcher_worker() else min(cfg.workers, max(len(mine), 1))
     log.info("[%s] %d trials: %d cached, %d to run on %d worker(s)%s%s", figure, len(trials),
              summary.cached, len(mine) + len(views), workers,
-             f" ({len(views)} scored on another's learning)" if views else "",
+             f" ({len(views)} scored on another's learning: about "
+             f"{fmt_duration(saved) if saved >= 60 else f'{saved:.1f} s'} of CPU not spent)"
+             if views else "",
              f", {len(elsewhere)} being computed by another run" if elsewhere else "")
     progress = Progress(summary, todo, cost=lambda t: costs[t["key"]])
     ahead = estimate(mine, workers, progress.costs)  # a long run says what it costs first

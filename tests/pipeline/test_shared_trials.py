@@ -90,7 +90,7 @@ def _sidecars(cfg) -> dict:
             for p in (Path(cfg.paths.cache) / "trials").glob("*/*.json")}
 
 
-def test_trials_whose_learning_is_anothers_first_epochs_learn_once(tmp_path):
+def test_trials_whose_learning_is_anothers_first_epochs_learn_once(tmp_path, caplog):
     """Issue 57 item 3: a variant that changes the evaluation, or runs fewer epochs (a multiple
     of the draw block), is scored on the way by the longest run of its learning
     (pipeline.simulate.with_views), each trial cached under its own key with the bytes it has
@@ -103,8 +103,11 @@ def test_trials_whose_learning_is_anothers_first_epochs_learn_once(tmp_path):
                         for i, s in enumerate(settings))
     cfg = compose([*base, f"paths.root={tmp_path / 'together'}", "figure=views",
                    f"conditions.variants=[{variants}]"])
-    together = simulate.simulate(cfg)
+    with caplog.at_level("INFO", logger="pipeline.simulate"):
+        together = simulate.simulate(cfg)
     n = len(plan(cfg))
+    assert f"{n} to run on 1 worker(s) ({2 * n // 3} scored on another's learning: about " \
+        in caplog.text and "of CPU not spent)" in caplog.text
     assert (together.total, together.ran, together.failed) == (n, n, {})
     shared = _sidecars(cfg)
     assert len(shared) == n
