@@ -281,11 +281,13 @@ def with_views(trials: list[dict]) -> tuple[list[dict], dict]:
     epochs of another's (the same body, growth, learner and seed; another evaluation, fewer
     epochs: a multiple of the draw block) is scored by that run on the way (gbmodel.run_trial's
     views), cached under its own key with the bytes it has alone."""
-    groups, views, out = {}, {}, []
+    groups, views, out, specs = {}, {}, [], {}
     for t in trials:  # a continuation or its base runs on its own
-        alone = "base" in t or t.get("keep_state")
-        learning = t["key"] if alone else canonical(
-            [{k: t["spec"][k] for k in gbmodel.trial.LEARNING}, t["seed"], t["code"]])
+        spec = t["spec"]  # a condition's trials share one: its learning made canonical once
+        if id(spec) not in specs:
+            specs[id(spec)] = (spec, canonical({k: spec[k] for k in gbmodel.trial.LEARNING}))
+        learning = t["key"] if "base" in t or t.get("keep_state") else (
+            specs[id(spec)][1], canonical(t["seed"]), t["code"])
         groups.setdefault(learning, []).append(t)
     for group in groups.values():
         while group:
