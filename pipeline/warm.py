@@ -1,5 +1,5 @@
-"""`python -m pipeline.warm` (make setup) compiles every kernel once into numba's cache, so no
-stage or worker compiles; `recovering` removes a kernel's damaged cache files (truncated by a
+"""`python -m pipeline.warm` (make setup) compiles every kernel once into numba's cache and every
+module of gbmodel and pipeline into its __pycache__, so no stage or worker compiles; `recovering` removes a kernel's damaged cache files (truncated by a
 full disk or a killed compile, failing every trial on every rerun), says so and calls again."""
 from __future__ import annotations
 
@@ -57,5 +57,18 @@ def warm() -> float:
     return time.perf_counter() - start
 
 
+def byte_compile() -> None:
+    """gbmodel's and pipeline's modules into __pycache__: Python reads them even where it writes
+    none (PYTHONDONTWRITEBYTECODE, common in containers), where a stage's import would otherwise
+    compile 45 modules each time (0.07-0.1 s CPU of its 0.45)."""
+    import compileall
+
+    for package in ("gbmodel", "pipeline"):
+        compileall.compile_dir(Path(sys.modules[package].__file__).parent, quiet=1)
+
+
 if __name__ == "__main__":
+    import pipeline  # noqa: F401 (byte_compile's other package)
+
+    byte_compile()
     print(f"kernels compiled or loaded from numba's cache in {warm():.1f} s")

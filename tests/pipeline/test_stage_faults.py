@@ -287,9 +287,14 @@ def test_a_trial_finished_by_another_run_after_the_check_is_not_recomputed(tmp_p
 
 # ---- 6. the kernels compile once ---------------------------------------------------------------
 def test_warm_runs_and_says_so():
+    """It loads the kernels and byte-compiles the packages (read where none are written)."""
+    stale = Path(simulate.__file__).parent / "__pycache__" / \
+        f"simulate.{sys.implementation.cache_tag}.pyc"
+    stale.unlink(missing_ok=True)
     r = run_cli("pipeline.warm")
     assert r.returncode == 0, r.stderr
     assert re.fullmatch(r"kernels compiled or loaded from numba's cache in [\d.]+ s\n", r.stdout)
+    assert stale.is_file()
 
 
 def test_make_refuses_a_python_older_than_311_and_says_which(tmp_path):
