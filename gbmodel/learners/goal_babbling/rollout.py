@@ -9,7 +9,7 @@ from numba.extending import intrinsic
 from ...simd import (
     _VEC8, F4, LANES, W8, F64x8, _1, _HALF, _llvm, chain_kinematics, vadd, vadd8, vclip, vdiv,
     vdiv8, vfma, vload, vload1, vload8, vmul, vmul8, vsplat, vsplat8, vsqrt, vstore, vstore1,
-    vstore8, vsub, vwhere,
+    vstore8, vsub, vwhere, wide_vectors,
 )
 from .core import _BLOCK, _features, _predict
 from .reference import NO_MOVEMENT
@@ -59,6 +59,21 @@ def _commands(gpath, path, A, home, T, Npad, Q):
     V, n = A.shape[1], path.shape[0]
     for v in range(V):
         r0 = v * (T + 1)
+        if wide_vectors():  # row by row: Q's rows are written in order, A's splats made once
+            for i in range(m):
+                a0, a1, a2, b = (vsplat(A[0, v, i]), vsplat(A[min(1, n - 1), v, i]),
+                                 vsplat(A[min(2, n - 1), v, i]), vsplat(A[n, v, i]))
+                for u in range(0, Bv, LANES):
+                    q = vfma(a0, vload(path, 0, u), vadd(vload(gpath, i, u), b))
+                    if n > 1:
+                        q = vfma(a1, vload(path, 1, u), q)
+                    if n > 2:
+                        q = vfma(a2, vload(path, 2, u), q)
+                    for j in range(3, n):
+                        q = vfma(vsplat(A[j, v, i]), vload(path, j, u), q)
+                    vstore(Q, i, r0 + u, q)
+                Q[i, r0] = home[i]
+            continue
         for u in range(0, Bv, LANES):
             # x* of these columns (n <= 3: the hand coordinates controlled), in registers
             x0 = vload(path, 0, u)
