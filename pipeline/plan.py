@@ -320,11 +320,11 @@ def plan_conditions(trials: list[dict]) -> list[dict]:
 
 
 # CPU seconds per unit of cost() and per trial, calibrated on whole trials: the committed
-# report's measured CPU per experiment (2,595 trials on a shared 2-core AMD EPYC, up to seven
-# other processes beside it) is 0.73 to 1.35 x cpu_seconds (tests/pipeline/test_sweeps.py); the
-# previous, quieter report gave 2.2 ns per unit (the path targets' evaluation: ~0.01 s a trial)
-SECONDS_PER_COST = 3.1e-9
-SECONDS_PER_TRIAL = 0.05
+# report's measured CPU per experiment (2,595 trials on a 2-core Intel Xeon with AVX-512, views
+# at 0 s) is 0.70 to 1.14 x cpu_seconds, all of it 1.005 (tests/pipeline/test_sweeps.py); the
+# report before, on a loaded AMD EPYC and older kernels, gave 3.1 ns per unit and 0.05 s a trial
+SECONDS_PER_COST = 2.0e-9
+SECONDS_PER_TRIAL = 0.02
 
 
 def cpu_seconds(units: float, trials: int) -> float:
