@@ -356,11 +356,58 @@ def box(targets):
     return centre, half
 
 
+_MASK32 = np.uint64(0xFFFFFFFF)
+
+
 @njit(cache=True)
 def fsum(x):
-    """(math.fsum of the float64 array x, True): Shewchuk's partials and CPython's half-even
-    correction step for step, the same correctly rounded sum without a list of Python floats;
-    (nan, False) at a non-finite value or an intermediate overflow, math.fsum's to answer."""
+    """(math.fsum of the float64 array x, True): the same correctly rounded sum without a list of
+    Python floats; (nan, False) at a non-finite value or an intermediate overflow, math.fsum's to
+    answer. The values are added exactly, as integers in units of 2^-1074 in 32-bit limbs (each
+    value's 53-bit mantissa over three limbs of int64: 2^31 values before a limb could overflow),
+    and the limbs, each an exact double, summed by `_msum`: the correctly rounded sum of the same
+    exact total, so math.fsum's bits (5-10x faster than _msum over the values, whose branches
+    depend on the data). A value of 2^1000 or more, or 2^23 values or more, go to _msum as they
+    are, so that an intermediate overflow is math.fsum's to report."""
+    n = x.size
+    if n >= 1 << 23:
+        return _msum(x)
+    bits = np.ascontiguousarray(x).view(np.uint64)
+    acc = np.zeros(67, np.int64)  # limb k: 2^(32 k - 1074); |x| < 2^1000: k <= 65, one for carries
+    for k in range(n):
+        b = bits[k]
+        e = (b >> np.uint64(52)) & np.uint64(0x7FF)
+        if e >= np.uint64(2023):  # |x| >= 2^1000, inf or nan
+            return _msum(x)
+        m = b & np.uint64((1 << 52) - 1)
+        if e > np.uint64(0):  # normal: the hidden bit; a subnormal's unit is 2^-1074 as is
+            m |= np.uint64(1 << 52)
+            e -= np.uint64(1)
+        q, s = e >> np.uint64(5), e & np.uint64(31)  # x = m 2^(e - 1074): limbs q ... q + 2
+        lo = np.int64((m << s) & _MASK32)
+        mid = np.int64((m >> (np.uint64(32) - s)) & _MASK32)
+        hi = np.int64((m >> np.uint64(32)) >> (np.uint64(32) - s))
+        i = np.int64(q)
+        if b >> np.uint64(63):
+            acc[i], acc[i + 1], acc[i + 2] = acc[i] - lo, acc[i + 1] - mid, acc[i + 2] - hi
+        else:
+            acc[i], acc[i + 1], acc[i + 2] = acc[i] + lo, acc[i + 1] + mid, acc[i + 2] + hi
+    parts, c = np.empty(67), 0
+    for k in range(66):  # carries up: limbs in [-2^31, 2^31) (a negative total stays short)
+        carry = (acc[k] + (1 << 31)) >> 32
+        acc[k] -= carry << 32
+        acc[k + 1] += carry
+    for k in range(67):
+        if acc[k] != 0:
+            parts[c] = np.ldexp(np.float64(acc[k]), 32 * k - 1074)
+            c += 1
+    return _msum(parts[:c])
+
+
+@njit(cache=True)
+def _msum(x):
+    """math.fsum of x: Shewchuk's partials and CPython's half-even correction step for step;
+    (nan, False) at a non-finite value or an intermediate overflow."""
     p = np.empty(64)  # nonoverlapping partials: at most 2098 / 53 + 1 of finite doubles
     n = 0
     for k in range(x.size):

@@ -329,12 +329,16 @@ def _sums():
     rng = np.random.default_rng(20101207)
     yield from (np.array(x, dtype=np.float64) for x in (
         [], [-0.0], [0.0, -0.0], [1e-16, 1.0, 1e16], [1.0, 2.0 ** -53, 2.0 ** -106],
-        [0.1] * 10, [1.0, -1.0, 1e-300], [5e-324, 5e-324], [1e308, -1e308, 1.0]))
+        [0.1] * 10, [1.0, -1.0, 1e-300], [5e-324, 5e-324], [1e308, -1e308, 1.0],
+        [1.0, 2.0 ** -53], [1.0 + 2.0 ** -52, 2.0 ** -53], [1.0, 2.0 ** -53, -2.0 ** -200],
+        [-1.0, -2.0 ** -53, 2.0 ** -1074], [2.0 ** -1022, -2.0 ** -1074], [1e300, 1e284, -1e300]))
     for _ in range(4000):
         k = int(rng.integers(0, 60))
         yield from (rng.random(k), np.ldexp(rng.random(k), rng.integers(-1074, 1000, k)),
                     np.ldexp(rng.choice([1.0, -1.0, 3.0, 0.5], k), rng.integers(-60, 60, k)),
-                    np.concatenate([rng.random(k), -rng.random(k)]))
+                    np.concatenate([rng.random(k), -rng.random(k)]),
+                    np.ldexp(rng.integers(-2 ** 53, 2 ** 53, k).astype(float),
+                             rng.integers(-1100, 960, k)))
 
 
 def test_the_compiled_sum_is_math_fsum_to_the_bit():
