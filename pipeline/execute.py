@@ -69,8 +69,10 @@ def local(todo: list[dict], workers: int, fn=run_one):
         for t in todo:
             yield t, fn(t)
         return
+    from .fingerprint import known  # handed to the workers: theirs without a parse
+
     pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
-                               initializer=quiet_worker, initargs=(os.getpid(),))
+                               initializer=quiet_worker, initargs=(os.getpid(), known()))
     _POOLS.add(pool)
     try:
         if fn is run_one:

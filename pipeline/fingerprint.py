@@ -1,11 +1,13 @@
 """The code fingerprint of a trial: a hash of the gbmodel code that computes it (the shared core
 plus its learner's files), as part of its cache key, so a trial is recomputed when its code
 changes and only then. Files are read, not imported, and each text is parsed once per process
-(_facts). The text of every gbmodel file is kept as this module's import found it (_AT_IMPORT);
-a file of an imported module whose syntax (comments and docstrings aside) differs between that
-text, the text hashed and the file now was edited while the process ran: CodeChanged, a one-line
-error naming the definition that differs: run the command again. (A file saved before this
-module's import, after its module's, is not seen: the stages import it within a second.)
+(_tree, _imports); a pool's workers are handed the driver's fingerprints (trust) and take one
+where their files are the driver's byte for byte, parsing none. The text of every gbmodel file
+is kept as this module's import found it (_AT_IMPORT); a file of an imported module whose syntax
+(comments and docstrings aside) differs between that text, the text hashed and the file now was
+edited while the process ran: CodeChanged, a one-line error naming the definition that differs:
+run the command again. (A file saved before this module's import, after its module's, is not
+seen: the stages import it within a second.)
 """
 from __future__ import annotations
 
@@ -24,14 +26,9 @@ class CodeChanged(RuntimeError):
     """A gbmodel file differs from the code this process imported from it."""
 
 
-def _dump(tree, imports: list | None = None) -> str:
-    """ast.dump of `tree` with its docstrings taken out (in place); its imports appended to
-    `imports` in the same walk."""
+def _dump(tree) -> str:
+    """ast.dump of `tree` with its docstrings taken out (in place)."""
     for node in ast.walk(tree):
-        if imports is not None and isinstance(node, (ast.ImportFrom, ast.Import)):
-            imports.append(("from", node.level, node.module, [a.name for a in node.names])
-                           if isinstance(node, ast.ImportFrom)
-                           else ("import", None, None, [a.name for a in node.names]))
         body = getattr(node, "body", None)
         if (isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef))
                 and body and isinstance(body[0], ast.Expr)
@@ -47,19 +44,52 @@ def source_fingerprint(sources) -> str:
     h = hashlib.sha256()
     for name, text in sorted(sources):
         h.update(name.encode() + b"\0")
-        h.update(_facts(text)["tree"].encode() + b"\0")
+        h.update(_tree(text).encode() + b"\0")
     return h.hexdigest()[:16]
 
 
-def _learn(text: str) -> dict:
-    """From one parse: tree (without docstrings) and imports: ("from", level, module or None,
-    [names]) or ("import", None, None, [names])."""
-    imports = []
-    tree = _dump(ast.parse(text), imports)
-    return dict(tree=tree, imports=imports)
+def _learn(text: str) -> str:
+    """The syntax tree of `text` without its docstrings, as text."""
+    return _dump(ast.parse(text))
 
 
-_facts = lru_cache(maxsize=512)(lambda text: _learn(text))  # once per text and process
+_tree = lru_cache(maxsize=512)(lambda text: _learn(text))  # once per text and process
+
+
+@lru_cache(maxsize=512)
+def _imports(text: str) -> tuple:
+    """The imports of `text`: ("from", level, module or None, [names]) or ("import", None, None,
+    [names]) (a parse without the dump)."""
+    return tuple(("from", node.level, node.module, [a.name for a in node.names])
+                 if isinstance(node, ast.ImportFrom)
+                 else ("import", None, None, [a.name for a in node.names])
+                 for node in ast.walk(ast.parse(text))
+                 if isinstance(node, (ast.ImportFrom, ast.Import)))
+
+
+def _bytes_key(sources) -> str:
+    """sha256 of (name, text) pairs as they are, byte for byte."""
+    h = hashlib.sha256()
+    for name, text in sorted(sources):
+        h.update(name.encode() + b"\0" + text.encode() + b"\0")
+    return h.hexdigest()
+
+
+_TRUSTED: dict = {}  # _bytes_key -> fingerprint: computed here, or handed over (trust)
+
+
+def known() -> dict:
+    """The fingerprints this process has, by the bytes they were computed from: what a pool's
+    workers are handed (trust)."""
+    return dict(_TRUSTED)
+
+
+def trust(fingerprints: dict) -> None:
+    """Take these fingerprints (known() of the process that starts this one) for files whose
+    bytes are those they were computed from: the same texts give the same fingerprint."""
+    _TRUSTED.update(fingerprints)
+
+
 _AT_IMPORT = {p.resolve(): p.read_text()
               for p in Path(gbmodel.__file__).resolve().parent.rglob("*.py")}
 
@@ -94,7 +124,7 @@ def as_imported(path: Path, text: str, modules: dict | None = None) -> str:
     if path not in (_gbmodel_modules() if modules is None else modules):
         return text
     for other in (_AT_IMPORT.get(path, text), path.read_text()):
-        if _facts(other)["tree"] != _facts(text)["tree"]:
+        if other != text and _tree(other) != _tree(text):
             changed = _changed(ast.parse(other).body, ast.parse(text).body)
             raise CodeChanged(f"{path}: changed since this process imported it ({changed} "
                               "differs); run the command again")
@@ -112,7 +142,7 @@ def imported_learners(sources, name: str) -> set[str]:
         if parts[:2] != ["gbmodel", "learners"]:
             continue  # a learner registered from elsewhere: its source is hashed as it is
         package = parts[:-1]  # of a module, and of a package's __init__ alike
-        for kind, level, module, names in _facts(text)["imports"]:
+        for kind, level, module, names in _imports(text):
             if kind == "from":
                 base = package[:len(package) - level + 1] if level else []
                 stem = base + (module.split(".") if module else [])
@@ -144,7 +174,8 @@ def learner_sources(learner: str) -> list[tuple[str, str]]:
 @lru_cache(maxsize=None)
 def _fingerprint(learner: str) -> tuple[str, dict, set, list]:
     """(fingerprint, resolved path -> the text hashed, the paths checked against their module,
-    [len(sys.modules) at the last check]) of `learner`, computed once per process."""
+    [len(sys.modules) at the last check]) of `learner`, computed once per process (or taken from
+    _TRUSTED for the same bytes)."""
     root = Path(gbmodel.__file__).resolve().parent
     shared = [p for p in root.rglob("*.py")
               if "learners" not in p.relative_to(root).parts[:-1]]
@@ -154,7 +185,9 @@ def _fingerprint(learner: str) -> tuple[str, dict, set, list]:
     own = [(p.relative_to(root.parent).as_posix(), texts[p.resolve()]) for p in shared]
     for label, text in theirs:
         texts[(root.parent / label).resolve()] = text
-    return source_fingerprint(own + theirs), texts, set(), [None]
+    key = _bytes_key(own + theirs)
+    fp = _TRUSTED[key] = _TRUSTED.get(key) or source_fingerprint(own + theirs)
+    return fp, texts, set(), [None]
 
 
 def code_fingerprint(learner: str) -> str:

@@ -199,3 +199,25 @@ def test_a_profiled_run_is_not_taken_for_changed_code():
         profile.disable()
     path = Path(fast.__file__)
     assert fingerprint.as_imported(path, path.read_text()) == path.read_text()
+
+
+def test_a_trusted_fingerprint_is_taken_for_the_same_bytes_only(monkeypatch):
+    """fingerprint.trust (a pool worker's, from its driver): the fingerprint of exactly these
+    bytes is taken without a parse; for any other bytes the files are parsed as usual."""
+    from pipeline import fingerprint as f
+    usual = f.code_fingerprint("goal_babbling")
+    [key] = [k for k, fp in f.known().items() if fp == usual]
+    learnt = []
+    monkeypatch.setattr(f, "_learn", lambda text: learnt.append(text) or "another tree")
+    try:
+        for trusted, parses in (({key: usual}, False), ({"other bytes": usual}, True)):
+            monkeypatch.setattr(f, "_TRUSTED", dict(trusted))
+            f.code_fingerprint.cache_clear()
+            f._tree.cache_clear()
+            fp = f.code_fingerprint("goal_babbling")
+            assert bool(learnt) == parses and (fp == usual) != parses
+    finally:
+        monkeypatch.undo()
+        f.code_fingerprint.cache_clear()
+        f._tree.cache_clear()
+    assert f.code_fingerprint("goal_babbling") == usual
