@@ -370,7 +370,7 @@ def fsum(x):
     depend on the data). A value of 2^1000 or more, or 2^23 values or more, go to _msum as they
     are, so that an intermediate overflow is math.fsum's to report."""
     n = x.size
-    if n >= 1 << 23:
+    if n >= 1 << 23 or x.itemsize != 8:  # (a float32 array: its values as they are)
         return _msum(x)
     bits = np.ascontiguousarray(x).view(np.uint64)
     acc = np.zeros(67, np.int64)  # limb k: 2^(32 k - 1074); |x| < 2^1000: k <= 65, one for carries

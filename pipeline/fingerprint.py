@@ -2,7 +2,7 @@
 plus its learner's files), as part of its cache key, so a trial is recomputed when its code
 changes and only then. Files are read, not imported, and each text is parsed once per process
 (_tree, _imports); a pool's workers are handed the driver's fingerprints (trust) and take one
-where their files are the driver's byte for byte, parsing none. The text of every gbmodel file
+where their files are the driver's byte for byte, dumping no syntax tree. The text of every gbmodel file
 is kept as this module's import found it (_AT_IMPORT); a file of an imported module whose syntax
 (comments and docstrings aside) differs between that text, the text hashed and the file now was
 edited while the process ran: CodeChanged, a one-line error naming the definition that differs:
@@ -68,10 +68,11 @@ def _imports(text: str) -> tuple:
 
 
 def _bytes_key(sources) -> str:
-    """sha256 of (name, text) pairs as they are, byte for byte."""
+    """sha256 of (name, text) pairs as they are, byte for byte (each with its length)."""
     h = hashlib.sha256()
     for name, text in sorted(sources):
-        h.update(name.encode() + b"\0" + text.encode() + b"\0")
+        name, text = name.encode(), text.encode()
+        h.update(b"%d %d\0" % (len(name), len(text)) + name + text)
     return h.hexdigest()
 
 
@@ -204,4 +205,9 @@ def code_fingerprint(learner: str) -> str:
     return fp
 
 
-code_fingerprint.cache_clear = _fingerprint.cache_clear  # the tests' way to read files again
+def _cache_clear() -> None:
+    _fingerprint.cache_clear()
+    _TRUSTED.clear()
+
+
+code_fingerprint.cache_clear = _cache_clear  # the tests' way to read files again
