@@ -363,12 +363,13 @@ _MASK32 = np.uint64(0xFFFFFFFF)
 def fsum(x):
     """(math.fsum of the float64 array x, True): the same correctly rounded sum without a list of
     Python floats; (nan, False) at a non-finite value or an intermediate overflow, math.fsum's to
-    answer. x must be float64 (its bits are read as a float64's; evaluation.error converts). The values are added exactly, as integers in units of 2^-1074 in 32-bit limbs (each
-    value's 53-bit mantissa over three limbs of int64: 2^31 values before a limb could overflow),
-    and the limbs, each an exact double, summed by `_msum`: the correctly rounded sum of the same
-    exact total, so math.fsum's bits (5-10x faster than _msum over the values, whose branches
-    depend on the data). A value of 2^1000 or more, or 2^23 values or more, go to _msum as they
-    are, so that an intermediate overflow is math.fsum's to report."""
+    answer. x must be float64 (its bits are read as a float64's; evaluation.error converts).
+    The values are added exactly, as integers in units of 2^-1074 in 32-bit limbs (each value's
+    53-bit mantissa over three limbs of int64: 2^31 values before a limb could overflow), and the
+    limbs, each an exact double, summed by `_msum`: the correctly rounded sum of the same exact
+    total, so math.fsum's bits (5-10x faster than _msum over the values, whose branches depend on
+    the data). A value of 2^1000 or more, or 2^23 values or more, go to _msum as they are, so
+    that an intermediate overflow is math.fsum's to report."""
     n = x.size
     if n >= 1 << 23:
         return _msum(x)
