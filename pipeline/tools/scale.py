@@ -6,6 +6,7 @@ against another checkout; the cached stages.
     python -m pipeline.tools.scale                           # 1,000 and 10,000 trials
     python -m pipeline.tools.scale --sizes 100000            # the large one (about an hour)
     python -m pipeline.tools.scale --baseline /tmp/base      # the same, beside another checkout
+    python -m pipeline.tools.scale --sizes 1000 --baseline /tmp/base --sweeps 5  # paired ratios
     python -m pipeline.tools.scale --sampled 100000          # 100,000 planned, 1,000 run
     python -m pipeline.tools.scale report --baseline /tmp/base [--rounds 3] [--profile full]
                                           [--experiments E1,E2] [--aggregates this|own]
@@ -91,6 +92,9 @@ def headline(results: list[dict], smokes: list[dict]) -> list[str]:
     lines = [f"cached make smoke ({r['code'][-28:]}): {r['cpu_s']:.2f} s CPU ("
              + ", ".join(f"{s} {r[s]['cpu_s']:.2f}" for s in SMOKE_STAGES)
              + f"){median(r)}; target at most {SMOKE_TARGET_S:g} s" for r in smokes]
+    lines += [f"{r['size']:,} trials, {stage} ({r['code'][-28:]}): CPU "
+              f"{r[stage]['cpu_ratio']:.3f}x the baseline's (the median of the paired sweeps')"
+              for r in results for stage in STAGES if "cpu_ratio" in r.get(stage, {})]
     return lines + [f"aggregate after one changed trial of {r['size']:,} ({r['code'][-28:]}): "
                     f"{r['aggregate_one']['cpu_s']:.2f} s CPU{median(r['aggregate_one'])}; "
                     f"target at most {ONE_TRIAL_TARGET_S:g} s"
@@ -137,22 +141,34 @@ def changed_once(code: Path, root: Path, size: int, epochs: int) -> dict:
 
 
 def paired(codes: list[Path], size: int, epochs: int, workers: int, keep: bool,
-           repeat: int) -> list[dict]:
-    """A sweep of each checkout, the `repeat` runs of aggregate_one alternating between them;
-    each stage's CPU per trial."""
-    prepared = []
+           repeat: int, sweeps: int = 1) -> list[dict]:
+    """`sweeps` sweeps of each checkout from nothing, then `repeat` runs of aggregate_one, the
+    checkouts alternating; each stage's medians and CPU per trial, and with a baseline each
+    stage's `cpu_ratio`: the median of this checkout's CPU over the baseline's, sweep by sweep."""
+    roots: dict = {}  # checkout -> the root of its latest sweep
+
+    def sweep(i, _):
+        out, root = prepare(codes[i], size, epochs, workers)
+        if i in roots and not keep:
+            shutil.rmtree(roots[i], ignore_errors=True)
+        roots[i] = root
+        return out
     try:
-        for code in codes:
-            prepared.append((code, *prepare(code, size, epochs, workers)))
-        runs = interleaved(range(len(prepared)), repeat, lambda i, _: changed_once(
-            prepared[i][0], prepared[i][2], size, epochs), flip=False)
-        for i, (_, out, _) in enumerate(prepared):
-            out["aggregate_one"] = median_of(runs[i])
+        done = interleaved(range(len(codes)), sweeps, sweep)
+        runs = interleaved(range(len(codes)), repeat, lambda i, _: changed_once(
+            codes[i], roots[i], size, epochs), flip=False)
+        outs = [dict(done[i][-1], aggregate_one=median_of(runs[i])) for i in range(len(codes))]
+        for i, out in enumerate(outs):
             for stage in STAGES:
+                if stage != "aggregate_one":
+                    out[stage] = median_of([s[stage] for s in done[i]])
                 out[stage]["cpu_ms_per_trial"] = round(1000 * out[stage]["cpu_s"] / size, 3)
-        return [out for _, out, _ in prepared]
+        for stage in STAGES[:-1] if len(codes) > 1 else ():
+            outs[0][stage]["cpu_ratio"] = round(statistics.median(
+                a[stage]["cpu_s"] / b[stage]["cpu_s"] for a, b in zip(done[0], done[1])), 3)
+        return outs
     finally:
-        for _, _, root in prepared if not keep else ():
+        for root in roots.values() if not keep else ():
             shutil.rmtree(root, ignore_errors=True)
 
 
@@ -377,6 +393,9 @@ def parser(command: str | None) -> argparse.ArgumentParser:
         help="also time a fully cached make smoke of these experiments")
     add("--repeat", type=int, default=3,
         help="runs of aggregate_one and of the cached smoke, medians (default 3)")
+    add("--sweeps", type=int, default=1,
+        help="sweeps from nothing per checkout and size, alternating with the baseline's: "
+             "medians, and CPU ratios to the baseline sweep by sweep (default 1)")
     add("--packing", type=int, metavar="N",
         help="instead: the cache's files against one packed file, for N trials")
     return ap
@@ -395,7 +414,8 @@ def bad_input(a) -> str | None:
          f"--sizes={a.sizes}: positive multiples of {CONDITIONS}"),
         (a.baseline is not None and not (a.baseline / "pipeline" / "simulate.py").is_file(),
          f"--baseline={a.baseline}: not a checkout of this project"),
-        (min(a.epochs, a.workers, a.repeat) < 1, "--epochs, --workers and --repeat: at least 1"),
+        (min(a.epochs, a.workers, a.repeat, a.sweeps) < 1,
+         "--epochs, --workers, --repeat and --sweeps: at least 1"),
         (a.sampled is not None and not sample_ok, f"--sampled={a.sampled} --sample={a.sample}: "
          f"multiples of {CONDITIONS}, the sample at most the sweep")) if is_bad), None)
 
@@ -416,7 +436,8 @@ def main(argv: list[str] | None = None) -> int:
     codes = [REPO] + ([a.baseline.resolve()] if a.baseline else [])
     results, loads = [], [load()]
     for size in [int(s) for s in a.sizes.split(",")] if a.sampled is None else [a.sampled]:
-        done = (paired(codes, size, a.epochs, a.workers, a.keep, a.repeat) if a.sampled is None
+        done = (paired(codes, size, a.epochs, a.workers, a.keep, a.repeat, a.sweeps)
+                if a.sampled is None
                 else [sampled(code, size, a.sample, a.epochs, a.workers, a.keep)
                       for code in codes])
         results += done
@@ -426,6 +447,7 @@ def main(argv: list[str] | None = None) -> int:
     if smokes:
         loads.append(load())
     record = dict(epochs=a.epochs, workers=a.workers, conditions=CONDITIONS, repeat=a.repeat,
+                  sweeps=a.sweeps,
                   loads=loads, results=results, cached_smoke=smokes)
     io.write_text(a.out, json.dumps(record, indent=1) + "\n")
     print(table(results))

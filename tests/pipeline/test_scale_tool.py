@@ -10,7 +10,8 @@ from pipeline.tools import scale
 @pytest.mark.parametrize("args", [["--sizes", "15"], ["--sizes", "x"], ["--epochs", "0"],
                                   ["--packing", "0"], ["--baseline", "/nonexistent"],
                                   ["--sampled", "100", "--sample", "200"],
-                                  ["--sampled", "105"], ["--sampled", "100", "--sample", "5"]])
+                                  ["--sampled", "105"], ["--sampled", "100", "--sample", "5"],
+                                  ["--sweeps", "0"]])
 def test_bad_input_is_exit_2(args, tmp_path, capsys):
     assert scale.main([*args, "--out", str(tmp_path / "s.json")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
@@ -89,5 +90,33 @@ def test_the_start_up_numbers_are_medians_of_alternating_runs(monkeypatch, tmp_p
     assert a["aggregate_one"]["cpu_s"] == 2.0 and a["aggregate_one"]["runs_cpu_s"] == [3, 1, 2]
     assert b["aggregate_one"]["cpu_s"] == 2.0 and b["aggregate_one"]["runs_cpu_s"] == [1, 2, 9]
     assert scale.headline([a], []) == [
+        f"10,000 trials, {s} (/x/a): CPU 1.000x the baseline's (the median of the paired "
+        "sweeps')" for s in scale.STAGES[:-1]] + [
         "aggregate after one changed trial of 10,000 (/x/a): 2.00 s CPU (median of 3: 3.00, "
         "1.00, 2.00); target at most 2 s"]
+
+
+def test_sweeps_alternate_with_the_baselines_and_give_medians_and_paired_ratios(
+        tmp_path, monkeypatch):
+    """--sweeps 3 with a baseline: this checkout's and the baseline's sweeps alternate (reversed
+    every other round); each stage is the median of its sweeps and carries the median of the
+    sweep-by-sweep CPU ratios; only the latest sweep's root is kept for aggregate_one."""
+    calls, cpu = [], {"a": iter([4.0, 6.0, 5.0]), "b": iter([5.0, 5.0, 10.0])}
+
+    def prepare(code, size, epochs, workers):
+        calls.append(code)
+        c = next(cpu[code])
+        root = tmp_path / f"{code}{len(calls)}"
+        root.mkdir()
+        return dict(code=code, size=size, files=2 * size, **{
+            s: dict(wall_s=c, cpu_s=c, peak_mb=1.0) for s in scale.STAGES[:-1]}), root
+
+    monkeypatch.setattr(scale, "prepare", prepare)
+    monkeypatch.setattr(scale, "changed_once", lambda code, root, size, epochs: dict(
+        wall_s=1.0, cpu_s=1.0 if root.exists() else 99.0, peak_mb=1.0))
+    a, b = scale.paired(["a", "b"], 10, 2, 1, False, 1, sweeps=3)
+    assert calls == ["a", "b", "b", "a", "a", "b"]
+    assert a["simulate"]["cpu_s"] == 5.0 and b["simulate"]["cpu_s"] == 5.0
+    assert a["simulate"]["cpu_ratio"] == 0.8  # median of 4/5, 6/5, 5/10
+    assert "cpu_ratio" not in b["simulate"] and a["aggregate_one"]["cpu_s"] == 1.0
+    assert not any(tmp_path.iterdir())  # every root removed at the end
