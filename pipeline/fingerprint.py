@@ -1,8 +1,9 @@
 """The code fingerprint of a trial: a hash of the gbmodel code that computes it (the shared core
 plus its learner's files), as part of its cache key, so a trial is recomputed when its code
 changes and only then. Files are read, not imported, and each text is parsed once per process
-(_tree, _imports); a pool's workers are handed the driver's fingerprints (trust) and take one
-where their files are the driver's byte for byte, dumping no syntax tree. The text of every gbmodel file
+(_facts); a pool's workers are handed the driver's fingerprints (trust) and take one where
+their files are the driver's byte for byte, dumping only their learner's syntax trees (whose
+imports name the files). The text of every gbmodel file
 is kept as this module's import found it (_AT_IMPORT); a file of an imported module whose syntax
 (comments and docstrings aside) differs between that text, the text hashed and the file now was
 edited while the process ran: CodeChanged, a one-line error naming the definition that differs:
@@ -26,9 +27,14 @@ class CodeChanged(RuntimeError):
     """A gbmodel file differs from the code this process imported from it."""
 
 
-def _dump(tree) -> str:
-    """ast.dump of `tree` with its docstrings taken out (in place)."""
+def _dump(tree, imports: list | None = None) -> str:
+    """ast.dump of `tree` with its docstrings taken out (in place); its imports appended to
+    `imports` in the same walk."""
     for node in ast.walk(tree):
+        if imports is not None and isinstance(node, (ast.ImportFrom, ast.Import)):
+            imports.append(("from", node.level, node.module, [a.name for a in node.names])
+                           if isinstance(node, ast.ImportFrom)
+                           else ("import", None, None, [a.name for a in node.names]))
         body = getattr(node, "body", None)
         if (isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef))
                 and body and isinstance(body[0], ast.Expr)
@@ -44,27 +50,19 @@ def source_fingerprint(sources) -> str:
     h = hashlib.sha256()
     for name, text in sorted(sources):
         h.update(name.encode() + b"\0")
-        h.update(_tree(text).encode() + b"\0")
+        h.update(_facts(text)["tree"].encode() + b"\0")
     return h.hexdigest()[:16]
 
 
-def _learn(text: str) -> str:
-    """The syntax tree of `text` without its docstrings, as text."""
-    return _dump(ast.parse(text))
+def _learn(text: str) -> dict:
+    """From one parse: tree (without docstrings) and imports: ("from", level, module or None,
+    [names]) or ("import", None, None, [names])."""
+    imports = []
+    tree = _dump(ast.parse(text), imports)
+    return dict(tree=tree, imports=imports)
 
 
-_tree = lru_cache(maxsize=512)(lambda text: _learn(text))  # once per text and process
-
-
-@lru_cache(maxsize=512)
-def _imports(text: str) -> tuple:
-    """The imports of `text`: ("from", level, module or None, [names]) or ("import", None, None,
-    [names]) (a parse without the dump)."""
-    return tuple(("from", node.level, node.module, [a.name for a in node.names])
-                 if isinstance(node, ast.ImportFrom)
-                 else ("import", None, None, [a.name for a in node.names])
-                 for node in ast.walk(ast.parse(text))
-                 if isinstance(node, (ast.ImportFrom, ast.Import)))
+_facts = lru_cache(maxsize=512)(lambda text: _learn(text))  # once per text and process
 
 
 def _bytes_key(sources) -> str:
@@ -125,7 +123,7 @@ def as_imported(path: Path, text: str, modules: dict | None = None) -> str:
     if path not in (_gbmodel_modules() if modules is None else modules):
         return text
     for other in (_AT_IMPORT.get(path, text), path.read_text()):
-        if other != text and _tree(other) != _tree(text):
+        if other != text and _facts(other)["tree"] != _facts(text)["tree"]:
             changed = _changed(ast.parse(other).body, ast.parse(text).body)
             raise CodeChanged(f"{path}: changed since this process imported it ({changed} "
                               "differs); run the command again")
@@ -143,7 +141,7 @@ def imported_learners(sources, name: str) -> set[str]:
         if parts[:2] != ["gbmodel", "learners"]:
             continue  # a learner registered from elsewhere: its source is hashed as it is
         package = parts[:-1]  # of a module, and of a package's __init__ alike
-        for kind, level, module, names in _imports(text):
+        for kind, level, module, names in _facts(text)["imports"]:
             if kind == "from":
                 base = package[:len(package) - level + 1] if level else []
                 stem = base + (module.split(".") if module else [])

@@ -203,22 +203,26 @@ def test_a_profiled_run_is_not_taken_for_changed_code():
 
 def test_a_trusted_fingerprint_is_taken_for_the_same_bytes_only(monkeypatch):
     """fingerprint.trust (a pool worker's, from its driver): the fingerprint of exactly these
-    bytes is taken without a parse; for any other bytes the files are parsed as usual."""
+    bytes is taken, only the learner's own files parsed (their imports name the files); for any
+    other bytes every file is parsed as usual."""
     from pipeline import fingerprint as f
     f.code_fingerprint.cache_clear()
     usual = f.code_fingerprint("goal_babbling")
     [key] = f.known()
+    own = len(f.learner_sources("goal_babbling"))
     learnt = []
-    monkeypatch.setattr(f, "_learn", lambda text: learnt.append(text) or "another tree")
+    monkeypatch.setattr(f, "_learn", lambda text: learnt.append(text) or dict(
+        tree="another tree", imports=[]))
     try:
-        for trusted, parses in (({key: usual}, False), ({"other bytes": usual}, True)):
+        for trusted, parses_all in (({key: usual}, False), ({"other bytes": usual}, True)):
             f.code_fingerprint.cache_clear()
-            f._tree.cache_clear()
+            f._facts.cache_clear()
+            learnt.clear()
             monkeypatch.setattr(f, "_TRUSTED", dict(trusted))
             fp = f.code_fingerprint("goal_babbling")
-            assert bool(learnt) == parses and (fp == usual) != parses
+            assert (len(learnt) > own) == parses_all and (fp == usual) != parses_all
     finally:
         monkeypatch.undo()
         f.code_fingerprint.cache_clear()
-        f._tree.cache_clear()
+        f._facts.cache_clear()
     assert f.code_fingerprint("goal_babbling") == usual
