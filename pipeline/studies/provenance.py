@@ -151,8 +151,10 @@ def credits(aggs: dict) -> list[str]:
             for _, c in sorted(used.items())]
 
 
-def markdown(aggs: dict, out_dir=None) -> list[str]:
-    """The provenance block and credits (markdown lines); out_dir: as costs()."""
+def markdown(aggs: dict, out_dir=None, apart: tuple = ()) -> list[str]:
+    """The provenance block and credits (markdown lines); out_dir: as costs(); apart: figures
+    (the replicate sets) whose CPU time is also given in a row of its own, and the rest in
+    another."""
     from .. import __version__
 
     lock = (hashlib.sha256(LOCK.read_bytes()).hexdigest()[:16] if LOCK.exists()
@@ -170,6 +172,11 @@ def markdown(aggs: dict, out_dir=None) -> list[str]:
           f"- CPU: {cpu_model()}", "",
           "| figure | trials | CPU time (measured) | CPU time (estimated) |", "|---|---|---|---|"]
     md += [row(name, *c) for name, c in per.items()]
+    if apart:
+        md += [row("all but the replicate sets, each shared trial once", *costs(
+                   {k: a for k, a in aggs.items() if k not in apart}, out_dir)[1]),
+               row(f"the replicate sets ({', '.join(apart)})",
+                   *costs({k: aggs[k] for k in apart}, out_dir)[1])]
     md.append(row("all, each shared trial once", *total))
     md += ["", prose("provenance.cpu"), ""]
     lines = credits(aggs)
@@ -184,4 +191,5 @@ def section(ctx: Context) -> list[str]:
         return []
     ctx.written.extend(write_models(ctx.of("figures"), ctx.out))
     every = {k: a for group in ctx.groups.values() for k, a in group.items()}
-    return markdown(dict(sorted(every.items())), ctx.cfg.paths.out)
+    return markdown(dict(sorted(every.items())), ctx.cfg.paths.out,
+                    apart=tuple(sorted(ctx.of("replicate"))))

@@ -102,6 +102,11 @@ def test_the_total_counts_a_trial_shared_by_two_figures_once(tmp_path):
     assert provenance.costs(aggs, None)[1][:3] == (4, 0, 0)
     block = "\n".join(provenance.markdown(aggs, tmp_path))
     assert "| all, each shared trial once | 4 | 7.5 s (3 of 4 trials) |" in block
+    assert "| all but the replicate sets" not in block
+    block = "\n".join(provenance.markdown(aggs, tmp_path, apart=("g",)))
+    assert "| all but the replicate sets, each shared trial once | 2 | 3.5 s |" in block
+    assert "| the replicate sets (g) | 3 | 6.0 s (2 of 3 trials) |" in block
+    assert "| all, each shared trial once | 4 | 7.5 s (3 of 4 trials) |" in block
 
 
 def test_credits_name_the_third_party_robots_used():
