@@ -320,10 +320,11 @@ def plan_conditions(trials: list[dict]) -> list[dict]:
 
 
 # CPU seconds per unit of cost() and per trial, calibrated on whole trials: the committed
-# report's measured CPU per experiment (2,595 trials on a 2-core Intel Xeon with AVX-512, views
-# at 0 s) is 0.70 to 1.14 x cpu_seconds, all of it 1.005 (tests/pipeline/test_sweeps.py); the
-# report before, on a loaded AMD EPYC and older kernels, gave 3.1 ns per unit and 0.05 s a trial
-SECONDS_PER_COST = 2.0e-9
+# report's measured CPU per experiment (2,595 trials on a 2-core AMD EPYC with AVX-512, views at
+# 0 s) and the README's two sweep jobs are 0.84 to 1.28 x cpu_seconds, all of it 1.025
+# (tests/pipeline/test_sweeps.py); the report before, on an Intel Xeon with AVX-512, gave 2.0 ns a
+# unit, the one before it (a loaded AMD EPYC with AVX2, older kernels) 3.1 ns and 0.05 s a trial
+SECONDS_PER_COST = 1.35e-9
 SECONDS_PER_TRIAL = 0.02
 
 
