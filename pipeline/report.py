@@ -69,10 +69,11 @@ def selected(cfg: DictConfig, explicit: bool) -> list[str] | None:
 
 def inputs_digest(cfg: DictConfig, inputs: dict) -> str:
     """What a report is made of: each figure's aggregate digest (`inputs`), the report's resolved
-    settings, the failure factor and the code that draws it. The same digest, the same files."""
+    settings, the failure factor and the code that draws it (with plan.py: the provenance's
+    estimated CPU is its cost model). The same digest, the same files."""
     here, code = Path(__file__).parent, hashlib.sha256()
     kinds = (".py", ".md", ".csv", ".yaml")
-    for f in [here / "report.py", here / "io.py",
+    for f in [here / "report.py", here / "io.py", here / "plan.py",
               *sorted(p for p in (here / "studies").iterdir() if p.suffix in kinds)]:
         code.update(f.name.encode() + b"\0" + f.read_bytes() + b"\0")
     body = dict(figures=inputs, code=code.hexdigest(),
