@@ -3,11 +3,10 @@ plus its learner's files), as part of its cache key, so a trial is recomputed wh
 changes and only then. Files are read, not imported, and each text is parsed once per process
 (_facts); a pool's workers are handed the driver's fingerprints (trust) and take one where
 their files are the driver's byte for byte, dumping only their learner's syntax trees (whose
-imports name the files). The text of every gbmodel file
-is kept as this module's import found it (_AT_IMPORT); a file of an imported module whose syntax
-(comments and docstrings aside) differs between that text, the text hashed and the file now was
-edited while the process ran: CodeChanged, a one-line error naming the definition that differs:
-run the command again. (A file saved before this module's import, after its module's, is not
+imports name the files). The text of every gbmodel file is kept as this module's import found
+it (_AT_IMPORT); a file of an imported module whose syntax (comments and docstrings aside)
+differs between that text, the text hashed and the file now was edited while the process ran:
+CodeChanged, a one-line error naming the definition that differs: run the command again. (A file saved before this module's import, after its module's, is not
 seen: the stages import it within a second.)
 """
 from __future__ import annotations

@@ -1,6 +1,7 @@
 """`python -m pipeline.warm` (make setup) compiles every kernel once into numba's cache and every
-module of gbmodel and pipeline into its __pycache__, so no stage or worker compiles; `recovering` removes a kernel's damaged cache files (truncated by a
-full disk or a killed compile, failing every trial on every rerun), says so and calls again."""
+module of gbmodel and pipeline into its __pycache__, so no stage or worker compiles; `recovering`
+removes a kernel's damaged cache files (truncated by a full disk or a killed compile, failing
+every trial on every rerun), says so and calls again."""
 from __future__ import annotations
 
 import sys

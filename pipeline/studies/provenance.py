@@ -108,14 +108,15 @@ def command_line() -> str:
     return " ".join([prog, *(shlex.quote(o) for o in hc.overrides.task)])
 
 
-def costs(aggs: dict, out_dir) -> tuple[dict, tuple]:
+def costs(aggs: dict, out_dir, times: dict | None = None) -> tuple[dict, tuple]:
     """figure -> (trials, trials measured, their measured CPU seconds, estimated CPU seconds), and
     the same over every figure counting a trial several figures share (pipeline.plan.stream)
-    once; measured: the times the runs under out_dir kept (None: not measured)."""
+    once; measured: the times the runs under out_dir kept (None: not measured), or `times`."""
     from ..cache import read_times
     from ..plan import cost
 
-    times = read_times(out_dir) if out_dir is not None else {}
+    if times is None:
+        times = read_times(out_dir) if out_dir is not None else {}
     out, est, seen = {}, {}, {}
     for name, agg in aggs.items():
         n = k = 0
@@ -156,10 +157,12 @@ def markdown(aggs: dict, out_dir=None, apart: tuple = ()) -> list[str]:
     (the replicate sets) whose CPU time is also given in a row of its own, and the rest in
     another."""
     from .. import __version__
+    from ..cache import read_times
 
     lock = (hashlib.sha256(LOCK.read_bytes()).hexdigest()[:16] if LOCK.exists()
             else "no requirements.lock")
-    per, total = costs(aggs, out_dir)
+    times = read_times(out_dir) if out_dir is not None else {}  # read once for every row
+    per, total = costs(aggs, out_dir, times)
 
     def row(name, n, k, spent, seconds):
         mine = ("not measured" if k == 0 else _duration(spent)
@@ -174,9 +177,9 @@ def markdown(aggs: dict, out_dir=None, apart: tuple = ()) -> list[str]:
     md += [row(name, *c) for name, c in per.items()]
     if apart:
         md += [row("all but the replicate sets, each shared trial once", *costs(
-                   {k: a for k, a in aggs.items() if k not in apart}, out_dir)[1]),
+                   {k: a for k, a in aggs.items() if k not in apart}, out_dir, times)[1]),
                row(f"the replicate sets ({', '.join(apart)})",
-                   *costs({k: aggs[k] for k in apart}, out_dir)[1])]
+                   *costs({k: aggs[k] for k in apart}, out_dir, times)[1])]
     md.append(row("all, each shared trial once", *total))
     md += ["", prose("provenance.cpu"), ""]
     lines = credits(aggs)
