@@ -280,6 +280,16 @@ _KB = 256  # columns per block of chain_kinematics: the block's hand points stay
 
 
 @njit(cache=True)
+def aligned(rows, cols):
+    """np.zeros((rows, cols), np.float32) on a 64-byte boundary: with cols a multiple of LANES
+    every vector of a row lies in one cache line (numba's arrays start on 32 bytes: an F32x16
+    load or store of one spans two lines, which AVX-512 pays for twice)."""
+    buf = np.zeros(rows * cols + LANES, np.float32)
+    off = (-(buf.ctypes.data // 4)) % LANES
+    return buf[off:off + rows * cols].reshape((rows, cols))
+
+
+@njit(cache=True)
 def chain_kinematics(Q, X, C, joints, body):
     """Hand positions X[:, :C] of commands Q[:, :C] (C a multiple of LANES) through
     kinematics.chain_layout in float32, saturating Q in place where the body does. The point
@@ -289,7 +299,7 @@ def chain_kinematics(Q, X, C, joints, body):
     normalized, saturates, q_lo, q_span, offset = joints
     a, d, ca, sa, base, outputs, ty, R, general = body
     m = Q.shape[0]
-    P = np.empty((3, min(C, _KB)), np.float32)
+    P = aligned(3, min(C, _KB))
     for c0 in range(0, C, _KB):
         cb = min(_KB, C - c0)
         P[:, :cb] = 0

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ...simd import LANES, vload, vload1, vmul, vstore, vsum
+from ...simd import LANES, aligned, vload, vload1, vmul, vstore, vsum
 from .core import _BLOCK, _accumulate, _features
 from .solve import cholesky_solve
 
@@ -102,7 +102,6 @@ def solve(M, M0, ring, slot, ridge, anchor, limit, clip, X, Q, w, Npad, parent, 
 def solver_work(m, n, p, V, T, solving):
     Npad = -(-(V * (T + 1)) // LANES) * LANES
     cols = min(Npad, _BLOCK) if solving else LANES
-    f4 = np.float32
-    return (np.empty((p + m, cols), f4), np.empty((p + m, p * LANES), f4), np.empty((p + m, p)),
+    return (aligned(p + m, cols), aligned(p + m, p * LANES), np.empty((p + m, p)),
             np.empty((p, p)), np.empty((p, m)), np.zeros((p, p)), np.empty((p, m)),
             np.empty((p, p)), np.empty(p), np.empty((p, m)))

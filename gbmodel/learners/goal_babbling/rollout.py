@@ -7,7 +7,7 @@ from numba import njit
 from numba.extending import intrinsic
 
 from ...simd import (
-    _VEC8, F4, LANES, W8, F64x8, _1, _HALF, _llvm, chain_kinematics, vadd, vadd8, vclip, vdiv,
+    _VEC8, F4, LANES, W8, F64x8, _1, _HALF, _llvm, aligned, chain_kinematics, vadd, vadd8, vclip, vdiv,
     vdiv8, vfma, vload, vload1, vload8, vmul, vmul8, vsplat, vsplat8, vsqrt, vstore, vstore1,
     vstore8, vsub, vwhere, wide_vectors,
 )
@@ -182,12 +182,12 @@ def _work(m, n, p, V, T):
     Npad = -(-(V * (T + 1)) // LANES) * LANES
     N = Npad + LANES
     f4 = np.float32
-    return (np.zeros((m, N), f4), np.zeros((n, N), f4), np.zeros(N, f4),
-            np.empty((p, min(Npad, _BLOCK)), f4), np.empty((m, min(Npad, _BLOCK)), f4),
-            np.zeros((n, Bv + LANES), f4), np.empty((p, Bv), f4), np.empty((m, Bv), f4),
-            np.empty((n, Bv), f4), np.empty(Bv, f4),
+    return (aligned(m, N), aligned(n, N), aligned(1, N)[0],
+            aligned(p, min(Npad, _BLOCK)), aligned(m, min(Npad, _BLOCK)),
+            aligned(n, Bv + LANES), aligned(p, Bv), aligned(m, Bv),
+            aligned(n, Bv), aligned(1, Bv)[0],
             np.empty((n + 1, V, m), f4), np.empty((n + 2, -(-(V * m) // W8) * W8)),
-            np.empty((m, p), f4), np.empty((m, p * LANES), f4))
+            np.empty((m, p), f4), aligned(m, p * LANES))
 
 
 @njit(cache=True)
@@ -209,8 +209,7 @@ def _distances(M, scale, chain, xs, parent, var, joints, out):
         for k in range(p):
             M32[i, k] = M[i, k]
     C = -(-NT // LANES) * LANES
-    X, Phi, Q = np.empty((n, C), np.float32), np.empty((p, C), np.float32), np.empty((m, C),
-                                                                                      np.float32)
+    X, Phi, Q = aligned(n, C), aligned(p, C), aligned(m, C)
     for t in range(C):
         for j in range(n):
             X[j, t] = xs[min(t, NT - 1), j]
