@@ -1,16 +1,20 @@
-"""engine=local's pool: spawned worker processes (one thread each) that run trials longest
-first, short ones in batches, and yield each result as it comes. Signals reach the driver only,
-which kills every worker at once (stop_pools); a worker whose driver died is killed by the kernel.
+"""engine=local's pool: worker processes (one thread each) that run trials longest first, short
+ones in batches, and yield each result as it comes. Each worker is a fork of one fork server that
+loaded numpy, numba and the kernels once (pipeline/preload.py; spawned where there is no fork
+server). Signals reach the driver only, which kills every worker at once (stop_pools); a worker
+whose driver died is killed by the kernel (its fork server exits with the driver).
 """
 from __future__ import annotations
 
 import multiprocessing
+import multiprocessing.forkserver
 import os
 import sys
 import types
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from contextlib import contextmanager
 
+from . import stop
 from .engines import THREAD_VARS  # noqa: F401 (execute.THREAD_VARS)
 from .worker import quiet_worker, run_batch, run_one
 
@@ -28,6 +32,10 @@ def _stop(pool) -> None:
         proc.kill()  # workers ignore SIGTERM (quiet_worker): SIGKILL, they hold no files
     pool.shutdown(wait=True, cancel_futures=True)
     _POOLS.discard(pool)
+    if not _POOLS:  # the fork server, after its forks: waited for, their CPU counted here
+        server = getattr(multiprocessing.forkserver._forkserver, "_stop", None)  # (CPython's)
+        if server is not None:
+            server()
 
 
 def cpus() -> int:
@@ -71,8 +79,8 @@ def local(todo: list[dict], workers: int, fn=run_one):
         return
     from .fingerprint import known  # handed to the workers: theirs without a parse
 
-    pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
-                               initializer=quiet_worker, initargs=(os.getpid(), known()))
+    pool = ProcessPoolExecutor(workers, mp_context=context(), initializer=quiet_worker,
+                               initargs=(os.getpid(), known()))
     _POOLS.add(pool)
     try:
         if fn is run_one:
@@ -87,6 +95,18 @@ def local(todo: list[dict], workers: int, fn=run_one):
                 yield from zip(pending.pop(fut), fut.result())
     finally:
         _stop(pool)  # after the last result; on a signal, an error or a dropped generator
+
+
+def context():
+    """The pool's start method: forkserver, each worker forked from a server that imported
+    pipeline.preload (about 0.5 s CPU a worker saved: imports, numba's registries, the kernels'
+    load), else spawn. The server starts with a pool, in _starting_workers (one thread each),
+    and stops with it (_stop)."""
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        return multiprocessing.get_context("spawn")
+    ctx = multiprocessing.get_context("forkserver")
+    ctx.set_forkserver_preload(["pipeline.preload"])  # (no effect once the server runs)
+    return ctx
 
 
 @contextmanager
@@ -107,11 +127,12 @@ def single_threaded_children():
 
 @contextmanager
 def _starting_workers(fn):
-    """Around the submits, where the pool spawns workers: one thread each, and a bare __main__
-    (not the stage, Hydra and the config: 0.3 s CPU each) unless `fn` lives in __main__."""
+    """Around the submits, where the pool starts workers: one thread each, a bare __main__
+    (not the stage, Hydra and the config: 0.3 s CPU each) unless `fn` lives in __main__, and a
+    signal taken after them (stop.held: a worker started then would be unknown to the pool)."""
     main = sys.modules.get("__main__")
     bare = main is not None and getattr(fn, "__module__", None) != "__main__"
-    with single_threaded_children():
+    with stop.held(), single_threaded_children():
         if bare:
             sys.modules["__main__"] = types.ModuleType("__main__")
         try:

@@ -11,7 +11,7 @@ import sys
 from contextlib import contextmanager
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
-_state = {"armed": False, "stopping": None}
+_state = {"armed": False, "stopping": None, "held": 0, "pending": None}
 
 
 class Stopped(KeyboardInterrupt):
@@ -34,8 +34,26 @@ def _handler(signum, frame):
         os._exit(128 + signum)
     if _state["stopping"] is not None:
         return  # the first signal's clean-up is running: let it finish (kill -9 still works)
+    if _state["held"]:
+        _state["pending"] = _state["pending"] or signum
+        return
     _state["stopping"] = signum
     raise Stopped(signum)
+
+
+@contextmanager
+def held():
+    """A signal in the block raises Stopped after it, not in it (a pool starting its workers:
+    one started while the driver stops would be unknown to the pool, and outlive it)."""
+    _state["held"] += 1
+    try:
+        yield
+    finally:
+        _state["held"] -= 1
+    signum = _state["pending"]
+    if signum is not None and not _state["held"] and _state["stopping"] is None:
+        _state.update(pending=None, stopping=signum)
+        raise Stopped(signum)
 
 
 def install() -> None:  # (the main thread only can)
@@ -49,10 +67,10 @@ def armed():
     clean-up); the previous handlers come back afterwards."""
     old = {s: signal.getsignal(s) for s in SIGNALS}
     install()
-    _state.update(armed=True, stopping=None)
+    _state.update(armed=True, stopping=None, pending=None)
     try:
         yield
     finally:
-        _state.update(armed=False, stopping=None)
+        _state.update(armed=False, stopping=None, pending=None)
         for s, h in old.items():
             signal.signal(s, h)

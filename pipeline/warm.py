@@ -58,6 +58,16 @@ def warm() -> float:
     return time.perf_counter() - start
 
 
+def preload() -> None:
+    """The fast path's kernels loaded (or compiled) in this process: a two-epoch arm5 trial (the
+    kernels are the same for every body); nothing where that fails: a worker loads and reports."""
+    try:
+        gbmodel.run_trial(gbmodel.TrialSpec(body={"name": "arm5"}, epochs=2),
+                          np.random.default_rng(0))
+    except Exception:  # noqa: BLE001 (each trial reports its own)
+        pass
+
+
 def byte_compile() -> None:
     """gbmodel's and pipeline's modules into __pycache__: Python reads them even where it writes
     none (PYTHONDONTWRITEBYTECODE, common in containers), where a stage's import would otherwise

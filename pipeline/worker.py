@@ -78,9 +78,22 @@ def run_batch(fn, trials: list[dict]) -> list[dict]:
 PR_SET_PDEATHSIG = 1  # linux/prctl.h
 
 
-def quiet_worker(parent: int | None = None, fingerprints: dict | None = None) -> None:
-    """A pool worker ignores the signals the driver handles, and dies with it (Linux); it takes
-    the driver's code fingerprints where its files are the driver's (fingerprint.trust)."""
+def _alive(pid: int | None) -> bool:
+    try:
+        if pid is not None:
+            os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's
+        pass
+    return True
+
+
+def quiet_worker(driver: int | None = None, fingerprints: dict | None = None) -> None:
+    """A pool worker ignores the signals the driver handles, and dies with its parent (Linux:
+    the driver, or the fork server, which exits with the driver); it takes the driver's code
+    fingerprints where its files are the driver's (fingerprint.trust)."""
+    parent = os.getppid()
     for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(s, signal.SIG_IGN)
     try:
@@ -89,7 +102,7 @@ def quiet_worker(parent: int | None = None, fingerprints: dict | None = None) ->
     except (OSError, AttributeError):  # not Linux: the driver's stop_pools still stops us
         pass
     else:
-        if parent is not None and os.getppid() != parent:  # it died before prctl took effect
+        if os.getppid() != parent or not _alive(driver):  # gone before prctl took effect
             os._exit(1)
     if fingerprints:
         try:

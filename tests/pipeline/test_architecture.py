@@ -485,7 +485,7 @@ FLOORS = [
     ("errors", "keys", "io", "stop", "searchpath", "plugins", "measures", "envs"),
     ("__init__", "experiments", "fingerprint", "warm", "engines", "cache",
      "html_report"),
-    ("config", "planned", "checkpoint"),
+    ("config", "planned", "checkpoint", "preload"),
     ("plan", "labels", "worker"),
     ("check", "progress", "studies", "execute", "aggregate_set"),
     ("cli", "aggregate_stats"),

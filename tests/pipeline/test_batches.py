@@ -122,3 +122,24 @@ def test_pool_workers_are_handed_the_drivers_fingerprints():
     own = len(learner_sources("goal_babbling"))  # parsed for their imports; the shared core not
     assert workers and all(r["fp"] == code_fingerprint("goal_babbling") and r["parsed"] == own
                            for r in workers)
+
+
+def _warm_here(trial: dict) -> dict:
+    """A worker's answer: whether the kernels were loaded before its first trial."""
+    return dict(key=trial["key"], pid=os.getpid(),
+                loaded="gbmodel.learners.goal_babbling.fast" in sys.modules)
+
+
+def test_pool_workers_start_warm_and_their_server_stops_with_the_pool():
+    """Each worker is a fork of one server that loaded the kernels (pipeline.preload): none
+    loads them again; the server is stopped and waited for when the pool ends."""
+    import multiprocessing.forkserver
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        pytest.skip("no fork server here: workers are spawned")
+    todo = [dict(key=f"{i:020x}", spec={}) for i in range(4)]
+    got = list(execute.local(todo, 2, fn=_warm_here))
+    if not execute.pooled(4, 2):
+        pytest.skip("one CPU: the trials run in this process")
+    workers = [r for _, r in got if r["pid"] != os.getpid()]
+    assert workers and all(r["loaded"] for r in workers)
+    assert multiprocessing.forkserver._forkserver._forkserver_pid is None

@@ -30,6 +30,22 @@ def _children(pid: int) -> dict[int, str]:
     return out
 
 
+def _descendants(pid: int) -> dict[int, str]:
+    """_children of `pid`, of theirs and so on (workers are the fork server's children)."""
+    out, todo = {}, [pid]
+    while todo:
+        kids = _children(todo.pop())
+        out.update(kids)
+        todo += kids
+    return out
+
+
+def _workers(procs: dict[int, str]) -> int:
+    """How many of `procs` are pool workers: spawned, or forks of the fork server."""
+    return sum("spawn_main" in c or "forkserver" in c for c in procs.values()) - \
+        any(_children(p) for p, c in procs.items() if "forkserver" in c)  # (the server)
+
+
 def _running(pid: int) -> bool:
     try:
         state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
@@ -52,11 +68,11 @@ def test_a_signal_to_the_driver_alone_stops_every_worker_and_the_tracker(tmp_pat
     try:
         deadline, kids = time.monotonic() + 120, {}
         while time.monotonic() < deadline:  # two workers and the tracker, busy with the trials
-            kids = _children(proc.pid)
-            if sum("spawn_main" in c for c in kids.values()) >= 2 and proc.poll() is None:
+            kids = _descendants(proc.pid)
+            if _workers(kids) >= 2 and proc.poll() is None:
                 break
             time.sleep(0.2)
-        assert sum("spawn_main" in c for c in kids.values()) >= 2, kids
+        assert _workers(kids) >= 2, kids
         assert any("resource_tracker" in c for c in kids.values()), kids
         time.sleep(1.0)
         os.kill(proc.pid, sig)  # the driver alone, as `kill PID` or a scheduler does
@@ -83,3 +99,23 @@ def test_ctrl_c_in_the_first_second_is_one_line(tmp_path):
     assert proc.returncode == 130, err
     assert len(err.strip().splitlines()) == 1, err
     assert "Traceback" not in err and "SIGINT" in err
+
+
+def test_a_signal_while_workers_start_is_raised_after_their_start():
+    """stop.held (around a pool's submits): the signal is taken after the block, once, so no
+    worker starts unknown to its pool (a fork server's would outlive the driver)."""
+    from pipeline import stop
+
+    order = []
+    with stop.armed():
+        with pytest.raises(stop.Stopped) as got:
+            with stop.held():
+                os.kill(os.getpid(), signal.SIGTERM)
+                order.append("after the signal, in the block")
+                os.kill(os.getpid(), signal.SIGINT)  # a second one while the first waits
+                order.append("still in the block")
+        assert got.value.signum == signal.SIGTERM
+    assert order == ["after the signal, in the block", "still in the block"]
+    with stop.armed(), pytest.raises(stop.Stopped):
+        os.kill(os.getpid(), signal.SIGTERM)  # outside the block: at once
+        time.sleep(1)
