@@ -33,15 +33,57 @@ def _features(X, c0, C, parent, var, Phi):
             vstore(Phi, k, c, vmul(vload(Phi, src, c), vload(X, coord, c0 + c)))
 
 
+@njit(inline="always")
+def _first5(M32, i, f):
+    return (vmul(vsplat(M32[i, 0]), f), vmul(vsplat(M32[i + 1, 0]), f),
+            vmul(vsplat(M32[i + 2, 0]), f), vmul(vsplat(M32[i + 3, 0]), f),
+            vmul(vsplat(M32[i + 4, 0]), f))
+
+
+@njit(inline="always")
+def _next5(M32, i, k, f, a):
+    return (vfma(vsplat(M32[i, k]), f, a[0]), vfma(vsplat(M32[i + 1, k]), f, a[1]),
+            vfma(vsplat(M32[i + 2, k]), f, a[2]), vfma(vsplat(M32[i + 3, k]), f, a[3]),
+            vfma(vsplat(M32[i + 4, k]), f, a[4]))
+
+
+@njit(inline="always")
+def _put5(out, Q, w, residual, i, c, c0, a):
+    for r in range(_TILE):
+        x = a[r]
+        if residual:
+            x = vmul(vsub(x, vload(Q, i + r, c0 + c)), vload1(w, c0 + c))
+        vstore(out, i + r, c, x)
+
+
+_WIDE = 4  # column vectors of a wide tile of M Phi: 5 x 4 accumulators, each splat used 4 times
+
+
 @njit(cache=True)
 def _predict(M32, Phi, C, out, Q, w, c0):
     """out[:, :C] = M Phi[:, :C] (summed over k in order), or with len(w) > 0 the weighted
-    residuals w (M Phi - Q) of columns c0 ...; rows in register tiles of _TILE."""
+    residuals w (M Phi - Q) of columns c0 ...; rows in register tiles of _TILE, with 32 vector
+    registers (AVX-512) _WIDE column vectors at a time (a splat of M loaded once for them)."""
     m, p = M32.shape
     residual = len(w) > 0
     mt = m - m % _TILE
+    wide = _WIDE * LANES if wide_vectors() else C + 1
     for i in range(0, mt, _TILE):
-        for c in range(0, C, LANES):
+        for c in range(0, C - C % wide, wide):
+            a = _first5(M32, i, vload(Phi, 0, c))
+            b = _first5(M32, i, vload(Phi, 0, c + LANES))
+            d = _first5(M32, i, vload(Phi, 0, c + 2 * LANES))
+            e = _first5(M32, i, vload(Phi, 0, c + 3 * LANES))
+            for k in range(1, p):
+                a = _next5(M32, i, k, vload(Phi, k, c), a)
+                b = _next5(M32, i, k, vload(Phi, k, c + LANES), b)
+                d = _next5(M32, i, k, vload(Phi, k, c + 2 * LANES), d)
+                e = _next5(M32, i, k, vload(Phi, k, c + 3 * LANES), e)
+            _put5(out, Q, w, residual, i, c, c0, a)
+            _put5(out, Q, w, residual, i, c + LANES, c0, b)
+            _put5(out, Q, w, residual, i, c + 2 * LANES, c0, d)
+            _put5(out, Q, w, residual, i, c + 3 * LANES, c0, e)
+        for c in range(C - C % wide, C, LANES):
             f = vload(Phi, 0, c)
             a0, a1 = vmul(vsplat(M32[i, 0]), f), vmul(vsplat(M32[i + 1, 0]), f)
             a2, a3 = vmul(vsplat(M32[i + 2, 0]), f), vmul(vsplat(M32[i + 3, 0]), f)
