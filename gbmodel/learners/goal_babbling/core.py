@@ -259,7 +259,7 @@ def _zeros64(shape):
     return buf[off:off + n].reshape(shape)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _gradient_step(M, M32, X, Q, w, Npad, parent, var, Phi, Rw, GL, eta):
     """M -= eta sum_t w (M Phi - q) Phi^T over the columns (M32: M in float32 on entry)."""
     m, p = M.shape
@@ -274,7 +274,7 @@ def _gradient_step(M, M32, X, Q, w, Npad, parent, var, Phi, Rw, GL, eta):
             M[i, k] -= eta * vsum(vload(GL, i, k * LANES))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def gradient_steps(M, M32, X, Q, w, Npad, parent, var, Phi, Rw, GL, eta, steps):
     """`steps` gradient steps on the same samples (updates=batch: 1; updates=steps: k)."""
     m, p = M.shape

@@ -35,7 +35,7 @@ def rule(params) -> int:
     return RULES[params.solver, params.updates]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _epoch(M, idx, raw, amp, s, body, targets, home, parent, var, joints, radius, steps,
            rate, plain, rule, update_steps, box, work, ring, slot, ridge, anchor, limit, M0,
            solver_work):
