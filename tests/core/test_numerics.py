@@ -359,3 +359,18 @@ def test_the_compiled_sum_is_math_fsum_to_the_bit():
         error(np.array([1e308, 1e308]))
     d = np.random.default_rng(7).random(4032)
     assert error(d, "rms") == math.sqrt(math.fsum((d * d).tolist()) / d.size)
+
+
+def test_the_kernels_work_arrays_start_on_cache_lines():
+    """simd.aligned: zeros on a 64-byte boundary (numba's arrays start on 32 bytes, where each
+    16-lane vector of a row would span two cache lines), for rows of any length."""
+    from gbmodel.learners.goal_babbling.rollout import _work
+    from gbmodel.simd import LANES, aligned
+
+    for rows, cols in [(1, 16), (3, 256), (5, 2144), (20, 112)]:
+        a = aligned(rows, cols)
+        assert a.shape == (rows, cols) and a.dtype == np.float32 and not a.any()
+        assert a.ctypes.data % 64 == 0 and a.flags.c_contiguous
+    work = _work(5, 2, 10, 20, 105)
+    vectors = [a for a in work if a.dtype == np.float32 and a.shape[-1] % LANES == 0]
+    assert len(vectors) >= 9 and all(a.ctypes.data % 64 == 0 for a in vectors)
