@@ -2,7 +2,7 @@
 ones in batches, and yield each result as it comes. Each worker is a fork of one fork server that
 loaded numpy, numba and the kernels once (pipeline/preload.py; spawned where there is no fork
 server). Signals reach the driver only, which kills every worker at once (stop_pools); a worker
-whose driver died is killed by the kernel (its fork server exits with the driver).
+whose driver died is killed by the kernel (as is the fork server: pipeline/preload.py).
 """
 from __future__ import annotations
 

@@ -89,21 +89,26 @@ def _alive(pid: int | None) -> bool:
     return True
 
 
-def quiet_worker(driver: int | None = None, fingerprints: dict | None = None) -> None:
-    """A pool worker ignores the signals the driver handles, and dies with its parent (Linux:
-    the driver, or the fork server, which exits with the driver); it takes the driver's code
-    fingerprints where its files are the driver's (fingerprint.trust)."""
+def die_with_parent(driver: int | None = None) -> None:
+    """Linux: this process is killed when its parent dies (the driver, or the fork server, which
+    dies with the driver), and ends at once if its parent or the driver is gone already."""
     parent = os.getppid()
-    for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
-        signal.signal(s, signal.SIG_IGN)
     try:
         libc = ctypes.CDLL(None, use_errno=True)
         libc.prctl(PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
     except (OSError, AttributeError):  # not Linux: the driver's stop_pools still stops us
-        pass
-    else:
-        if os.getppid() != parent or not _alive(driver):  # gone before prctl took effect
-            os._exit(1)
+        return
+    if os.getppid() != parent or not _alive(driver):  # gone before prctl took effect
+        os._exit(1)
+
+
+def quiet_worker(driver: int | None = None, fingerprints: dict | None = None) -> None:
+    """A pool worker ignores the signals the driver handles, and dies with its parent
+    (die_with_parent); it takes the driver's code fingerprints where its files are the driver's
+    (fingerprint.trust)."""
+    for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(s, signal.SIG_IGN)
+    die_with_parent(driver)
     if fingerprints:
         try:
             from .fingerprint import trust

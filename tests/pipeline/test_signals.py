@@ -1,5 +1,6 @@
 """SIGTERM, SIGHUP and Ctrl-C stop a stage the same way: one line, exit 128 + the signal, and no
 worker or resource-tracker process outlives the driver (found by pid in /proc)."""
+import contextlib
 import os
 import signal
 import subprocess
@@ -89,6 +90,30 @@ def test_a_signal_to_the_driver_alone_stops_every_worker_and_the_tracker(tmp_pat
         time.sleep(0.2)
     assert not [kids[p] for p in kids if _running(p)]
     assert not list(Path(tmp_path).rglob(".*.tmp"))
+
+
+def test_a_driver_killed_outright_takes_every_worker_with_it(tmp_path):
+    """SIGKILL (no clean-up): the kernel ends the workers, and a fork server's, within seconds
+    (each dies with its parent; the fork server with the driver), not after their trials."""
+    proc = _start(tmp_path, "learner.epochs=30000000")  # minutes of work each
+    try:
+        deadline, kids = time.monotonic() + 120, {}
+        while time.monotonic() < deadline:
+            kids = _descendants(proc.pid)
+            if _workers(kids) >= 2 and proc.poll() is None:
+                break
+            time.sleep(0.2)
+        assert _workers(kids) >= 2, kids
+        time.sleep(1.0)
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.communicate(timeout=30)  # (its pipes stay open while a worker or the server runs)
+        deadline = time.monotonic() + 20
+        while any(map(_running, kids)) and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert not [kids[p] for p in kids if _running(p)]
+    finally:
+        with contextlib.suppress(ProcessLookupError):  # what is left of its group, if anything
+            os.killpg(proc.pid, signal.SIGKILL)
 
 
 def test_ctrl_c_in_the_first_second_is_one_line(tmp_path):
