@@ -67,9 +67,10 @@ def pooled(trials: int, workers: int) -> bool:
 
 
 def local(todo: list[dict], workers: int, fn=run_one):
-    """Yield (trial, fn(trial)) as trials finish, on `workers` spawned processes (or this one),
-    in the order of `todo`. With fn=run_one the kernels are loaded first (warm_trials) in the
-    pool's first worker before the others start, or here."""
+    """Yield (trial, fn(trial)) as trials finish, on `workers` processes (context()) or this
+    one, in the order of `todo`. With fn=run_one the trials' kernels are loaded first
+    (warm_trials: those the fork server has not) in the pool's first worker before the others
+    start, or here."""
     workers = capped(workers, len(todo))
     if not pooled(len(todo), workers):
         if fn is run_one:
