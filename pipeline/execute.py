@@ -1,22 +1,24 @@
 """engine=local's pool: worker processes (one thread each) that run trials longest first, short
 ones in batches, and yield each result as it comes. Each worker is a fork of one fork server that
-loaded numpy, numba and the kernels once (pipeline/preload.py; spawned where there is no fork
-server). Signals reach the driver only, which kills every worker at once (stop_pools); a worker
-whose driver died is killed by the kernel (as is the fork server: pipeline/preload.py).
+loaded numpy, numba and the kernels once (pipeline/preload.py; spawned off Linux). Signals reach
+the driver only, which kills every worker at once (stop_pools); a worker whose driver died is
+killed by the kernel (as is the fork server: pipeline/preload.py).
 """
 from __future__ import annotations
 
 import multiprocessing
 import multiprocessing.forkserver
 import os
+import signal
 import sys
 import types
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext, suppress
+from pathlib import Path
 
 from . import stop
 from .engines import THREAD_VARS  # noqa: F401 (execute.THREAD_VARS)
-from .worker import quiet_worker, run_batch, run_one
+from .worker import DRIVER, quiet_worker, run_batch, run_one
 
 _POOLS: set = set()  # the pools of this process that are running
 
@@ -32,10 +34,13 @@ def _stop(pool) -> None:
         proc.kill()  # workers ignore SIGTERM (quiet_worker): SIGKILL, they hold no files
     pool.shutdown(wait=True, cancel_futures=True)
     _POOLS.discard(pool)
-    if not _POOLS:  # the fork server, after its forks: waited for, their CPU counted here
-        server = getattr(multiprocessing.forkserver._forkserver, "_stop", None)  # (CPython's)
-        if server is not None:
-            server()
+    if not _POOLS:  # the fork server, after its forks (reaped by it): killed, as it may still
+        # be loading the kernels, and waited for, its CPU and theirs counted here (CPython's)
+        server = multiprocessing.forkserver._forkserver
+        with suppress(ProcessLookupError, TypeError):
+            os.kill(getattr(server, "_forkserver_pid", None), signal.SIGKILL)
+        if hasattr(server, "_stop"):
+            server._stop()
 
 
 def cpus() -> int:
@@ -80,10 +85,16 @@ def local(todo: list[dict], workers: int, fn=run_one):
         return
     from .fingerprint import known  # handed to the workers: theirs without a parse
 
-    pool = ProcessPoolExecutor(workers, mp_context=context(), initializer=quiet_worker,
+    ctx = context()
+    pool = ProcessPoolExecutor(workers, mp_context=ctx, initializer=quiet_worker,
                                initargs=(os.getpid(), known()))
     _POOLS.add(pool)
     try:
+        if ctx.get_start_method() == "forkserver":  # up and warm before the held submits: a
+            with _starting_workers(fn, held=False):  # signal meanwhile stops at once
+                noop = ctx.Process(target=int)
+                noop.start()
+            noop.join()
         if fn is run_one:
             with _starting_workers(fn):
                 warm = pool.submit(run_batch, fn, warm_trials(todo))
@@ -101,9 +112,9 @@ def local(todo: list[dict], workers: int, fn=run_one):
 def context():
     """The pool's start method: forkserver, each worker forked from a server that imported
     pipeline.preload (about 0.5 s CPU a worker saved: imports, numba's registries, the kernels'
-    load), else spawn. The server starts with a pool, in _starting_workers (one thread each),
-    and stops with it (_stop)."""
-    if "forkserver" not in multiprocessing.get_all_start_methods():
+    load), on Linux, else spawn. The server starts with a pool, in _starting_workers (one thread
+    each; it imports this checkout's pipeline and knows the driver), and stops with it (_stop)."""
+    if sys.platform != "linux":  # (macOS has a fork server, but no parent-death signal)
         return multiprocessing.get_context("spawn")
     ctx = multiprocessing.get_context("forkserver")
     ctx.set_forkserver_preload(["pipeline.preload"])  # (no effect once the server runs)
@@ -111,11 +122,12 @@ def context():
 
 
 @contextmanager
-def single_threaded_children():
-    """Children inherit the environment: one BLAS/OpenMP/numba thread each (restored after;
-    not unittest.mock's patch.dict, whose import costs a stage 17 ms)."""
-    saved = {k: os.environ.get(k) for k in THREAD_VARS}
-    os.environ.update(dict.fromkeys(THREAD_VARS, "1"))
+def single_threaded_children(more: dict | None = None):
+    """Children inherit the environment: one BLAS/OpenMP/numba thread each, and `more` (restored
+    after; not unittest.mock's patch.dict, whose import costs a stage 17 ms)."""
+    more = dict(dict.fromkeys(THREAD_VARS, "1"), **(more or {}))
+    saved = {k: os.environ.get(k) for k in more}
+    os.environ.update(more)
     try:
         yield
     finally:
@@ -127,13 +139,16 @@ def single_threaded_children():
 
 
 @contextmanager
-def _starting_workers(fn):
+def _starting_workers(fn, held: bool = True):
     """Around the submits, where the pool starts workers: one thread each, a bare __main__
     (not the stage, Hydra and the config: 0.3 s CPU each) unless `fn` lives in __main__, and a
     signal taken after them (stop.held: a worker started then would be unknown to the pool)."""
     main = sys.modules.get("__main__")
     bare = main is not None and getattr(fn, "__module__", None) != "__main__"
-    with stop.held(), single_threaded_children():
+    root = str(Path(__file__).resolve().parents[1])  # this checkout's, for a fork server
+    env = {DRIVER: str(os.getpid()),
+           "PYTHONPATH": os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")]))}
+    with stop.held() if held else nullcontext(), single_threaded_children(env):
         if bare:
             sys.modules["__main__"] = types.ModuleType("__main__")
         try:

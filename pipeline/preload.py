@@ -1,9 +1,21 @@
-"""Imported once, by the local pool's fork server (execute.context), never by a stage: the server
-dies with the driver that started it (and its forks, the workers, with it), and numpy, numba's
-registries and Goal Babbling's fast kernels are loaded there, so that each worker starts warm.
-Where loading fails, each worker loads them itself (and reports)."""
-from .warm import preload
-from .worker import die_with_parent
+"""Imported once, by the local pool's fork server (execute.context), never by a stage. First the
+server ignores the signals the driver handles and dies with the driver (and its forks, the
+workers, with it); then numpy, numba's registries and Goal Babbling's fast kernels are loaded,
+so that each worker starts warm. Where loading fails, each worker loads them itself (and
+reports)."""
+import os
+import signal
 
-die_with_parent()
-preload()
+for _s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):  # (a group's Ctrl-C is the driver's)
+    signal.signal(_s, signal.SIG_IGN)
+
+from .worker import DRIVER, die_with_parent  # noqa: E402 (after the signals: a light import)
+
+die_with_parent(int(os.environ.get(DRIVER) or 0) or None)
+
+try:
+    from .warm import preload  # noqa: E402
+except Exception:  # noqa: BLE001 (a broken gbmodel: each worker's trials report it)
+    pass
+else:
+    preload()

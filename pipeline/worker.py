@@ -89,16 +89,20 @@ def _alive(pid: int | None) -> bool:
     return True
 
 
-def die_with_parent(driver: int | None = None) -> None:
-    """Linux: this process is killed when its parent dies (the driver, or the fork server, which
-    dies with the driver), and ends at once if its parent or the driver is gone already."""
-    parent = os.getppid()
+DRIVER = "GBGROWTH_POOL_DRIVER"  # the pid of the driver that starts a fork server (execute)
+
+
+def die_with_parent(parent: int | None = None) -> None:
+    """Linux: this process is killed when its parent dies (a worker's: the driver, or the fork
+    server, which dies with the driver), and ends at once if `parent` (else the one it has now)
+    is gone already."""
+    parent = os.getppid() if parent is None else parent
     try:
         libc = ctypes.CDLL(None, use_errno=True)
         libc.prctl(PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
     except (OSError, AttributeError):  # not Linux: the driver's stop_pools still stops us
         return
-    if os.getppid() != parent or not _alive(driver):  # gone before prctl took effect
+    if os.getppid() != parent:  # gone before prctl took effect
         os._exit(1)
 
 
@@ -108,7 +112,9 @@ def quiet_worker(driver: int | None = None, fingerprints: dict | None = None) ->
     (fingerprint.trust)."""
     for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(s, signal.SIG_IGN)
-    die_with_parent(driver)
+    die_with_parent()
+    if not _alive(driver):  # (a fork server's worker: its parent is the server)
+        os._exit(1)
     if fingerprints:
         try:
             from .fingerprint import trust

@@ -116,6 +116,24 @@ def test_a_driver_killed_outright_takes_every_worker_with_it(tmp_path):
             os.killpg(proc.pid, signal.SIGKILL)
 
 
+def test_ctrl_c_to_the_whole_group_while_the_pool_starts_is_one_line(tmp_path):
+    """A terminal's Ctrl-C reaches every process of the group, the fork server too while it
+    loads the kernels: it ignores it (pipeline/preload.py), and the driver stops with one line."""
+    proc = _start(tmp_path, "learner.epochs=30000000")
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and not any(
+                "forkserver" in c for c in _descendants(proc.pid).values()):
+            time.sleep(0.02)
+        os.killpg(proc.pid, signal.SIGINT)
+        out, err = proc.communicate(timeout=60)
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and err.strip().splitlines()[-1].startswith("stopped by SIGINT")
+
+
 def test_ctrl_c_in_the_first_second_is_one_line(tmp_path):
     proc = _start(tmp_path)
     time.sleep(0.6)  # in the middle of the imports
