@@ -92,6 +92,8 @@ def local(todo: list[dict], workers: int, fn=run_one):
     try:
         if ctx.get_start_method() == "forkserver":  # up and warm before the held submits: a
             with _starting_workers(fn, held=False):  # signal meanwhile stops at once
+                with stop.blocked():  # (the server starts with them blocked: preload.py)
+                    multiprocessing.forkserver.ensure_running()
                 noop = ctx.Process(target=int)
                 noop.start()
             noop.join()

@@ -6,8 +6,10 @@ reports)."""
 import os
 import signal
 
-for _s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):  # (a group's Ctrl-C is the driver's)
+_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)  # (a group's Ctrl-C is the driver's)
+for _s in _SIGNALS:
     signal.signal(_s, signal.SIG_IGN)
+signal.pthread_sigmask(signal.SIG_UNBLOCK, _SIGNALS)  # blocked from the start (stop.blocked)
 
 from .worker import DRIVER, die_with_parent  # noqa: E402 (after the signals: a light import)
 

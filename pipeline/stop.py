@@ -56,6 +56,18 @@ def held():
         raise Stopped(signum)
 
 
+@contextmanager
+def blocked():
+    """The stage's signals blocked in this thread while the block runs, delivered after it: a
+    process started in it begins with them blocked (as CPython starts its resource tracker), so
+    that none reaches it before it chooses to ignore them (pipeline/preload.py)."""
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, SIGNALS)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
 def install() -> None:  # (the main thread only can)
     for s in SIGNALS:
         signal.signal(s, _handler)
