@@ -280,13 +280,15 @@ _KB = 256  # columns per block of chain_kinematics: the block's hand points stay
 
 
 @njit(cache=True)
-def aligned(rows, cols):
-    """np.zeros((rows, cols), np.float32) on a 64-byte boundary: with cols a multiple of LANES
-    every vector of a row lies in one cache line (numba's arrays start on 32 bytes: an F32x16
-    load or store of one spans two lines, which AVX-512 pays for twice)."""
-    buf = np.zeros(rows * cols + LANES, np.float32)
-    off = (-(buf.ctypes.data // 4)) % LANES
-    return buf[off:off + rows * cols].reshape((rows, cols))
+def aligned(rows, cols, dtype=np.float32):
+    """np.zeros((rows, cols), dtype) on a 64-byte boundary: with rows of whole vectors (F32x16,
+    F64x8) each vector lies in one cache line (numba's arrays start on 32 bytes: a 64-byte load
+    or store of one spans two lines, which AVX-512 pays for twice, and a split store is not
+    forwarded to the next load)."""
+    n = rows * cols
+    buf = np.zeros(n + 64, dtype)
+    off = (-(buf.ctypes.data // buf.itemsize)) % (64 // buf.itemsize)
+    return buf[off:off + n].reshape((rows, cols))
 
 
 @njit(cache=True)

@@ -87,7 +87,7 @@ def local(todo: list[dict], workers: int, fn=run_one):
 
     ctx = context()
     pool = ProcessPoolExecutor(workers, mp_context=ctx, initializer=quiet_worker,
-                               initargs=(os.getpid(), known()))
+                               initargs=(known(),))
     _POOLS.add(pool)
     try:
         if ctx.get_start_method() == "forkserver":  # up and warm before the held submits: a

@@ -6,8 +6,9 @@ their files are the driver's byte for byte, dumping only their learner's syntax 
 imports name the files). The text of every gbmodel file is kept as this module's import found
 it (_AT_IMPORT); a file of an imported module whose syntax (comments and docstrings aside)
 differs between that text, the text hashed and the file now was edited while the process ran:
-CodeChanged, a one-line error naming the definition that differs: run the command again. (A file saved before this module's import, after its module's, is not
-seen: the stages import it within a second.)
+CodeChanged, a one-line error naming the definition that differs: run the command again. (A file
+saved before this module's import, after its module's, is not seen: the stages import it within
+a second.)
 """
 from __future__ import annotations
 

@@ -3,7 +3,6 @@ server ignores the signals the driver handles and dies with the driver (and its 
 workers, with it); then numpy, numba's registries and Goal Babbling's fast kernels are loaded,
 so that each worker starts warm. Where loading fails, each worker loads them itself (and
 reports)."""
-import os
 import signal
 
 _SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)  # (a group's Ctrl-C is the driver's)
@@ -11,9 +10,9 @@ for _s in _SIGNALS:
     signal.signal(_s, signal.SIG_IGN)
 signal.pthread_sigmask(signal.SIG_UNBLOCK, _SIGNALS)  # blocked from the start (stop.blocked)
 
-from .worker import DRIVER, die_with_parent  # noqa: E402 (after the signals: a light import)
+from .worker import die_with_parent, driver  # noqa: E402 (after the signals: a light import)
 
-die_with_parent(int(os.environ.get(DRIVER) or 0) or None)
+die_with_parent(driver())
 
 try:
     from .warm import preload  # noqa: E402

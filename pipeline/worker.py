@@ -89,7 +89,11 @@ def _alive(pid: int | None) -> bool:
     return True
 
 
-DRIVER = "GBGROWTH_POOL_DRIVER"  # the pid of the driver that starts a fork server (execute)
+DRIVER = "GBGROWTH_POOL_DRIVER"  # the pid of the driver, in its pool's environment (execute)
+
+
+def driver() -> int | None:
+    return int(os.environ.get(DRIVER) or 0) or None
 
 
 def die_with_parent(parent: int | None = None) -> None:
@@ -106,14 +110,14 @@ def die_with_parent(parent: int | None = None) -> None:
         os._exit(1)
 
 
-def quiet_worker(driver: int | None = None, fingerprints: dict | None = None) -> None:
+def quiet_worker(fingerprints: dict | None = None) -> None:
     """A pool worker ignores the signals the driver handles, and dies with its parent
     (die_with_parent); it takes the driver's code fingerprints where its files are the driver's
     (fingerprint.trust)."""
     for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(s, signal.SIG_IGN)
     die_with_parent()
-    if not _alive(driver):  # (a fork server's worker: its parent is the server)
+    if not _alive(driver()):  # (a fork server's worker: its parent is the server)
         os._exit(1)
     if fingerprints:
         try:

@@ -11,7 +11,7 @@ import numpy as np
 from numba import njit
 
 from ...simd import (
-    LANES, W8, _1, fresh_cache, vadd, vfma, vload, vload1, vmul, vsplat, vstore, vsub, vsum,
+    LANES, _1, fresh_cache, vadd, vfma, vload, vload1, vmul, vsplat, vstore, vsub, vsum,
     wide_vectors,
 )
 
@@ -247,16 +247,6 @@ def _lane_sum(w, C):
     for c in range(0, C, LANES):
         acc = vadd(acc, vload1(w, c))
     return vsum(acc)
-
-
-@njit(cache=True)
-def _zeros64(shape):
-    """np.zeros(shape) on a 64-byte boundary: F64x8 rows in whole cache lines (a split store is
-    not forwarded to the next load)."""
-    n = shape[0] * shape[1]
-    buf = np.zeros(n + W8)
-    off = (-(buf.ctypes.data // 8)) % W8
-    return buf[off:off + n].reshape(shape)
 
 
 @njit(cache=True, inline="always")

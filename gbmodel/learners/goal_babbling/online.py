@@ -6,10 +6,9 @@ import numpy as np
 from numba import njit
 
 from ...simd import (
-    W8, wide_vectors, vadd8, vfma8, vload8, vload8f, vload18, vmul8, vsplat8, vstore8, vstore18, vsub8,
-    transpose8,
+    W8, aligned, wide_vectors, vadd8, vfma8, vload8, vload8f, vload18, vmul8, vsplat8, vstore8,
+    vstore18, vsub8, transpose8,
 )
-from .core import _zeros64
 
 _CHUNK = 128  # samples whose float64 features and commands are laid out together
 
@@ -155,15 +154,15 @@ def online(M, X, Q, w, N, parent, var, eta):
     odd k apart): the same bytes on every CPU, the numpy reference's to rounding."""
     m, p = M.shape
     W = -(-m // W8) * W8
-    MT = _zeros64((p, W))
+    MT = aligned(p, W, np.float64)
     for i in range(m):
         for k in range(p):
             MT[k, i] = M[i, k]
     L = _CHUNK + 2 * W8  # the chunk's columns and those looked ahead, in whole vectors
-    Ph = _zeros64((p, L))  # features (row 0: the constant)
+    Ph = aligned(p, L, np.float64)  # features (row 0: the constant)
     Ph[0] = 1.0
     D = np.zeros(_CHUNK)  # D[j] = phi_j . phi_j+1
-    QT = _zeros64((_CHUNK, W))  # commands, a row per sample (0 in the padding lanes)
+    QT = aligned(_CHUNK, W, np.float64)  # commands, a row per sample (0 in the padding lanes)
     g, P = np.zeros(W), np.zeros(W)  # g_t, P_t+1
     for c0 in range(0, N, _CHUNK):
         C = min(_CHUNK, N - c0)
