@@ -8,8 +8,8 @@ from numba.extending import intrinsic
 
 from ...simd import (
     _VEC8, F4, LANES, W8, F64x8, _1, _HALF, _llvm, aligned, chain_kinematics, vadd, vadd8, vclip, vdiv,
-    vdiv8, vfma, vload, vload1, vload8, vmul, vmul8, vsplat, vsplat8, vsqrt, vstore, vstore1,
-    vstore8, vsub, vwhere, wide_vectors,
+    vdiv8, vfma, vload, vload1, vload8, vload8f, vmul, vmul8, vsplat, vsplat8, vsqrt, vsqrt8, vstore,
+    vstore1, vstore8, vstore18, vsub, vsub8, vwhere, wide_vectors,
 )
 from .core import _BLOCK, _features, _predict
 from .reference import NO_MOVEMENT
@@ -201,6 +201,8 @@ def scaled(chain, k, out):
 
 @njit(cache=True)
 def _distances(M, scale, chain, xs, parent, var, joints, out):
+    """out[t] = |f(g(x_t)) - x_t| (float64) of the points xs, _BLOCK at a time (the work arrays
+    stay in cache), the padding the last point: each point's value is its own."""
     m, p = M.shape
     NT, n = xs.shape
     body = scaled(chain, scale, np.empty((3, m), np.float32))
@@ -208,17 +210,25 @@ def _distances(M, scale, chain, xs, parent, var, joints, out):
     for i in range(m):
         for k in range(p):
             M32[i, k] = M[i, k]
-    C = -(-NT // LANES) * LANES
-    X, Phi, Q = aligned(n, C), aligned(p, C), aligned(m, C)
-    for t in range(C):
+    B = min(_BLOCK, -(-NT // LANES) * LANES)
+    X, Phi, Q = aligned(n, B), aligned(p, B), aligned(m, B)
+    X64, D = aligned(n, B, np.float64), aligned(1, B, np.float64)[0]
+    for t0 in range(0, NT, B):
+        N = min(B, NT - t0)
+        C = -(-N // LANES) * LANES
         for j in range(n):
-            X[j, t] = xs[min(t, NT - 1), j]
-    _features(X, 0, C, parent, var, Phi)
-    _predict(M32, Phi, C, Q, Q, np.empty(0, np.float32), 0)
-    chain_kinematics(Q, X, C, joints, body)
-    for t in range(NT):
-        d2 = 0.0
-        for j in range(n):
-            dx = float(X[j, t]) - xs[t, j]
-            d2 += dx * dx
-        out[t] = np.sqrt(d2)
+            for t in range(C):
+                X64[j, t] = xs[t0 + min(t, N - 1), j]
+            for t in range(C):
+                X[j, t] = X64[j, t]
+        _features(X, 0, C, parent, var, Phi)
+        _predict(M32, Phi, C, Q, Q, np.empty(0, np.float32), 0)
+        chain_kinematics(Q, X, C, joints, body)
+        for t in range(0, C, W8):  # (0 + dx0^2 + ... is dx0^2 + ...: the same bits)
+            dx = vsub8(vload8f(X, 0, t), vload8(X64, 0, t))
+            d2 = vmul8(dx, dx)
+            for j in range(1, n):
+                dx = vsub8(vload8f(X, j, t), vload8(X64, j, t))
+                d2 = vadd8(d2, vmul8(dx, dx))
+            vstore18(D, t, vsqrt8(d2))
+        out[t0:t0 + N] = D[:N]
