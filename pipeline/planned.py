@@ -40,6 +40,17 @@ def planning_sources() -> str:
     return h.hexdigest()
 
 
+def covers_code_of(learner: str) -> bool:
+    """Whether planning_sources hashed every file of `learner`'s code fingerprint: this process
+    imported the gbmodel it hashes, and the learner is one of its files (not registered from
+    elsewhere). Then the same digest means the same fingerprint."""
+    import gbmodel.learners
+
+    root = Path(__file__).resolve().parents[1]
+    return (Path(gbmodel.__file__).resolve().parent == root / "gbmodel"
+            and all(label.startswith("gbmodel/") for label, _ in gbmodel.learners.sources(learner)))
+
+
 def config_sources() -> str | None:
     """The hash of the config files outside the checkout's conf/ a plan may be composed from
     (the installed package's, ./conf, hydra.searchpath's folders: `experiments=[mine]` composes

@@ -25,7 +25,7 @@ from .config import CONFIG_PATH, check_run
 from .fingerprint import code_fingerprint
 from .keys import canonical
 from .plan import cost, cpu_seconds, plan, plan_conditions
-from .planned import PLANNED, misplanned, plan_digest
+from .planned import PLANNED, covers_code_of, misplanned, plan_digest
 from .progress import Progress, estimate, fmt_duration
 
 log = logging.getLogger("pipeline.simulate")
@@ -144,7 +144,8 @@ def pack_jobs(jobs: list[Job]) -> dict:
 
 def still_planned(saved: dict) -> bool:
     """Whether saved jobs hold beyond plan_digest: every file a body reads has its planned bytes,
-    every trial's code fingerprint is this process's."""
+    every trial's code fingerprint is this process's (not computed where the digest covers the
+    learner's files: parsing them was a fifth of a cached stage's start)."""
     specs = saved["specs"]
     for spec in specs:
         for section in gbmodel.bodies.READS:
@@ -157,7 +158,7 @@ def still_planned(saved: dict) -> bool:
                 return False
     codes = {(specs[t["spec"]]["learner"]["name"], t["code"]) for j in saved["jobs"]
              for t in j["trials"]}
-    return all(code_fingerprint(name) == code for name, code in codes)
+    return all(covers_code_of(name) or code_fingerprint(name) == code for name, code in codes)
 
 
 def unpack_jobs(saved: dict) -> list[Job]:
@@ -308,6 +309,8 @@ def run_mine(cfg: DictConfig, mine: list[dict], claims: dict, summary: Summary,
     """The claimed trials on the engine; continuations after the others (their bases first);
     views: key -> trial scored by a trial of `mine` (with_views)."""
     cache_dir = Path(cfg.paths.cache)
+    for name in {t["spec"]["learner"]["name"] for t in mine}:  # (a saved plan's run: not yet)
+        code_fingerprint(name)  # handed to the pool's workers, which then parse no file
     for wave in ([t for t in mine if "base" not in t], [t for t in mine if "base" in t]):
         ready = []
         for t in wave:

@@ -106,15 +106,43 @@ def test_an_edited_urdf_file_plans_again(tmp_path, compose_tiny):
 
 def test_saved_jobs_of_other_code_plan_again(tmp_path, compose_tiny, monkeypatch):
     """Saved jobs carry their trials' code fingerprint; one that is not the running code's is
-    planned again."""
+    planned again. Where plan_digest hashed the learner's files (a shipped learner of the
+    gbmodel this process imported) the same digest is the same code: nothing is parsed."""
+    from pipeline import planned
+
     cfg = compose_tiny(tmp_path)
     first = simulate.jobs_of(cfg, [])
+    saved_jobs = io.read_json(saved(cfg)[0])
+    assert planned.covers_code_of("goal_babbling")
+
+    def parsed(name):
+        raise AssertionError("a fingerprint computed")
+    monkeypatch.setattr(simulate, "code_fingerprint", parsed)
+    assert simulate.still_planned(saved_jobs) is True
+    monkeypatch.setattr(simulate, "covers_code_of", lambda name: False)  # (registered elsewhere)
     monkeypatch.setattr(simulate, "code_fingerprint", lambda name: "0" * 16)
-    assert simulate.still_planned(io.read_json(saved(cfg)[0])) is False
+    assert simulate.still_planned(saved_jobs) is False
     monkeypatch.undo()
-    assert simulate.still_planned(io.read_json(saved(cfg)[0])) is True
+    monkeypatch.setattr(simulate, "covers_code_of", lambda name: False)
+    assert simulate.still_planned(saved_jobs) is True
+    monkeypatch.undo()
     assert [t["key"] for t in simulate.jobs_of(cfg, [])[0].trials] == [
         t["key"] for t in first[0].trials]
+
+
+def test_a_learner_outside_the_hashed_gbmodel_is_not_covered(monkeypatch):
+    """covers_code_of: a learner registered from elsewhere, or a gbmodel imported from another
+    folder than the one plan_digest hashes, is fingerprinted as before."""
+    import gbmodel
+    import gbmodel.learners
+    from pipeline import planned
+
+    assert planned.covers_code_of("motor_babbling")
+    monkeypatch.setattr(gbmodel.learners, "sources", lambda name: [("mine:stay_home", "x = 1")])
+    assert not planned.covers_code_of("stay_home")
+    monkeypatch.undo()
+    monkeypatch.setattr(gbmodel, "__file__", "/elsewhere/gbmodel/__init__.py")
+    assert not planned.covers_code_of("goal_babbling")
 
 
 def test_the_stage_takes_the_plan_the_command_line_check_made(tmp_path, monkeypatch):
