@@ -7,6 +7,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import sys
 from functools import lru_cache
 from pathlib import Path
 
@@ -29,12 +30,14 @@ def _hash_files(h, base: Path, folder: Path, patterns) -> None:
 @lru_cache(maxsize=1)
 def planning_sources() -> str:
     """The hash of every file a plan is made from (conf/, pipeline's and gbmodel's code and
-    data) and of the versions of Hydra and OmegaConf."""
+    data) and of the versions of Hydra, OmegaConf and Python (whose syntax trees the code
+    fingerprint hashes: the same files may give another fingerprint in another Python)."""
     import hydra
     import omegaconf
 
     root = Path(__file__).resolve().parents[1]
-    h = hashlib.sha256(f"{hydra.__version__} {omegaconf.__version__}".encode())
+    python = f"{sys.implementation.name} {sys.version_info[0]}.{sys.version_info[1]}"
+    h = hashlib.sha256(f"{hydra.__version__} {omegaconf.__version__} {python}".encode())
     for folder, patterns in _PLAN_SOURCES:
         _hash_files(h, root, root / folder, patterns)
     return h.hexdigest()

@@ -130,6 +130,25 @@ def test_saved_jobs_of_other_code_plan_again(tmp_path, compose_tiny, monkeypatch
         t["key"] for t in first[0].trials]
 
 
+def test_the_planning_sources_follow_the_python_version(monkeypatch):
+    """Another Python may dump the same files' syntax trees otherwise (another fingerprint):
+    saved jobs, taken by their digest without a fingerprint, are not taken there."""
+    import sys
+
+    from pipeline import planned
+
+    planned.planning_sources.cache_clear()
+    here = planned.planning_sources()
+    monkeypatch.setattr(sys, "version_info", (3, 99, 0, "final", 0))
+    planned.planning_sources.cache_clear()
+    try:
+        assert planned.planning_sources() != here
+    finally:
+        monkeypatch.undo()
+        planned.planning_sources.cache_clear()
+    assert planned.planning_sources() == here
+
+
 def test_a_learner_outside_the_hashed_gbmodel_is_not_covered(monkeypatch):
     """covers_code_of: a learner registered from elsewhere, or a gbmodel imported from another
     folder than the one plan_digest hashes, is fingerprinted as before."""
