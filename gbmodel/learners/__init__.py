@@ -37,6 +37,11 @@ def available() -> list[str]:
     return sorted(found | set(_REGISTERED))
 
 
+def registered() -> list[str]:
+    """The names `register`ed in this process (each may shadow a module of this folder)."""
+    return sorted(_REGISTERED)
+
+
 def register(name: str, module: ModuleType) -> None:
     missing = [a for a in REQUIRED if not hasattr(module, a)]
     if missing:

@@ -119,6 +119,24 @@ def test_distances_match_numpy_evaluation(name, pattern, size):
             np.testing.assert_allclose(d_fast, d_ref, atol=2e-6)
 
 
+@pytest.mark.parametrize("name", ["arm2", "arm5", "icub"])
+def test_each_points_distance_is_its_own(name):
+    """The kernel's distances of 1,100 points (three blocks of the rollout, the last padded)
+    are, bit for bit, those of each point alone; no points give none."""
+    body = gbmodel.make_body(name)
+    params = gb.Params(**SETTINGS[name])
+    scale = factors(body, 0.8, "proportional")
+    rng = np.random.default_rng(9)
+    M = gb.init(params, body, 0.8, rng)
+    lo, hi = body.target_box(0.8)
+    xs = rng.uniform(lo - 0.1, hi + 0.1, size=(1100, body.n))
+    together = gb.distances(M, params, body, scale, xs)
+    alone = np.concatenate([gb.distances(M, params, body, scale, xs[i:i + 1])
+                            for i in range(len(xs))])
+    assert together.tobytes() == alone.tobytes()
+    assert gb.distances(M, params, body, scale, xs[:0]).shape == (0,)
+
+
 @pytest.mark.parametrize("name, pattern", [("arm5", "nonproportional"), ("icub", "proportional")])
 def test_learning_curve_matches_reference(name, pattern):
     ref = gbmodel.run_trial(spec_for(name, pattern, fast_path=False), np.random.default_rng(8))

@@ -130,6 +130,31 @@ def test_saved_jobs_of_other_code_plan_again(tmp_path, compose_tiny, monkeypatch
         t["key"] for t in first[0].trials]
 
 
+def test_a_plan_saved_with_a_registered_learner_is_checked_without_it(tmp_path, compose_tiny):
+    """A learner registered under a shipped name (its code not the folder's) while the plan was
+    saved: run without it, the saved trials' fingerprint is not this code's: planned again."""
+    import importlib
+
+    import gbmodel.learners
+    from pipeline.fingerprint import code_fingerprint
+
+    cfg = compose_tiny(tmp_path)
+    gbmodel.learners.register("goal_babbling",
+                              importlib.import_module("gbmodel.learners.goal_babbling"))
+    code_fingerprint.cache_clear()
+    try:
+        first = simulate.jobs_of(cfg, [])
+        saved_jobs = io.read_json(saved(cfg)[0])
+    finally:
+        gbmodel.learners._REGISTERED.pop("goal_babbling")
+        code_fingerprint.cache_clear()
+    assert saved_jobs["covered"] == []
+    assert simulate.still_planned(saved_jobs) is False
+    again = simulate.jobs_of(cfg, [])
+    assert [t["code"] for t in again[0].trials] != [t["code"] for t in first[0].trials]
+    assert io.read_json(saved(cfg)[0])["covered"] == ["goal_babbling"]
+
+
 def test_the_planning_sources_follow_the_python_version(monkeypatch):
     """Another Python may dump the same files' syntax trees otherwise (another fingerprint):
     saved jobs, taken by their digest without a fingerprint, are not taken there."""
@@ -159,6 +184,9 @@ def test_a_learner_outside_the_hashed_gbmodel_is_not_covered(monkeypatch):
     assert planned.covers_code_of("motor_babbling")
     monkeypatch.setattr(gbmodel.learners, "sources", lambda name: [("mine:stay_home", "x = 1")])
     assert not planned.covers_code_of("stay_home")
+    monkeypatch.undo()
+    monkeypatch.setattr(gbmodel.learners, "registered", lambda: ["stay_home"])
+    assert not planned.covers_code_of("motor_babbling")  # (a shipped one may import it)
     monkeypatch.undo()
     monkeypatch.setattr(gbmodel, "__file__", "/elsewhere/gbmodel/__init__.py")
     assert not planned.covers_code_of("goal_babbling")

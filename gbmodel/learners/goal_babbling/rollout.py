@@ -210,7 +210,7 @@ def _distances(M, scale, chain, xs, parent, var, joints, out):
     for i in range(m):
         for k in range(p):
             M32[i, k] = M[i, k]
-    B = min(_BLOCK, -(-NT // LANES) * LANES)
+    B = max(LANES, min(_BLOCK, -(-NT // LANES) * LANES))  # (no points: none computed)
     X, Phi, Q = aligned(n, B), aligned(p, B), aligned(m, B)
     X64, D = aligned(n, B, np.float64), aligned(1, B, np.float64)[0]
     for t0 in range(0, NT, B):
