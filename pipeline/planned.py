@@ -43,17 +43,17 @@ def planning_sources() -> str:
     return h.hexdigest()
 
 
-def covers_code_of(learner: str) -> bool:
-    """Whether planning_sources hashed every file of `learner`'s code fingerprint: this process
-    imported the gbmodel it hashes, registered no learner (one may shadow a file, or be
-    imported by one), and the learner is one of its files. A plan saved where this held, taken
-    where it holds, has this process's fingerprint by its digest (simulate.still_planned)."""
+def covers_code() -> bool:
+    """Whether planning_sources hashed every file of every learner's code fingerprint: this
+    process imported the gbmodel it hashes and registered no learner (one registered may shadow
+    a file, or be imported by one; unregistered, each learner is files of this gbmodel). A plan
+    saved where this held, taken where it holds, has this process's fingerprints by its digest
+    (simulate.still_planned)."""
     import gbmodel.learners
 
     root = Path(__file__).resolve().parents[1]
     return (Path(gbmodel.__file__).resolve().parent == root / "gbmodel"
-            and not gbmodel.learners.registered()
-            and all(label.startswith("gbmodel/") for label, _ in gbmodel.learners.sources(learner)))
+            and not gbmodel.learners.registered())
 
 
 def config_sources() -> str | None:

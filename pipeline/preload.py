@@ -5,18 +5,18 @@ so that each worker starts warm. Where loading fails, each worker loads them its
 reports)."""
 import signal
 
-_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)  # (a group's Ctrl-C is the driver's)
-for _s in _SIGNALS:
-    signal.signal(_s, signal.SIG_IGN)
-signal.pthread_sigmask(signal.SIG_UNBLOCK, _SIGNALS)  # blocked from the start (stop.blocked)
+from .stop import SIGNALS, ignore  # (imported with the package already: pipeline/__init__.py)
+
+ignore()  # (a group's Ctrl-C is the driver's)
+signal.pthread_sigmask(signal.SIG_UNBLOCK, SIGNALS)  # blocked from the start (stop.blocked)
 
 from .worker import die_with_parent, driver  # noqa: E402 (after the signals: a light import)
 
 die_with_parent(driver())
 
 try:
-    from .warm import preload  # noqa: E402
-except Exception:  # noqa: BLE001 (a broken gbmodel: each worker's trials report it)
+    from .warm import warm  # noqa: E402
+
+    warm(("arm5",))  # the kernels are the same for every body
+except Exception:  # noqa: BLE001 (a broken gbmodel: each worker loads, and its trials report)
     pass
-else:
-    preload()

@@ -25,7 +25,7 @@ from .config import CONFIG_PATH, check_run
 from .fingerprint import code_fingerprint
 from .keys import canonical
 from .plan import cost, cpu_seconds, plan, plan_conditions
-from .planned import PLANNED, covers_code_of, misplanned, plan_digest
+from .planned import PLANNED, covers_code, misplanned, plan_digest
 from .progress import Progress, estimate, fmt_duration
 
 log = logging.getLogger("pipeline.simulate")
@@ -114,7 +114,7 @@ def jobs_of(cfg: DictConfig, overrides: list[str] = (), notes: list | None = Non
     if jobs is None:
         jobs = plan_jobs(cfg, overrides, experiment)
         packed = {**pack_jobs(jobs), "notes": learner_notes(t for j in jobs for t in j.trials),
-                  "covered": sorted({n for n in _learners(jobs) if covers_code_of(n)})}
+                  "covered": covers_code()}
         io.write_json(saved, packed, compact=True)
     else:
         check_run(cfg)
@@ -145,9 +145,9 @@ def pack_jobs(jobs: list[Job]) -> dict:
 
 def still_planned(saved: dict) -> bool:
     """Whether saved jobs hold beyond plan_digest: every file a body reads has its planned bytes,
-    every trial's code fingerprint is this process's (not computed for a learner whose files the
-    digest covered when planned and covers now: parsing them was a fifth of a cached stage's
-    start)."""
+    every trial's code fingerprint is this process's (not computed where the digest covered the
+    learners' files when planned and covers them now: parsing them was a fifth of a cached
+    stage's start)."""
     specs = saved["specs"]
     for spec in specs:
         for section in gbmodel.bodies.READS:
@@ -160,13 +160,8 @@ def still_planned(saved: dict) -> bool:
                 return False
     codes = {(specs[t["spec"]]["learner"]["name"], t["code"]) for j in saved["jobs"]
              for t in j["trials"]}
-    covered = set(saved.get("covered") or ())
-    return all((name in covered and covers_code_of(name)) or code_fingerprint(name) == code
-               for name, code in codes)
-
-
-def _learners(jobs: list[Job]) -> set[str]:
-    return {t["spec"]["learner"]["name"] for j in jobs for t in j.trials}
+    return (saved.get("covered") is True and covers_code()) or all(
+        code_fingerprint(name) == code for name, code in codes)
 
 
 def unpack_jobs(saved: dict) -> list[Job]:

@@ -56,6 +56,12 @@ def held():
         raise Stopped(signum)
 
 
+def ignore() -> None:
+    """SIGNALS ignored in this process (a pool's worker, or its fork server: the driver's)."""
+    for s in SIGNALS:
+        signal.signal(s, signal.SIG_IGN)
+
+
 @contextmanager
 def blocked():
     """The stage's signals blocked in this thread while the block runs, delivered after it: a

@@ -47,25 +47,15 @@ def recovering(call):
                   file=sys.stderr, flush=True)
 
 
-def warm() -> float:
-    """A two-epoch trial of every body on the fast path; returns the seconds it took."""
+def warm(bodies=gbmodel.BODIES) -> float:
+    """A two-epoch trial of each body on the fast path; returns the seconds it took."""
     start = time.perf_counter()
-    for body in gbmodel.BODIES:
+    for body in bodies:
         if any(k in gbmodel.bodies.read_description(body) for k in gbmodel.bodies.READS):
             continue  # a body read from a file (whose package may be missing): the DH ones warm
         spec = gbmodel.TrialSpec(body={"name": body}, epochs=2)
         recovering(lambda: gbmodel.run_trial(spec, np.random.default_rng(0)))
     return time.perf_counter() - start
-
-
-def preload() -> None:
-    """The fast path's kernels loaded (or compiled) in this process: a two-epoch arm5 trial (the
-    kernels are the same for every body); nothing where that fails: a worker loads and reports."""
-    try:
-        gbmodel.run_trial(gbmodel.TrialSpec(body={"name": "arm5"}, epochs=2),
-                          np.random.default_rng(0))
-    except Exception:  # noqa: BLE001 (each trial reports its own)
-        pass
 
 
 def byte_compile() -> None:

@@ -114,8 +114,9 @@ def quiet_worker(fingerprints: dict | None = None) -> None:
     """A pool worker ignores the signals the driver handles, and dies with its parent
     (die_with_parent); it takes the driver's code fingerprints where its files are the driver's
     (fingerprint.trust)."""
-    for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
-        signal.signal(s, signal.SIG_IGN)
+    from .stop import ignore
+
+    ignore()
     die_with_parent()
     if not _alive(driver()):  # (a fork server's worker: its parent is the server)
         os._exit(1)

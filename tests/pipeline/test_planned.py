@@ -113,17 +113,17 @@ def test_saved_jobs_of_other_code_plan_again(tmp_path, compose_tiny, monkeypatch
     cfg = compose_tiny(tmp_path)
     first = simulate.jobs_of(cfg, [])
     saved_jobs = io.read_json(saved(cfg)[0])
-    assert planned.covers_code_of("goal_babbling")
+    assert planned.covers_code() and saved_jobs["covered"] is True
 
     def parsed(name):
         raise AssertionError("a fingerprint computed")
     monkeypatch.setattr(simulate, "code_fingerprint", parsed)
     assert simulate.still_planned(saved_jobs) is True
-    monkeypatch.setattr(simulate, "covers_code_of", lambda name: False)  # (registered elsewhere)
+    monkeypatch.setattr(simulate, "covers_code", lambda: False)  # (registered elsewhere)
     monkeypatch.setattr(simulate, "code_fingerprint", lambda name: "0" * 16)
     assert simulate.still_planned(saved_jobs) is False
     monkeypatch.undo()
-    monkeypatch.setattr(simulate, "covers_code_of", lambda name: False)
+    monkeypatch.setattr(simulate, "covers_code", lambda: False)
     assert simulate.still_planned(saved_jobs) is True
     monkeypatch.undo()
     assert [t["key"] for t in simulate.jobs_of(cfg, [])[0].trials] == [
@@ -148,11 +148,11 @@ def test_a_plan_saved_with_a_registered_learner_is_checked_without_it(tmp_path, 
     finally:
         gbmodel.learners._REGISTERED.pop("goal_babbling")
         code_fingerprint.cache_clear()
-    assert saved_jobs["covered"] == []
+    assert saved_jobs["covered"] is False
     assert simulate.still_planned(saved_jobs) is False
     again = simulate.jobs_of(cfg, [])
     assert [t["code"] for t in again[0].trials] != [t["code"] for t in first[0].trials]
-    assert io.read_json(saved(cfg)[0])["covered"] == ["goal_babbling"]
+    assert io.read_json(saved(cfg)[0])["covered"] is True
 
 
 def test_the_planning_sources_follow_the_python_version(monkeypatch):
@@ -175,21 +175,19 @@ def test_the_planning_sources_follow_the_python_version(monkeypatch):
 
 
 def test_a_learner_outside_the_hashed_gbmodel_is_not_covered(monkeypatch):
-    """covers_code_of: a learner registered from elsewhere, or a gbmodel imported from another
-    folder than the one plan_digest hashes, is fingerprinted as before."""
+    """covers_code: with a learner registered from elsewhere (it may shadow a shipped one, or
+    be imported by one), or a gbmodel imported from another folder than the one plan_digest
+    hashes, learners are fingerprinted as before."""
     import gbmodel
     import gbmodel.learners
     from pipeline import planned
 
-    assert planned.covers_code_of("motor_babbling")
-    monkeypatch.setattr(gbmodel.learners, "sources", lambda name: [("mine:stay_home", "x = 1")])
-    assert not planned.covers_code_of("stay_home")
-    monkeypatch.undo()
+    assert planned.covers_code()
     monkeypatch.setattr(gbmodel.learners, "registered", lambda: ["stay_home"])
-    assert not planned.covers_code_of("motor_babbling")  # (a shipped one may import it)
+    assert not planned.covers_code()
     monkeypatch.undo()
     monkeypatch.setattr(gbmodel, "__file__", "/elsewhere/gbmodel/__init__.py")
-    assert not planned.covers_code_of("goal_babbling")
+    assert not planned.covers_code()
 
 
 def test_the_stage_takes_the_plan_the_command_line_check_made(tmp_path, monkeypatch):
